@@ -1,0 +1,89 @@
+//! The public data contract of pino-mbd and its Parquet I/O.
+//!
+//! - [`schema`]: the column names every artifact uses (from `vtcd-model.md`); users read them
+//!   from pandas, polars or DuckDB, so they are a contract.
+//! - [`Table`]: a small columnar table of named `f64`, `i64` or string columns.
+//! - [`write_parquet`]: writes a table atomically (temporary file, fsync, rename) with fixed
+//!   writer settings, so the same table always gives the same bytes.
+//! - [`read_parquet`]: reads chosen columns, naming the file and the column when one is
+//!   missing or of another type.
+//!
+//! ```no_run
+//! use pino_data::{Table, Column, write_parquet, read_parquet};
+//! let mut t = Table::default();
+//! t.push("sample_id", Column::I64(vec![0, 1]))?;
+//! t.push("x", Column::F64(vec![0.5, 1.5]))?;
+//! write_parquet(std::path::Path::new("t.parquet"), &t)?;
+//! let back = read_parquet(std::path::Path::new("t.parquet"), Some(&["x"]))?;
+//! assert_eq!(back.f64("x")?, &[0.5, 1.5]);
+//! # Ok::<(), pino_data::Error>(())
+//! ```
+#![warn(missing_docs)]
+
+pub mod schema;
+mod table;
+mod parquet_io;
+
+pub use parquet_io::{read_parquet, read_parquet_files, row_count, write_parquet, write_parquet_with};
+pub use table::{Column, Table};
+
+use std::path::PathBuf;
+
+/// Errors of the data layer; each names the file and, where it applies, the column.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// File system error on a named file.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// Parquet or Arrow failed on a named file.
+    #[error("{path}: parquet: {message}")]
+    Parquet {
+        /// The file.
+        path: PathBuf,
+        /// What the library said.
+        message: String,
+    },
+    /// A required column is absent.
+    #[error("{path}: missing column `{column}` (present: {present})")]
+    MissingColumn {
+        /// The file (or table description).
+        path: PathBuf,
+        /// The column asked for.
+        column: String,
+        /// The columns that are there.
+        present: String,
+    },
+    /// A column has another type than asked.
+    #[error("{path}: column `{column}` is {found}, expected {expected}")]
+    ColumnType {
+        /// The file (or table description).
+        path: PathBuf,
+        /// The column.
+        column: String,
+        /// Its type.
+        found: String,
+        /// The type asked for.
+        expected: String,
+    },
+    /// Columns of one table differ in length.
+    #[error("column `{column}` has {found} rows, the table has {expected}")]
+    Length {
+        /// The column.
+        column: String,
+        /// Its length.
+        found: usize,
+        /// The table's length.
+        expected: usize,
+    },
+    /// The same column name twice in one table.
+    #[error("duplicate column `{0}`")]
+    Duplicate(String),
+}
+
+/// Result alias of this crate.
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,325 @@
+//! Parquet reading and writing with fixed settings and atomic replacement.
+//!
+//! Writes go to `NAME.tmp-PID` in the target directory, are flushed and fsynced, then renamed
+//! over `NAME`: a crash never leaves a partial file under the final name. Writer settings
+//! (Snappy, row-group size, `created_by`) are fixed, so equal tables give equal bytes.
+
+use crate::{Column, Error, Result, Table};
+use arrow_array::{Array, ArrayRef, Float64Array, Int64Array, RecordBatch, StringArray};
+use arrow_schema::{DataType, Field, Schema};
+use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use parquet::arrow::{ArrowWriter, ProjectionMask};
+use parquet::basic::Compression;
+use parquet::file::properties::WriterProperties;
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Rows per row group by default (about 1 MiB per f64 column).
+const DEFAULT_ROW_GROUP: usize = 128 * 1024;
+
+fn pq(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::Parquet {
+        path: path.to_owned(),
+        message: e.to_string(),
+    }
+}
+
+fn io(path: &Path, source: std::io::Error) -> Error {
+    Error::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
+/// Writes `table` to `path` atomically with the default row-group size.
+pub fn write_parquet(path: &Path, table: &Table) -> Result<()> {
+    write_parquet_with(path, table, DEFAULT_ROW_GROUP)
+}
+
+/// Writes `table` to `path` atomically with `row_group_rows` rows per row group (a
+/// per-sample row group, for instance, lets readers skip samples cheaply).
+pub fn write_parquet_with(path: &Path, table: &Table, row_group_rows: usize) -> Result<()> {
+    let fields: Vec<Field> = table
+        .columns()
+        .iter()
+        .map(|(name, col)| {
+            let dt = match col {
+                Column::F64(_) => DataType::Float64,
+                Column::I64(_) => DataType::Int64,
+                Column::Str(_) => DataType::Utf8,
+            };
+            Field::new(name, dt, false)
+        })
+        .collect();
+    let schema = Arc::new(Schema::new(fields));
+    let arrays: Vec<ArrayRef> = table
+        .columns()
+        .iter()
+        .map(|(_, col)| -> ArrayRef {
+            match col {
+                Column::F64(v) => Arc::new(Float64Array::from(v.clone())),
+                Column::I64(v) => Arc::new(Int64Array::from(v.clone())),
+                Column::Str(v) => Arc::new(StringArray::from(v.clone())),
+            }
+        })
+        .collect();
+    let batch = if arrays.is_empty() {
+        RecordBatch::new_empty(schema.clone())
+    } else {
+        RecordBatch::try_new(schema.clone(), arrays).map_err(|e| pq(path, e))?
+    };
+    let props = WriterProperties::builder()
+        .set_compression(Compression::SNAPPY)
+        .set_max_row_group_row_count(Some(row_group_rows.max(1)))
+        .set_created_by("pino-mbd".to_owned())
+        .build();
+
+    let tmp = temp_path(path);
+    let result = (|| {
+        let file = File::create(&tmp).map_err(|e| io(&tmp, e))?;
+        let mut writer = ArrowWriter::try_new(file, schema, Some(props)).map_err(|e| pq(path, e))?;
+        writer.write(&batch).map_err(|e| pq(path, e))?;
+        let mut file = writer.into_inner().map_err(|e| pq(path, e))?;
+        file.flush().map_err(|e| io(&tmp, e))?;
+        file.sync_all().map_err(|e| io(&tmp, e))?;
+        std::fs::rename(&tmp, path).map_err(|e| io(path, e))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+}
+
+/// Number of rows in a Parquet file, from its footer alone.
+pub fn row_count(path: &Path) -> Result<usize> {
+    let file = File::open(path).map_err(|e| io(path, e))?;
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| pq(path, e))?;
+    Ok(builder.metadata().file_metadata().num_rows() as usize)
+}
+
+/// Reads the named columns (all columns when `columns` is `None`) of one Parquet file.
+/// Columns come back in the order asked for.
+pub fn read_parquet(path: &Path, columns: Option<&[&str]>) -> Result<Table> {
+    let file = File::open(path).map_err(|e| io(path, e))?;
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| pq(path, e))?;
+    let arrow_schema = builder.schema().clone();
+    let present: Vec<String> = arrow_schema.fields().iter().map(|f| f.name().clone()).collect();
+    let wanted: Vec<String> = match columns {
+        Some(cols) => cols.iter().map(|s| s.to_string()).collect(),
+        None => present.clone(),
+    };
+    let mut leaf_indices = Vec::with_capacity(wanted.len());
+    for name in &wanted {
+        match present.iter().position(|p| p == name) {
+            Some(i) => leaf_indices.push(i),
+            None => {
+                return Err(Error::MissingColumn {
+                    path: path.to_owned(),
+                    column: name.clone(),
+                    present: present.join(", "),
+                })
+            }
+        }
+    }
+    let mask = ProjectionMask::roots(builder.parquet_schema(), leaf_indices.iter().copied());
+    let reader = builder
+        .with_projection(mask)
+        .with_batch_size(64 * 1024)
+        .build()
+        .map_err(|e| pq(path, e))?;
+
+    let mut cols: Vec<Column> = Vec::new();
+    let mut first = true;
+    for batch in reader {
+        let batch = batch.map_err(|e| pq(path, e))?;
+        let schema = batch.schema();
+        if first {
+            cols = wanted
+                .iter()
+                .map(|name| {
+                    let field = schema.field_with_name(name).map_err(|e| pq(path, e))?;
+                    empty_column(path, name, field.data_type())
+                })
+                .collect::<Result<_>>()?;
+            first = false;
+        }
+        for (name, col) in wanted.iter().zip(cols.iter_mut()) {
+            let idx = schema.index_of(name).map_err(|e| pq(path, e))?;
+            append_array(path, name, col, batch.column(idx).as_ref())?;
+        }
+    }
+    if first {
+        // No batches: an empty file; types come from the schema.
+        cols = wanted
+            .iter()
+            .map(|name| {
+                let field = arrow_schema.field_with_name(name).map_err(|e| pq(path, e))?;
+                empty_column(path, name, field.data_type())
+            })
+            .collect::<Result<_>>()?;
+    }
+    let mut table = Table::with_origin(path);
+    for (name, col) in wanted.iter().zip(cols) {
+        table.push(name, col)?;
+    }
+    Ok(table)
+}
+
+/// Reads the same columns from several files (for example the shards of one artifact) and
+/// concatenates them in the given order.
+pub fn read_parquet_files(paths: &[PathBuf], columns: Option<&[&str]>) -> Result<Table> {
+    let mut table = Table::default();
+    for p in paths {
+        table.append(read_parquet(p, columns)?)?;
+    }
+    Ok(table)
+}
+
+fn empty_column(path: &Path, name: &str, dt: &DataType) -> Result<Column> {
+    match dt {
+        DataType::Float64 | DataType::Float32 => Ok(Column::F64(Vec::new())),
+        DataType::Int64 | DataType::Int32 | DataType::UInt32 | DataType::UInt64 => {
+            Ok(Column::I64(Vec::new()))
+        }
+        DataType::Utf8 | DataType::LargeUtf8 => Ok(Column::Str(Vec::new())),
+        other => Err(Error::ColumnType {
+            path: path.to_owned(),
+            column: name.to_owned(),
+            found: other.to_string(),
+            expected: "f64, i64 or string".to_owned(),
+        }),
+    }
+}
+
+fn append_array(path: &Path, name: &str, col: &mut Column, array: &dyn Array) -> Result<()> {
+    use arrow_array::cast::AsArray;
+    use arrow_array::types::{Float32Type, Float64Type, Int32Type, Int64Type, UInt32Type, UInt64Type};
+    let nulls = |n: usize| -> Result<()> {
+        if n > 0 {
+            Err(Error::ColumnType {
+                path: path.to_owned(),
+                column: name.to_owned(),
+                found: format!("{} with {n} nulls", array.data_type()),
+                expected: "no nulls".to_owned(),
+            })
+        } else {
+            Ok(())
+        }
+    };
+    nulls(array.null_count())?;
+    match (col, array.data_type()) {
+        (Column::F64(v), DataType::Float64) => {
+            v.extend_from_slice(array.as_primitive::<Float64Type>().values())
+        }
+        (Column::F64(v), DataType::Float32) => v.extend(
+            array
+                .as_primitive::<Float32Type>()
+                .values()
+                .iter()
+                .map(|&x| x as f64),
+        ),
+        (Column::I64(v), DataType::Int64) => {
+            v.extend_from_slice(array.as_primitive::<Int64Type>().values())
+        }
+        (Column::I64(v), DataType::Int32) => v.extend(
+            array.as_primitive::<Int32Type>().values().iter().map(|&x| x as i64),
+        ),
+        (Column::I64(v), DataType::UInt32) => v.extend(
+            array.as_primitive::<UInt32Type>().values().iter().map(|&x| x as i64),
+        ),
+        (Column::I64(v), DataType::UInt64) => v.extend(
+            array.as_primitive::<UInt64Type>().values().iter().map(|&x| x as i64),
+        ),
+        (Column::Str(v), DataType::Utf8) => v.extend(
+            array
+                .as_string::<i32>()
+                .iter()
+                .map(|s| s.unwrap_or_default().to_owned()),
+        ),
+        (Column::Str(v), DataType::LargeUtf8) => v.extend(
+            array
+                .as_string::<i64>()
+                .iter()
+                .map(|s| s.unwrap_or_default().to_owned()),
+        ),
+        (col, dt) => {
+            return Err(Error::ColumnType {
+                path: path.to_owned(),
+                column: name.to_owned(),
+                found: dt.to_string(),
+                expected: col.type_name().to_owned(),
+            })
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Table {
+        let mut t = Table::default();
+        t.push("sample_id", Column::I64(vec![3, 3, 4])).unwrap();
+        t.push("t", Column::F64(vec![0.0, 1e-3, 0.0])).unwrap();
+        t.push("split", Column::Str(vec!["train".into(), "train".into(), "validation".into()]))
+            .unwrap();
+        t
+    }
+
+    #[test]
+    fn round_trip_is_exact_and_bytes_are_deterministic() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.parquet");
+        let b = dir.path().join("b.parquet");
+        write_parquet(&a, &sample()).unwrap();
+        write_parquet(&b, &sample()).unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+        let back = read_parquet(&a, None).unwrap();
+        assert_eq!(back.columns(), sample().columns());
+        assert_eq!(row_count(&a).unwrap(), 3);
+        // No temporary file is left behind.
+        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names.len(), 2, "{names:?}");
+    }
+
+    #[test]
+    fn projection_keeps_requested_order_and_missing_column_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.parquet");
+        write_parquet(&a, &sample()).unwrap();
+        let t = read_parquet(&a, Some(&["t", "sample_id"])).unwrap();
+        assert_eq!(t.names().collect::<Vec<_>>(), vec!["t", "sample_id"]);
+        let err = read_parquet(&a, Some(&["z_c"])).unwrap_err().to_string();
+        assert!(err.contains("a.parquet") && err.contains("`z_c`"), "{err}");
+        let err = t.f64("sample_id").unwrap_err().to_string();
+        assert!(err.contains("expected f64"), "{err}");
+    }
+
+    #[test]
+    fn concatenating_files_and_length_mismatch() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.parquet");
+        let b = dir.path().join("b.parquet");
+        write_parquet(&a, &sample()).unwrap();
+        write_parquet(&b, &sample()).unwrap();
+        let t = read_parquet_files(&[a, b], Some(&["sample_id"])).unwrap();
+        assert_eq!(t.i64("sample_id").unwrap(), &[3, 3, 4, 3, 3, 4]);
+        let mut bad = Table::default();
+        bad.push("x", Column::F64(vec![1.0])).unwrap();
+        assert!(matches!(
+            bad.push("y", Column::F64(vec![])),
+            Err(Error::Length { .. })
+        ));
+    }
+}

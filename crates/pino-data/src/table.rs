@@ -1,0 +1,189 @@
+//! An in-memory columnar table: named, equally long `f64`, `i64` or string columns.
+
+use crate::{Error, Result};
+use std::path::PathBuf;
+
+/// One column's values.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Column {
+    /// 64-bit floats (Parquet DOUBLE).
+    F64(Vec<f64>),
+    /// 64-bit integers (Parquet INT64).
+    I64(Vec<i64>),
+    /// UTF-8 strings (Parquet BYTE_ARRAY / STRING).
+    Str(Vec<String>),
+}
+
+impl Column {
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        match self {
+            Column::F64(v) => v.len(),
+            Column::I64(v) => v.len(),
+            Column::Str(v) => v.len(),
+        }
+    }
+
+    /// Whether the column has no values.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The type's name, for messages.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Column::F64(_) => "f64",
+            Column::I64(_) => "i64",
+            Column::Str(_) => "string",
+        }
+    }
+
+    fn extend(&mut self, other: Column) -> std::result::Result<(), &'static str> {
+        match (self, other) {
+            (Column::F64(a), Column::F64(b)) => a.extend(b),
+            (Column::I64(a), Column::I64(b)) => a.extend(b),
+            (Column::Str(a), Column::Str(b)) => a.extend(b),
+            (_, other) => return Err(other.type_name()),
+        }
+        Ok(())
+    }
+}
+
+/// Named columns of equal length, in insertion order. `origin` names where the table came
+/// from (a file path) so that errors point at it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Table {
+    columns: Vec<(String, Column)>,
+    origin: PathBuf,
+}
+
+impl Table {
+    /// An empty table whose errors will name `origin`.
+    pub fn with_origin(origin: impl Into<PathBuf>) -> Self {
+        Self {
+            columns: Vec::new(),
+            origin: origin.into(),
+        }
+    }
+
+    /// Appends a column; its length must match the existing ones.
+    pub fn push(&mut self, name: &str, column: Column) -> Result<()> {
+        if self.columns.iter().any(|(n, _)| n == name) {
+            return Err(Error::Duplicate(name.to_owned()));
+        }
+        if let Some((_, first)) = self.columns.first() {
+            if first.len() != column.len() {
+                return Err(Error::Length {
+                    column: name.to_owned(),
+                    found: column.len(),
+                    expected: first.len(),
+                });
+            }
+        }
+        self.columns.push((name.to_owned(), column));
+        Ok(())
+    }
+
+    /// Number of rows.
+    pub fn num_rows(&self) -> usize {
+        self.columns.first().map_or(0, |(_, c)| c.len())
+    }
+
+    /// Column names in order.
+    pub fn names(&self) -> impl Iterator<Item = &str> {
+        self.columns.iter().map(|(n, _)| n.as_str())
+    }
+
+    /// All columns in order.
+    pub fn columns(&self) -> &[(String, Column)] {
+        &self.columns
+    }
+
+    /// Where this table came from.
+    pub fn origin(&self) -> &std::path::Path {
+        &self.origin
+    }
+
+    /// A column by name.
+    pub fn column(&self, name: &str) -> Result<&Column> {
+        self.columns
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, c)| c)
+            .ok_or_else(|| Error::MissingColumn {
+                path: self.origin.clone(),
+                column: name.to_owned(),
+                present: self.names().collect::<Vec<_>>().join(", "),
+            })
+    }
+
+    /// An `f64` column by name.
+    pub fn f64(&self, name: &str) -> Result<&[f64]> {
+        match self.column(name)? {
+            Column::F64(v) => Ok(v),
+            other => Err(self.type_error(name, other, "f64")),
+        }
+    }
+
+    /// An `i64` column by name.
+    pub fn i64(&self, name: &str) -> Result<&[i64]> {
+        match self.column(name)? {
+            Column::I64(v) => Ok(v),
+            other => Err(self.type_error(name, other, "i64")),
+        }
+    }
+
+    /// A string column by name.
+    pub fn str(&self, name: &str) -> Result<&[String]> {
+        match self.column(name)? {
+            Column::Str(v) => Ok(v),
+            other => Err(self.type_error(name, other, "string")),
+        }
+    }
+
+    /// Appends the rows of `other`, which must have the same columns in the same order.
+    pub fn append(&mut self, other: Table) -> Result<()> {
+        if self.columns.is_empty() {
+            let origin = std::mem::take(&mut self.origin);
+            *self = other;
+            if !origin.as_os_str().is_empty() {
+                self.origin = origin;
+            }
+            return Ok(());
+        }
+        let theirs: Vec<String> = other.names().map(str::to_owned).collect();
+        let ours: Vec<String> = self.names().map(str::to_owned).collect();
+        if theirs != ours {
+            let column = ours
+                .iter()
+                .find(|c| !theirs.contains(c))
+                .cloned()
+                .unwrap_or_else(|| ours.join(","));
+            return Err(Error::MissingColumn {
+                path: other.origin,
+                column,
+                present: theirs.join(", "),
+            });
+        }
+        for ((name, mine), (_, col)) in self.columns.iter_mut().zip(other.columns) {
+            let found = col.type_name();
+            let expected = mine.type_name();
+            mine.extend(col).map_err(|_| Error::ColumnType {
+                path: other.origin.clone(),
+                column: name.clone(),
+                found: found.to_owned(),
+                expected: expected.to_owned(),
+            })?;
+        }
+        Ok(())
+    }
+
+    fn type_error(&self, name: &str, col: &Column, expected: &str) -> Error {
+        Error::ColumnType {
+            path: self.origin.clone(),
+            column: name.to_owned(),
+            found: col.type_name().to_owned(),
+            expected: expected.to_owned(),
+        }
+    }
+}
