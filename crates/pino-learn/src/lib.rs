@@ -1,1 +1,149 @@
-//! Placeholder (being written).
+//! The learning half of pino-mbd: a 1-D Fourier neural operator over time that maps a
+//! vehicle's 14 parameters and the track irregularity under its four wheels to the 14
+//! solution channels of the vehicle-track model, trained as FNO, PINO or PINO-MBD
+//! (`shared/design/learning.md`, the paper's sections 3 and 4.2).
+//!
+//! Tensors (one sample, `T` time points of the training window, spacing `dt`):
+//! - input `a` `[T, 19]`: `t`, `eta_1..eta_4`, the 14 parameters broadcast over time;
+//! - output `u` `[T, 14]`: `z_c, beta_c, z_t1, beta_t1, z_t2, beta_t2, z_w1..z_w4, z_r1..z_r4`;
+//!
+//! every channel z-scored with training-split statistics ([`norm`]). The model
+//! ([`model::Fno`]) is
+//! ```text
+//! u = Q( (K_L + W_L) ... GELU((K_1 + W_1)( P(a) )) )      K_l v = F^-1( R_l . F v )  (lowest M modes)
+//! ```
+//! with the spectral convolution `K` in [`spectral`]. Derivatives of predictions are central
+//! differences ([`physics`]); the losses of the five algorithms of Table 3 are in [`loss`]:
+//! ```text
+//! L_data  = mean_k ||u_k - u*_k|| / ||u*_k||                      (z-scored, 14 channels)
+//! L_deriv = relL2(v) + relL2(a)                                   (10 vehicle DOFs, z-scored)
+//! L_ode_global = mean_{i,t} |R_i| / F_ref      L_ode_phi = mean_{i,t} rho |R_i| / phi_ki
+//! ```
+//! `R_i` the ten vehicle equations in physical units (N, N m), Hertz contact included.
+//!
+//! Modules: [`config`] (algorithms, sizes), [`data`] (Parquet -> samples), [`norm`],
+//! [`spectral`], [`model`], [`physics`], [`loss`], [`optim`] (Adam, step decay),
+//! [`checkpoint`], [`train`], [`eval`] (Table 4), [`plot`] (PNG), [`predict`], and
+//! [`synthetic`] (small consistent datasets for tests and benchmarks).
+#![warn(missing_docs)]
+
+pub mod checkpoint;
+pub mod config;
+pub mod data;
+pub mod eval;
+pub mod loss;
+pub mod model;
+pub mod norm;
+pub mod optim;
+pub mod physics;
+pub mod plot;
+pub mod predict;
+pub mod spectral;
+pub mod synthetic;
+pub mod train;
+
+pub use config::{Algorithm, DeviceKind, ModelConfig, TrainConfig};
+
+use std::path::PathBuf;
+
+/// Errors of the learning library; each names the file, field or tensor at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The data layer failed (missing column, unreadable file, ...).
+    #[error(transparent)]
+    Data(#[from] pino_data::Error),
+    /// candle failed.
+    #[error("tensor: {0}")]
+    Tensor(#[from] candle_core::Error),
+    /// A file system error on a named file.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// A JSON or YAML file is malformed.
+    #[error("{path}: {message}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What the parser said.
+        message: String,
+    },
+    /// Algorithm id outside 1..=5.
+    #[error("unknown algorithm {0}: allowed are 1 (FNO), 2 (PINO), 3 (PINO-MBD ODE weights), 4 and 5 (PINO-MBD direct derivatives)")]
+    UnknownAlgorithm(i64),
+    /// A configuration value is outside its allowed range.
+    #[error("`{field}` = {value} is out of range: {allowed}")]
+    OutOfRange {
+        /// The field.
+        field: String,
+        /// Its value, as text.
+        value: String,
+        /// The allowed range.
+        allowed: String,
+    },
+    /// The dataset is inconsistent (record lengths, time grids, splits, ids).
+    #[error("{path}: {message}")]
+    Dataset {
+        /// The file at fault.
+        path: PathBuf,
+        /// What is wrong, with the offending values.
+        message: String,
+    },
+    /// A model file does not match its configuration (another width, depth, ...).
+    #[error("{path}: tensor `{tensor}` has shape {found:?}, the configuration {config} needs {expected:?}")]
+    ModelMismatch {
+        /// The weights file.
+        path: PathBuf,
+        /// The tensor name.
+        tensor: String,
+        /// Its shape in the file.
+        found: Vec<usize>,
+        /// The shape the configuration needs.
+        expected: Vec<usize>,
+        /// The configuration, as text.
+        config: String,
+    },
+    /// Training diverged (a loss is not finite).
+    #[error("training diverged at epoch {epoch}, step {step}: loss = {loss}")]
+    Diverged {
+        /// Epoch (1-based).
+        epoch: usize,
+        /// Optimizer step.
+        step: u64,
+        /// The loss value.
+        loss: f64,
+    },
+}
+
+/// Result alias of this crate.
+pub type Result<T> = std::result::Result<T, Error>;
+
+pub(crate) fn io_err(path: &std::path::Path, source: std::io::Error) -> Error {
+    Error::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
+/// Writes `bytes` to `path` atomically (temporary file in the same directory, fsync, rename).
+pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp).map_err(|e| io_err(&tmp, e))?;
+        f.write_all(bytes).map_err(|e| io_err(&tmp, e))?;
+        f.sync_all().map_err(|e| io_err(&tmp, e))?;
+        std::fs::rename(&tmp, path).map_err(|e| io_err(path, e))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}

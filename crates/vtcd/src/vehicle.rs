@@ -95,7 +95,8 @@ impl Vehicle {
     #[inline]
     pub fn suspension_forces(&self, z: &[f64; NUM_DOFS], v: &[f64; NUM_DOFS]) -> SuspensionForces {
         let (lc, lt) = (self.l_c, self.l_t);
-        let sec = |sign: f64, bogie: usize, zz: &[f64; NUM_DOFS]| zz[0] + sign * lc * zz[1] - zz[bogie];
+        let sec =
+            |sign: f64, bogie: usize, zz: &[f64; NUM_DOFS]| zz[0] + sign * lc * zz[1] - zz[bogie];
         let pri = |sign: f64, bogie: usize, wheel: usize, zz: &[f64; NUM_DOFS]| {
             zz[bogie] + sign * lt * zz[bogie + 1] - zz[wheel]
         };
@@ -111,7 +112,12 @@ impl Vehicle {
 
     /// Right-hand sides of the ten equations (N or N m) given contact forces `p` (N).
     #[inline]
-    pub fn forces(&self, z: &[f64; NUM_DOFS], v: &[f64; NUM_DOFS], p: &[f64; 4]) -> [f64; NUM_DOFS] {
+    pub fn forces(
+        &self,
+        z: &[f64; NUM_DOFS],
+        v: &[f64; NUM_DOFS],
+        p: &[f64; 4],
+    ) -> [f64; NUM_DOFS] {
         let s = self.suspension_forces(z, v);
         let [fs1, fs2] = s.secondary;
         let [fp1, fp2, fp3, fp4] = s.primary;
@@ -131,7 +137,12 @@ impl Vehicle {
 
     /// Accelerations `M^-1 F` (m/s^2 or rad/s^2).
     #[inline]
-    pub fn accelerations(&self, z: &[f64; NUM_DOFS], v: &[f64; NUM_DOFS], p: &[f64; 4]) -> [f64; NUM_DOFS] {
+    pub fn accelerations(
+        &self,
+        z: &[f64; NUM_DOFS],
+        v: &[f64; NUM_DOFS],
+        p: &[f64; 4],
+    ) -> [f64; NUM_DOFS] {
         let f = self.forces(z, v, p);
         let m = self.masses();
         std::array::from_fn(|i| f[i] / m[i])
@@ -196,7 +207,12 @@ mod tests {
                 assert!(m[i][i] > 0.0);
                 for j in 0..NUM_DOFS {
                     let tol = 1e-12 * (m[i][i].abs() + m[j][j].abs());
-                    assert!((m[i][j] - m[j][i]).abs() <= tol, "({i},{j}) {} vs {}", m[i][j], m[j][i]);
+                    assert!(
+                        (m[i][j] - m[j][i]).abs() <= tol,
+                        "({i},{j}) {} vs {}",
+                        m[i][j],
+                        m[j][i]
+                    );
                 }
             }
         }
@@ -220,7 +236,9 @@ mod tests {
     #[test]
     fn residual_vanishes_for_consistent_accelerations() {
         let v = vehicle();
-        let z = [1e-3, 2e-4, -3e-4, 1e-4, 5e-4, -2e-4, 1e-4, 2e-4, 3e-4, -1e-4];
+        let z = [
+            1e-3, 2e-4, -3e-4, 1e-4, 5e-4, -2e-4, 1e-4, 2e-4, 3e-4, -1e-4,
+        ];
         let vel = [0.01, -0.02, 0.03, 0.0, -0.01, 0.02, 0.05, -0.05, 0.01, 0.0];
         let p = [7e4, 7.1e4, 6.9e4, 7e4];
         let a = v.accelerations(&z, &vel, &p);

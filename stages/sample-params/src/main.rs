@@ -1,1 +1,46 @@
-fn main() { eprintln!("not yet implemented"); std::process::exit(1) }
+//! Stage `sample-params`: draws every sample's 14 parameters uniformly on their ranges
+//! (`vtcd::sampling`) and writes `params.parquet`: `sample_id` (i64), `split`
+//! ("train"/"validation"), then the 14 parameters (f64, spec order and units).
+//!
+//! Params: `seed`, `n_train`, `n_validation`, optional `ranges` (see `vtcd::sampling`).
+
+use anyhow::{Context, Result};
+use pino_data::{schema, write_parquet, Column, Table};
+use vtcd::params::NUM_PARAMETERS;
+use vtcd::sampling::SamplingParams;
+
+fn run() -> Result<String> {
+    let ctx = stage_kit::StageContext::load()?;
+    let raw: SamplingParams = ctx.params()?;
+    let plan = raw
+        .validate()
+        .with_context(|| format!("stage `{}`: bad sampling parameters", ctx.stage))?;
+    let samples = plan.samples();
+
+    let mut table = Table::default();
+    let ids = samples.iter().map(|(id, _, _)| *id as i64).collect();
+    table.push(schema::SAMPLE_ID, Column::I64(ids))?;
+    let splits = samples.iter().map(|(_, s, _)| s.as_str().to_owned()).collect();
+    table.push(schema::SPLIT, Column::Str(splits))?;
+    for j in 0..NUM_PARAMETERS {
+        let values = samples.iter().map(|(_, _, p)| p.to_array()[j]).collect();
+        table.push(schema::PARAMETERS[j], Column::F64(values))?;
+    }
+    let path = ctx.output_path("params.parquet");
+    write_parquet(&path, &table).with_context(|| format!("writing {}", path.display()))?;
+    Ok(format!(
+        "{} train + {} validation samples",
+        plan.n_train(),
+        plan.n_validation()
+    ))
+}
+
+fn main() {
+    match run() {
+        Ok(summary) => stage_kit::summary(&summary),
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::exit(1);
+        }
+    }
+}

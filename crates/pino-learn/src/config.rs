@@ -1,0 +1,512 @@
+//! Checked configuration: the five algorithms of the paper's Table 3, model sizes, and the
+//! training parameters of the `train` stage (parse, then validate, then run).
+
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// Input channels: `t`, `eta_1..eta_4`, 14 parameters.
+pub const IN_CHANNELS: usize = 19;
+/// Output channels: 10 vehicle DOFs and 4 rail displacements.
+pub const OUT_CHANNELS: usize = 14;
+/// Vehicle DOFs (equations).
+pub const DOFS: usize = 10;
+
+/// The algorithms of Table 3 (`learning.md`, Algorithms).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "i64", into = "i64")]
+pub enum Algorithm {
+    /// 1: FNO, `L_data`, depth 3.
+    Fno,
+    /// 2: PINO, `L_data + lambda_ode L_ode_global`, depth 3.
+    Pino,
+    /// 3: PINO-MBD with ODE magnitude weights, `L_data + lambda_ode L_ode_phi`, depth 3.
+    PinoMbdWeights,
+    /// 4: PINO-MBD with direct derivatives, `L_data + lambda_d L_deriv`, depth 3.
+    PinoMbdDerivatives,
+    /// 5: as 4 with depth 5.
+    PinoMbdDerivativesDeep,
+}
+
+impl Algorithm {
+    /// All five, in Table 3 order.
+    pub const ALL: [Algorithm; 5] = [
+        Algorithm::Fno,
+        Algorithm::Pino,
+        Algorithm::PinoMbdWeights,
+        Algorithm::PinoMbdDerivatives,
+        Algorithm::PinoMbdDerivativesDeep,
+    ];
+
+    /// The Table 3 number (1..=5).
+    pub fn id(self) -> i64 {
+        match self {
+            Algorithm::Fno => 1,
+            Algorithm::Pino => 2,
+            Algorithm::PinoMbdWeights => 3,
+            Algorithm::PinoMbdDerivatives => 4,
+            Algorithm::PinoMbdDerivativesDeep => 5,
+        }
+    }
+
+    /// From the Table 3 number.
+    pub fn from_id(id: i64) -> Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|a| a.id() == id)
+            .ok_or(Error::UnknownAlgorithm(id))
+    }
+
+    /// Human name as in Table 3.
+    pub fn name(self) -> &'static str {
+        match self {
+            Algorithm::Fno => "FNO",
+            Algorithm::Pino => "PINO",
+            Algorithm::PinoMbdWeights => "PINO-MBD (ODE weights)",
+            Algorithm::PinoMbdDerivatives | Algorithm::PinoMbdDerivativesDeep => {
+                "PINO-MBD (direct derivatives)"
+            }
+        }
+    }
+
+    /// Default number of Fourier layers (Table 3).
+    pub fn default_depth(self) -> usize {
+        match self {
+            Algorithm::PinoMbdDerivativesDeep => 5,
+            _ => 3,
+        }
+    }
+
+    /// Whether the loss needs the per-sample ODE magnitude weights phi.
+    pub fn needs_phi(self) -> bool {
+        self == Algorithm::PinoMbdWeights
+    }
+
+    /// The paper's Table 4 (solutions, first, second derivatives; relative L2 %).
+    pub fn paper_table4(self) -> [f64; 3] {
+        match self {
+            Algorithm::Fno => [4.24, 13.58, 1404.42],
+            Algorithm::Pino => [7.41, 23.06, 202.42],
+            Algorithm::PinoMbdWeights => [8.29, 14.90, 20.79],
+            Algorithm::PinoMbdDerivatives => [6.75, 6.12, 6.73],
+            Algorithm::PinoMbdDerivativesDeep => [6.77, 4.90, 3.20],
+        }
+    }
+}
+
+impl TryFrom<i64> for Algorithm {
+    type Error = Error;
+    fn try_from(id: i64) -> Result<Self> {
+        Self::from_id(id)
+    }
+}
+
+impl From<Algorithm> for i64 {
+    fn from(a: Algorithm) -> i64 {
+        a.id()
+    }
+}
+
+/// Sizes of the Fourier neural operator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelConfig {
+    /// Input channels (19).
+    pub in_channels: usize,
+    /// Output channels (14).
+    pub out_channels: usize,
+    /// Channel width `W` of the Fourier layers.
+    pub width: usize,
+    /// Retained Fourier modes `M` (lowest, including the mean).
+    pub modes: usize,
+    /// Number of Fourier layers `L`.
+    pub depth: usize,
+    /// Hidden width of the projection MLP.
+    pub projection_width: usize,
+}
+
+impl ModelConfig {
+    /// Checks the sizes against each other and against `t_points` time points (the
+    /// truncated DFT needs `M <= T/2`).
+    pub fn validate(&self, t_points: usize) -> Result<()> {
+        let check = |field: &str, value: usize, ok: bool, allowed: String| {
+            if ok {
+                Ok(())
+            } else {
+                Err(Error::OutOfRange {
+                    field: field.to_owned(),
+                    value: value.to_string(),
+                    allowed,
+                })
+            }
+        };
+        check("width", self.width, (1..=4096).contains(&self.width), "1..=4096".into())?;
+        check("depth", self.depth, (1..=64).contains(&self.depth), "1..=64".into())?;
+        check(
+            "projection_width",
+            self.projection_width,
+            (1..=4096).contains(&self.projection_width),
+            "1..=4096".into(),
+        )?;
+        check(
+            "modes",
+            self.modes,
+            self.modes >= 1 && 2 * self.modes <= t_points,
+            format!("1..={} (half the {t_points} time points)", t_points / 2),
+        )
+    }
+}
+
+impl std::fmt::Display for ModelConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "width {} modes {} depth {} projection {}",
+            self.width, self.modes, self.depth, self.projection_width
+        )
+    }
+}
+
+/// Where tensors live.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DeviceKind {
+    /// CPU (default; repeatable).
+    Cpu,
+    /// First CUDA GPU (needs the `cuda` cargo feature).
+    Cuda,
+}
+
+impl DeviceKind {
+    /// The candle device; CUDA without the `cuda` feature is a clear error.
+    pub fn device(self) -> Result<candle_core::Device> {
+        match self {
+            DeviceKind::Cpu => Ok(candle_core::Device::Cpu),
+            DeviceKind::Cuda => {
+                if cfg!(feature = "cuda") {
+                    Ok(candle_core::Device::new_cuda(0)?)
+                } else {
+                    Err(Error::OutOfRange {
+                        field: "device".into(),
+                        value: "cuda".into(),
+                        allowed: "\"cpu\" (this build has no `cuda` feature; rebuild with --features cuda)".into(),
+                    })
+                }
+            }
+        }
+    }
+}
+
+/// Optimisation and loss parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrainConfig {
+    /// The algorithm (Table 3).
+    pub algorithm: Algorithm,
+    /// Passes over the training split.
+    pub epochs: usize,
+    /// Samples per optimizer step.
+    pub batch_size: usize,
+    /// Initial Adam learning rate (paper: 5e-4).
+    pub learning_rate: f64,
+    /// Step-decay factor (paper: 0.75).
+    pub lr_decay: f64,
+    /// Decay every this many epochs (paper: 30; one scheduler step per epoch).
+    pub lr_decay_every: usize,
+    /// Weight of the ODE loss (algorithms 2, 3).
+    pub lambda_ode: f64,
+    /// Weight of the direct-derivative loss (algorithms 4, 5).
+    pub lambda_d: f64,
+    /// Target residual level rho of the weighted ODE loss (algorithm 3).
+    pub rho: f64,
+    /// Seed of initialisation and shuffling.
+    pub seed: u64,
+    /// Gravity (m/s^2) for the static wheel load W.
+    pub gravity: f64,
+    /// Wheel radius (m) for the Hertz constant G.
+    pub wheel_radius: f64,
+}
+
+impl TrainConfig {
+    /// Checks ranges.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |field: &str, value: String, allowed: &str| {
+            Err(Error::OutOfRange {
+                field: field.into(),
+                value,
+                allowed: allowed.into(),
+            })
+        };
+        if self.epochs == 0 {
+            return bad("epochs", "0".into(), ">= 1");
+        }
+        if self.batch_size == 0 {
+            return bad("batch_size", "0".into(), ">= 1");
+        }
+        if !(self.learning_rate > 0.0 && self.learning_rate.is_finite()) {
+            return bad("learning_rate", self.learning_rate.to_string(), "> 0");
+        }
+        if !(self.lr_decay > 0.0 && self.lr_decay <= 1.0) {
+            return bad("lr_decay", self.lr_decay.to_string(), "(0, 1]");
+        }
+        if self.lr_decay_every == 0 {
+            return bad("lr_decay_every", "0".into(), ">= 1 epoch");
+        }
+        for (f, v) in [
+            ("lambda_ode", self.lambda_ode),
+            ("lambda_d", self.lambda_d),
+        ] {
+            if !(v >= 0.0 && v.is_finite()) {
+                return bad(f, v.to_string(), ">= 0");
+            }
+        }
+        for (f, v) in [
+            ("rho", self.rho),
+            ("gravity", self.gravity),
+            ("wheel_radius", self.wheel_radius),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return bad(f, v.to_string(), "> 0");
+            }
+        }
+        Ok(())
+    }
+
+    /// Learning rate during epoch `epoch` (0-based): `lr0 * decay^floor(epoch / every)`.
+    pub fn lr_at(&self, epoch: usize) -> f64 {
+        self.learning_rate * self.lr_decay.powi((epoch / self.lr_decay_every) as i32)
+    }
+}
+
+fn d_width() -> usize {
+    32
+}
+fn d_modes() -> usize {
+    32
+}
+fn d_proj() -> usize {
+    64
+}
+fn d_epochs() -> usize {
+    60
+}
+fn d_batch() -> usize {
+    8
+}
+fn d_lr() -> f64 {
+    5e-4
+}
+fn d_decay() -> f64 {
+    0.75
+}
+fn d_decay_every() -> usize {
+    30
+}
+fn d_lambda_ode() -> f64 {
+    0.25
+}
+fn d_lambda_d() -> f64 {
+    1.0
+}
+fn d_rho() -> f64 {
+    0.025
+}
+fn d_seed() -> u64 {
+    1
+}
+fn d_g() -> f64 {
+    9.81
+}
+fn d_r() -> f64 {
+    0.43
+}
+fn d_startup() -> f64 {
+    0.1
+}
+fn d_one() -> usize {
+    1
+}
+fn d_device() -> DeviceKind {
+    DeviceKind::Cpu
+}
+
+/// The `train` stage's parameters as they appear in pipeline.yaml (defaults = laptop scale).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrainParams {
+    /// Table 3 algorithm, 1..=5 (the matrix key).
+    pub algorithm: i64,
+    /// Channel width W.
+    #[serde(default = "d_width")]
+    pub width: usize,
+    /// Fourier modes M.
+    #[serde(default = "d_modes")]
+    pub modes: usize,
+    /// Fourier layers L (default: 3, or 5 for algorithm 5).
+    #[serde(default)]
+    pub depth: Option<usize>,
+    /// Hidden width of the projection MLP.
+    #[serde(default = "d_proj")]
+    pub projection_width: usize,
+    /// Epochs.
+    #[serde(default = "d_epochs")]
+    pub epochs: usize,
+    /// Batch size.
+    #[serde(default = "d_batch")]
+    pub batch_size: usize,
+    /// Initial learning rate.
+    #[serde(default = "d_lr")]
+    pub learning_rate: f64,
+    /// Step-decay factor.
+    #[serde(default = "d_decay")]
+    pub lr_decay: f64,
+    /// Decay period in epochs.
+    #[serde(default = "d_decay_every")]
+    pub lr_decay_every: usize,
+    /// ODE loss weight.
+    #[serde(default = "d_lambda_ode")]
+    pub lambda_ode: f64,
+    /// Derivative loss weight.
+    #[serde(default = "d_lambda_d")]
+    pub lambda_d: f64,
+    /// Target residual level of the weighted ODE loss.
+    #[serde(default = "d_rho")]
+    pub rho: f64,
+    /// Seed.
+    #[serde(default = "d_seed")]
+    pub seed: u64,
+    /// Gravity (m/s^2).
+    #[serde(default = "d_g")]
+    pub gravity: f64,
+    /// Wheel radius (m).
+    #[serde(default = "d_r")]
+    pub wheel_radius: f64,
+    /// Fraction of each record dropped at its start (start-up), 0.1 in the spec.
+    #[serde(default = "d_startup")]
+    pub startup_fraction: f64,
+    /// Keep every n-th time point of the window (1 = all).
+    #[serde(default = "d_one")]
+    pub time_stride: usize,
+    /// "cpu" or "cuda".
+    #[serde(default = "d_device")]
+    pub device: DeviceKind,
+}
+
+impl TrainParams {
+    /// Parameters with every default and the given algorithm.
+    pub fn with_algorithm(algorithm: i64) -> Self {
+        serde_json::from_value(serde_json::json!({ "algorithm": algorithm }))
+            .expect("defaults deserialise")
+    }
+
+    /// Splits into checked model and training configurations (`t_points` checked later).
+    pub fn configs(&self) -> Result<(ModelConfig, TrainConfig, WindowConfig)> {
+        let algorithm = Algorithm::from_id(self.algorithm)?;
+        let model = ModelConfig {
+            in_channels: IN_CHANNELS,
+            out_channels: OUT_CHANNELS,
+            width: self.width,
+            modes: self.modes,
+            depth: self.depth.unwrap_or(algorithm.default_depth()),
+            projection_width: self.projection_width,
+        };
+        let train = TrainConfig {
+            algorithm,
+            epochs: self.epochs,
+            batch_size: self.batch_size,
+            learning_rate: self.learning_rate,
+            lr_decay: self.lr_decay,
+            lr_decay_every: self.lr_decay_every,
+            lambda_ode: self.lambda_ode,
+            lambda_d: self.lambda_d,
+            rho: self.rho,
+            seed: self.seed,
+            gravity: self.gravity,
+            wheel_radius: self.wheel_radius,
+        };
+        train.validate()?;
+        let window = WindowConfig {
+            startup_fraction: self.startup_fraction,
+            time_stride: self.time_stride,
+        };
+        window.validate()?;
+        Ok((model, train, window))
+    }
+}
+
+/// Which part of each record the model sees.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WindowConfig {
+    /// Fraction of each record dropped at its start (0.1).
+    pub startup_fraction: f64,
+    /// Keep every n-th point (1 = all).
+    pub time_stride: usize,
+}
+
+impl Default for WindowConfig {
+    fn default() -> Self {
+        Self {
+            startup_fraction: 0.1,
+            time_stride: 1,
+        }
+    }
+}
+
+impl WindowConfig {
+    /// Checks ranges.
+    pub fn validate(&self) -> Result<()> {
+        if !(0.0..0.9).contains(&self.startup_fraction) {
+            return Err(Error::OutOfRange {
+                field: "startup_fraction".into(),
+                value: self.startup_fraction.to_string(),
+                allowed: "[0, 0.9)".into(),
+            });
+        }
+        if self.time_stride == 0 {
+            return Err(Error::OutOfRange {
+                field: "time_stride".into(),
+                value: "0".into(),
+                allowed: ">= 1".into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Index of the first kept point of a record of `n` points.
+    pub fn first_index(&self, n: usize) -> usize {
+        (self.startup_fraction * n as f64).floor() as usize
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn algorithms_round_trip_and_unknown_is_refused() {
+        for a in Algorithm::ALL {
+            assert_eq!(Algorithm::from_id(a.id()).unwrap(), a);
+        }
+        let err = Algorithm::from_id(7).unwrap_err().to_string();
+        assert!(err.contains("unknown algorithm 7") && err.contains("1 (FNO)"), "{err}");
+        let p: std::result::Result<TrainParams, _> =
+            serde_json::from_value(serde_json::json!({"algorithm": 9}));
+        let err = p.unwrap().configs().unwrap_err().to_string();
+        assert!(err.contains("unknown algorithm 9"), "{err}");
+        let p: std::result::Result<TrainParams, _> =
+            serde_json::from_value(serde_json::json!({"algorithm": 1, "widht": 3}));
+        assert!(p.unwrap_err().to_string().contains("unknown field `widht`"));
+    }
+
+    #[test]
+    fn depth_defaults_by_algorithm_and_lr_decays_in_steps() {
+        let (m, t, _) = TrainParams::with_algorithm(5).configs().unwrap();
+        assert_eq!(m.depth, 5);
+        let (m, _, _) = TrainParams::with_algorithm(4).configs().unwrap();
+        assert_eq!(m.depth, 3);
+        assert_eq!(t.lr_at(29), 5e-4);
+        assert!((t.lr_at(30) - 3.75e-4).abs() < 1e-15);
+        assert!(m.validate(40).is_ok());
+        assert!(m.validate(20).is_err(), "32 modes need 64 points");
+    }
+}

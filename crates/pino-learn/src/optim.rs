@@ -1,0 +1,83 @@
+//! Adam (Kingma & Ba) with an externally set learning rate (step decay lives in
+//! [`crate::config::TrainConfig::lr_at`]). Moments are plain tensors so that a checkpoint can
+//! store and restore them exactly:
+//! ```text
+//! m <- b1 m + (1 - b1) g        v <- b2 v + (1 - b2) g^2
+//! p <- p - lr (m / (1 - b1^s)) / (sqrt(v / (1 - b2^s)) + eps)      s = step count (1-based)
+//! ```
+//! with b1 = 0.9, b2 = 0.999, eps = 1e-8 (the usual defaults).
+
+use crate::Result;
+use candle_core::backprop::GradStore;
+use candle_core::{Tensor, Var};
+
+/// Adam's state for a fixed list of variables.
+#[derive(Debug, Clone)]
+pub struct Adam {
+    /// First moments, one per variable.
+    pub m: Vec<Tensor>,
+    /// Second moments.
+    pub v: Vec<Tensor>,
+    /// Steps taken.
+    pub step: u64,
+    /// Decay of the first moment.
+    pub beta1: f64,
+    /// Decay of the second moment.
+    pub beta2: f64,
+    /// Denominator guard.
+    pub eps: f64,
+}
+
+impl Adam {
+    /// Zero moments for `vars`.
+    pub fn new(vars: &[(String, Var)]) -> Result<Self> {
+        let zeros = |v: &Var| v.as_tensor().zeros_like();
+        Ok(Self {
+            m: vars.iter().map(|(_, v)| zeros(v)).collect::<candle_core::Result<_>>()?,
+            v: vars.iter().map(|(_, v)| zeros(v)).collect::<candle_core::Result<_>>()?,
+            step: 0,
+            beta1: 0.9,
+            beta2: 0.999,
+            eps: 1e-8,
+        })
+    }
+
+    /// One update with learning rate `lr`; a variable without gradient is left alone.
+    pub fn step(&mut self, vars: &[(String, Var)], grads: &GradStore, lr: f64) -> Result<()> {
+        self.step += 1;
+        let c1 = 1.0 - self.beta1.powi(self.step as i32);
+        let c2 = 1.0 - self.beta2.powi(self.step as i32);
+        for (i, (_, var)) in vars.iter().enumerate() {
+            let Some(g) = grads.get(var.as_tensor()) else { continue };
+            let m = ((&self.m[i] * self.beta1)? + (g * (1.0 - self.beta1))?)?;
+            let v = ((&self.v[i] * self.beta2)? + (g.sqr()? * (1.0 - self.beta2))?)?;
+            let denom = ((&v * (1.0 / c2))?.sqrt()? + self.eps)?;
+            let update = ((&m * (lr / c1))? / denom)?;
+            var.set(&(var.as_tensor() - update)?)?;
+            self.m[i] = m;
+            self.v[i] = v;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use candle_core::Device;
+
+    #[test]
+    fn first_adam_step_moves_each_parameter_by_lr() {
+        // After one step m_hat = g and v_hat = g^2, so the update is lr * g / (|g| + eps).
+        let dev = Device::Cpu;
+        let p = Var::from_vec(vec![1.0f32, -2.0], 2, &dev).unwrap();
+        let vars = vec![("p".to_owned(), p.clone())];
+        let loss = (p.as_tensor().sqr().unwrap() * 3.0).unwrap().sum_all().unwrap();
+        let grads = loss.backward().unwrap();
+        let mut adam = Adam::new(&vars).unwrap();
+        adam.step(&vars, &grads, 0.1).unwrap();
+        let after = p.as_tensor().to_vec1::<f32>().unwrap();
+        assert!((after[0] - 0.9).abs() < 1e-6 && (after[1] + 1.9).abs() < 1e-6, "{after:?}");
+        assert_eq!(adam.step, 1);
+    }
+}

@@ -1,0 +1,319 @@
+//! The training loop: seeded, repeatable on the CPU, checkpointed after every epoch.
+//!
+//! Epoch `e` (0-based) shuffles the training split with the `Training` stream `1 + e` of the
+//! seed (stream 0 initialises the model), runs Adam over batches of `batch_size` at learning
+//! rate `lr0 decay^floor(e / lr_decay_every)`, evaluates the Table 4 metrics on the
+//! validation split, appends a [`HistoryRow`] and writes a checkpoint. A run that finds a
+//! checkpoint in its checkpoint directory continues from it; since every input to an epoch
+//! (parameters, Adam moments and step, the epoch's shuffle) is restored exactly, the resumed
+//! run's parameters are bitwise those of an uninterrupted run.
+
+use crate::checkpoint::{self, HistoryRow, ModelMeta, TimeGrid, TrainState};
+use crate::config::{ModelConfig, TrainConfig, WindowConfig};
+use crate::data::{make_batch, prepare, Dataset, Prepared, Split};
+use crate::loss::{LossContext, LossValues};
+use crate::model::Fno;
+use crate::optim::Adam;
+use crate::spectral::Transform;
+use crate::{Error, Result};
+use candle_core::Device;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How to run a training.
+#[derive(Debug, Clone)]
+pub struct TrainOptions {
+    /// Spectral transform implementation.
+    pub transform: Transform,
+    /// Where checkpoints are written and resumed from.
+    pub checkpoint_dir: PathBuf,
+    /// Stop (as if interrupted) after this many completed epochs; `None` runs to the end.
+    pub stop_after_epochs: Option<usize>,
+}
+
+/// What a training run produced.
+#[derive(Debug)]
+pub struct TrainOutcome {
+    /// The model after the last completed epoch.
+    pub model: Fno,
+    /// Its metadata (for `model.json`).
+    pub meta: ModelMeta,
+    /// Loss history of all completed epochs.
+    pub history: Vec<HistoryRow>,
+    /// Epoch the run resumed after (`None` for a fresh start).
+    pub resumed_after: Option<usize>,
+    /// Whether all epochs are done.
+    pub finished: bool,
+}
+
+/// Per-epoch report to the caller (progress line).
+#[derive(Debug, Clone, Copy)]
+pub struct EpochReport {
+    /// The epoch's history row.
+    pub row: HistoryRow,
+    /// Total epochs.
+    pub epochs: usize,
+    /// Seconds per epoch in this process so far.
+    pub seconds_per_epoch: f64,
+}
+
+/// The metadata a model trained on `ds` with these settings carries.
+pub fn model_meta(ds: &Dataset, model: ModelConfig, train: TrainConfig, window: WindowConfig) -> Result<ModelMeta> {
+    Ok(ModelMeta {
+        format: checkpoint::MODEL_FORMAT.to_owned(),
+        model,
+        train,
+        window,
+        grid: TimeGrid {
+            t0: ds.t[0],
+            dt: ds.dt,
+            t_points: ds.t_points(),
+            record_points: ds.record_points,
+        },
+        norm: ds.normalisation()?,
+        f_ref: ds.mean_wheel_load(train.gravity),
+        train_samples: ds.split_indices(Split::Train).len(),
+    })
+}
+
+/// Fisher-Yates shuffle of `items` from the seed's `Training` stream `stream`.
+pub fn shuffled(items: &[usize], seed: u64, stream: u64) -> Vec<usize> {
+    let mut rng = vtcd::rng::SampleStream::new(seed, vtcd::rng::Purpose::Training, stream);
+    let mut out = items.to_vec();
+    for i in (1..out.len()).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        out.swap(i, j);
+    }
+    out
+}
+
+/// Table 4 metrics (fractions) of `model` on samples `idx`: means over samples of the
+/// relative L2 of solutions, first and second derivatives, plus the per-sample values.
+pub fn evaluate_split(
+    model: &Fno,
+    loss: &LossContext,
+    items: &[Prepared],
+    idx: &[usize],
+    t_points: usize,
+    batch_size: usize,
+    device: &Device,
+) -> Result<[Vec<f64>; 3]> {
+    let mut out: [Vec<f64>; 3] = Default::default();
+    for chunk in idx.chunks(batch_size.max(1)) {
+        let batch = make_batch(items, chunk, t_points, device)?;
+        let u = model.forward(&batch.x)?.detach();
+        let m = loss.metrics_per_sample(&u, &batch)?;
+        for k in 0..3 {
+            out[k].extend_from_slice(&m[k]);
+        }
+    }
+    Ok(out)
+}
+
+fn mean(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+/// Trains (or resumes) a model on `ds`; calls `report` after every epoch.
+pub fn train(
+    ds: &Dataset,
+    model_cfg: ModelConfig,
+    cfg: TrainConfig,
+    window: WindowConfig,
+    opts: &TrainOptions,
+    device: &Device,
+    report: &mut dyn FnMut(&EpochReport),
+) -> Result<TrainOutcome> {
+    cfg.validate()?;
+    model_cfg.validate(ds.t_points())?;
+    let train_idx = ds.split_indices(Split::Train);
+    let val_idx = ds.split_indices(Split::Validation);
+    if train_idx.is_empty() {
+        return Err(Error::Dataset {
+            path: PathBuf::from("params.parquet"),
+            message: "no training samples".into(),
+        });
+    }
+    if cfg.algorithm.needs_phi() {
+        if let Some(s) = train_idx.iter().map(|&i| &ds.samples[i]).find(|s| s.phi.is_none()) {
+            return Err(Error::Dataset {
+                path: PathBuf::from("weights.parquet"),
+                message: format!(
+                    "algorithm 3 needs the ODE magnitude weights phi of every training sample; sample {} has none (wire the `weights` input)",
+                    s.id
+                ),
+            });
+        }
+    }
+    let meta = model_meta(ds, model_cfg, cfg, window)?;
+    let (model, mut adam, mut state, resumed_after) = if checkpoint::has_checkpoint(&opts.checkpoint_dir) {
+        let (model, adam, old, state) = checkpoint::load_checkpoint(&opts.checkpoint_dir, opts.transform, device)?;
+        if old != meta {
+            return Err(Error::Format {
+                path: opts.checkpoint_dir.join(checkpoint::CHECKPOINT_META),
+                message: "the checkpoint was written for another configuration or dataset; remove it or restore the original settings".into(),
+            });
+        }
+        let done = state.epochs_done;
+        (model, adam, state, Some(done))
+    } else {
+        let model = Fno::new(model_cfg, ds.t_points(), cfg.seed, opts.transform, device)?;
+        let adam = Adam::new(model.vars())?;
+        let state = TrainState {
+            epochs_done: 0,
+            step: 0,
+            history: Vec::new(),
+        };
+        (model, adam, state, None)
+    };
+    let loss = LossContext {
+        config: cfg,
+        norm: meta.norm.clone(),
+        dt: ds.dt,
+        f_ref: meta.f_ref,
+    };
+    let items = prepare(ds, &meta.norm);
+    let t_points = ds.t_points();
+    let started = Instant::now();
+    let first_epoch = state.epochs_done;
+    for epoch in first_epoch..cfg.epochs {
+        if opts.stop_after_epochs.is_some_and(|k| state.epochs_done >= k) {
+            break;
+        }
+        let lr = cfg.lr_at(epoch);
+        let order = shuffled(&train_idx, cfg.seed, 1 + epoch as u64);
+        let mut sums = LossValues::default();
+        let mut batches = 0usize;
+        for chunk in order.chunks(cfg.batch_size) {
+            let batch = make_batch(&items, chunk, t_points, device)?;
+            let u = model.forward(&batch.x)?;
+            let (total, values) = loss.loss(&u, &batch)?;
+            if !values.total.is_finite() {
+                return Err(Error::Diverged {
+                    epoch: epoch + 1,
+                    step: adam.step,
+                    loss: values.total,
+                });
+            }
+            let grads = total.backward()?;
+            adam.step(model.vars(), &grads, lr)?;
+            sums.total += values.total;
+            sums.data += values.data;
+            sums.deriv += values.deriv;
+            sums.ode += values.ode;
+            batches += 1;
+        }
+        let n = batches.max(1) as f64;
+        let val = evaluate_split(&model, &loss, &items, &val_idx, t_points, cfg.batch_size, device)?;
+        let row = HistoryRow {
+            epoch: epoch + 1,
+            step: adam.step,
+            lr,
+            loss_total: sums.total / n,
+            loss_data: sums.data / n,
+            loss_deriv: sums.deriv / n,
+            loss_ode: sums.ode / n,
+            val_solution: mean(&val[0]),
+            val_first: mean(&val[1]),
+            val_second: mean(&val[2]),
+        };
+        state.history.push(row);
+        state.epochs_done = epoch + 1;
+        state.step = adam.step;
+        checkpoint::save_checkpoint(&opts.checkpoint_dir, &model, &adam, &meta, &state)?;
+        let ran = (state.epochs_done - first_epoch) as f64;
+        report(&EpochReport {
+            row,
+            epochs: cfg.epochs,
+            seconds_per_epoch: started.elapsed().as_secs_f64() / ran,
+        });
+    }
+    Ok(TrainOutcome {
+        finished: state.epochs_done >= cfg.epochs,
+        model,
+        meta,
+        history: state.history,
+        resumed_after,
+    })
+}
+
+/// The loss history as a table (one row per epoch).
+pub fn history_table(history: &[HistoryRow]) -> Result<pino_data::Table> {
+    use pino_data::Column;
+    let mut t = pino_data::Table::default();
+    let f = |g: fn(&HistoryRow) -> f64| Column::F64(history.iter().map(g).collect());
+    t.push("epoch", Column::I64(history.iter().map(|r| r.epoch as i64).collect()))?;
+    t.push("step", Column::I64(history.iter().map(|r| r.step as i64).collect()))?;
+    t.push("lr", f(|r| r.lr))?;
+    t.push("loss_total", f(|r| r.loss_total))?;
+    t.push("loss_data", f(|r| r.loss_data))?;
+    t.push("loss_deriv", f(|r| r.loss_deriv))?;
+    t.push("loss_ode", f(|r| r.loss_ode))?;
+    t.push("val_solution", f(|r| r.val_solution))?;
+    t.push("val_first", f(|r| r.val_first))?;
+    t.push("val_second", f(|r| r.val_second))?;
+    Ok(t)
+}
+
+/// Reads a history written by [`history_table`].
+pub fn read_history(path: &Path) -> Result<Vec<HistoryRow>> {
+    let t = pino_data::read_parquet(path, None)?;
+    let epoch = t.i64("epoch")?;
+    let step = t.i64("step")?;
+    let g = |n: &str| t.f64(n);
+    let (lr, lt, ld, lde, lo, vs, vf, vse) = (
+        g("lr")?,
+        g("loss_total")?,
+        g("loss_data")?,
+        g("loss_deriv")?,
+        g("loss_ode")?,
+        g("val_solution")?,
+        g("val_first")?,
+        g("val_second")?,
+    );
+    Ok((0..t.num_rows())
+        .map(|i| HistoryRow {
+            epoch: epoch[i] as usize,
+            step: step[i] as u64,
+            lr: lr[i],
+            loss_total: lt[i],
+            loss_data: ld[i],
+            loss_deriv: lde[i],
+            loss_ode: lo[i],
+            val_solution: vs[i],
+            val_first: vf[i],
+            val_second: vse[i],
+        })
+        .collect())
+}
+
+/// Trains and writes the artifact into `out`: `model.safetensors`, `model.json`,
+/// `history.parquet`. Checkpoints live in `out` while training and are removed at the end.
+pub fn train_to_dir(
+    ds: &Dataset,
+    model_cfg: ModelConfig,
+    cfg: TrainConfig,
+    window: WindowConfig,
+    transform: Transform,
+    out: &Path,
+    device: &Device,
+    report: &mut dyn FnMut(&EpochReport),
+) -> Result<TrainOutcome> {
+    let opts = TrainOptions {
+        transform,
+        checkpoint_dir: out.to_owned(),
+        stop_after_epochs: None,
+    };
+    let outcome = train(ds, model_cfg, cfg, window, &opts, device, report)?;
+    checkpoint::save_model(out, &outcome.model, &outcome.meta)?;
+    pino_data::write_parquet(&out.join("history.parquet"), &history_table(&outcome.history)?)?;
+    for f in [checkpoint::CHECKPOINT_TENSORS, checkpoint::CHECKPOINT_META] {
+        let p = out.join(f);
+        std::fs::remove_file(&p).map_err(|e| crate::io_err(&p, e))?;
+    }
+    Ok(outcome)
+}

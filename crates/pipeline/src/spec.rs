@@ -1,0 +1,520 @@
+//! The pipeline file: parsing, validation, `--set` overrides and matrix expansion.
+//!
+//! A pipeline file is YAML with two top-level keys, `bin_dir` and `stages` (see the README).
+//! Parsing is strict (`deny_unknown_fields`), so a misspelt key is an error at its line. After
+//! parsing, the semantic checks run: names, dependencies (every input names a stage), cycles,
+//! shard counts, matrix keys, paths (relative, inside the workspace) and `--set` overrides (the
+//! stage and key must exist, the value must have the parameter's type; an integer may stand
+//! for a float). Every error names the file and the line.
+//!
+//! Parameters are arbitrary YAML values held as JSON values whose objects have sorted keys,
+//! so `serde_json::to_string` of them is their canonical form (hashing and the context file).
+
+use crate::locate::Locator;
+use crate::{Error, Result};
+use serde::Deserialize;
+use serde_json::{Map, Value};
+use std::collections::BTreeMap;
+use std::path::{Component, Path, PathBuf};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPipeline {
+    #[serde(default)]
+    bin_dir: Option<String>,
+    stages: BTreeMap<String, RawStage>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawStage {
+    cmd: Vec<String>,
+    #[serde(default)]
+    params: Option<Map<String, Value>>,
+    #[serde(default)]
+    inputs: Option<BTreeMap<String, String>>,
+    #[serde(default)]
+    shards: Option<usize>,
+    #[serde(default)]
+    matrix: Option<BTreeMap<String, Vec<Value>>>,
+}
+
+/// One matrix expansion of a stage (the stage itself when it has no matrix).
+#[derive(Debug, Clone)]
+pub struct Expansion {
+    /// `train[algorithm=3]`, or the stage name without a matrix.
+    pub name: String,
+    /// Resolved parameters: defaults, `--set` overrides, the matrix values.
+    pub params: Value,
+}
+
+/// A validated stage definition.
+#[derive(Debug, Clone)]
+pub struct Stage {
+    /// The stage's name (a key of `stages:`).
+    pub name: String,
+    /// Line of the name in the pipeline file.
+    pub line: usize,
+    /// The argument list; `cmd[0]` is resolved by [`Pipeline::resolve_executable`].
+    pub cmd: Vec<String>,
+    /// Input name -> upstream stage name.
+    pub inputs: BTreeMap<String, String>,
+    /// Number of shard processes (1 when unsharded).
+    pub shards: usize,
+    /// The matrix expansions in order (one when there is no matrix).
+    pub expansions: Vec<Expansion>,
+    /// The `--set` overrides applied to this stage, as given (`KEY=VALUE`).
+    pub overrides: Vec<String>,
+}
+
+/// A loaded, validated pipeline with its stages in dependency order.
+#[derive(Debug, Clone)]
+pub struct Pipeline {
+    /// The pipeline file as named on the command line (for messages).
+    pub file: String,
+    /// Key of this pipeline in the lock record: its path relative to the workspace.
+    pub key: String,
+    /// Absolute workspace root.
+    pub workspace: PathBuf,
+    /// Absolute directory searched first for bare command names.
+    pub bin_dir: PathBuf,
+    /// Stages in topological order (ties broken by name).
+    pub stages: Vec<Stage>,
+    /// Absolute directory of the pipeline file (YAML paths are relative to it).
+    pub base: PathBuf,
+    text: String,
+}
+
+/// Options that shape how a pipeline is loaded.
+#[derive(Debug, Clone, Default)]
+pub struct LoadOptions {
+    /// `--bin-dir` or `PINO_BIN_DIR` (absolute or relative to the current directory).
+    pub bin_dir: Option<PathBuf>,
+    /// `--set STAGE.KEY=VALUE` overrides, in order.
+    pub sets: Vec<String>,
+}
+
+fn valid_name(s: &str) -> bool {
+    !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+}
+
+/// Lexically normalises `p` (no filesystem access): drops `.`, resolves `..`.
+fn normalize(p: &Path) -> PathBuf {
+    let mut out = PathBuf::new();
+    for c in p.components() {
+        match c {
+            Component::ParentDir => {
+                out.pop();
+            }
+            Component::CurDir => {}
+            other => out.push(other.as_os_str()),
+        }
+    }
+    out
+}
+
+/// Whether relative path `rel`, taken from `base`, stays inside `workspace` (lexically).
+fn stays_inside(workspace: &Path, base: &Path, rel: &str) -> bool {
+    let p = Path::new(rel);
+    if p.is_absolute() {
+        return false;
+    }
+    // `..` may not climb above the workspace even transiently.
+    let mut depth: isize = base.strip_prefix(workspace).map_or(0, |b| b.components().count() as isize);
+    for c in p.components() {
+        match c {
+            Component::ParentDir => depth -= 1,
+            Component::Normal(_) => depth += 1,
+            _ => {}
+        }
+        if depth < 0 {
+            return false;
+        }
+    }
+    normalize(&base.join(p)).starts_with(workspace)
+}
+
+/// The type name of a parameter value, as messages show it.
+pub fn kind(v: &Value) -> &'static str {
+    match v {
+        Value::Null => "null",
+        Value::Bool(_) => "boolean",
+        Value::Number(n) if n.is_f64() => "float",
+        Value::Number(_) => "integer",
+        Value::String(_) => "string",
+        Value::Array(_) => "list",
+        Value::Object(_) => "mapping",
+    }
+}
+
+/// Converts a `--set` value to the type of `existing`, or says why it cannot.
+fn coerce(existing: &Value, raw: &str, parsed: Value) -> std::result::Result<Value, String> {
+    match (existing, &parsed) {
+        (Value::Null, _) => Ok(parsed),
+        (Value::String(_), Value::String(_)) => Ok(parsed),
+        // A string parameter takes the text as written (`--set s.name=123` is "123").
+        (Value::String(_), _) => Ok(Value::String(raw.to_owned())),
+        (Value::Number(e), Value::Number(p)) if e.is_f64() => p
+            .as_f64()
+            .and_then(serde_json::Number::from_f64)
+            .map(Value::Number)
+            .ok_or_else(|| format!("`{raw}` is not a finite number")),
+        (Value::Number(_), Value::Number(p)) if !p.is_f64() => Ok(parsed),
+        (e, p) if kind(e) == kind(p) => Ok(parsed),
+        (e, p) => Err(format!("the parameter is a {} but `{raw}` is a {}", kind(e), kind(p))),
+    }
+}
+
+/// Renders a matrix value inside an expansion name (strings bare, others as JSON).
+fn render(v: &Value) -> String {
+    match v {
+        Value::String(s) => s.clone(),
+        other => other.to_string(),
+    }
+}
+
+impl Pipeline {
+    /// Reads, parses and validates the pipeline file `file` (relative to the current
+    /// directory) of the workspace `workspace`.
+    pub fn load(workspace: &Path, file: &Path, opts: &LoadOptions) -> Result<Self> {
+        let display = file.display().to_string();
+        let text = std::fs::read_to_string(file).map_err(|e| Error::Usage(format!("cannot read pipeline file {display}: {e}")))?;
+        let workspace = std::path::absolute(workspace).map_err(|e| Error::io(workspace, e))?;
+        let abs_file = normalize(&std::path::absolute(file).map_err(|e| Error::io(file, e))?);
+        let key = abs_file
+            .strip_prefix(&workspace)
+            .map(|p| p.to_string_lossy().into_owned())
+            .unwrap_or_else(|_| abs_file.to_string_lossy().into_owned());
+        let base = abs_file.parent().unwrap_or(&workspace).to_path_buf();
+
+        let raw: RawPipeline = serde_yaml::from_str(&text).map_err(|e| {
+            let (line, column) = e.location().map_or((1, 1), |l| (l.line(), l.column()));
+            Error::Yaml {
+                file: display.clone(),
+                line,
+                column,
+                message: e.to_string(),
+            }
+        })?;
+        let loc = Locator::new(&text);
+        let spec_err = |line: usize, message: String| Error::Spec {
+            file: display.clone(),
+            line,
+            message,
+        };
+
+        // bin_dir: the command line wins, then the environment, then the file.
+        let bin_dir = match (&opts.bin_dir, &raw.bin_dir) {
+            (Some(d), _) => std::path::absolute(d).map_err(|e| Error::io(d, e))?,
+            (None, Some(d)) => {
+                if !stays_inside(&workspace, &base, d) {
+                    return Err(spec_err(
+                        loc.top_line("bin_dir"),
+                        format!("bin_dir `{d}` must be a relative path inside the workspace {}", workspace.display()),
+                    ));
+                }
+                normalize(&base.join(d))
+            }
+            (None, None) => workspace.join("target").join("release"),
+        };
+
+        let mut stages = BTreeMap::new();
+        for (name, rs) in raw.stages {
+            let line = loc.stage_line(&name);
+            if !valid_name(&name) {
+                return Err(spec_err(line, format!("stage name `{name}` may only use letters, digits, `_` and `-`")));
+            }
+            if rs.cmd.is_empty() || rs.cmd[0].is_empty() {
+                return Err(spec_err(loc.field_line(&name, "cmd"), format!("stage `{name}`: `cmd` must name a program")));
+            }
+            let exe = &rs.cmd[0];
+            if exe.contains('/') && !stays_inside(&workspace, &base, exe) {
+                return Err(spec_err(
+                    loc.field_line(&name, "cmd"),
+                    format!("stage `{name}`: command `{exe}` must be a relative path inside the workspace (or a bare name)"),
+                ));
+            }
+            let shards = rs.shards.unwrap_or(1);
+            if shards == 0 {
+                return Err(spec_err(loc.field_line(&name, "shards"), format!("stage `{name}`: `shards` must be at least 1")));
+            }
+            let inputs = rs.inputs.unwrap_or_default();
+            for input in inputs.keys() {
+                if !valid_name(input) {
+                    return Err(spec_err(
+                        loc.field_line(&name, "inputs"),
+                        format!("stage `{name}`: input name `{input}` may only use letters, digits, `_` and `-`"),
+                    ));
+                }
+            }
+            let params = rs.params.unwrap_or_default();
+            let matrix = rs.matrix.unwrap_or_default();
+            for (k, values) in &matrix {
+                let l = loc.word_line(&name, "matrix", k);
+                if params.contains_key(k) {
+                    return Err(spec_err(l, format!("stage `{name}`: matrix key `{k}` is also a parameter; keep it in one place")));
+                }
+                if values.is_empty() {
+                    return Err(spec_err(l, format!("stage `{name}`: matrix key `{k}` has no values")));
+                }
+            }
+            stages.insert(
+                name.clone(),
+                (
+                    Stage {
+                        name,
+                        line,
+                        cmd: rs.cmd,
+                        inputs,
+                        shards,
+                        expansions: Vec::new(),
+                        overrides: Vec::new(),
+                    },
+                    params,
+                    matrix,
+                ),
+            );
+        }
+
+        // Dependencies exist.
+        for (name, (stage, _, _)) in &stages {
+            for (input, up) in &stage.inputs {
+                if !stages.contains_key(up) {
+                    let known: Vec<&str> = stages.keys().map(String::as_str).collect();
+                    return Err(spec_err(
+                        loc.word_line(name, "inputs", up),
+                        format!("stage `{name}`: input `{input}` depends on unknown stage `{up}` (stages: {})", known.join(", ")),
+                    ));
+                }
+            }
+        }
+
+        // --set overrides.
+        for set in &opts.sets {
+            let (lhs, raw_value) = set
+                .split_once('=')
+                .ok_or_else(|| Error::Usage(format!("--set `{set}`: expected STAGE.KEY=VALUE")))?;
+            let (sname, key) = lhs
+                .split_once('.')
+                .ok_or_else(|| Error::Usage(format!("--set `{set}`: expected STAGE.KEY=VALUE")))?;
+            if !stages.contains_key(sname) {
+                let known: Vec<&str> = stages.keys().map(String::as_str).collect();
+                return Err(spec_err(
+                    loc.top_line("stages"),
+                    format!("--set {set}: no stage `{sname}` in this pipeline (stages: {})", known.join(", ")),
+                ));
+            }
+            let (stage, params, matrix) = stages.get_mut(sname).expect("checked");
+            if matrix.contains_key(key) {
+                return Err(spec_err(
+                    loc.word_line(sname, "matrix", key),
+                    format!("--set {set}: `{key}` is a matrix key of stage `{sname}`; run one expansion with `pipeline run '{sname}[{key}=...]'`"),
+                ));
+            }
+            let Some(existing) = params.get(key) else {
+                let known: Vec<&str> = params.keys().map(String::as_str).collect();
+                return Err(spec_err(
+                    loc.field_line(sname, "params"),
+                    format!("--set {set}: stage `{sname}` has no parameter `{key}` (parameters: {})", known.join(", ")),
+                ));
+            };
+            let parsed: Value = serde_yaml::from_str(raw_value)
+                .map_err(|e| Error::Usage(format!("--set {set}: `{raw_value}` is not a YAML value: {e}")))?;
+            let value = coerce(existing, raw_value, parsed).map_err(|why| {
+                spec_err(loc.word_line(sname, "params", key), format!("--set {set}: wrong type for `{sname}.{key}`: {why}"))
+            })?;
+            params.insert(key.to_owned(), value);
+            stage.overrides.push(format!("{key}={raw_value}"));
+        }
+
+        // Matrix expansion: the cartesian product over the keys in sorted order.
+        for (stage, params, matrix) in stages.values_mut() {
+            let mut combos: Vec<Vec<(String, Value)>> = vec![Vec::new()];
+            for (k, values) in matrix.iter() {
+                combos = combos
+                    .into_iter()
+                    .flat_map(|c| {
+                        values.iter().map(move |v| {
+                            let mut c = c.clone();
+                            c.push((k.clone(), v.clone()));
+                            c
+                        })
+                    })
+                    .collect();
+            }
+            stage.expansions = combos
+                .into_iter()
+                .map(|combo| {
+                    let mut p = params.clone();
+                    let label: Vec<String> = combo.iter().map(|(k, v)| format!("{k}={}", render(v))).collect();
+                    for (k, v) in combo {
+                        p.insert(k, v);
+                    }
+                    Expansion {
+                        name: if label.is_empty() {
+                            stage.name.clone()
+                        } else {
+                            format!("{}[{}]", stage.name, label.join(","))
+                        },
+                        params: Value::Object(p),
+                    }
+                })
+                .collect();
+        }
+
+        let order = topo_order(&stages.iter().map(|(k, v)| (k.clone(), v.0.inputs.values().cloned().collect())).collect())
+            .map_err(|cycle| {
+                spec_err(
+                    loc.word_line(&cycle[0], "inputs", &cycle[1]),
+                    format!("dependency cycle: {}", cycle.join(" -> ")),
+                )
+            })?;
+        let stages = order.into_iter().map(|n| stages.remove(&n).expect("known stage").0).collect();
+        Ok(Self {
+            file: display,
+            key,
+            workspace,
+            bin_dir,
+            stages,
+            base,
+            text,
+        })
+    }
+
+    /// The stage called `name`.
+    pub fn stage(&self, name: &str) -> Option<&Stage> {
+        self.stages.iter().find(|s| s.name == name)
+    }
+
+    /// Index of the stage called `name` in [`Pipeline::stages`].
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.stages.iter().position(|s| s.name == name)
+    }
+
+    /// Resolves the stage's `cmd[0]`: a path with a `/` relative to the pipeline file's
+    /// directory; a bare name in `bin_dir`, then on `PATH`. Missing: bad input at the
+    /// `cmd` line.
+    pub fn resolve_executable(&self, stage: &Stage) -> Result<PathBuf> {
+        let exe = &stage.cmd[0];
+        let base = &self.base;
+        let found = if exe.contains('/') {
+            Some(normalize(&base.join(exe))).filter(|p| p.is_file())
+        } else {
+            std::iter::once(self.bin_dir.clone())
+                .chain(std::env::var_os("PATH").iter().flat_map(std::env::split_paths))
+                .map(|d| d.join(exe))
+                .find(|p| p.is_file())
+        };
+        found.ok_or_else(|| Error::Spec {
+            file: self.file.clone(),
+            line: Locator::new(&self.text).field_line(&stage.name, "cmd"),
+            message: format!(
+                "stage `{}`: executable `{exe}` not found (looked in {} and on PATH; build it, or set --bin-dir / PINO_BIN_DIR)",
+                stage.name,
+                self.bin_dir.display()
+            ),
+        })
+    }
+
+    /// Args after `cmd[0]` that name files relative to the workspace: hashed into the
+    /// identity too, so that editing a script passed to an interpreter makes the stage stale.
+    pub fn file_args(&self, stage: &Stage) -> Vec<PathBuf> {
+        stage.cmd[1..]
+            .iter()
+            .filter(|a| !a.starts_with('-') && !Path::new(a).is_absolute())
+            .map(|a| self.workspace.join(a))
+            .filter(|p| p.is_file())
+            .collect()
+    }
+}
+
+/// Topological order of `deps` (node -> its upstream nodes), ties broken by name; on a cycle,
+/// the cycle as a node list whose last element equals its first.
+fn topo_order(deps: &BTreeMap<String, Vec<String>>) -> std::result::Result<Vec<String>, Vec<String>> {
+    let mut order = Vec::new();
+    let mut done = std::collections::BTreeSet::new();
+    while done.len() < deps.len() {
+        let ready: Vec<&String> = deps
+            .iter()
+            .filter(|(n, ups)| !done.contains(*n) && ups.iter().all(|u| done.contains(u)))
+            .map(|(n, _)| n)
+            .collect();
+        if ready.is_empty() {
+            // Walk upstream from any remaining node until a node repeats.
+            let mut path: Vec<String> = vec![deps.keys().find(|n| !done.contains(*n)).expect("remaining").clone()];
+            loop {
+                let last = path.last().expect("nonempty");
+                let next = deps[last].iter().find(|u| !done.contains(*u)).expect("a blocked node has a blocked input").clone();
+                if let Some(pos) = path.iter().position(|p| *p == next) {
+                    let mut cycle = path[pos..].to_vec();
+                    cycle.push(next);
+                    // `a -> b` reads "a takes input from b".
+                    return Err(cycle);
+                }
+                path.push(next);
+            }
+        }
+        for n in ready {
+            done.insert(n.clone());
+            order.push(n.clone());
+        }
+    }
+    Ok(order)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(text: &str, sets: &[&str]) -> Result<Pipeline> {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("p.yaml");
+        std::fs::write(&f, text).unwrap();
+        let opts = LoadOptions {
+            bin_dir: None,
+            sets: sets.iter().map(|s| s.to_string()).collect(),
+        };
+        Pipeline::load(dir.path(), &f, &opts)
+    }
+
+    const OK: &str = "stages:\n  b:\n    cmd: [x]\n    inputs: {up: a}\n    matrix: {k: [1, two]}\n    params: {rate: 0.5, n: 3, s: hi}\n  a:\n    cmd: [x]\n    shards: 2\n";
+
+    #[test]
+    fn orders_expands_and_overrides() {
+        let p = load(OK, &["b.rate=2", "b.s=42"]).unwrap();
+        let names: Vec<&str> = p.stages.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["a", "b"]);
+        let b = &p.stages[1];
+        let ex: Vec<&str> = b.expansions.iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(ex, ["b[k=1]", "b[k=two]"]);
+        // An integer given for a float parameter becomes a float; strings stay text.
+        assert_eq!(serde_json::to_string(&b.expansions[0].params).unwrap(), r#"{"k":1,"n":3,"rate":2.0,"s":"42"}"#);
+        assert_eq!(p.stages[0].shards, 2);
+    }
+
+    #[test]
+    fn bad_inputs_name_their_line() {
+        let e = load(OK, &["b.n=1.5"]).unwrap_err().to_string();
+        assert!(e.contains(":6:") && e.contains("integer"), "{e}");
+        let e = load(OK, &["b.nope=1"]).unwrap_err().to_string();
+        assert!(e.contains("no parameter `nope`"), "{e}");
+        let e = load(&OK.replace("up: a", "up: c"), &[]).unwrap_err().to_string();
+        assert!(e.contains(":4:") && e.contains("unknown stage `c`"), "{e}");
+        let cyc = "stages:\n  a:\n    cmd: [x]\n    inputs: {u: b}\n  b:\n    cmd: [x]\n    inputs: {u: a}\n";
+        let e = load(cyc, &[]).unwrap_err().to_string();
+        assert!(e.contains("cycle: a -> b -> a") && e.contains(":4:"), "{e}");
+        let e = load("stages:\n  a:\n    cmd: [x]\n    shard: 2\n", &[]).unwrap_err().to_string();
+        assert!(e.contains(":4:") && e.contains("unknown field `shard`"), "{e}");
+        let e = load("bin_dir: ../x\nstages: {}\n", &[]).unwrap_err().to_string();
+        assert!(e.contains(":1:") && e.contains("inside the workspace"), "{e}");
+    }
+
+    #[test]
+    fn paths_stay_inside() {
+        let ws = Path::new("/w");
+        assert!(stays_inside(ws, ws, "target/release"));
+        assert!(stays_inside(ws, Path::new("/w/sub"), "../bin"));
+        assert!(!stays_inside(ws, ws, "../w/bin"));
+        assert!(!stays_inside(ws, ws, "/usr/bin"));
+    }
+}

@@ -1,0 +1,742 @@
+//! The coupled vehicle-track model and its time loop (`vtcd-model.md`, all sections).
+//!
+//! **State.** One vector for displacements `X`, one for velocities `V`, one for accelerations
+//! `A`, each laid out as
+//! ```text
+//! [ vehicle (10: z_c, beta_c, z_t1, beta_t1, z_t2, beta_t2, z_w1..z_w4) | rail modes q_1..q_N_M
+//!   | sleepers Z_s0..Z_s(N_f-1) | ballast blocks Z_b0..Z_b(N_f-1) ]
+//! ```
+//! (m, rad, and sqrt(kg) m for the mass-normalised modal coordinates). The mass matrix is
+//! diagonal (lumped bodies, unit modal masses), so `A = M^-1 F(X, V, t)` is explicit.
+//!
+//! **Forces at time t.** Wheel positions `x_wi(t) = x0 + v t + o_i` with the rear wheel 4 at
+//! `x0` when `t = 0`: `o_4 = 0`, `o_3 = 2 l_t`, `o_2 = 2 l_c`, `o_1 = 2 l_c + 2 l_t` (m).
+//! Rail under wheel `i`: `z_ri = sum_k Y_k(x_wi) q_k`; irregularity `eta_i = r(t) eta(x_wi)`
+//! (profile linearly interpolated); contact `P_i = Hertz(z_wi - z_ri - eta_i)`; vehicle
+//! accelerations from [`Vehicle::accelerations`]; rail-seat forces
+//! `k_f Z_r(x_j) + c_f Z_r'(x_j) = DST(k_f q + c_f q')` and modal fastener loads
+//! `sum_j F_fj Y_k(x_j) = DST(F_f)` (two sine transforms per evaluation, see
+//! [`crate::rail::SineTransform`]); substructure by [`crate::track::substructure`].
+//!
+//! **Start-up protocol.** From the zero state; the irregularity factor `r(t)` is 0 for
+//! `t < z T`, rises linearly to 1 over the next `r T` and stays 1 (`z`, `r` the start-up
+//! fractions, 0.1 and 0.1 by default; `T` the duration).
+//!
+//! **Outputs.** Every `output_every` steps (including `t = 0`), the row
+//! `t, z (10), z_r (4), z' (10), z'' (10), eta (4), P (4)` where `z''` is the acceleration
+//! evaluated at the stored state, so the stored rows satisfy the vehicle equations to
+//! round-off. `n_out = floor(round(T/dt) / output_every)` rows, `t = n output_every dt`.
+//!
+//! **Failure.** A non-finite contact force, vehicle acceleration or track state ends the
+//! sample with a [`Failure`] naming what and when.
+
+use serde::{Deserialize, Serialize};
+
+use crate::contact;
+use crate::integrator;
+use crate::params::SampleParams;
+use crate::rail::{Rail, SineTransform};
+use crate::stability;
+use crate::track::{self, TrackParams};
+use crate::vehicle::{Vehicle, FIRST_WHEEL, NUM_DOFS};
+use crate::{Error, Result};
+
+/// Number of stored signal columns after `t`: 10 + 4 + 10 + 10 + 4 + 4.
+pub const NUM_SIGNALS: usize = 42;
+/// Offsets of the signal groups inside a row (after `t`).
+pub mod col {
+    /// Vehicle displacements `z_c..z_w4`.
+    pub const Z: usize = 0;
+    /// Rail under wheels `z_r1..z_r4`.
+    pub const Z_R: usize = 10;
+    /// Vehicle velocities.
+    pub const V: usize = 14;
+    /// Vehicle accelerations.
+    pub const A: usize = 24;
+    /// Irregularity under wheels.
+    pub const ETA: usize = 34;
+    /// Contact forces.
+    pub const P: usize = 38;
+}
+
+fn d_duration() -> f64 {
+    5.0
+}
+fn d_dt() -> f64 {
+    1e-4
+}
+fn d_output_every() -> usize {
+    10
+}
+fn d_fraction() -> f64 {
+    0.1
+}
+fn d_x0() -> f64 {
+    20.0
+}
+fn d_gravity() -> f64 {
+    9.81
+}
+fn d_wheel_radius() -> f64 {
+    0.43
+}
+fn t_n_f() -> usize {
+    TrackParams::default().n_f
+}
+fn t_n_m() -> usize {
+    TrackParams::default().n_m
+}
+/// Serde defaults of the track fields: the values of [`TrackParams::default`].
+mod td {
+    use super::TrackParams;
+    macro_rules! track_default {
+        ($($f:ident),*) => { $( pub(super) fn $f() -> f64 { TrackParams::default().$f } )* };
+    }
+    track_default!(s, m_r, rail_e, rail_i, m_s, m_b, k_b, c_b, k_w, c_w, k_g, c_g);
+}
+
+/// Everything fixed for a run: time stepping, start-up, vehicle placement and track. These are
+/// the `simulate` stage's parameters (flat, so each can be overridden alone); every field has
+/// the spec's default and unknown names are refused.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulationConfig {
+    /// Simulated time `T` (s). Default 5 (paper).
+    #[serde(default = "d_duration")]
+    pub duration: f64,
+    /// Time step (s). Default 1e-4.
+    #[serde(default = "d_dt")]
+    pub dt: f64,
+    /// Keep every this many steps (10 gives 1 kHz at dt = 1e-4). Default 10.
+    #[serde(default = "d_output_every")]
+    pub output_every: usize,
+    /// Fraction of `T` with the irregularity off. Default 0.1.
+    #[serde(default = "d_fraction")]
+    pub startup_zero_fraction: f64,
+    /// Fraction of `T` over which the irregularity fades in linearly. Default 0.1.
+    #[serde(default = "d_fraction")]
+    pub startup_ramp_fraction: f64,
+    /// Rear-wheel position at `t = 0` (m). Default 20.
+    #[serde(default = "d_x0")]
+    pub x0: f64,
+    /// Gravity `g` (m/s^2), for the static wheel load. Default 9.81.
+    #[serde(default = "d_gravity")]
+    pub gravity: f64,
+    /// Wheel radius `R` (m) of the Hertz constant `G = 4.57 R^-0.149 1e-8`. Default 0.43.
+    #[serde(default = "d_wheel_radius")]
+    pub wheel_radius: f64,
+    /// Number of fasteners `N_f`. Default 900.
+    #[serde(default = "t_n_f")]
+    pub n_f: usize,
+    /// Number of rail modes `N_M` (< `N_f`). Default 450.
+    #[serde(default = "t_n_m")]
+    pub n_m: usize,
+    /// Fastener spacing `s` (m). Default 0.6.
+    #[serde(default = "td::s")]
+    pub s: f64,
+    /// Rail mass per length (kg/m). Default 60.64.
+    #[serde(default = "td::m_r")]
+    pub m_r: f64,
+    /// Rail Young's modulus (Pa). Default 2.059e11.
+    #[serde(default = "td::rail_e")]
+    pub rail_e: f64,
+    /// Rail second moment of area (m^4). Default 3.217e-5.
+    #[serde(default = "td::rail_i")]
+    pub rail_i: f64,
+    /// Sleeper mass (kg). Default 237.
+    #[serde(default = "td::m_s")]
+    pub m_s: f64,
+    /// Ballast block mass (kg). Default 341.3.
+    #[serde(default = "td::m_b")]
+    pub m_b: f64,
+    /// Ballast stiffness (N/m). Default 2.4e8.
+    #[serde(default = "td::k_b")]
+    pub k_b: f64,
+    /// Ballast damping (N s/m). Default 5.88e4.
+    #[serde(default = "td::c_b")]
+    pub c_b: f64,
+    /// Ballast shear stiffness (N/m). Default 7.8e7.
+    #[serde(default = "td::k_w")]
+    pub k_w: f64,
+    /// Ballast shear damping (N s/m). Default 8e4.
+    #[serde(default = "td::c_w")]
+    pub c_w: f64,
+    /// Subgrade stiffness (N/m). Default 6.5e7.
+    #[serde(default = "td::k_g")]
+    pub k_g: f64,
+    /// Subgrade damping (N s/m). Default 3.1e4.
+    #[serde(default = "td::c_g")]
+    pub c_g: f64,
+}
+
+impl Default for SimulationConfig {
+    fn default() -> Self {
+        let run = Self {
+            duration: d_duration(),
+            dt: d_dt(),
+            output_every: d_output_every(),
+            startup_zero_fraction: d_fraction(),
+            startup_ramp_fraction: d_fraction(),
+            x0: d_x0(),
+            gravity: d_gravity(),
+            wheel_radius: d_wheel_radius(),
+            n_f: t_n_f(),
+            n_m: t_n_m(),
+            s: td::s(),
+            m_r: td::m_r(),
+            rail_e: td::rail_e(),
+            rail_i: td::rail_i(),
+            m_s: td::m_s(),
+            m_b: td::m_b(),
+            k_b: td::k_b(),
+            c_b: td::c_b(),
+            k_w: td::k_w(),
+            c_w: td::c_w(),
+            k_g: td::k_g(),
+            c_g: td::c_g(),
+        };
+        run.with_track(&TrackParams::default())
+    }
+}
+
+fn out_of_range(name: &str, value: f64, allowed: impl Into<String>) -> Error {
+    Error::OutOfRange {
+        name: name.to_owned(),
+        value,
+        allowed: allowed.into(),
+    }
+}
+
+impl SimulationConfig {
+    /// The track part.
+    pub fn track(&self) -> TrackParams {
+        TrackParams {
+            n_f: self.n_f,
+            n_m: self.n_m,
+            s: self.s,
+            m_r: self.m_r,
+            rail_e: self.rail_e,
+            rail_i: self.rail_i,
+            m_s: self.m_s,
+            m_b: self.m_b,
+            k_b: self.k_b,
+            c_b: self.c_b,
+            k_w: self.k_w,
+            c_w: self.c_w,
+            k_g: self.k_g,
+            c_g: self.c_g,
+        }
+    }
+
+    /// The same run on another track.
+    pub fn with_track(mut self, tp: &TrackParams) -> Self {
+        self.n_f = tp.n_f;
+        self.n_m = tp.n_m;
+        self.s = tp.s;
+        self.m_r = tp.m_r;
+        self.rail_e = tp.rail_e;
+        self.rail_i = tp.rail_i;
+        self.m_s = tp.m_s;
+        self.m_b = tp.m_b;
+        self.k_b = tp.k_b;
+        self.c_b = tp.c_b;
+        self.k_w = tp.k_w;
+        self.c_w = tp.c_w;
+        self.k_g = tp.k_g;
+        self.c_g = tp.c_g;
+        self
+    }
+
+    /// Number of time steps `round(T / dt)`.
+    pub fn steps(&self) -> usize {
+        (self.duration / self.dt).round() as usize
+    }
+
+    /// Number of stored rows per sample.
+    pub fn n_outputs(&self) -> usize {
+        self.steps() / self.output_every.max(1)
+    }
+
+    /// Checks every field (names the field and its allowed range). The time-step limit
+    /// depends on the vehicle and is checked per sample by [`Simulation::new`].
+    pub fn validate(&self) -> Result<()> {
+        for (name, value) in [("duration", self.duration), ("dt", self.dt), ("gravity", self.gravity), ("wheel_radius", self.wheel_radius)] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(out_of_range(name, value, "finite and > 0"));
+            }
+        }
+        if self.output_every == 0 {
+            return Err(out_of_range("output_every", 0.0, "an integer >= 1 (steps between stored rows)"));
+        }
+        if self.n_outputs() < 1 {
+            let allowed = format!("at least output_every * dt = {} s", self.output_every as f64 * self.dt);
+            return Err(out_of_range("duration", self.duration, allowed));
+        }
+        for (name, value) in [("startup_zero_fraction", self.startup_zero_fraction), ("startup_ramp_fraction", self.startup_ramp_fraction)] {
+            if !(0.0..=1.0).contains(&value) {
+                return Err(out_of_range(name, value, "in [0, 1]"));
+            }
+        }
+        let sum = self.startup_zero_fraction + self.startup_ramp_fraction;
+        if sum > 1.0 {
+            return Err(out_of_range("startup_ramp_fraction", self.startup_ramp_fraction, format!("<= 1 - startup_zero_fraction = {}", 1.0 - self.startup_zero_fraction)));
+        }
+        if !(self.x0.is_finite() && self.x0 > 0.0) {
+            return Err(out_of_range("x0", self.x0, "finite and > 0 (inside the rail)"));
+        }
+        self.track().validate()
+    }
+
+    /// Irregularity factor `r(t)` of the start-up protocol.
+    pub fn ramp(&self, t: f64) -> f64 {
+        let start = self.startup_zero_fraction * self.duration;
+        let width = self.startup_ramp_fraction * self.duration;
+        if t < start {
+            0.0
+        } else if width <= 0.0 || t >= start + width {
+            1.0
+        } else {
+            (t - start) / width
+        }
+    }
+}
+
+/// A vertical irregularity profile `eta(x)` (m, positive downward) on increasing positions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Profile {
+    x: Vec<f64>,
+    eta: Vec<f64>,
+}
+
+impl Profile {
+    /// Checks lengths (equal, >= 2), strictly increasing finite `x` and finite `eta`.
+    pub fn new(x: Vec<f64>, eta: Vec<f64>) -> Result<Self> {
+        if x.len() != eta.len() || x.len() < 2 {
+            return Err(Error::Shape {
+                name: "eta".to_owned(),
+                found: eta.len(),
+                expected: x.len().max(2),
+            });
+        }
+        if let Some(w) = x.windows(2).find(|w| !(w[1] > w[0]) || !w[1].is_finite() || !w[0].is_finite()) {
+            return Err(out_of_range("x", w[1], format!("finite and strictly increasing (after {})", w[0])));
+        }
+        if let Some(e) = eta.iter().find(|e| !e.is_finite()) {
+            return Err(out_of_range("eta", *e, "finite"));
+        }
+        Ok(Self { x, eta })
+    }
+
+    /// Covered positions `[x_first, x_last]` (m).
+    pub fn range(&self) -> [f64; 2] {
+        [self.x[0], self.x[self.x.len() - 1]]
+    }
+
+    /// `eta` at `x` by linear interpolation (clamped to the ends; callers check coverage).
+    #[inline]
+    pub fn at(&self, x: f64) -> f64 {
+        let i = self.x.partition_point(|&p| p <= x).clamp(1, self.x.len() - 1);
+        let (x0, x1) = (self.x[i - 1], self.x[i]);
+        let w = ((x - x0) / (x1 - x0)).clamp(0.0, 1.0);
+        self.eta[i - 1] + w * (self.eta[i] - self.eta[i - 1])
+    }
+}
+
+/// The wheel-rail contact law.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ContactLaw {
+    /// Hertz `P = (delta/G)^(3/2)` for `delta > 0`, else 0 (the spec's law).
+    Hertz,
+    /// `P = preload + stiffness delta` for every `delta` (no lift-off): the contact linearised
+    /// at a static point, used by the energy test.
+    Linear {
+        /// Tangent stiffness (N/m).
+        stiffness: f64,
+        /// Force at `delta = 0` (N).
+        preload: f64,
+    },
+}
+
+/// Why a sample failed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Failure {
+    /// Time of detection (s).
+    pub t: f64,
+    /// What was not finite.
+    pub reason: String,
+}
+
+/// Stored rows of one sample: `t` and [`NUM_SIGNALS`] columns in schema order (see [`col`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    /// Output times (s).
+    pub t: Vec<f64>,
+    /// Signal columns, each `t.len()` long.
+    pub columns: Vec<Vec<f64>>,
+}
+
+/// What an observer sees at each step: the full state and the wheel quantities.
+#[derive(Debug)]
+pub struct StepView<'a> {
+    /// Step index `n`.
+    pub step: usize,
+    /// Time `n dt` (s).
+    pub t: f64,
+    /// Displacements (state layout of the module doc).
+    pub x: &'a [f64],
+    /// Velocities.
+    pub v: &'a [f64],
+    /// Accelerations at `(x, v, t)`.
+    pub a: &'a [f64],
+    /// Wheel quantities at this state.
+    pub wheels: &'a Wheels,
+}
+
+/// Per-wheel quantities of one evaluation.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Wheels {
+    /// Wheel positions (m).
+    pub x: [f64; 4],
+    /// Rail displacement under each wheel (m).
+    pub z_r: [f64; 4],
+    /// Irregularity under each wheel (m).
+    pub eta: [f64; 4],
+    /// Contact forces (N).
+    pub p: [f64; 4],
+}
+
+/// One sample's coupled model, ready to run.
+#[derive(Debug, Clone)]
+pub struct Simulation {
+    /// Run configuration.
+    pub config: SimulationConfig,
+    /// Track constants.
+    pub track: TrackParams,
+    /// The sample's parameters.
+    pub params: SampleParams,
+    /// The half vehicle.
+    pub vehicle: Vehicle,
+    /// The modal rail.
+    pub rail: Rail,
+    /// Contact law (Hertz unless a test changes it).
+    pub contact: ContactLaw,
+    /// Hertz constant `G` (m/N^(2/3)).
+    pub hertz_g: f64,
+    /// Running speed (m/s).
+    pub speed: f64,
+    /// Wheel offsets from the rear wheel (m), wheels 1..4.
+    pub offsets: [f64; 4],
+    profile: Option<Profile>,
+}
+
+/// Scratch space of the force evaluation.
+struct Workspace {
+    dst: SineTransform,
+    shapes: Vec<f64>,
+    seat_in: Vec<f64>,
+    seat: Vec<f64>,
+    fastener: Vec<f64>,
+    modal: Vec<f64>,
+}
+
+impl Simulation {
+    /// Builds and checks one sample's model: configuration, parameters (masses and
+    /// stiffnesses > 0, dampings >= 0), the time step against the stability bound, and that the
+    /// wheels stay on the rail and, while the irregularity is on, on the profile.
+    pub fn new(params: &SampleParams, config: &SimulationConfig, profile: Option<Profile>) -> Result<Self> {
+        config.validate()?;
+        for (name, value) in crate::params::PARAMETER_NAMES.iter().zip(params.to_array()) {
+            let damping = matches!(*name, "c_p" | "c_s" | "c_f");
+            let ok = value.is_finite() && if damping { value >= 0.0 } else { value > 0.0 || *name == "v_kmh" && value == 0.0 };
+            if !ok {
+                return Err(out_of_range(name, value, if damping { "finite and >= 0" } else { "finite and > 0" }));
+            }
+        }
+        let track = config.track();
+        let vehicle = Vehicle::new(params, config.gravity);
+        let hertz_g = contact::hertz_constant(config.wheel_radius);
+        stability::spectrum_bound(&vehicle, &track, params.k_f, params.c_f, hertz_g).check(config.dt)?;
+        let (lc, lt) = (params.l_c, params.l_t);
+        let offsets = [2.0 * (lc + lt), 2.0 * lc, 2.0 * lt, 0.0];
+        let sim = Self {
+            config: *config,
+            track,
+            params: *params,
+            vehicle,
+            rail: Rail::new(&track),
+            contact: ContactLaw::Hertz,
+            hertz_g,
+            speed: params.speed(),
+            offsets,
+            profile,
+        };
+        let t_end = config.n_outputs().saturating_sub(1) as f64 * config.output_every as f64 * config.dt;
+        let span = |t0: f64| [config.x0 + sim.speed * t0, config.x0 + sim.speed * t_end + offsets[0]];
+        let need = span(0.0);
+        let length = track.length();
+        if !(need[0] > 0.0 && need[1] < length) {
+            return Err(Error::TooShort {
+                what: format!("the rail (n_f * s = {} * {} m)", track.n_f, track.s),
+                have_lo: 0.0,
+                have_hi: length,
+                need_lo: need[0],
+                need_hi: need[1],
+                hint: "lengthen the track (n_f), shorten the run (duration) or move x0".to_owned(),
+            });
+        }
+        if let Some(p) = &sim.profile {
+            let t_on = config.startup_zero_fraction * config.duration;
+            let need = span(t_on.min(t_end));
+            let have = p.range();
+            if t_on <= t_end && (need[0] < have[0] || need[1] > have[1]) {
+                return Err(Error::TooShort {
+                    what: "the irregularity profile".to_owned(),
+                    have_lo: have[0],
+                    have_hi: have[1],
+                    need_lo: need[0],
+                    need_hi: need[1],
+                    hint: "generate profiles that cover the whole run plus the vehicle length".to_owned(),
+                });
+            }
+        }
+        Ok(sim)
+    }
+
+    /// Length of the state vectors: `10 + N_M + 2 N_f`.
+    pub fn state_len(&self) -> usize {
+        NUM_DOFS + self.track.n_m + 2 * self.track.n_f
+    }
+
+    /// Ranges of the vehicle, rail-mode, sleeper and ballast parts of the state.
+    pub fn layout(&self) -> [std::ops::Range<usize>; 4] {
+        let (nm, nf) = (self.track.n_m, self.track.n_f);
+        let q = NUM_DOFS..NUM_DOFS + nm;
+        let s = q.end..q.end + nf;
+        let b = s.end..s.end + nf;
+        [0..NUM_DOFS, q, s, b]
+    }
+
+    fn workspace(&self) -> Workspace {
+        let (nm, nf) = (self.track.n_m, self.track.n_f);
+        Workspace {
+            dst: SineTransform::new(nf),
+            shapes: vec![0.0; 4 * nm],
+            seat_in: vec![0.0; nm],
+            seat: vec![0.0; nf],
+            fastener: vec![0.0; nf],
+            modal: vec![0.0; nm],
+        }
+    }
+
+    /// Wheel positions at time `t` (m).
+    pub fn wheel_positions(&self, t: f64) -> [f64; 4] {
+        let rear = self.config.x0 + self.speed * t;
+        self.offsets.map(|o| rear + o)
+    }
+
+    #[inline]
+    fn contact_force(&self, delta: f64) -> f64 {
+        match self.contact {
+            ContactLaw::Hertz => contact::contact_force(delta, self.hertz_g),
+            ContactLaw::Linear { stiffness, preload } => preload + stiffness * delta,
+        }
+    }
+
+    /// `A = M^-1 F(X, V, t)`; returns the wheel quantities.
+    fn accelerations(&self, ws: &mut Workspace, t: f64, x: &[f64], v: &[f64], a: &mut [f64]) -> Wheels {
+        let nm = self.track.n_m;
+        let [_, rq, rs, rb] = self.layout();
+        let (q, qd) = (&x[rq.clone()], &v[rq.clone()]);
+        let mut w = Wheels { x: self.wheel_positions(t), ..Default::default() };
+        let ramp = self.config.ramp(t);
+        let mut z = [0.0; NUM_DOFS];
+        let mut zd = [0.0; NUM_DOFS];
+        z.copy_from_slice(&x[..NUM_DOFS]);
+        zd.copy_from_slice(&v[..NUM_DOFS]);
+        for i in 0..4 {
+            let y = &mut ws.shapes[i * nm..(i + 1) * nm];
+            self.rail.shapes_at(w.x[i], y);
+            w.z_r[i] = Rail::displacement(y, q);
+            w.eta[i] = match (&self.profile, ramp > 0.0) {
+                (Some(p), true) => ramp * p.at(w.x[i]),
+                _ => 0.0,
+            };
+            w.p[i] = self.contact_force(z[FIRST_WHEEL + i] - w.z_r[i] - w.eta[i]);
+        }
+        let av = self.vehicle.accelerations(&z, &zd, &w.p);
+        a[..NUM_DOFS].copy_from_slice(&av);
+
+        // Rail-seat share of the fastener forces: k_f Z_r(x_j) + c_f Z_r'(x_j), j = 1..N_f-1
+        // (x_0 = 0 is a node of every mode).
+        let (k_f, c_f, scale) = (self.params.k_f, self.params.c_f, self.rail.shape_scale);
+        for ((s, q), qd) in ws.seat_in.iter_mut().zip(q).zip(qd) {
+            *s = scale * (k_f * q + c_f * qd);
+        }
+        ws.seat[0] = 0.0;
+        ws.dst.apply(&ws.seat_in, &mut ws.seat[1..]);
+        let (a_s, a_b) = a[rs.start..].split_at_mut(rs.len());
+        track::substructure(
+            &self.track,
+            k_f,
+            c_f,
+            &ws.seat,
+            &x[rs.clone()],
+            &v[rs.clone()],
+            &x[rb.clone()],
+            &v[rb.clone()],
+            &mut ws.fastener,
+            a_s,
+            &mut a_b[..rb.len()],
+        );
+        // Modal loads: -sum_j F_fj Y_k(x_j) + sum_i P_i Y_k(x_wi).
+        ws.dst.apply(&ws.fastener[1..], &mut ws.modal);
+        let aq = &mut a[rq];
+        let sh = &ws.shapes;
+        let (y1, y2, y3, y4) = (&sh[..nm], &sh[nm..2 * nm], &sh[2 * nm..3 * nm], &sh[3 * nm..]);
+        let [p1, p2, p3, p4] = w.p;
+        for k in 0..nm {
+            aq[k] = -self.rail.omega2[k] * q[k] - scale * ws.modal[k]
+                + (p1 * y1[k] + p2 * y2[k] + p3 * y3[k] + p4 * y4[k]);
+        }
+        w
+    }
+
+    /// Runs from the zero state for the configured duration, calling `observe` at every step
+    /// (including step 0) with the state and accelerations at that step. Stops with a
+    /// [`Failure`] on a non-finite contact force or vehicle acceleration (checked every step)
+    /// or track state (checked at every output step).
+    pub fn run_observed(&self, steps: usize, mut observe: impl FnMut(&StepView)) -> std::result::Result<(), Failure> {
+        let n = self.state_len();
+        let mut ws = self.workspace();
+        let (mut x, mut v) = (vec![0.0; n], vec![0.0; n]);
+        let (mut a, mut a_prev) = (vec![0.0; n], vec![0.0; n]);
+        let dt = self.config.dt;
+        let every = self.config.output_every;
+        let mut wheels = self.accelerations(&mut ws, 0.0, &x, &v, &mut a);
+        for step in 0..=steps {
+            let t = step as f64 * dt;
+            if step > 0 {
+                integrator::predict(&mut x, &mut v, &a, &a_prev, dt, step == 1);
+                std::mem::swap(&mut a, &mut a_prev);
+                wheels = self.accelerations(&mut ws, t, &x, &v, &mut a);
+            }
+            check_wheels(t, &wheels, &a)?;
+            if step % every == 0 {
+                check_state(t, &x, &v, &a)?;
+            }
+            observe(&StepView { step, t, x: &x, v: &v, a: &a, wheels: &wheels });
+        }
+        Ok(())
+    }
+
+    /// Runs the configured duration and returns the stored rows.
+    pub fn run(&self) -> std::result::Result<Trajectory, Failure> {
+        let n_out = self.config.n_outputs();
+        let every = self.config.output_every;
+        let mut t_col = Vec::with_capacity(n_out);
+        let mut columns = vec![Vec::with_capacity(n_out); NUM_SIGNALS];
+        self.run_observed((n_out - 1) * every, |s| {
+            if s.step % every != 0 {
+                return;
+            }
+            t_col.push(s.t);
+            let vehicle = |c: &mut [Vec<f64>], src: &[f64]| {
+                for (col, val) in c.iter_mut().zip(&src[..NUM_DOFS]) {
+                    col.push(*val);
+                }
+            };
+            vehicle(&mut columns[col::Z..col::Z + NUM_DOFS], s.x);
+            vehicle(&mut columns[col::V..col::V + NUM_DOFS], s.v);
+            vehicle(&mut columns[col::A..col::A + NUM_DOFS], s.a);
+            for i in 0..4 {
+                columns[col::Z_R + i].push(s.wheels.z_r[i]);
+                columns[col::ETA + i].push(s.wheels.eta[i]);
+                columns[col::P + i].push(s.wheels.p[i]);
+            }
+        })?;
+        Ok(Trajectory { t: t_col, columns })
+    }
+
+    /// Total mechanical energy (J) of state `(x, v)` with wheels at `wheel_x`: kinetic energy,
+    /// suspension, rail bending, fastener, ballast, shear and subgrade springs, the contact
+    /// potential (`P0 delta + k delta^2 / 2` for [`ContactLaw::Linear`], `(2/5) delta^(5/2) /
+    /// G^(3/2)` for Hertz) and the work potential `-W sum z_wi` of the static wheel loads. It is
+    /// conserved when every damper is off, the wheels stand still and the irregularity is off.
+    pub fn energy(&self, x: &[f64], v: &[f64], wheel_x: &[f64; 4]) -> f64 {
+        let [_, rq, rs, rb] = self.layout();
+        let tp = &self.track;
+        let veh = &self.vehicle;
+        let m = veh.masses();
+        let mut kinetic: f64 = (0..NUM_DOFS).map(|i| 0.5 * m[i] * v[i] * v[i]).sum();
+        kinetic += v[rq.clone()].iter().map(|q| 0.5 * q * q).sum::<f64>();
+        kinetic += v[rs.clone()].iter().map(|s| 0.5 * tp.m_s * s * s).sum::<f64>();
+        kinetic += v[rb.clone()].iter().map(|b| 0.5 * tp.m_b * b * b).sum::<f64>();
+        let mut z = [0.0; NUM_DOFS];
+        z.copy_from_slice(&x[..NUM_DOFS]);
+        let susp = veh.suspension_forces(&z, &[0.0; NUM_DOFS]);
+        let mut potential: f64 = susp.secondary.iter().map(|f| 0.5 * f * f / veh.k_s).sum::<f64>()
+            + susp.primary.iter().map(|f| 0.5 * f * f / veh.k_p).sum::<f64>();
+        let q = &x[rq];
+        potential += q.iter().zip(&self.rail.omega2).map(|(q, w2)| 0.5 * w2 * q * q).sum::<f64>();
+        let mut seat = vec![0.0; tp.n_f];
+        let scaled: Vec<f64> = q.iter().map(|q| self.rail.shape_scale * q).collect();
+        SineTransform::new(tp.n_f).apply(&scaled, &mut seat[1..]);
+        let (zs, zb) = (&x[rs], &x[rb]);
+        for j in 0..tp.n_f {
+            let left = if j == 0 { 0.0 } else { zb[j - 1] };
+            potential += 0.5 * self.params.k_f * (seat[j] - zs[j]).powi(2)
+                + 0.5 * tp.k_b * (zs[j] - zb[j]).powi(2)
+                + 0.5 * tp.k_g * zb[j] * zb[j]
+                + 0.5 * tp.k_w * (zb[j] - left).powi(2);
+        }
+        potential += 0.5 * tp.k_w * zb[tp.n_f - 1].powi(2);
+        let mut y = vec![0.0; tp.n_m];
+        for i in 0..4 {
+            self.rail.shapes_at(wheel_x[i], &mut y);
+            let delta = z[FIRST_WHEEL + i] - Rail::displacement(&y, q);
+            potential += match self.contact {
+                ContactLaw::Linear { stiffness, preload } => preload * delta + 0.5 * stiffness * delta * delta,
+                ContactLaw::Hertz => {
+                    if delta > 0.0 {
+                        0.4 * delta.powf(2.5) / self.hertz_g.powf(1.5)
+                    } else {
+                        0.0
+                    }
+                }
+            };
+            potential -= veh.w * z[FIRST_WHEEL + i];
+        }
+        kinetic + potential
+    }
+}
+
+fn check_wheels(t: f64, w: &Wheels, a: &[f64]) -> std::result::Result<(), Failure> {
+    if let Some(i) = w.p.iter().position(|p| !p.is_finite()) {
+        return Err(Failure {
+            t,
+            reason: format!("non-finite contact force p_{} = {} at t = {t:.4} s", i + 1, w.p[i]),
+        });
+    }
+    if let Some(i) = a[..NUM_DOFS].iter().position(|x| !x.is_finite()) {
+        return Err(Failure {
+            t,
+            reason: format!("non-finite vehicle acceleration (dof {}) = {} at t = {t:.4} s", i + 1, a[i]),
+        });
+    }
+    Ok(())
+}
+
+fn check_state(t: f64, x: &[f64], v: &[f64], a: &[f64]) -> std::result::Result<(), Failure> {
+    // Any NaN or infinity makes the sum non-finite (an overflow of finite values too, which is
+    // just as much a blow-up at these magnitudes).
+    for (name, s) in [("displacement", x), ("velocity", v), ("acceleration", a)] {
+        if !s.iter().sum::<f64>().is_finite() {
+            let i = s.iter().position(|x| !x.is_finite()).unwrap_or(0);
+            return Err(Failure {
+                t,
+                reason: format!("non-finite track/vehicle {name} (state index {i}) at t = {t:.4} s"),
+            });
+        }
+    }
+    Ok(())
+}
