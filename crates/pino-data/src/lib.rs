@@ -5,6 +5,7 @@
 //! - [`Table`]: a small columnar table of named `f64`, `i64` or string columns.
 //! - [`write_parquet`]: writes a table atomically (temporary file, fsync, rename) with fixed
 //!   writer settings, so the same table always gives the same bytes.
+//! - [`StreamWriter`]: writes a large table row group by row group (atomic on finish).
 //! - [`read_parquet`]: reads chosen columns, naming the file and the column when one is
 //!   missing or of another type.
 //!
@@ -23,8 +24,10 @@
 pub mod schema;
 mod table;
 mod parquet_io;
+mod stream;
 
 pub use parquet_io::{read_parquet, read_parquet_files, row_count, write_parquet, write_parquet_with};
+pub use stream::StreamWriter;
 pub use table::{Column, Table};
 
 use std::path::PathBuf;

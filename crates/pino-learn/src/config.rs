@@ -506,7 +506,7 @@ mod tests {
         assert_eq!(m.depth, 3);
         assert_eq!(t.lr_at(29), 5e-4);
         assert!((t.lr_at(30) - 3.75e-4).abs() < 1e-15);
-        assert!(m.validate(40).is_ok());
-        assert!(m.validate(20).is_err(), "32 modes need 64 points");
+        assert!(m.validate(64).is_ok());
+        assert!(m.validate(63).is_err(), "32 modes need 64 points");
     }
 }

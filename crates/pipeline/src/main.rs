@@ -1,1 +1,5 @@
-fn main() {}
+//! `pipeline`: see the `pipeline` library and crates/pipeline/README.md.
+
+fn main() -> std::process::ExitCode {
+    pipeline::cli::main()
+}

@@ -204,17 +204,17 @@ impl Pipeline {
         };
 
         // bin_dir: the command line wins, then the environment, then the file.
+        if let Some(d) = &raw.bin_dir {
+            if !stays_inside(&workspace, &base, d) {
+                return Err(spec_err(
+                    loc.top_line("bin_dir"),
+                    format!("bin_dir `{d}` must be a relative path inside the workspace {}", workspace.display()),
+                ));
+            }
+        }
         let bin_dir = match (&opts.bin_dir, &raw.bin_dir) {
             (Some(d), _) => std::path::absolute(d).map_err(|e| Error::io(d, e))?,
-            (None, Some(d)) => {
-                if !stays_inside(&workspace, &base, d) {
-                    return Err(spec_err(
-                        loc.top_line("bin_dir"),
-                        format!("bin_dir `{d}` must be a relative path inside the workspace {}", workspace.display()),
-                    ));
-                }
-                normalize(&base.join(d))
-            }
+            (None, Some(d)) => normalize(&base.join(d)),
             (None, None) => workspace.join("target").join("release"),
         };
 

@@ -740,3 +740,57 @@ fn check_state(t: f64, x: &[f64], v: &[f64], a: &[f64]) -> std::result::Result<(
     }
     Ok(())
 }
+
+/// One sample to simulate: its id, parameters and irregularity profile.
+#[derive(Debug, Clone)]
+pub struct SampleInput {
+    /// Sample id.
+    pub id: u64,
+    /// The 14 parameters.
+    pub params: SampleParams,
+    /// Its irregularity profile (`None`: a perfectly smooth track).
+    pub profile: Option<Profile>,
+}
+
+/// Builds every sample's model in parallel, checking the configuration, the parameters,
+/// the time step and the profile coverage of each before anything runs. The error of the
+/// first bad sample (in input order) is returned, prefixed with its id.
+pub fn prepare(config: &SimulationConfig, inputs: Vec<SampleInput>) -> std::result::Result<Vec<(u64, Simulation)>, (u64, Error)> {
+    use rayon::prelude::*;
+    config.validate().map_err(|e| (inputs.first().map_or(0, |s| s.id), e))?;
+    inputs
+        .into_par_iter()
+        .map(|s| Simulation::new(&s.params, config, s.profile).map(|sim| (s.id, sim)).map_err(|e| (s.id, e)))
+        .collect()
+}
+
+/// Runs prepared samples in parallel (rayon), `chunk` at a time, and hands each outcome to
+/// `sink` in input order (so the output never depends on the thread count). `done` is called
+/// once per finished sample from the worker threads (progress reporting). Memory holds at most
+/// `chunk` trajectories.
+pub fn run_all<E>(
+    sims: &[(u64, Simulation)],
+    chunk: usize,
+    done: &(dyn Fn() + Sync),
+    mut sink: impl FnMut(u64, std::result::Result<Trajectory, Failure>) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
+    use rayon::prelude::*;
+    for block in sims.chunks(chunk.max(1)) {
+        let outcomes: Vec<_> = block
+            .par_iter()
+            .map(|(id, sim)| {
+                let out = sim.run();
+                done();
+                (*id, out)
+            })
+            .collect();
+        for (id, out) in outcomes {
+            sink(id, out)?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+#[path = "simulation_tests.rs"]
+mod tests;

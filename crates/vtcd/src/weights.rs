@@ -187,7 +187,7 @@ pub struct SampleSignals<'a> {
 
 impl SampleSignals<'_> {
     /// Common length; an error naming the first signal that differs.
-    pub fn len(&self) -> Result<usize> {
+    pub fn common_len(&self) -> Result<usize> {
         let n = self.z[0].len();
         let all = self
             .z
@@ -231,7 +231,7 @@ pub fn max_abs_residuals(
     s: &SampleSignals<'_>,
     start: usize,
 ) -> Result<[f64; NUM_DOFS]> {
-    let n = s.len()?;
+    let n = s.common_len()?;
     let mut max = [0.0f64; NUM_DOFS];
     for t in start..n {
         let z: [f64; NUM_DOFS] = std::array::from_fn(|i| s.z[i][t]);
@@ -262,7 +262,7 @@ pub fn magnitude_weights(
     sample_id: u64,
     s: &SampleSignals<'_>,
 ) -> Result<[f64; NUM_DOFS]> {
-    let n = s.len()?;
+    let n = s.common_len()?;
     let start = cfg.window_start(n);
     if start >= n {
         return Err(Error::Shape {

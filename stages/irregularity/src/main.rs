@@ -19,7 +19,10 @@ fn run() -> Result<String> {
         .with_context(|| format!("stage `{}`: bad irregularity parameters", ctx.stage))?;
     let files = ctx.input_files("params", "params.parquet")?;
     if files.is_empty() {
-        bail!("input `params` has no params.parquet (in {:?})", ctx.input_dirs("params")?);
+        bail!(
+            "input `params` has no params.parquet (in {:?})",
+            ctx.input_dirs("params")?
+        );
     }
     let params = read_parquet_files(&files, Some(&[schema::SAMPLE_ID]))?;
     let mut ids = params.i64(schema::SAMPLE_ID)?.to_vec();
@@ -44,7 +47,10 @@ fn run() -> Result<String> {
     let n = generator.len();
     let x = generator.positions();
     let mut table = Table::default();
-    let sample_col = ids.iter().flat_map(|&id| std::iter::repeat_n(id, n)).collect();
+    let sample_col = ids
+        .iter()
+        .flat_map(|&id| std::iter::repeat_n(id, n))
+        .collect();
     table.push(schema::SAMPLE_ID, Column::I64(sample_col))?;
     table.push(schema::TRACK_X, Column::F64(x.repeat(ids.len())))?;
     table.push(schema::TRACK_ETA, Column::F64(profiles.concat()))?;

@@ -20,7 +20,10 @@ fn run() -> Result<String> {
     let mut table = Table::default();
     let ids = samples.iter().map(|(id, _, _)| *id as i64).collect();
     table.push(schema::SAMPLE_ID, Column::I64(ids))?;
-    let splits = samples.iter().map(|(_, s, _)| s.as_str().to_owned()).collect();
+    let splits = samples
+        .iter()
+        .map(|(_, s, _)| s.as_str().to_owned())
+        .collect();
     table.push(schema::SPLIT, Column::Str(splits))?;
     for j in 0..NUM_PARAMETERS {
         let values = samples.iter().map(|(_, _, p)| p.to_array()[j]).collect();

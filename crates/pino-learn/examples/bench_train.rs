@@ -1,0 +1,85 @@
+//! Benchmark: training step time and samples per second, inference time.
+//!
+//! ```text
+//! cargo run --release -p pino-learn --example bench_train -- \
+//!     [width] [modes] [depth] [batch] [points] [matmul|fft] [steps]
+//! ```
+//! Builds a synthetic dataset of `points` time points per record (after the 10% start-up
+//! window), runs `steps` optimizer steps of algorithm 4 (data + derivative loss) and reports
+//! the median step time, samples per second, and the forward time for 40 samples.
+use candle_core::Device;
+use pino_learn::config::{ModelConfig, TrainParams};
+use pino_learn::data::{load_dataset, make_batch, prepare};
+use pino_learn::loss::LossContext;
+use pino_learn::model::Fno;
+use pino_learn::optim::Adam;
+use pino_learn::spectral::Transform;
+use pino_learn::synthetic::{write_dataset, SyntheticSpec};
+use std::time::Instant;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let a: Vec<String> = std::env::args().skip(1).collect();
+    let arg = |i: usize, d: &str| a.get(i).cloned().unwrap_or_else(|| d.to_owned());
+    let width: usize = arg(0, "32").parse()?;
+    let modes: usize = arg(1, "32").parse()?;
+    let depth: usize = arg(2, "3").parse()?;
+    let batch: usize = arg(3, "8").parse()?;
+    let points: usize = arg(4, "1800").parse()?;
+    let transform = if arg(5, "matmul") == "fft" { Transform::Fft } else { Transform::Matmul };
+    let steps: usize = arg(6, "10").parse()?;
+    let dir = std::env::temp_dir().join(format!("pino-bench-{points}"));
+    std::fs::create_dir_all(&dir)?;
+    let spec = SyntheticSpec {
+        n_train: batch.max(8),
+        n_validation: 40,
+        duration: points as f64 / 0.9 * 1e-3,
+        ..Default::default()
+    };
+    let files = write_dataset(&spec, &dir)?;
+    let mut p = TrainParams::with_algorithm(4);
+    p.width = width;
+    p.modes = modes;
+    p.depth = Some(depth);
+    let (_, train, window) = p.configs()?;
+    let ds = load_dataset(&files.params, &[files.simulation.clone()], None, &window)?;
+    let cfg = ModelConfig { in_channels: 19, out_channels: 14, width, modes, depth, projection_width: p.projection_width };
+    let dev = Device::Cpu;
+    let model = Fno::new(cfg, ds.t_points(), 1, transform, &dev)?;
+    let norm = ds.normalisation()?;
+    let loss = LossContext { config: train, norm: norm.clone(), dt: ds.dt, f_ref: ds.mean_wheel_load(9.81) };
+    let items = prepare(&ds, &norm);
+    let idx: Vec<usize> = (0..batch).collect();
+    let b = make_batch(&items, &idx, ds.t_points(), &dev)?;
+    let mut adam = Adam::new(model.vars())?;
+    let mut times = Vec::new();
+    for _ in 0..steps {
+        let t0 = Instant::now();
+        let u = model.forward(&b.x)?;
+        let (total, _) = loss.loss(&u, &b)?;
+        let g = total.backward()?;
+        adam.step(model.vars(), &g, 1e-4)?;
+        times.push(t0.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    let med = times[times.len() / 2];
+    let val: Vec<usize> = (spec.n_train..spec.n_train + 40).collect();
+    let mut inf = Vec::new();
+    for _ in 0..3 {
+        let t0 = Instant::now();
+        for c in val.chunks(8) {
+            let vb = make_batch(&items, c, ds.t_points(), &dev)?;
+            let _ = model.forward(&vb.x)?.to_dtype(candle_core::DType::F32)?.flatten_all()?.to_vec1::<f32>()?;
+        }
+        inf.push(t0.elapsed().as_secs_f64());
+    }
+    inf.sort_by(f64::total_cmp);
+    println!(
+        "width {width} modes {modes} depth {depth} batch {batch} T {} {transform:?}: params {}, step median {:.4} s, {:.1} samples/s, inference 40 samples {:.3} s",
+        ds.t_points(),
+        model.num_parameters(),
+        med,
+        batch as f64 / med,
+        inf[1]
+    );
+    Ok(())
+}

@@ -1,0 +1,124 @@
+//! The command line: `pipeline [-C DIR] [-f FILE] [--bin-dir DIR] [--set S.K=V]... COMMAND`.
+
+use crate::run::{run, RunOptions};
+use crate::spec::{LoadOptions, Pipeline};
+use crate::status::{dag, show, status};
+use crate::ui::Ui;
+use crate::Result;
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Content-hashed pipeline orchestrator: runs stale stages, reuses cached ones.
+#[derive(Debug, Parser)]
+#[command(name = "pipeline", version)]
+pub struct Cli {
+    /// Workspace root (default: the current directory).
+    #[arg(short = 'C', long = "workspace", global = true, value_name = "DIR")]
+    pub workspace: Option<PathBuf>,
+    /// Pipeline file, relative to the workspace.
+    #[arg(short = 'f', long = "file", global = true, default_value = "pipeline.yaml")]
+    pub file: PathBuf,
+    /// Directory searched first for bare command names (overrides the file's `bin_dir`;
+    /// default: env PINO_BIN_DIR, then the file's `bin_dir`).
+    #[arg(long, global = true, value_name = "DIR")]
+    pub bin_dir: Option<PathBuf>,
+    /// Override a parameter for this invocation: STAGE.KEY=VALUE (VALUE is YAML).
+    #[arg(long = "set", global = true, value_name = "STAGE.KEY=VALUE")]
+    pub sets: Vec<String>,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run the targets (default: every stage) and whatever upstream of them is stale.
+    Run {
+        /// Stages (`train`) or single expansions (`train[algorithm=3]`).
+        targets: Vec<String>,
+        /// Rerun the targets even when fresh (upstream fresh stages are reused).
+        #[arg(long)]
+        force: bool,
+        /// Units (stages, shards, expansions) run at once.
+        #[arg(short = 'j', long = "jobs", default_value_t = 1)]
+        jobs: usize,
+        /// Fail at once (exit 2) instead of waiting when another run holds the workspace.
+        #[arg(long)]
+        no_wait: bool,
+    },
+    /// Every unit as fresh, stale (with the reason) or never run.
+    Status,
+    /// The stage graph as text, or Graphviz with --dot.
+    Dag {
+        /// Graphviz dot output.
+        #[arg(long)]
+        dot: bool,
+    },
+    /// Paths of a stage's current output files, one per line.
+    Show {
+        /// A stage or one expansion.
+        stage: String,
+    },
+}
+
+fn execute(cli: Cli) -> Result<()> {
+    let workspace = cli.workspace.clone().unwrap_or_else(|| PathBuf::from("."));
+    let file = match &cli.workspace {
+        Some(w) if !cli.file.is_absolute() => w.join(&cli.file),
+        _ => cli.file.clone(),
+    };
+    let opts = LoadOptions {
+        bin_dir: cli
+            .bin_dir
+            .clone()
+            .or_else(|| std::env::var_os("PINO_BIN_DIR").filter(|v| !v.is_empty()).map(PathBuf::from)),
+        sets: cli.sets.clone(),
+    };
+    let p = Pipeline::load(&workspace, &file, &opts)?;
+    match cli.command {
+        Command::Run {
+            targets,
+            force,
+            jobs,
+            no_wait,
+        } => {
+            let ui = Ui::new();
+            run(
+                &p,
+                &RunOptions {
+                    targets,
+                    force,
+                    jobs,
+                    wait: !no_wait,
+                },
+                &ui,
+            )
+        }
+        Command::Status => {
+            print!("{}", status(&p)?);
+            Ok(())
+        }
+        Command::Dag { dot } => {
+            print!("{}", dag(&p, dot));
+            Ok(())
+        }
+        Command::Show { stage } => {
+            print!("{}", show(&p, &stage)?);
+            Ok(())
+        }
+    }
+}
+
+/// Parses the command line, runs, and maps errors to exit codes (clap's usage errors exit 2).
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match execute(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("pipeline: error: {e}");
+            ExitCode::from(e.exit_code())
+        }
+    }
+}

@@ -1,0 +1,332 @@
+//! `pipeline run`: select units, take the run lock, and execute stale units in dependency
+//! order with up to `jobs` processes at once.
+//!
+//! Scheduling: a unit is ready when every unit of every upstream stage is done (downstream
+//! stages see all shards and expansions of an input as one artifact). A ready unit's identity
+//! is computed from its upstream outputs' content hashes; if a verified object with that
+//! identity exists it is reused (that is also the run-cache: earlier parameters map to
+//! earlier identities), otherwise the stage runs in `tmp/` and its output is committed. A
+//! failed unit caches nothing; units downstream of it are skipped, independent units go on.
+//! The lock record is rewritten (atomically) after every unit that changes it, so a killed
+//! run keeps everything it finished.
+
+use crate::exec;
+use crate::plan::{code_of, entry_for, units_of, Code, Unit};
+use crate::spec::Pipeline;
+use crate::store::{Cached, LockEntry, LockRecord, Manifest, Store, PROTOCOL_VERSION};
+use crate::ui::{fmt_duration, table, Ui};
+use crate::{runlock::RunLock, Error, Result};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::time::{Duration, Instant};
+
+/// Options of `pipeline run`.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Stages or expansions to run (empty: all).
+    pub targets: Vec<String>,
+    /// Rerun the targets even when fresh.
+    pub force: bool,
+    /// Units run at once (at least 1).
+    pub jobs: usize,
+    /// Wait for another run's lock instead of failing.
+    pub wait: bool,
+}
+
+/// Units to consider, in dependency order, and the keys of those to force.
+pub fn select(p: &Pipeline, targets: &[String], force: bool) -> Result<(Vec<Unit>, BTreeSet<String>)> {
+    let n = p.stages.len();
+    let mut whole = vec![targets.is_empty(); n];
+    let mut partial: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); n];
+    let mut forced = BTreeSet::new();
+    for t in targets {
+        let stage_name = t.split('[').next().unwrap_or(t);
+        let idx = p.index(stage_name).ok_or_else(|| {
+            let known: Vec<&str> = p.stages.iter().map(|s| s.name.as_str()).collect();
+            Error::Usage(format!("{}: unknown stage `{t}` (stages: {})", p.file, known.join(", ")))
+        })?;
+        let exps: Vec<usize> = if t.contains('[') {
+            let e = p.stages[idx].expansions.iter().position(|e| e.name == *t).ok_or_else(|| {
+                let known: Vec<&str> = p.stages[idx].expansions.iter().map(|e| e.name.as_str()).collect();
+                Error::Usage(format!("{}: stage `{stage_name}` has no expansion `{t}` (expansions: {})", p.file, known.join(", ")))
+            })?;
+            partial[idx].insert(e);
+            vec![e]
+        } else {
+            whole[idx] = true;
+            (0..p.stages[idx].expansions.len()).collect()
+        };
+        if force {
+            for u in units_of(p, idx).into_iter().filter(|u| exps.contains(&u.expansion)) {
+                forced.insert(u.key);
+            }
+        }
+    }
+    // Upstream closure: stages are topologically ordered, so one backward pass suffices.
+    for i in (0..n).rev() {
+        if whole[i] || !partial[i].is_empty() {
+            for up in p.stages[i].inputs.values() {
+                whole[p.index(up).expect("validated")] = true;
+            }
+        }
+    }
+    let units = (0..n)
+        .flat_map(|i| units_of(p, i))
+        .filter(|u| whole[u.stage] || partial[u.stage].contains(&u.expansion))
+        .collect();
+    Ok((units, forced))
+}
+
+#[derive(Debug, Clone)]
+enum State {
+    Pending,
+    Running,
+    Done { identity: String, output_hash: String },
+    Failed,
+    Skipped,
+}
+
+enum Outcome {
+    Cached(LockEntry, Manifest),
+    Ran(LockEntry, Manifest, Duration),
+    Failed(String, Duration),
+}
+
+struct Ctx<'a> {
+    p: &'a Pipeline,
+    store: &'a Store,
+    ui: &'a Ui,
+    codes: &'a HashMap<usize, Code>,
+}
+
+fn safe_name(key: &str) -> String {
+    key.chars()
+        .map(|c| if c.is_ascii_alphanumeric() || "-_=.,".contains(c) { c } else { '_' })
+        .collect()
+}
+
+/// Computes or reuses one unit.
+fn work(cx: &Ctx, u: &Unit, inputs: BTreeMap<String, Vec<String>>, dirs: BTreeMap<String, Vec<String>>, force: bool) -> Outcome {
+    let t0 = Instant::now();
+    let entry = entry_for(cx.p, u, &cx.codes[&u.stage], inputs);
+    let id = entry.identity.clone();
+    if !force {
+        match cx.store.verify(&id) {
+            Cached::Valid(m) => return Outcome::Cached(entry, m),
+            Cached::Corrupt(why) => {
+                cx.ui.line(&format!("[{}] cached output is corrupted ({why}); discarding it and recomputing", u.key));
+                if let Err(e) = cx.store.discard(&id) {
+                    return Outcome::Failed(format!("cannot discard corrupted object: {e}"), t0.elapsed());
+                }
+            }
+            Cached::Missing => {}
+        }
+    }
+    match compute(cx, u, &entry, dirs) {
+        Ok(Ok(m)) => Outcome::Ran(entry, m, t0.elapsed()),
+        Ok(Err(msg)) => Outcome::Failed(msg, t0.elapsed()),
+        Err(e) => Outcome::Failed(e.to_string(), t0.elapsed()),
+    }
+}
+
+/// Runs the stage process for `u`; `Ok(Err(message))` when the stage failed.
+fn compute(cx: &Ctx, u: &Unit, entry: &LockEntry, dirs: BTreeMap<String, Vec<String>>) -> Result<std::result::Result<Manifest, String>> {
+    let stage = &cx.p.stages[u.stage];
+    let work = cx.store.tmp_dir(&entry.identity)?;
+    let context = serde_json::json!({
+        "protocol": PROTOCOL_VERSION,
+        "stage": stage.expansions[u.expansion].name,
+        "params": entry.params,
+        "inputs": dirs,
+        "output": work.join("out"),
+        "shard": {"index": u.shard, "count": stage.shards},
+    });
+    crate::store::write_atomic(&work.join("context.json"), &serde_json::to_vec_pretty(&context).expect("serialisable"))?;
+    let view = cx.ui.start(&u.key);
+    let t0 = Instant::now();
+    let outcome = exec::run_stage(&cx.codes[&u.stage].exe, &entry.args, &cx.p.workspace, &work, &|pl| view.progress(pl))?;
+    let took = t0.elapsed();
+    if outcome.success {
+        match cx.store.commit(&work, &entry.identity, &u.key, outcome.summary, took.as_millis() as u64) {
+            Ok(m) => {
+                view.finish(&format!("ran in {}", fmt_duration(took)));
+                Ok(Ok(m))
+            }
+            Err(e) => {
+                view.finish("FAILED");
+                let _ = std::fs::remove_dir_all(&work);
+                Ok(Err(format!("output rejected: {e}")))
+            }
+        }
+    } else {
+        view.finish("FAILED");
+        let kept = cx.store.root.join("logs").join(format!("{}.failed.log", safe_name(&u.key)));
+        let _ = std::fs::rename(&outcome.log, &kept);
+        let _ = std::fs::remove_dir_all(&work);
+        let mut msg = format!("{} ({}); last lines of stderr:\n", stage.cmd.join(" "), outcome.status);
+        for l in &outcome.stderr_tail {
+            msg.push_str(&format!("    | {l}\n"));
+        }
+        msg.push_str(&format!("  full log: {}", kept.display()));
+        Ok(Err(msg))
+    }
+}
+
+fn prune(rec: &mut LockRecord, p: &Pipeline, entries: &BTreeMap<String, LockEntry>) {
+    let all: BTreeSet<String> = (0..p.stages.len()).flat_map(|i| units_of(p, i)).map(|u| u.key).collect();
+    let mut e = entries.clone();
+    e.retain(|k, _| all.contains(k));
+    rec.pipelines.insert(p.key.clone(), e);
+}
+
+/// Runs the pipeline. `Ok(())` when every selected unit is done; [`Error::StageFailed`] when
+/// some failed (the others still ran).
+pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
+    let (units, forced) = select(p, &opts.targets, opts.force)?;
+    let store = Store::open(&p.workspace)?;
+    let mut codes = HashMap::new();
+    for u in &units {
+        if let std::collections::hash_map::Entry::Vacant(v) = codes.entry(u.stage) {
+            v.insert(code_of(p, &p.stages[u.stage], &store.cache)?);
+        }
+    }
+    let lock_path = store.root.join("run.lock");
+    let _lock = RunLock::acquire(&lock_path, opts.wait, |pid| {
+        ui.line(&format!("waiting for another `pipeline run` (pid {pid}) to finish ({})...", lock_path.display()))
+    })?;
+    store.clean_debris()?;
+    let mut rec = store.read_lock_record()?;
+    let mut entries = rec.pipelines.get(&p.key).cloned().unwrap_or_default();
+    let t_run = Instant::now();
+
+    let pos: HashMap<&str, usize> = units.iter().enumerate().map(|(i, u)| (u.key.as_str(), i)).collect();
+    let deps: Vec<Vec<(String, Vec<usize>)>> = units
+        .iter()
+        .map(|u| {
+            p.stages[u.stage]
+                .inputs
+                .iter()
+                .map(|(name, up)| {
+                    let ui = p.index(up).expect("validated");
+                    (name.clone(), units_of(p, ui).iter().map(|x| pos[x.key.as_str()]).collect())
+                })
+                .collect()
+        })
+        .collect();
+    let mut state = vec![State::Pending; units.len()];
+    let mut rows: Vec<Option<Vec<String>>> = vec![None; units.len()];
+    let mut failures = Vec::new();
+    let mut changed = false;
+    let mut ran = 0usize;
+    let cx = Ctx { p, store: &store, ui, codes: &codes };
+    let jobs = opts.jobs.max(1);
+    let mut save_error = None;
+
+    std::thread::scope(|s| {
+        let (tx, rx) = std::sync::mpsc::channel::<(usize, Outcome)>();
+        let mut running = 0;
+        loop {
+            for i in 0..units.len() {
+                if !matches!(state[i], State::Pending) {
+                    continue;
+                }
+                let blocked = deps[i].iter().flat_map(|(_, v)| v).find(|&&d| matches!(state[d], State::Failed | State::Skipped));
+                if let Some(&d) = blocked {
+                    state[i] = State::Skipped;
+                    rows[i] = Some(vec![units[i].key.clone(), "skipped".into(), "-".into(), format!("upstream {} did not finish", units[d].key)]);
+                    continue;
+                }
+                let ready = deps[i].iter().flat_map(|(_, v)| v).all(|&d| matches!(state[d], State::Done { .. }));
+                if !ready || running >= jobs {
+                    continue;
+                }
+                let mut inputs = BTreeMap::new();
+                let mut dirs = BTreeMap::new();
+                for (name, ups) in &deps[i] {
+                    let mut hashes = Vec::new();
+                    let mut ds = Vec::new();
+                    for &d in ups {
+                        if let State::Done { identity, output_hash } = &state[d] {
+                            hashes.push(output_hash.clone());
+                            ds.push(store.out_dir(identity).to_string_lossy().into_owned());
+                        }
+                    }
+                    inputs.insert(name.clone(), hashes);
+                    dirs.insert(name.clone(), ds);
+                }
+                state[i] = State::Running;
+                running += 1;
+                let tx = tx.clone();
+                let u = &units[i];
+                let force = forced.contains(&u.key);
+                let cx = &cx;
+                s.spawn(move || {
+                    let _ = tx.send((i, work(cx, u, inputs, dirs, force)));
+                });
+            }
+            if running == 0 {
+                break;
+            }
+            let (i, outcome) = rx.recv().expect("a worker is running");
+            running -= 1;
+            let key = units[i].key.clone();
+            let (entry, manifest, row) = match outcome {
+                Outcome::Cached(e, m) => {
+                    let row = vec![key.clone(), "cached".into(), "-".into(), m.summary.clone().unwrap_or_default()];
+                    (e, m, row)
+                }
+                Outcome::Ran(e, m, took) => {
+                    ran += 1;
+                    let row = vec![key.clone(), "ran".into(), fmt_duration(took), m.summary.clone().unwrap_or_default()];
+                    (e, m, row)
+                }
+                Outcome::Failed(msg, took) => {
+                    ui.line(&format!("[{key}] FAILED after {}: {msg}", fmt_duration(took)));
+                    state[i] = State::Failed;
+                    rows[i] = Some(vec![key.clone(), "FAILED".into(), fmt_duration(took), String::new()]);
+                    failures.push(key);
+                    continue;
+                }
+            };
+            let mut entry = entry;
+            entry.output_hash = manifest.output_hash.clone();
+            state[i] = State::Done {
+                identity: entry.identity.clone(),
+                output_hash: manifest.output_hash.clone(),
+            };
+            rows[i] = Some(row);
+            if entries.get(&key) != Some(&entry) {
+                entries.insert(key, entry);
+                changed = true;
+                prune(&mut rec, p, &entries);
+                if let Err(err) = store.write_lock_record(&rec) {
+                    save_error.get_or_insert(err);
+                }
+            }
+        }
+    });
+    store.cache.save()?;
+    if let Some(e) = save_error {
+        return Err(e);
+    }
+    let rows: Vec<Vec<String>> = rows.into_iter().flatten().collect();
+    if ran == 0 && failures.is_empty() && !changed {
+        println!("Nothing to do: all {} units of {} are up to date.", rows.len(), p.file);
+        return Ok(());
+    }
+    print!("{}", table(&["UNIT", "RESULT", "TIME", "SUMMARY"], &rows));
+    let cached = rows.iter().filter(|r| r[1] == "cached").count();
+    let skipped = rows.iter().filter(|r| r[1] == "skipped").count();
+    println!(
+        "{ran} ran, {cached} cached, {} failed, {skipped} skipped in {}",
+        failures.len(),
+        fmt_duration(t_run.elapsed())
+    );
+    if failures.is_empty() {
+        Ok(())
+    } else {
+        Err(Error::StageFailed {
+            count: failures.len(),
+            names: failures.join(", "),
+        })
+    }
+}

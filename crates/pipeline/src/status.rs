@@ -1,0 +1,204 @@
+//! `pipeline status`, `pipeline show` and `pipeline dag`: read-only views.
+//!
+//! Status recomputes every unit's identity from the current pipeline file, code and the
+//! upstream outputs it can know (those of fresh upstream units, or of upstream objects already
+//! in the run-cache), and compares it with the lock record. A stale unit's reason is the
+//! difference between its recorded entry and its current one: code, command, parameter
+//! (old -> new), input, shard layout, or a cached output that is missing or corrupted.
+
+use crate::plan::{code_of, entry_for, units_of};
+use crate::spec::Pipeline;
+use crate::store::{Cached, LockEntry, Store};
+use crate::ui::table;
+use crate::{Error, Result};
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write;
+
+/// Why `new` differs from the recorded `old`.
+fn reasons(old: &LockEntry, new: &LockEntry) -> String {
+    let mut r = Vec::new();
+    if old.exe_hash != new.exe_hash {
+        r.push(format!("code changed ({})", new.exe));
+    }
+    if old.args != new.args {
+        r.push(format!("command changed ({:?} -> {:?})", old.args, new.args));
+    }
+    if old.arg_files != new.arg_files {
+        r.push("script changed".to_owned());
+    }
+    let empty = serde_json::Map::new();
+    let po = old.params.as_object().unwrap_or(&empty);
+    let pn = new.params.as_object().unwrap_or(&empty);
+    let keys: BTreeSet<&String> = po.keys().chain(pn.keys()).collect();
+    for k in keys {
+        match (po.get(k), pn.get(k)) {
+            (Some(a), Some(b)) if a != b => r.push(format!("parameter `{k}` changed: {a} -> {b}")),
+            (Some(_), None) => r.push(format!("parameter `{k}` removed")),
+            (None, Some(b)) => r.push(format!("parameter `{k}` added: {b}")),
+            _ => {}
+        }
+    }
+    let names: BTreeSet<&String> = old.inputs.keys().chain(new.inputs.keys()).collect();
+    for n in names {
+        if old.inputs.get(n) != new.inputs.get(n) {
+            r.push(format!("input `{n}` changed"));
+        }
+    }
+    if old.shard != new.shard {
+        r.push(format!("shard layout changed ({}/{} -> {}/{})", old.shard[0], old.shard[1], new.shard[0], new.shard[1]));
+    }
+    if r.is_empty() {
+        r.push("identity changed (protocol or unit name)".to_owned());
+    }
+    r.join("; ")
+}
+
+/// The status table of every unit, plus a count line.
+pub fn status(p: &Pipeline) -> Result<String> {
+    let store = Store::open_read(&p.workspace);
+    let rec = store.read_lock_record()?;
+    let empty = BTreeMap::new();
+    let recorded = rec.pipelines.get(&p.key).unwrap_or(&empty);
+    // Unit key -> output hash, for units whose current output is known.
+    let mut known: BTreeMap<String, String> = BTreeMap::new();
+    let mut rows = Vec::new();
+    let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
+    for (si, stage) in p.stages.iter().enumerate() {
+        let code = code_of(p, stage, &store.cache);
+        for u in units_of(p, si) {
+            let old = recorded.get(&u.key);
+            let (state, detail) = match &code {
+                Err(e) => ("stale", format!("cannot resolve code: {e}")),
+                Ok(code) => {
+                    let mut inputs = BTreeMap::new();
+                    let mut missing_up = None;
+                    for (name, up) in &stage.inputs {
+                        let ups = units_of(p, p.index(up).expect("validated"));
+                        let hashes: Vec<Option<&String>> = ups.iter().map(|x| known.get(&x.key)).collect();
+                        if let Some(pos) = hashes.iter().position(Option::is_none) {
+                            missing_up.get_or_insert(ups[pos].key.clone());
+                        }
+                        inputs.insert(name.clone(), hashes.into_iter().flatten().cloned().collect::<Vec<_>>());
+                    }
+                    match (missing_up, old) {
+                        (Some(up), Some(_)) => ("stale", format!("upstream `{up}` is not up to date")),
+                        (Some(_), None) => ("never run", String::new()),
+                        (None, old) => {
+                            let entry = entry_for(p, &u, code, inputs);
+                            let cached = store.verify(&entry.identity);
+                            let in_cache = if let Cached::Valid(m) = &cached {
+                                known.insert(u.key.clone(), m.output_hash.clone());
+                                true
+                            } else {
+                                false
+                            };
+                            let note = if in_cache { " (in the run-cache: restores without running)" } else { "" };
+                            match old {
+                                Some(o) if o.identity == entry.identity => match cached {
+                                    Cached::Valid(_) => ("fresh", String::new()),
+                                    Cached::Missing => ("stale", "cached output is missing".to_owned()),
+                                    Cached::Corrupt(why) => ("stale", format!("cached output is corrupted: {why}")),
+                                },
+                                Some(o) => ("stale", format!("{}{note}", reasons(o, &entry))),
+                                None => ("never run", note.trim().to_owned()),
+                            }
+                        }
+                    }
+                }
+            };
+            *counts.entry(state).or_default() += 1;
+            rows.push(vec![u.key, state.to_owned(), detail]);
+        }
+    }
+    if store.root.is_dir() {
+        // Best effort: a read-only view must not fail because the cache cannot be written.
+        let _ = store.cache.save();
+    }
+    let mut out = table(&["UNIT", "STATE", "REASON"], &rows);
+    let summary: Vec<String> = counts.iter().map(|(k, v)| format!("{v} {k}")).collect();
+    let _ = writeln!(out, "{}", summary.join(", "));
+    Ok(out)
+}
+
+/// Paths of the current output files of `target` (a stage or one expansion), one per line.
+pub fn show(p: &Pipeline, target: &str) -> Result<String> {
+    let stage_name = target.split('[').next().unwrap_or(target);
+    let idx = p.index(stage_name).ok_or_else(|| {
+        let known: Vec<&str> = p.stages.iter().map(|s| s.name.as_str()).collect();
+        Error::Usage(format!("{}: unknown stage `{target}` (stages: {})", p.file, known.join(", ")))
+    })?;
+    let store = Store::open_read(&p.workspace);
+    let rec = store.read_lock_record()?;
+    let mut out = String::new();
+    let units: Vec<_> = units_of(p, idx)
+        .into_iter()
+        .filter(|u| !target.contains('[') || p.stages[idx].expansions[u.expansion].name == target)
+        .collect();
+    if units.is_empty() {
+        return Err(Error::Usage(format!("{}: stage `{stage_name}` has no expansion `{target}`", p.file)));
+    }
+    for u in units {
+        let entry = rec
+            .pipelines
+            .get(&p.key)
+            .and_then(|m| m.get(&u.key))
+            .ok_or_else(|| Error::NoOutputs(u.key.clone()))?;
+        match store.verify(&entry.identity) {
+            Cached::Valid(m) => {
+                for f in &m.files {
+                    let _ = writeln!(out, "{}", store.out_dir(&entry.identity).join(&f.path).display());
+                }
+            }
+            Cached::Missing => return Err(Error::NoOutputs(u.key.clone())),
+            Cached::Corrupt(why) => {
+                return Err(Error::Store {
+                    path: store.object_dir(&entry.identity),
+                    message: format!("output of `{}` is corrupted ({why}); `pipeline run {}` recomputes it", u.key, stage_name),
+                })
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The stage graph as text (one line per stage with its inputs) or Graphviz dot.
+pub fn dag(p: &Pipeline, dot: bool) -> String {
+    let mut out = String::new();
+    if dot {
+        out.push_str("digraph pipeline {\n  rankdir=LR;\n  node [shape=box];\n");
+        for s in &p.stages {
+            let mut label = s.name.clone();
+            if s.shards > 1 {
+                label.push_str(&format!("\\n{} shards", s.shards));
+            }
+            if s.expansions.len() > 1 {
+                label.push_str(&format!("\\nmatrix x{}", s.expansions.len()));
+            }
+            let _ = writeln!(out, "  \"{}\" [label=\"{label}\"];", s.name);
+        }
+        for s in &p.stages {
+            for (name, up) in &s.inputs {
+                let _ = writeln!(out, "  \"{up}\" -> \"{}\" [label=\"{name}\"];", s.name);
+            }
+        }
+        out.push_str("}\n");
+        return out;
+    }
+    for s in &p.stages {
+        let mut head = s.name.clone();
+        if s.shards > 1 {
+            head.push_str(&format!(" ({} shards)", s.shards));
+        }
+        if s.expansions.len() > 1 {
+            let names: Vec<&str> = s.expansions.iter().map(|e| e.name.as_str()).collect();
+            head.push_str(&format!(" (matrix: {})", names.join(" ")));
+        }
+        if s.inputs.is_empty() {
+            let _ = writeln!(out, "{head}");
+        } else {
+            let ins: Vec<String> = s.inputs.iter().map(|(n, u)| format!("{n}: {u}")).collect();
+            let _ = writeln!(out, "{head} <- {}", ins.join(", "));
+        }
+    }
+    out
+}

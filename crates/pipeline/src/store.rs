@@ -1,0 +1,399 @@
+//! The content-addressed store under `artifacts/` and the lock record.
+//!
+//! Layout (all under the workspace's `artifacts/`):
+//!
+//! ```text
+//! objects/<identity>/out/...        the unit's output files (read-only)
+//! objects/<identity>/manifest.json  every output file with size and blake3, the output hash
+//! objects/<identity>/context.json   the context the stage was started with
+//! objects/<identity>/log.txt        the stage's stdout and stderr
+//! tmp/<identity>-<pid>/             a unit being computed (removed at the next run's start)
+//! trash/                            objects being replaced or deleted
+//! logs/<unit>.failed.log            the log of the last failed attempt of a unit
+//! pipeline.lock.json                lock record: pipeline file -> unit -> current identity
+//! hash-cache.json                   (path, stamp) -> blake3, see `hash`
+//! run.lock                          the run lock (flock), holding the holder's PID as text
+//! ```
+//!
+//! Commit protocol (crash safety): a stage writes into `tmp/<identity>-<pid>/out`; after it
+//! exits 0 the orchestrator makes the files read-only, hashes them, writes `manifest.json`
+//! (tmp + rename), fsyncs, and renames the whole directory to `objects/<identity>`. The rename
+//! is the commit point: `objects/<identity>` either does not exist or holds a complete output
+//! with its manifest. A killed run leaves only `tmp/` debris, which the next run deletes.
+//! Before an object is used it is verified against its manifest (file set, sizes, hashes via
+//! the hash cache); a mismatch deletes it and the unit is recomputed.
+
+use crate::hash::{hash_file, HashCache, Stamp};
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::os::unix::fs::PermissionsExt;
+use std::path::{Path, PathBuf};
+
+/// Stage protocol version written into every context file and hashed into every identity.
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// Writes `bytes` to `path` atomically: a temporary sibling, fsync, rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension(format!("{}.tmp", std::process::id()));
+    let mut f = std::fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    f.write_all(bytes).and_then(|_| f.sync_all()).map_err(|e| Error::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+}
+
+/// One output file in a manifest.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ManifestFile {
+    /// Path relative to `out/`, `/`-separated.
+    pub path: String,
+    /// Size in bytes.
+    pub size: u64,
+    /// Hex blake3 of the content.
+    pub blake3: String,
+}
+
+/// What a stored object contains.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Manifest {
+    /// Protocol version of the run that produced it.
+    pub protocol: u32,
+    /// The unit's identity (the object's directory name).
+    pub identity: String,
+    /// The unit that produced it (`simulate#1`, `train[algorithm=3]`).
+    pub unit: String,
+    /// Output files, sorted by path.
+    pub files: Vec<ManifestFile>,
+    /// Hash of the file list (paths, sizes, hashes): the content hash of this output.
+    pub output_hash: String,
+    /// The stage's `::summary` line, if it printed one.
+    pub summary: Option<String>,
+    /// How long the stage ran, milliseconds.
+    pub duration_ms: u64,
+}
+
+/// The content hash of an output: blake3 over its sorted (path, size, hash) list.
+pub fn output_hash(files: &[ManifestFile]) -> String {
+    let mut h = blake3::Hasher::new();
+    for f in files {
+        h.update(f.path.as_bytes());
+        h.update(b"\0");
+        h.update(f.size.to_string().as_bytes());
+        h.update(b"\0");
+        h.update(f.blake3.as_bytes());
+        h.update(b"\n");
+    }
+    h.finalize().to_hex().to_string()
+}
+
+/// State of a cached object.
+#[derive(Debug)]
+pub enum Cached {
+    /// No object for this identity.
+    Missing,
+    /// A complete object whose files match its manifest.
+    Valid(Manifest),
+    /// An object that no longer matches its manifest (the reason).
+    Corrupt(String),
+}
+
+/// One unit's entry in the lock record: what it was last run (or restored) with.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LockEntry {
+    /// The unit's identity.
+    pub identity: String,
+    /// Content hash of its output.
+    pub output_hash: String,
+    /// The resolved executable.
+    pub exe: String,
+    /// blake3 of the executable.
+    pub exe_hash: String,
+    /// Arguments after the executable.
+    pub args: Vec<String>,
+    /// blake3 of files named by arguments (scripts).
+    pub arg_files: BTreeMap<String, String>,
+    /// Resolved parameters.
+    pub params: Value,
+    /// Input name -> output hashes of the upstream units.
+    pub inputs: BTreeMap<String, Vec<String>>,
+    /// `[index, count]`.
+    pub shard: [usize; 2],
+    /// `--set` overrides in effect (`KEY=VALUE`).
+    pub overrides: Vec<String>,
+}
+
+/// The lock record: pipeline file (relative to the workspace) -> unit -> entry.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct LockRecord {
+    /// Format version.
+    pub version: u32,
+    /// Entries per pipeline file.
+    pub pipelines: BTreeMap<String, BTreeMap<String, LockEntry>>,
+}
+
+/// The store rooted at `artifacts/`.
+#[derive(Debug)]
+pub struct Store {
+    /// The `artifacts/` directory.
+    pub root: PathBuf,
+    /// The persistent hash cache.
+    pub cache: HashCache,
+}
+
+fn walk(dir: &Path, rel: &str, out: &mut Vec<String>) -> Result<()> {
+    let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    for entry in rd {
+        let entry = entry.map_err(|e| Error::io(dir, e))?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let rel_name = if rel.is_empty() { name } else { format!("{rel}/{name}") };
+        let ft = entry.file_type().map_err(|e| Error::io(entry.path(), e))?;
+        if ft.is_dir() {
+            walk(&entry.path(), &rel_name, out)?;
+        } else if ft.is_file() {
+            out.push(rel_name);
+        } else {
+            return Err(Error::Store {
+                path: entry.path(),
+                message: "outputs may only hold regular files and directories (no symlinks)".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Every regular file under `dir`, relative and sorted.
+pub fn list_files(dir: &Path) -> Result<Vec<String>> {
+    let mut v = Vec::new();
+    walk(dir, "", &mut v)?;
+    v.sort();
+    Ok(v)
+}
+
+impl Store {
+    /// Opens (and creates) the store under `workspace/artifacts`.
+    pub fn open(workspace: &Path) -> Result<Self> {
+        let root = workspace.join("artifacts");
+        for d in ["objects", "tmp", "trash", "logs"] {
+            let p = root.join(d);
+            std::fs::create_dir_all(&p).map_err(|e| Error::io(&p, e))?;
+        }
+        let cache = HashCache::load(&root.join("hash-cache.json"));
+        Ok(Self { root, cache })
+    }
+
+    /// Opens the store for reading only (nothing is created).
+    pub fn open_read(workspace: &Path) -> Self {
+        let root = workspace.join("artifacts");
+        let cache = HashCache::load(&root.join("hash-cache.json"));
+        Self { root, cache }
+    }
+
+    /// `objects/<identity>`.
+    pub fn object_dir(&self, identity: &str) -> PathBuf {
+        self.root.join("objects").join(identity)
+    }
+
+    /// `objects/<identity>/out`.
+    pub fn out_dir(&self, identity: &str) -> PathBuf {
+        self.object_dir(identity).join("out")
+    }
+
+    /// Checks the object for `identity` against its manifest.
+    pub fn verify(&self, identity: &str) -> Cached {
+        let dir = self.object_dir(identity);
+        let mpath = dir.join("manifest.json");
+        let bytes = match std::fs::read(&mpath) {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound && !dir.exists() => return Cached::Missing,
+            Err(_) => return Cached::Corrupt("manifest.json is missing".into()),
+        };
+        let manifest: Manifest = match serde_json::from_slice(&bytes) {
+            Ok(m) => m,
+            Err(e) => return Cached::Corrupt(format!("manifest.json is unreadable: {e}")),
+        };
+        let out = dir.join("out");
+        let found = match list_files(&out) {
+            Ok(f) => f,
+            Err(e) => return Cached::Corrupt(e.to_string()),
+        };
+        let expected: Vec<&str> = manifest.files.iter().map(|f| f.path.as_str()).collect();
+        if found != expected {
+            let missing: Vec<&&str> = expected.iter().filter(|p| !found.iter().any(|f| f == **p)).collect();
+            let extra: Vec<&String> = found.iter().filter(|f| !expected.contains(&f.as_str())).collect();
+            return Cached::Corrupt(format!("file set changed (missing {missing:?}, unexpected {extra:?})"));
+        }
+        let paths: Vec<PathBuf> = manifest.files.iter().map(|f| out.join(&f.path)).collect();
+        for (f, h) in manifest.files.iter().zip(self.cache.hash_all(&paths)) {
+            match h {
+                Ok(h) if h.blake3 == f.blake3 && h.size == f.size => {}
+                Ok(_) => return Cached::Corrupt(format!("{} no longer matches its manifest", f.path)),
+                Err(e) => return Cached::Corrupt(e.to_string()),
+            }
+        }
+        Cached::Valid(manifest)
+    }
+
+    /// Moves an object out of the way and deletes it.
+    pub fn discard(&self, identity: &str) -> Result<()> {
+        let dir = self.object_dir(identity);
+        if !dir.exists() {
+            return Ok(());
+        }
+        let trash = self.root.join("trash").join(format!("{identity}-{}", std::process::id()));
+        std::fs::rename(&dir, &trash).map_err(|e| Error::io(&dir, e))?;
+        self.cache.forget_under(&dir);
+        remove_tree(&trash)
+    }
+
+    /// A fresh working directory for computing `identity`: `tmp/<identity>-<pid>/` with an
+    /// empty `out/`.
+    pub fn tmp_dir(&self, identity: &str) -> Result<PathBuf> {
+        let dir = self.root.join("tmp").join(format!("{identity}-{}", std::process::id()));
+        if dir.exists() {
+            remove_tree(&dir)?;
+        }
+        let out = dir.join("out");
+        std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+        Ok(dir)
+    }
+
+    /// Deletes debris of killed runs (`tmp/`, `trash/`). Call only under the run lock.
+    pub fn clean_debris(&self) -> Result<()> {
+        for d in ["tmp", "trash"] {
+            let p = self.root.join(d);
+            remove_tree(&p)?;
+            std::fs::create_dir_all(&p).map_err(|e| Error::io(&p, e))?;
+        }
+        Ok(())
+    }
+
+    /// Commits a finished unit: hashes `tmp/.../out`, writes the manifest and renames the
+    /// directory to `objects/<identity>` (replacing an existing object).
+    pub fn commit(&self, tmp: &Path, identity: &str, unit: &str, summary: Option<String>, duration_ms: u64) -> Result<Manifest> {
+        let out = tmp.join("out");
+        let rels = list_files(&out)?;
+        use rayon::prelude::*;
+        let hashed: Vec<Result<(ManifestFile, Stamp)>> = rels
+            .par_iter()
+            .map(|rel| {
+                let p = out.join(rel);
+                let f = std::fs::File::open(&p).map_err(|e| Error::io(&p, e))?;
+                // Read-only: a stage reading it as input cannot modify it by accident.
+                f.set_permissions(std::fs::Permissions::from_mode(0o444)).map_err(|e| Error::io(&p, e))?;
+                f.sync_all().map_err(|e| Error::io(&p, e))?;
+                let before = Stamp::of(&f.metadata().map_err(|e| Error::io(&p, e))?);
+                let (blake3, size) = hash_file(&p)?;
+                Ok((ManifestFile { path: rel.clone(), size, blake3 }, before))
+            })
+            .collect();
+        let mut files = Vec::new();
+        let mut stamps = Vec::new();
+        for h in hashed {
+            let (f, s) = h?;
+            files.push(f);
+            stamps.push(s);
+        }
+        let manifest = Manifest {
+            protocol: PROTOCOL_VERSION,
+            identity: identity.to_owned(),
+            unit: unit.to_owned(),
+            output_hash: output_hash(&files),
+            files,
+            summary,
+            duration_ms,
+        };
+        write_atomic(&tmp.join("manifest.json"), &serde_json::to_vec_pretty(&manifest).expect("serialisable"))?;
+        sync_dir(tmp);
+        self.discard(identity)?;
+        let dest = self.object_dir(identity);
+        std::fs::rename(tmp, &dest).map_err(|e| Error::io(&dest, e))?;
+        sync_dir(&self.root.join("objects"));
+        // The files kept their inodes and stamps through the rename: seed the cache.
+        let new_out = dest.join("out");
+        for (f, s) in manifest.files.iter().zip(stamps) {
+            self.cache.insert(&new_out.join(&f.path), s, f.blake3.clone());
+        }
+        Ok(manifest)
+    }
+
+    /// `pipeline.lock.json`.
+    pub fn lock_record_path(&self) -> PathBuf {
+        self.root.join("pipeline.lock.json")
+    }
+
+    /// Reads the lock record (empty when absent).
+    pub fn read_lock_record(&self) -> Result<LockRecord> {
+        let p = self.lock_record_path();
+        match std::fs::read(&p) {
+            Ok(b) => serde_json::from_slice(&b).map_err(|e| Error::Store {
+                path: p,
+                message: e.to_string(),
+            }),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(LockRecord::default()),
+            Err(e) => Err(Error::io(p, e)),
+        }
+    }
+
+    /// Writes the lock record atomically.
+    pub fn write_lock_record(&self, rec: &LockRecord) -> Result<()> {
+        let mut rec = rec.clone();
+        rec.version = 1;
+        write_atomic(&self.lock_record_path(), &serde_json::to_vec_pretty(&rec).expect("serialisable"))
+    }
+}
+
+/// Removes a tree, making read-only directories writable first (outputs are 0444 files in
+/// normal directories, so plain remove_dir_all works; this only tolerates absence).
+fn remove_tree(p: &Path) -> Result<()> {
+    match std::fs::remove_dir_all(p) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(Error::io(p, e)),
+    }
+}
+
+fn sync_dir(p: &Path) {
+    if let Ok(d) = std::fs::File::open(p) {
+        let _ = d.sync_all();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn commit_then_verify_then_detect_corruption() {
+        let ws = tempfile::tempdir().unwrap();
+        let store = Store::open(ws.path()).unwrap();
+        let tmp = store.tmp_dir("abc").unwrap();
+        std::fs::create_dir_all(tmp.join("out/sub")).unwrap();
+        std::fs::write(tmp.join("out/a.txt"), b"A").unwrap();
+        std::fs::write(tmp.join("out/sub/b.txt"), b"B").unwrap();
+        let m = store.commit(&tmp, "abc", "u", Some("ok".into()), 5).unwrap();
+        assert_eq!(m.files.len(), 2);
+        assert!(!tmp.exists());
+        assert!(matches!(store.verify("abc"), Cached::Valid(_)));
+        assert!(matches!(store.verify("nope"), Cached::Missing));
+        let f = store.out_dir("abc").join("sub/b.txt");
+        std::fs::set_permissions(&f, std::fs::Permissions::from_mode(0o644)).unwrap();
+        std::fs::write(&f, b"C").unwrap();
+        match store.verify("abc") {
+            Cached::Corrupt(why) => assert!(why.contains("sub/b.txt"), "{why}"),
+            other => panic!("corruption not detected: {other:?}"),
+        }
+        std::fs::write(store.out_dir("abc").join("extra"), b"x").unwrap();
+        assert!(matches!(store.verify("abc"), Cached::Corrupt(_)));
+        store.discard("abc").unwrap();
+        assert!(matches!(store.verify("abc"), Cached::Missing));
+    }
+
+    #[test]
+    fn output_hash_depends_on_names_and_content() {
+        let f = |p: &str, h: &str| ManifestFile { path: p.into(), size: 1, blake3: h.into() };
+        assert_ne!(output_hash(&[f("a", "1")]), output_hash(&[f("b", "1")]));
+        assert_ne!(output_hash(&[f("a", "1")]), output_hash(&[f("a", "2")]));
+        assert_eq!(output_hash(&[f("a", "1")]), output_hash(&[f("a", "1")]));
+    }
+}

@@ -1,0 +1,94 @@
+//! A tiny stage for the orchestrator's tests: follows the stage protocol and writes one file
+//! whose bytes derive only from its context (stage name, shard, parameters, input files), so
+//! runs are deterministic and byte-comparable.
+//!
+//! Parameters (all optional; any other key, such as a matrix key, is just carried along):
+//! `file` (output name, default `out.txt`), `fail` (print to stderr and exit 3), `steps`
+//! (progress steps), `summary` (the `::summary` text), `gated` / `gated_shards` (while the
+//! file named by env `TEST_STAGE_GATE` exists, wait: lets a test hold a stage mid-run).
+//! If env `TEST_STAGE_LOG` names a file, `start UNIT` and `end UNIT` lines are appended to it,
+//! so tests can count which units really ran.
+
+use std::io::Write;
+use std::path::Path;
+
+fn log(line: &str) {
+    if let Some(p) = std::env::var_os("TEST_STAGE_LOG") {
+        let mut f = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(p)
+            .expect("log file");
+        f.write_all(format!("{line}\n").as_bytes())
+            .expect("log write");
+    }
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let ctx = stage_kit::StageContext::load()?;
+    let params = ctx.raw_params().clone();
+    let get = |k: &str| params.get(k);
+    let unit = if ctx.shard.count > 1 {
+        format!("{}#{}", ctx.stage, ctx.shard.index)
+    } else {
+        ctx.stage.clone()
+    };
+    log(&format!("start {unit}"));
+
+    let gated = get("gated").and_then(|v| v.as_bool()).unwrap_or(false)
+        || get("gated_shards")
+            .and_then(|v| v.as_array())
+            .is_some_and(|a| a.iter().any(|x| x.as_u64() == Some(ctx.shard.index as u64)));
+    if gated {
+        if let Some(gate) = std::env::var_os("TEST_STAGE_GATE") {
+            while Path::new(&gate).exists() {
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+        }
+    }
+    if get("fail").and_then(|v| v.as_bool()).unwrap_or(false) {
+        eprintln!("early noise that the tail may drop");
+        eprintln!("boom: deliberate failure in {unit}");
+        return Err("deliberate failure".into());
+    }
+
+    let steps = get("steps").and_then(|v| v.as_u64()).unwrap_or(3);
+    let progress = ctx.progress(steps);
+    let mut text = format!(
+        "stage {}\nshard {}/{}\nparams {}\n",
+        ctx.stage,
+        ctx.shard.index,
+        ctx.shard.count,
+        serde_json::to_string(&params)?
+    );
+    let names: Vec<String> = ctx.input_names().map(str::to_owned).collect();
+    for name in names {
+        for (k, dir) in ctx.input_dirs(&name)?.iter().enumerate() {
+            let mut files: Vec<_> = std::fs::read_dir(dir)?.collect::<Result<Vec<_>, _>>()?;
+            files.sort_by_key(|e| e.file_name());
+            for f in files {
+                let body = std::fs::read_to_string(f.path())?;
+                text.push_str(&format!(
+                    "input {name}[{k}] {}:\n",
+                    f.file_name().to_string_lossy()
+                ));
+                for l in body.lines() {
+                    text.push_str(&format!("  {l}\n"));
+                }
+            }
+        }
+    }
+    for _ in 0..steps {
+        progress.inc(1);
+    }
+    let file = get("file")
+        .and_then(|v| v.as_str())
+        .unwrap_or("out.txt")
+        .to_owned();
+    std::fs::write(ctx.output_path(&file), text)?;
+    if let Some(s) = get("summary").and_then(|v| v.as_str()) {
+        stage_kit::summary(s);
+    }
+    log(&format!("end {unit}"));
+    Ok(())
+}
