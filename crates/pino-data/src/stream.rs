@@ -69,7 +69,8 @@ impl StreamWriter {
             .unwrap_or_default();
         let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
         let file = File::create(&tmp).map_err(|e| io(&tmp, e))?;
-        let writer = ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(|e| pq(path, e))?;
+        let writer =
+            ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(|e| pq(path, e))?;
         Ok(Self {
             path: path.to_owned(),
             tmp,
@@ -82,7 +83,12 @@ impl StreamWriter {
     /// Appends `table` (same column names and types, in order) as one row group.
     pub fn write(&mut self, table: &Table) -> Result<()> {
         let names: Vec<&str> = table.names().collect();
-        let expected: Vec<&str> = self.schema.fields().iter().map(|f| f.name().as_str()).collect();
+        let expected: Vec<&str> = self
+            .schema
+            .fields()
+            .iter()
+            .map(|f| f.name().as_str())
+            .collect();
         if names != expected {
             return Err(Error::MissingColumn {
                 path: self.path.clone(),
@@ -114,7 +120,8 @@ impl StreamWriter {
                 }
             })
             .collect();
-        let batch = RecordBatch::try_new(self.schema.clone(), arrays).map_err(|e| pq(&self.path, e))?;
+        let batch =
+            RecordBatch::try_new(self.schema.clone(), arrays).map_err(|e| pq(&self.path, e))?;
         let writer = self.writer.as_mut().expect("writer present until finish");
         writer.write(&batch).map_err(|e| pq(&self.path, e))?;
         writer.flush().map_err(|e| pq(&self.path, e))?;
@@ -188,7 +195,10 @@ mod tests {
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
         // An empty stream is a valid empty file with the template's columns.
         let empty = dir.path().join("e.parquet");
-        StreamWriter::create(&empty, &table(vec![], vec![])).unwrap().finish().unwrap();
+        StreamWriter::create(&empty, &table(vec![], vec![]))
+            .unwrap()
+            .finish()
+            .unwrap();
         assert_eq!(read_parquet(&empty, None).unwrap().num_rows(), 0);
         write_parquet(&dir.path().join("w.parquet"), &table(vec![1], vec![1.0])).unwrap();
     }

@@ -317,3 +317,180 @@ pub fn train_to_dir(
     }
     Ok(outcome)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{TrainParams, WindowConfig};
+    use crate::data::load_dataset;
+    use crate::synthetic::{write_dataset, SyntheticSpec};
+
+    /// A tiny synthetic dataset: 4 training + 2 validation records of 0.2 s at 1 kHz (180
+    /// points after the start-up window).
+    fn dataset(dir: &Path) -> Dataset {
+        let spec = SyntheticSpec {
+            n_train: 4,
+            n_validation: 2,
+            duration: 0.2,
+            ..Default::default()
+        };
+        let f = write_dataset(&spec, dir).unwrap();
+        load_dataset(&f.params, &[f.simulation], Some(&f.weights), &WindowConfig::default()).unwrap()
+    }
+
+    fn small(algorithm: i64, epochs: usize) -> (ModelConfig, TrainConfig) {
+        let mut p = TrainParams::with_algorithm(algorithm);
+        p.width = 8;
+        p.modes = 6;
+        p.projection_width = 16;
+        p.depth = Some(2);
+        p.epochs = epochs;
+        p.batch_size = 2;
+        p.learning_rate = 3e-3;
+        p.lr_decay_every = 2;
+        let (m, t, _) = p.configs().unwrap();
+        (m, t)
+    }
+
+    fn params_of(model: &Fno) -> Vec<Vec<f32>> {
+        model
+            .vars()
+            .iter()
+            .map(|(_, v)| v.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn interrupted_training_resumes_bitwise() {
+        let dir = tempfile::tempdir().unwrap();
+        let ds = dataset(dir.path());
+        // Algorithm 3 exercises the residual, phi and every loss path.
+        let (m, t) = small(3, 4);
+        let dev = Device::Cpu;
+        let run = |ckpt: &Path, stop: Option<usize>| {
+            let opts = TrainOptions {
+                transform: Transform::Matmul,
+                checkpoint_dir: ckpt.to_owned(),
+                stop_after_epochs: stop,
+            };
+            train(&ds, m, t, WindowConfig::default(), &opts, &dev, &mut |_| {}).unwrap()
+        };
+        let a_dir = dir.path().join("a");
+        let b_dir = dir.path().join("b");
+        std::fs::create_dir_all(&a_dir).unwrap();
+        std::fs::create_dir_all(&b_dir).unwrap();
+        let full = run(&a_dir, None);
+        assert!(full.finished && full.resumed_after.is_none());
+        let first = run(&b_dir, Some(2));
+        assert!(!first.finished && first.history.len() == 2);
+        let resumed = run(&b_dir, None);
+        assert_eq!(resumed.resumed_after, Some(2));
+        assert!(resumed.finished);
+        // Same optimizer step count, same loss history, bitwise equal parameters.
+        assert_eq!(resumed.history, full.history);
+        assert_eq!(params_of(&resumed.model), params_of(&full.model));
+        // A different configuration refuses the checkpoint.
+        let (m2, _) = small(3, 4);
+        let m2 = ModelConfig { width: 9, ..m2 };
+        let opts = TrainOptions {
+            transform: Transform::Matmul,
+            checkpoint_dir: b_dir.clone(),
+            stop_after_epochs: None,
+        };
+        let err = train(&ds, m2, t, WindowConfig::default(), &opts, &dev, &mut |_| {}).unwrap_err();
+        assert!(err.to_string().contains("another configuration"), "{err}");
+    }
+
+    #[test]
+    fn checkpoint_and_model_files_round_trip_exactly() {
+        let dir = tempfile::tempdir().unwrap();
+        let ds = dataset(dir.path());
+        let (m, t) = small(4, 1);
+        let dev = Device::Cpu;
+        let out = dir.path().join("model");
+        std::fs::create_dir_all(&out).unwrap();
+        let outcome = train_to_dir(&ds, m, t, WindowConfig::default(), Transform::Matmul, &out, &dev, &mut |_| {}).unwrap();
+        let (back, meta) = checkpoint::load_model(&out, Transform::Matmul, &dev).unwrap();
+        assert_eq!(meta, outcome.meta);
+        assert_eq!(params_of(&back), params_of(&outcome.model));
+        assert_eq!(read_history(&out.join("history.parquet")).unwrap(), outcome.history);
+        // Checkpoints (with Adam moments) round-trip too.
+        let ck = dir.path().join("ck");
+        std::fs::create_dir_all(&ck).unwrap();
+        let mut adam = Adam::new(outcome.model.vars()).unwrap();
+        adam.step = 7;
+        adam.m[0] = (adam.m[0].ones_like().unwrap() * 0.25).unwrap();
+        let state = TrainState { epochs_done: 1, step: 7, history: outcome.history.clone() };
+        checkpoint::save_checkpoint(&ck, &outcome.model, &adam, &outcome.meta, &state).unwrap();
+        let (m2, a2, meta2, s2) = checkpoint::load_checkpoint(&ck, Transform::Matmul, &dev).unwrap();
+        assert_eq!((meta2, s2), (outcome.meta.clone(), state));
+        assert_eq!(params_of(&m2), params_of(&outcome.model));
+        assert_eq!(a2.step, 7);
+        assert_eq!(a2.m[0].flatten_all().unwrap().to_vec1::<f32>().unwrap(), adam.m[0].flatten_all().unwrap().to_vec1::<f32>().unwrap());
+        // A model.json of another configuration next to these weights is refused by name.
+        let mut other = outcome.meta.clone();
+        other.model.width += 1;
+        std::fs::write(out.join("model.json"), serde_json::to_string(&other).unwrap()).unwrap();
+        let err = checkpoint::load_model(&out, Transform::Matmul, &dev).unwrap_err().to_string();
+        assert!(err.contains("model.safetensors") && err.contains("width 9"), "{err}");
+    }
+
+    #[test]
+    fn a_small_model_overfits_a_tiny_batch() {
+        // Learning works: on one batch of two records the data loss must fall 100x. The
+        // z-scored targets start at relative L2 ~1; 600 Adam steps at lr 1e-2 on a model with
+        // ~4k parameters fit 2 x 180 x 14 values (measured about 300x lower).
+        let dir = tempfile::tempdir().unwrap();
+        let ds = dataset(dir.path());
+        let (m, mut t) = small(1, 1);
+        t.learning_rate = 1e-2;
+        let dev = Device::Cpu;
+        let norm = ds.normalisation().unwrap();
+        let items = prepare(&ds, &norm);
+        let model = Fno::new(m, ds.t_points(), 1, Transform::Matmul, &dev).unwrap();
+        let loss = LossContext { config: t, norm, dt: ds.dt, f_ref: ds.mean_wheel_load(9.81) };
+        let batch = make_batch(&items, &[0, 1], ds.t_points(), &dev).unwrap();
+        let mut adam = Adam::new(model.vars()).unwrap();
+        let mut first = None;
+        let mut last = 0.0;
+        for _ in 0..600 {
+            let u = model.forward(&batch.x).unwrap();
+            let (total, v) = loss.loss(&u, &batch).unwrap();
+            first.get_or_insert(v.data);
+            last = v.data;
+            let g = total.backward().unwrap();
+            adam.step(model.vars(), &g, t.learning_rate).unwrap();
+        }
+        let first = first.unwrap();
+        assert!(last < first / 100.0, "data loss {first} -> {last}");
+    }
+
+    #[test]
+    fn ode_residual_vanishes_on_exact_data_and_grows_with_noise() {
+        let dir = tempfile::tempdir().unwrap();
+        let ds = dataset(dir.path());
+        let norm = ds.normalisation().unwrap();
+        let items = prepare(&ds, &norm);
+        let (_, t) = small(2, 1);
+        let dev = Device::Cpu;
+        let ctx = LossContext { config: t, norm, dt: ds.dt, f_ref: ds.mean_wheel_load(9.81) };
+        let idx: Vec<usize> = (0..ds.samples.len()).collect();
+        let batch = make_batch(&items, &idx, ds.t_points(), &dev).unwrap();
+        let level = |noise: f64| -> f64 {
+            let mut s = vtcd::rng::SampleStream::new(3, vtcd::rng::Purpose::WeightNoise, 0);
+            let n: Vec<f32> = (0..batch.u.elem_count()).map(|_| (noise * s.normal()) as f32).collect();
+            let u = (&batch.u + candle_core::Tensor::from_vec(n, batch.u.shape(), &dev).unwrap()).unwrap();
+            ctx.ode_global_loss(&u, &batch).unwrap().to_scalar::<f64>().unwrap()
+        };
+        // Exact displacements, derivatives by central differences: the residual is the
+        // O(dt^2) truncation error of the smooth (< 10 Hz) synthetic response plus f32
+        // storage of z-scored values; measured ~1e-3 W, so mean |R| < 1% of the wheel load.
+        let exact = level(0.0);
+        assert!(exact < 1e-2, "{exact}");
+        // Noise in z-scored units of 1e-4, 1e-3, 1e-2: the second difference amplifies it by
+        // ~sqrt(6)/dt^2, so the residual grows monotonically and by orders of magnitude.
+        let (a, b, c) = (level(1e-4), level(1e-3), level(1e-2));
+        assert!(exact < a && a < b && b < c, "{exact} {a} {b} {c}");
+        assert!(c > 100.0 * exact, "{exact} {c}");
+    }
+}

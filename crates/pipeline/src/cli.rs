@@ -17,7 +17,12 @@ pub struct Cli {
     #[arg(short = 'C', long = "workspace", global = true, value_name = "DIR")]
     pub workspace: Option<PathBuf>,
     /// Pipeline file, relative to the workspace.
-    #[arg(short = 'f', long = "file", global = true, default_value = "pipeline.yaml")]
+    #[arg(
+        short = 'f',
+        long = "file",
+        global = true,
+        default_value = "pipeline.yaml"
+    )]
     pub file: PathBuf,
     /// Directory searched first for bare command names (overrides the file's `bin_dir`;
     /// default: env PINO_BIN_DIR, then the file's `bin_dir`).
@@ -70,10 +75,11 @@ fn execute(cli: Cli) -> Result<()> {
         _ => cli.file.clone(),
     };
     let opts = LoadOptions {
-        bin_dir: cli
-            .bin_dir
-            .clone()
-            .or_else(|| std::env::var_os("PINO_BIN_DIR").filter(|v| !v.is_empty()).map(PathBuf::from)),
+        bin_dir: cli.bin_dir.clone().or_else(|| {
+            std::env::var_os("PINO_BIN_DIR")
+                .filter(|v| !v.is_empty())
+                .map(PathBuf::from)
+        }),
         sets: cli.sets.clone(),
     };
     let p = Pipeline::load(&workspace, &file, &opts)?;

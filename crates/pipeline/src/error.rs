@@ -78,7 +78,10 @@ impl Error {
     pub fn exit_code(&self) -> u8 {
         match self {
             Error::Yaml { .. } | Error::Spec { .. } | Error::Usage(_) | Error::Busy { .. } => 2,
-            Error::StageFailed { .. } | Error::NoOutputs(_) | Error::Io { .. } | Error::Store { .. } => 1,
+            Error::StageFailed { .. }
+            | Error::NoOutputs(_)
+            | Error::Io { .. }
+            | Error::Store { .. } => 1,
         }
     }
 

@@ -62,7 +62,13 @@ pub fn parse_progress(line: &str) -> Option<ProgressLine> {
 }
 
 /// Runs `exe args...` as a stage in `work` (which holds `context.json` and `out/`).
-pub fn run_stage(exe: &Path, args: &[String], workspace: &Path, work: &Path, on_progress: &(dyn Fn(&ProgressLine) + Sync)) -> Result<Outcome> {
+pub fn run_stage(
+    exe: &Path,
+    args: &[String],
+    workspace: &Path,
+    work: &Path,
+    on_progress: &(dyn Fn(&ProgressLine) + Sync),
+) -> Result<Outcome> {
     let log_path = work.join("log.txt");
     let log = Mutex::new(std::fs::File::create(&log_path).map_err(|e| Error::io(&log_path, e))?);
     let mut cmd = Command::new(exe);
@@ -80,7 +86,13 @@ pub fn run_stage(exe: &Path, args: &[String], workspace: &Path, work: &Path, on_
         // getppid, _exit); no allocation, no locks.
         unsafe {
             cmd.pre_exec(move || {
-                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0);
+                libc::prctl(
+                    libc::PR_SET_PDEATHSIG,
+                    libc::SIGKILL as libc::c_ulong,
+                    0,
+                    0,
+                    0,
+                );
                 // The parent may have died before prctl took effect.
                 if libc::getppid() != parent {
                     libc::_exit(137);
@@ -135,7 +147,11 @@ mod tests {
     fn progress_lines_parse() {
         assert_eq!(
             parse_progress("::progress 3 10 loss 0.5"),
-            Some(ProgressLine { done: 3, total: 10, message: "loss 0.5".into() })
+            Some(ProgressLine {
+                done: 3,
+                total: 10,
+                message: "loss 0.5".into()
+            })
         );
         assert_eq!(parse_progress("::progress 0 4").unwrap().total, 4);
         assert_eq!(parse_progress("::progress x 4"), None);
@@ -147,9 +163,13 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let seen = Mutex::new(Vec::new());
         let script = "echo '::progress 1 2 half'; echo '::summary all good'; for i in $(seq 1 30); do echo err$i >&2; done; exit 3";
-        let out = run_stage(Path::new("/bin/sh"), &["-c".into(), script.into()], dir.path(), dir.path(), &|p| {
-            seen.lock().unwrap().push(p.done)
-        })
+        let out = run_stage(
+            Path::new("/bin/sh"),
+            &["-c".into(), script.into()],
+            dir.path(),
+            dir.path(),
+            &|p| seen.lock().unwrap().push(p.done),
+        )
         .unwrap();
         assert!(!out.success);
         assert_eq!(out.summary.as_deref(), Some("all good"));

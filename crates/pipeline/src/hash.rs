@@ -131,20 +131,31 @@ impl HashCache {
             }
         }
         let (blake3, _) = hash_file(path)?;
-        self.hashed_bytes.fetch_add(stamp.size, std::sync::atomic::Ordering::Relaxed);
+        self.hashed_bytes
+            .fetch_add(stamp.size, std::sync::atomic::Ordering::Relaxed);
         // Re-stat: a file that changed while being read must not be cached under the new stamp.
         let after = std::fs::metadata(path).map(|m| Stamp::of(&m)).ok();
         if after == Some(stamp) {
-            self.lock_entries().insert(key, Entry { stamp, blake3: blake3.clone() });
+            self.lock_entries().insert(
+                key,
+                Entry {
+                    stamp,
+                    blake3: blake3.clone(),
+                },
+            );
             *self.dirty.lock().unwrap_or_else(|e| e.into_inner()) = true;
         }
-        Ok(FileHash { blake3, size: stamp.size })
+        Ok(FileHash {
+            blake3,
+            size: stamp.size,
+        })
     }
 
     /// Records a hash computed elsewhere (for a file just moved into the store) under the
     /// file's current stamp.
     pub fn insert(&self, path: &Path, stamp: Stamp, blake3: String) {
-        self.lock_entries().insert(path.to_string_lossy().into_owned(), Entry { stamp, blake3 });
+        self.lock_entries()
+            .insert(path.to_string_lossy().into_owned(), Entry { stamp, blake3 });
         *self.dirty.lock().unwrap_or_else(|e| e.into_inner()) = true;
     }
 
@@ -172,14 +183,19 @@ impl HashCache {
 
     /// Writes the cache back (atomically) if it changed.
     pub fn save(&self) -> Result<()> {
-        let Some(path) = &self.path else { return Ok(()) };
+        let Some(path) = &self.path else {
+            return Ok(());
+        };
         let mut dirty = self.dirty.lock().unwrap_or_else(|e| e.into_inner());
         if !*dirty {
             return Ok(());
         }
         let entries = self.lock_entries();
         // Drop entries whose file is gone, so the cache does not grow without bound.
-        let live: BTreeMap<&String, &Entry> = entries.iter().filter(|(k, _)| Path::new(k).exists()).collect();
+        let live: BTreeMap<&String, &Entry> = entries
+            .iter()
+            .filter(|(k, _)| Path::new(k).exists())
+            .collect();
         let bytes = serde_json::to_vec(&live).expect("serialisable");
         crate::store::write_atomic(path, &bytes)?;
         *dirty = false;
@@ -205,7 +221,11 @@ mod tests {
         assert_eq!(h1.blake3, blake3::hash(b"hello").to_hex().to_string());
         assert_eq!(cache.hashed_bytes(), 5);
         assert_eq!(cache.hash(&f).unwrap(), h1);
-        assert_eq!(cache.hashed_bytes(), 5, "second lookup must come from the cache");
+        assert_eq!(
+            cache.hashed_bytes(),
+            5,
+            "second lookup must come from the cache"
+        );
         cache.save().unwrap();
         // Same size, new content: the ctime/mtime stamp changes, so it is rehashed.
         std::fs::write(&f, b"jello").unwrap();
@@ -220,7 +240,9 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let f = dir.path().join("big");
         // Two full chunks and a partial one exercise the chunk loop's boundaries.
-        let data: Vec<u8> = (0..(2 * CHUNK + 12345)).map(|i| (i * 31 % 251) as u8).collect();
+        let data: Vec<u8> = (0..(2 * CHUNK + 12345))
+            .map(|i| (i * 31 % 251) as u8)
+            .collect();
         std::fs::write(&f, &data).unwrap();
         let (h, n) = hash_file(&f).unwrap();
         assert_eq!(n, data.len() as u64);

@@ -27,7 +27,10 @@ fn key_of(line: &str) -> Option<&str> {
     for q in ['"', '\''] {
         if let Some(rest) = t.strip_prefix(q) {
             let end = rest.find(q)?;
-            return rest[end + 1..].trim_start().starts_with(':').then(|| &rest[..end]);
+            return rest[end + 1..]
+                .trim_start()
+                .starts_with(':')
+                .then(|| &rest[..end]);
         }
     }
     let colon = t.find(':')?;
@@ -74,7 +77,9 @@ impl<'a> Locator<'a> {
     /// 0-based index of the top-level `key:` line.
     fn top(&self, key: &str) -> Option<usize> {
         (0..self.lines.len()).find(|&j| {
-            indent(self.lines[j]) == 0 && is_content(self.lines[j]) && key_of(self.lines[j]) == Some(key)
+            indent(self.lines[j]) == 0
+                && is_content(self.lines[j])
+                && key_of(self.lines[j]) == Some(key)
         })
     }
 
@@ -117,7 +122,11 @@ impl<'a> Locator<'a> {
         let line_of = |j: usize| -> Option<usize> {
             let l = self.lines[j];
             // On the field's own line only the value part counts (`inputs: {a: b}`).
-            let hay = if j == f { l.split_once(':').map_or("", |x| x.1) } else { l };
+            let hay = if j == f {
+                l.split_once(':').map_or("", |x| x.1)
+            } else {
+                l
+            };
             has_word(hay, word).then_some(j + 1)
         };
         (f..end).find_map(line_of).unwrap_or(f + 1)

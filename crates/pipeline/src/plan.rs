@@ -41,7 +41,11 @@ pub fn units_of(p: &Pipeline, idx: usize) -> Vec<Unit> {
     let mut v = Vec::new();
     for (e, ex) in s.expansions.iter().enumerate() {
         for shard in 0..s.shards {
-            let key = if s.shards > 1 { format!("{}#{shard}", ex.name) } else { ex.name.clone() };
+            let key = if s.shards > 1 {
+                format!("{}#{shard}", ex.name)
+            } else {
+                ex.name.clone()
+            };
             v.push(Unit {
                 stage: idx,
                 expansion: e,
@@ -70,10 +74,18 @@ pub fn code_of(p: &Pipeline, stage: &Stage, cache: &HashCache) -> Result<Code> {
     let exe_hash = cache.hash(&exe)?.blake3;
     let mut arg_files = BTreeMap::new();
     for f in p.file_args(stage) {
-        let rel = f.strip_prefix(&p.workspace).unwrap_or(&f).to_string_lossy().into_owned();
+        let rel = f
+            .strip_prefix(&p.workspace)
+            .unwrap_or(&f)
+            .to_string_lossy()
+            .into_owned();
         arg_files.insert(rel, cache.hash(&f)?.blake3);
     }
-    Ok(Code { exe, exe_hash, arg_files })
+    Ok(Code {
+        exe,
+        exe_hash,
+        arg_files,
+    })
 }
 
 #[derive(Serialize)]
@@ -90,7 +102,12 @@ struct IdentityDoc<'a> {
 
 /// The lock entry (with its identity) that unit `u` would have given upstream output hashes
 /// `inputs` (input name -> hashes in upstream unit order). `output_hash` is left empty.
-pub fn entry_for(p: &Pipeline, u: &Unit, code: &Code, inputs: BTreeMap<String, Vec<String>>) -> LockEntry {
+pub fn entry_for(
+    p: &Pipeline,
+    u: &Unit,
+    code: &Code,
+    inputs: BTreeMap<String, Vec<String>>,
+) -> LockEntry {
     let stage = &p.stages[u.stage];
     let params = stage.expansions[u.expansion].params.clone();
     let args = stage.cmd[1..].to_vec();
@@ -105,7 +122,9 @@ pub fn entry_for(p: &Pipeline, u: &Unit, code: &Code, inputs: BTreeMap<String, V
         inputs: &inputs,
         shard,
     };
-    let identity = blake3::hash(&serde_json::to_vec(&doc).expect("serialisable")).to_hex().to_string();
+    let identity = blake3::hash(&serde_json::to_vec(&doc).expect("serialisable"))
+        .to_hex()
+        .to_string();
     LockEntry {
         identity,
         output_hash: String::new(),

@@ -33,7 +33,11 @@ pub struct RunOptions {
 }
 
 /// Units to consider, in dependency order, and the keys of those to force.
-pub fn select(p: &Pipeline, targets: &[String], force: bool) -> Result<(Vec<Unit>, BTreeSet<String>)> {
+pub fn select(
+    p: &Pipeline,
+    targets: &[String],
+    force: bool,
+) -> Result<(Vec<Unit>, BTreeSet<String>)> {
     let n = p.stages.len();
     let mut whole = vec![targets.is_empty(); n];
     let mut partial: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); n];
@@ -42,13 +46,29 @@ pub fn select(p: &Pipeline, targets: &[String], force: bool) -> Result<(Vec<Unit
         let stage_name = t.split('[').next().unwrap_or(t);
         let idx = p.index(stage_name).ok_or_else(|| {
             let known: Vec<&str> = p.stages.iter().map(|s| s.name.as_str()).collect();
-            Error::Usage(format!("{}: unknown stage `{t}` (stages: {})", p.file, known.join(", ")))
+            Error::Usage(format!(
+                "{}: unknown stage `{t}` (stages: {})",
+                p.file,
+                known.join(", ")
+            ))
         })?;
         let exps: Vec<usize> = if t.contains('[') {
-            let e = p.stages[idx].expansions.iter().position(|e| e.name == *t).ok_or_else(|| {
-                let known: Vec<&str> = p.stages[idx].expansions.iter().map(|e| e.name.as_str()).collect();
-                Error::Usage(format!("{}: stage `{stage_name}` has no expansion `{t}` (expansions: {})", p.file, known.join(", ")))
-            })?;
+            let e = p.stages[idx]
+                .expansions
+                .iter()
+                .position(|e| e.name == *t)
+                .ok_or_else(|| {
+                    let known: Vec<&str> = p.stages[idx]
+                        .expansions
+                        .iter()
+                        .map(|e| e.name.as_str())
+                        .collect();
+                    Error::Usage(format!(
+                        "{}: stage `{stage_name}` has no expansion `{t}` (expansions: {})",
+                        p.file,
+                        known.join(", ")
+                    ))
+                })?;
             partial[idx].insert(e);
             vec![e]
         } else {
@@ -56,7 +76,10 @@ pub fn select(p: &Pipeline, targets: &[String], force: bool) -> Result<(Vec<Unit
             (0..p.stages[idx].expansions.len()).collect()
         };
         if force {
-            for u in units_of(p, idx).into_iter().filter(|u| exps.contains(&u.expansion)) {
+            for u in units_of(p, idx)
+                .into_iter()
+                .filter(|u| exps.contains(&u.expansion))
+            {
                 forced.insert(u.key);
             }
         }
@@ -80,7 +103,10 @@ pub fn select(p: &Pipeline, targets: &[String], force: bool) -> Result<(Vec<Unit
 enum State {
     Pending,
     Running,
-    Done { identity: String, output_hash: String },
+    Done {
+        identity: String,
+        output_hash: String,
+    },
     Failed,
     Skipped,
 }
@@ -100,12 +126,24 @@ struct Ctx<'a> {
 
 fn safe_name(key: &str) -> String {
     key.chars()
-        .map(|c| if c.is_ascii_alphanumeric() || "-_=.,".contains(c) { c } else { '_' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_=.,".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
         .collect()
 }
 
 /// Computes or reuses one unit.
-fn work(cx: &Ctx, u: &Unit, inputs: BTreeMap<String, Vec<String>>, dirs: BTreeMap<String, Vec<String>>, force: bool) -> Outcome {
+fn work(
+    cx: &Ctx,
+    u: &Unit,
+    inputs: BTreeMap<String, Vec<String>>,
+    dirs: BTreeMap<String, Vec<String>>,
+    force: bool,
+) -> Outcome {
     let t0 = Instant::now();
     let entry = entry_for(cx.p, u, &cx.codes[&u.stage], inputs);
     let id = entry.identity.clone();
@@ -113,9 +151,15 @@ fn work(cx: &Ctx, u: &Unit, inputs: BTreeMap<String, Vec<String>>, dirs: BTreeMa
         match cx.store.verify(&id) {
             Cached::Valid(m) => return Outcome::Cached(entry, m),
             Cached::Corrupt(why) => {
-                cx.ui.line(&format!("[{}] cached output is corrupted ({why}); discarding it and recomputing", u.key));
+                cx.ui.line(&format!(
+                    "[{}] cached output is corrupted ({why}); discarding it and recomputing",
+                    u.key
+                ));
                 if let Err(e) = cx.store.discard(&id) {
-                    return Outcome::Failed(format!("cannot discard corrupted object: {e}"), t0.elapsed());
+                    return Outcome::Failed(
+                        format!("cannot discard corrupted object: {e}"),
+                        t0.elapsed(),
+                    );
                 }
             }
             Cached::Missing => {}
@@ -129,7 +173,12 @@ fn work(cx: &Ctx, u: &Unit, inputs: BTreeMap<String, Vec<String>>, dirs: BTreeMa
 }
 
 /// Runs the stage process for `u`; `Ok(Err(message))` when the stage failed.
-fn compute(cx: &Ctx, u: &Unit, entry: &LockEntry, dirs: BTreeMap<String, Vec<String>>) -> Result<std::result::Result<Manifest, String>> {
+fn compute(
+    cx: &Ctx,
+    u: &Unit,
+    entry: &LockEntry,
+    dirs: BTreeMap<String, Vec<String>>,
+) -> Result<std::result::Result<Manifest, String>> {
     let stage = &cx.p.stages[u.stage];
     let work = cx.store.tmp_dir(&entry.identity)?;
     let context = serde_json::json!({
@@ -140,13 +189,28 @@ fn compute(cx: &Ctx, u: &Unit, entry: &LockEntry, dirs: BTreeMap<String, Vec<Str
         "output": work.join("out"),
         "shard": {"index": u.shard, "count": stage.shards},
     });
-    crate::store::write_atomic(&work.join("context.json"), &serde_json::to_vec_pretty(&context).expect("serialisable"))?;
+    crate::store::write_atomic(
+        &work.join("context.json"),
+        &serde_json::to_vec_pretty(&context).expect("serialisable"),
+    )?;
     let view = cx.ui.start(&u.key);
     let t0 = Instant::now();
-    let outcome = exec::run_stage(&cx.codes[&u.stage].exe, &entry.args, &cx.p.workspace, &work, &|pl| view.progress(pl))?;
+    let outcome = exec::run_stage(
+        &cx.codes[&u.stage].exe,
+        &entry.args,
+        &cx.p.workspace,
+        &work,
+        &|pl| view.progress(pl),
+    )?;
     let took = t0.elapsed();
     if outcome.success {
-        match cx.store.commit(&work, &entry.identity, &u.key, outcome.summary, took.as_millis() as u64) {
+        match cx.store.commit(
+            &work,
+            &entry.identity,
+            &u.key,
+            outcome.summary,
+            took.as_millis() as u64,
+        ) {
             Ok(m) => {
                 view.finish(&format!("ran in {}", fmt_duration(took)));
                 Ok(Ok(m))
@@ -159,10 +223,18 @@ fn compute(cx: &Ctx, u: &Unit, entry: &LockEntry, dirs: BTreeMap<String, Vec<Str
         }
     } else {
         view.finish("FAILED");
-        let kept = cx.store.root.join("logs").join(format!("{}.failed.log", safe_name(&u.key)));
+        let kept = cx
+            .store
+            .root
+            .join("logs")
+            .join(format!("{}.failed.log", safe_name(&u.key)));
         let _ = std::fs::rename(&outcome.log, &kept);
         let _ = std::fs::remove_dir_all(&work);
-        let mut msg = format!("{} ({}); last lines of stderr:\n", stage.cmd.join(" "), outcome.status);
+        let mut msg = format!(
+            "{} ({}); last lines of stderr:\n",
+            stage.cmd.join(" "),
+            outcome.status
+        );
         for l in &outcome.stderr_tail {
             msg.push_str(&format!("    | {l}\n"));
         }
@@ -172,7 +244,10 @@ fn compute(cx: &Ctx, u: &Unit, entry: &LockEntry, dirs: BTreeMap<String, Vec<Str
 }
 
 fn prune(rec: &mut LockRecord, p: &Pipeline, entries: &BTreeMap<String, LockEntry>) {
-    let all: BTreeSet<String> = (0..p.stages.len()).flat_map(|i| units_of(p, i)).map(|u| u.key).collect();
+    let all: BTreeSet<String> = (0..p.stages.len())
+        .flat_map(|i| units_of(p, i))
+        .map(|u| u.key)
+        .collect();
     let mut e = entries.clone();
     e.retain(|k, _| all.contains(k));
     rec.pipelines.insert(p.key.clone(), e);
@@ -182,23 +257,32 @@ fn prune(rec: &mut LockRecord, p: &Pipeline, entries: &BTreeMap<String, LockEntr
 /// some failed (the others still ran).
 pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
     let (units, forced) = select(p, &opts.targets, opts.force)?;
-    let store = Store::open(&p.workspace)?;
+    // Resolve all code before touching the store: bad input leaves no trace.
+    let store = Store::open_read(&p.workspace);
     let mut codes = HashMap::new();
     for u in &units {
         if let std::collections::hash_map::Entry::Vacant(v) = codes.entry(u.stage) {
             v.insert(code_of(p, &p.stages[u.stage], &store.cache)?);
         }
     }
+    store.create_dirs()?;
     let lock_path = store.root.join("run.lock");
     let _lock = RunLock::acquire(&lock_path, opts.wait, |pid| {
-        ui.line(&format!("waiting for another `pipeline run` (pid {pid}) to finish ({})...", lock_path.display()))
+        ui.line(&format!(
+            "waiting for another `pipeline run` (pid {pid}) to finish ({})...",
+            lock_path.display()
+        ))
     })?;
     store.clean_debris()?;
     let mut rec = store.read_lock_record()?;
     let mut entries = rec.pipelines.get(&p.key).cloned().unwrap_or_default();
     let t_run = Instant::now();
 
-    let pos: HashMap<&str, usize> = units.iter().enumerate().map(|(i, u)| (u.key.as_str(), i)).collect();
+    let pos: HashMap<&str, usize> = units
+        .iter()
+        .enumerate()
+        .map(|(i, u)| (u.key.as_str(), i))
+        .collect();
     let deps: Vec<Vec<(String, Vec<usize>)>> = units
         .iter()
         .map(|u| {
@@ -207,7 +291,13 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
                 .iter()
                 .map(|(name, up)| {
                     let ui = p.index(up).expect("validated");
-                    (name.clone(), units_of(p, ui).iter().map(|x| pos[x.key.as_str()]).collect())
+                    (
+                        name.clone(),
+                        units_of(p, ui)
+                            .iter()
+                            .map(|x| pos[x.key.as_str()])
+                            .collect(),
+                    )
                 })
                 .collect()
         })
@@ -217,7 +307,12 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
     let mut failures = Vec::new();
     let mut changed = false;
     let mut ran = 0usize;
-    let cx = Ctx { p, store: &store, ui, codes: &codes };
+    let cx = Ctx {
+        p,
+        store: &store,
+        ui,
+        codes: &codes,
+    };
     let jobs = opts.jobs.max(1);
     let mut save_error = None;
 
@@ -229,13 +324,24 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
                 if !matches!(state[i], State::Pending) {
                     continue;
                 }
-                let blocked = deps[i].iter().flat_map(|(_, v)| v).find(|&&d| matches!(state[d], State::Failed | State::Skipped));
+                let blocked = deps[i]
+                    .iter()
+                    .flat_map(|(_, v)| v)
+                    .find(|&&d| matches!(state[d], State::Failed | State::Skipped));
                 if let Some(&d) = blocked {
                     state[i] = State::Skipped;
-                    rows[i] = Some(vec![units[i].key.clone(), "skipped".into(), "-".into(), format!("upstream {} did not finish", units[d].key)]);
+                    rows[i] = Some(vec![
+                        units[i].key.clone(),
+                        "skipped".into(),
+                        "-".into(),
+                        format!("upstream {} did not finish", units[d].key),
+                    ]);
                     continue;
                 }
-                let ready = deps[i].iter().flat_map(|(_, v)| v).all(|&d| matches!(state[d], State::Done { .. }));
+                let ready = deps[i]
+                    .iter()
+                    .flat_map(|(_, v)| v)
+                    .all(|&d| matches!(state[d], State::Done { .. }));
                 if !ready || running >= jobs {
                     continue;
                 }
@@ -245,7 +351,11 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
                     let mut hashes = Vec::new();
                     let mut ds = Vec::new();
                     for &d in ups {
-                        if let State::Done { identity, output_hash } = &state[d] {
+                        if let State::Done {
+                            identity,
+                            output_hash,
+                        } = &state[d]
+                        {
                             hashes.push(output_hash.clone());
                             ds.push(store.out_dir(identity).to_string_lossy().into_owned());
                         }
@@ -271,18 +381,36 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
             let key = units[i].key.clone();
             let (entry, manifest, row) = match outcome {
                 Outcome::Cached(e, m) => {
-                    let row = vec![key.clone(), "cached".into(), "-".into(), m.summary.clone().unwrap_or_default()];
+                    let row = vec![
+                        key.clone(),
+                        "cached".into(),
+                        "-".into(),
+                        m.summary.clone().unwrap_or_default(),
+                    ];
                     (e, m, row)
                 }
                 Outcome::Ran(e, m, took) => {
                     ran += 1;
-                    let row = vec![key.clone(), "ran".into(), fmt_duration(took), m.summary.clone().unwrap_or_default()];
+                    let row = vec![
+                        key.clone(),
+                        "ran".into(),
+                        fmt_duration(took),
+                        m.summary.clone().unwrap_or_default(),
+                    ];
                     (e, m, row)
                 }
                 Outcome::Failed(msg, took) => {
-                    ui.line(&format!("[{key}] FAILED after {}: {msg}", fmt_duration(took)));
+                    ui.line(&format!(
+                        "[{key}] FAILED after {}: {msg}",
+                        fmt_duration(took)
+                    ));
                     state[i] = State::Failed;
-                    rows[i] = Some(vec![key.clone(), "FAILED".into(), fmt_duration(took), String::new()]);
+                    rows[i] = Some(vec![
+                        key.clone(),
+                        "FAILED".into(),
+                        fmt_duration(took),
+                        String::new(),
+                    ]);
                     failures.push(key);
                     continue;
                 }
@@ -310,7 +438,11 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
     }
     let rows: Vec<Vec<String>> = rows.into_iter().flatten().collect();
     if ran == 0 && failures.is_empty() && !changed {
-        println!("Nothing to do: all {} units of {} are up to date.", rows.len(), p.file);
+        println!(
+            "Nothing to do: all {} units of {} are up to date.",
+            rows.len(),
+            p.file
+        );
         return Ok(());
     }
     print!("{}", table(&["UNIT", "RESULT", "TIME", "SUMMARY"], &rows));

@@ -95,7 +95,9 @@ pub struct LoadOptions {
 }
 
 fn valid_name(s: &str) -> bool {
-    !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+    !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
 }
 
 /// Lexically normalises `p` (no filesystem access): drops `.`, resolves `..`.
@@ -120,7 +122,9 @@ fn stays_inside(workspace: &Path, base: &Path, rel: &str) -> bool {
         return false;
     }
     // `..` may not climb above the workspace even transiently.
-    let mut depth: isize = base.strip_prefix(workspace).map_or(0, |b| b.components().count() as isize);
+    let mut depth: isize = base
+        .strip_prefix(workspace)
+        .map_or(0, |b| b.components().count() as isize);
     for c in p.components() {
         match c {
             Component::ParentDir => depth -= 1,
@@ -147,6 +151,15 @@ pub fn kind(v: &Value) -> &'static str {
     }
 }
 
+/// `an integer`, `a float`.
+fn a(kind: &str) -> String {
+    if kind.starts_with(['a', 'e', 'i', 'o', 'u']) {
+        format!("an {kind}")
+    } else {
+        format!("a {kind}")
+    }
+}
+
 /// Converts a `--set` value to the type of `existing`, or says why it cannot.
 fn coerce(existing: &Value, raw: &str, parsed: Value) -> std::result::Result<Value, String> {
     match (existing, &parsed) {
@@ -161,7 +174,11 @@ fn coerce(existing: &Value, raw: &str, parsed: Value) -> std::result::Result<Val
             .ok_or_else(|| format!("`{raw}` is not a finite number")),
         (Value::Number(_), Value::Number(p)) if !p.is_f64() => Ok(parsed),
         (e, p) if kind(e) == kind(p) => Ok(parsed),
-        (e, p) => Err(format!("the parameter is a {} but `{raw}` is a {}", kind(e), kind(p))),
+        (e, p) => Err(format!(
+            "the parameter is {} but `{raw}` is {}",
+            a(kind(e)),
+            a(kind(p))
+        )),
     }
 }
 
@@ -178,7 +195,8 @@ impl Pipeline {
     /// directory) of the workspace `workspace`.
     pub fn load(workspace: &Path, file: &Path, opts: &LoadOptions) -> Result<Self> {
         let display = file.display().to_string();
-        let text = std::fs::read_to_string(file).map_err(|e| Error::Usage(format!("cannot read pipeline file {display}: {e}")))?;
+        let text = std::fs::read_to_string(file)
+            .map_err(|e| Error::Usage(format!("cannot read pipeline file {display}: {e}")))?;
         let workspace = std::path::absolute(workspace).map_err(|e| Error::io(workspace, e))?;
         let abs_file = normalize(&std::path::absolute(file).map_err(|e| Error::io(file, e))?);
         let key = abs_file
@@ -208,7 +226,10 @@ impl Pipeline {
             if !stays_inside(&workspace, &base, d) {
                 return Err(spec_err(
                     loc.top_line("bin_dir"),
-                    format!("bin_dir `{d}` must be a relative path inside the workspace {}", workspace.display()),
+                    format!(
+                        "bin_dir `{d}` must be a relative path inside the workspace {}",
+                        workspace.display()
+                    ),
                 ));
             }
         }
@@ -222,10 +243,16 @@ impl Pipeline {
         for (name, rs) in raw.stages {
             let line = loc.stage_line(&name);
             if !valid_name(&name) {
-                return Err(spec_err(line, format!("stage name `{name}` may only use letters, digits, `_` and `-`")));
+                return Err(spec_err(
+                    line,
+                    format!("stage name `{name}` may only use letters, digits, `_` and `-`"),
+                ));
             }
             if rs.cmd.is_empty() || rs.cmd[0].is_empty() {
-                return Err(spec_err(loc.field_line(&name, "cmd"), format!("stage `{name}`: `cmd` must name a program")));
+                return Err(spec_err(
+                    loc.field_line(&name, "cmd"),
+                    format!("stage `{name}`: `cmd` must name a program"),
+                ));
             }
             let exe = &rs.cmd[0];
             if exe.contains('/') && !stays_inside(&workspace, &base, exe) {
@@ -236,7 +263,10 @@ impl Pipeline {
             }
             let shards = rs.shards.unwrap_or(1);
             if shards == 0 {
-                return Err(spec_err(loc.field_line(&name, "shards"), format!("stage `{name}`: `shards` must be at least 1")));
+                return Err(spec_err(
+                    loc.field_line(&name, "shards"),
+                    format!("stage `{name}`: `shards` must be at least 1"),
+                ));
             }
             let inputs = rs.inputs.unwrap_or_default();
             for input in inputs.keys() {
@@ -255,7 +285,10 @@ impl Pipeline {
                     return Err(spec_err(l, format!("stage `{name}`: matrix key `{k}` is also a parameter; keep it in one place")));
                 }
                 if values.is_empty() {
-                    return Err(spec_err(l, format!("stage `{name}`: matrix key `{k}` has no values")));
+                    return Err(spec_err(
+                        l,
+                        format!("stage `{name}`: matrix key `{k}` has no values"),
+                    ));
                 }
             }
             stages.insert(
@@ -301,7 +334,10 @@ impl Pipeline {
                 let known: Vec<&str> = stages.keys().map(String::as_str).collect();
                 return Err(spec_err(
                     loc.top_line("stages"),
-                    format!("--set {set}: no stage `{sname}` in this pipeline (stages: {})", known.join(", ")),
+                    format!(
+                        "--set {set}: no stage `{sname}` in this pipeline (stages: {})",
+                        known.join(", ")
+                    ),
                 ));
             }
             let (stage, params, matrix) = stages.get_mut(sname).expect("checked");
@@ -315,13 +351,22 @@ impl Pipeline {
                 let known: Vec<&str> = params.keys().map(String::as_str).collect();
                 return Err(spec_err(
                     loc.field_line(sname, "params"),
-                    format!("--set {set}: stage `{sname}` has no parameter `{key}` (parameters: {})", known.join(", ")),
+                    format!(
+                        "--set {set}: stage `{sname}` has no parameter `{key}` (parameters: {})",
+                        known.join(", ")
+                    ),
                 ));
             };
-            let parsed: Value = serde_yaml::from_str(raw_value)
-                .map_err(|e| Error::Usage(format!("--set {set}: `{raw_value}` is not a YAML value: {e}")))?;
+            let parsed: Value = serde_yaml::from_str(raw_value).map_err(|e| {
+                Error::Usage(format!(
+                    "--set {set}: `{raw_value}` is not a YAML value: {e}"
+                ))
+            })?;
             let value = coerce(existing, raw_value, parsed).map_err(|why| {
-                spec_err(loc.word_line(sname, "params", key), format!("--set {set}: wrong type for `{sname}.{key}`: {why}"))
+                spec_err(
+                    loc.word_line(sname, "params", key),
+                    format!("--set {set}: wrong type for `{sname}.{key}`: {why}"),
+                )
             })?;
             params.insert(key.to_owned(), value);
             stage.overrides.push(format!("{key}={raw_value}"));
@@ -346,7 +391,10 @@ impl Pipeline {
                 .into_iter()
                 .map(|combo| {
                     let mut p = params.clone();
-                    let label: Vec<String> = combo.iter().map(|(k, v)| format!("{k}={}", render(v))).collect();
+                    let label: Vec<String> = combo
+                        .iter()
+                        .map(|(k, v)| format!("{k}={}", render(v)))
+                        .collect();
                     for (k, v) in combo {
                         p.insert(k, v);
                     }
@@ -362,14 +410,22 @@ impl Pipeline {
                 .collect();
         }
 
-        let order = topo_order(&stages.iter().map(|(k, v)| (k.clone(), v.0.inputs.values().cloned().collect())).collect())
-            .map_err(|cycle| {
-                spec_err(
-                    loc.word_line(&cycle[0], "inputs", &cycle[1]),
-                    format!("dependency cycle: {}", cycle.join(" -> ")),
-                )
-            })?;
-        let stages = order.into_iter().map(|n| stages.remove(&n).expect("known stage").0).collect();
+        let order = topo_order(
+            &stages
+                .iter()
+                .map(|(k, v)| (k.clone(), v.0.inputs.values().cloned().collect()))
+                .collect(),
+        )
+        .map_err(|cycle| {
+            spec_err(
+                loc.word_line(&cycle[0], "inputs", &cycle[1]),
+                format!("dependency cycle: {}", cycle.join(" -> ")),
+            )
+        })?;
+        let stages = order
+            .into_iter()
+            .map(|n| stages.remove(&n).expect("known stage").0)
+            .collect();
         Ok(Self {
             file: display,
             key,
@@ -401,7 +457,11 @@ impl Pipeline {
             Some(normalize(&base.join(exe))).filter(|p| p.is_file())
         } else {
             std::iter::once(self.bin_dir.clone())
-                .chain(std::env::var_os("PATH").iter().flat_map(std::env::split_paths))
+                .chain(
+                    std::env::var_os("PATH")
+                        .iter()
+                        .flat_map(std::env::split_paths),
+                )
                 .map(|d| d.join(exe))
                 .find(|p| p.is_file())
         };
@@ -430,7 +490,9 @@ impl Pipeline {
 
 /// Topological order of `deps` (node -> its upstream nodes), ties broken by name; on a cycle,
 /// the cycle as a node list whose last element equals its first.
-fn topo_order(deps: &BTreeMap<String, Vec<String>>) -> std::result::Result<Vec<String>, Vec<String>> {
+fn topo_order(
+    deps: &BTreeMap<String, Vec<String>>,
+) -> std::result::Result<Vec<String>, Vec<String>> {
     let mut order = Vec::new();
     let mut done = std::collections::BTreeSet::new();
     while done.len() < deps.len() {
@@ -441,10 +503,18 @@ fn topo_order(deps: &BTreeMap<String, Vec<String>>) -> std::result::Result<Vec<S
             .collect();
         if ready.is_empty() {
             // Walk upstream from any remaining node until a node repeats.
-            let mut path: Vec<String> = vec![deps.keys().find(|n| !done.contains(*n)).expect("remaining").clone()];
+            let mut path: Vec<String> = vec![deps
+                .keys()
+                .find(|n| !done.contains(*n))
+                .expect("remaining")
+                .clone()];
             loop {
                 let last = path.last().expect("nonempty");
-                let next = deps[last].iter().find(|u| !done.contains(*u)).expect("a blocked node has a blocked input").clone();
+                let next = deps[last]
+                    .iter()
+                    .find(|u| !done.contains(*u))
+                    .expect("a blocked node has a blocked input")
+                    .clone();
                 if let Some(pos) = path.iter().position(|p| *p == next) {
                     let mut cycle = path[pos..].to_vec();
                     cycle.push(next);
@@ -488,7 +558,10 @@ mod tests {
         let ex: Vec<&str> = b.expansions.iter().map(|e| e.name.as_str()).collect();
         assert_eq!(ex, ["b[k=1]", "b[k=two]"]);
         // An integer given for a float parameter becomes a float; strings stay text.
-        assert_eq!(serde_json::to_string(&b.expansions[0].params).unwrap(), r#"{"k":1,"n":3,"rate":2.0,"s":"42"}"#);
+        assert_eq!(
+            serde_json::to_string(&b.expansions[0].params).unwrap(),
+            r#"{"k":1,"n":3,"rate":2.0,"s":"42"}"#
+        );
         assert_eq!(p.stages[0].shards, 2);
     }
 
@@ -498,15 +571,27 @@ mod tests {
         assert!(e.contains(":6:") && e.contains("integer"), "{e}");
         let e = load(OK, &["b.nope=1"]).unwrap_err().to_string();
         assert!(e.contains("no parameter `nope`"), "{e}");
-        let e = load(&OK.replace("up: a", "up: c"), &[]).unwrap_err().to_string();
+        let e = load(&OK.replace("up: a", "up: c"), &[])
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(":4:") && e.contains("unknown stage `c`"), "{e}");
         let cyc = "stages:\n  a:\n    cmd: [x]\n    inputs: {u: b}\n  b:\n    cmd: [x]\n    inputs: {u: a}\n";
         let e = load(cyc, &[]).unwrap_err().to_string();
         assert!(e.contains("cycle: a -> b -> a") && e.contains(":4:"), "{e}");
-        let e = load("stages:\n  a:\n    cmd: [x]\n    shard: 2\n", &[]).unwrap_err().to_string();
-        assert!(e.contains(":4:") && e.contains("unknown field `shard`"), "{e}");
-        let e = load("bin_dir: ../x\nstages: {}\n", &[]).unwrap_err().to_string();
-        assert!(e.contains(":1:") && e.contains("inside the workspace"), "{e}");
+        let e = load("stages:\n  a:\n    cmd: [x]\n    shard: 2\n", &[])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(":4:") && e.contains("unknown field `shard`"),
+            "{e}"
+        );
+        let e = load("bin_dir: ../x\nstages: {}\n", &[])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(":1:") && e.contains("inside the workspace"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -21,7 +21,10 @@ fn reasons(old: &LockEntry, new: &LockEntry) -> String {
         r.push(format!("code changed ({})", new.exe));
     }
     if old.args != new.args {
-        r.push(format!("command changed ({:?} -> {:?})", old.args, new.args));
+        r.push(format!(
+            "command changed ({:?} -> {:?})",
+            old.args, new.args
+        ));
     }
     if old.arg_files != new.arg_files {
         r.push("script changed".to_owned());
@@ -45,7 +48,10 @@ fn reasons(old: &LockEntry, new: &LockEntry) -> String {
         }
     }
     if old.shard != new.shard {
-        r.push(format!("shard layout changed ({}/{} -> {}/{})", old.shard[0], old.shard[1], new.shard[0], new.shard[1]));
+        r.push(format!(
+            "shard layout changed ({}/{} -> {}/{})",
+            old.shard[0], old.shard[1], new.shard[0], new.shard[1]
+        ));
     }
     if r.is_empty() {
         r.push("identity changed (protocol or unit name)".to_owned());
@@ -74,14 +80,20 @@ pub fn status(p: &Pipeline) -> Result<String> {
                     let mut missing_up = None;
                     for (name, up) in &stage.inputs {
                         let ups = units_of(p, p.index(up).expect("validated"));
-                        let hashes: Vec<Option<&String>> = ups.iter().map(|x| known.get(&x.key)).collect();
+                        let hashes: Vec<Option<&String>> =
+                            ups.iter().map(|x| known.get(&x.key)).collect();
                         if let Some(pos) = hashes.iter().position(Option::is_none) {
                             missing_up.get_or_insert(ups[pos].key.clone());
                         }
-                        inputs.insert(name.clone(), hashes.into_iter().flatten().cloned().collect::<Vec<_>>());
+                        inputs.insert(
+                            name.clone(),
+                            hashes.into_iter().flatten().cloned().collect::<Vec<_>>(),
+                        );
                     }
                     match (missing_up, old) {
-                        (Some(up), Some(_)) => ("stale", format!("upstream `{up}` is not up to date")),
+                        (Some(up), Some(_)) => {
+                            ("stale", format!("upstream `{up}` is not up to date"))
+                        }
                         (Some(_), None) => ("never run", String::new()),
                         (None, old) => {
                             let entry = entry_for(p, &u, code, inputs);
@@ -92,12 +104,20 @@ pub fn status(p: &Pipeline) -> Result<String> {
                             } else {
                                 false
                             };
-                            let note = if in_cache { " (in the run-cache: restores without running)" } else { "" };
+                            let note = if in_cache {
+                                " (in the run-cache: restores without running)"
+                            } else {
+                                ""
+                            };
                             match old {
                                 Some(o) if o.identity == entry.identity => match cached {
                                     Cached::Valid(_) => ("fresh", String::new()),
-                                    Cached::Missing => ("stale", "cached output is missing".to_owned()),
-                                    Cached::Corrupt(why) => ("stale", format!("cached output is corrupted: {why}")),
+                                    Cached::Missing => {
+                                        ("stale", "cached output is missing".to_owned())
+                                    }
+                                    Cached::Corrupt(why) => {
+                                        ("stale", format!("cached output is corrupted: {why}"))
+                                    }
                                 },
                                 Some(o) => ("stale", format!("{}{note}", reasons(o, &entry))),
                                 None => ("never run", note.trim().to_owned()),
@@ -125,7 +145,11 @@ pub fn show(p: &Pipeline, target: &str) -> Result<String> {
     let stage_name = target.split('[').next().unwrap_or(target);
     let idx = p.index(stage_name).ok_or_else(|| {
         let known: Vec<&str> = p.stages.iter().map(|s| s.name.as_str()).collect();
-        Error::Usage(format!("{}: unknown stage `{target}` (stages: {})", p.file, known.join(", ")))
+        Error::Usage(format!(
+            "{}: unknown stage `{target}` (stages: {})",
+            p.file,
+            known.join(", ")
+        ))
     })?;
     let store = Store::open_read(&p.workspace);
     let rec = store.read_lock_record()?;
@@ -135,7 +159,10 @@ pub fn show(p: &Pipeline, target: &str) -> Result<String> {
         .filter(|u| !target.contains('[') || p.stages[idx].expansions[u.expansion].name == target)
         .collect();
     if units.is_empty() {
-        return Err(Error::Usage(format!("{}: stage `{stage_name}` has no expansion `{target}`", p.file)));
+        return Err(Error::Usage(format!(
+            "{}: stage `{stage_name}` has no expansion `{target}`",
+            p.file
+        )));
     }
     for u in units {
         let entry = rec
@@ -146,14 +173,21 @@ pub fn show(p: &Pipeline, target: &str) -> Result<String> {
         match store.verify(&entry.identity) {
             Cached::Valid(m) => {
                 for f in &m.files {
-                    let _ = writeln!(out, "{}", store.out_dir(&entry.identity).join(&f.path).display());
+                    let _ = writeln!(
+                        out,
+                        "{}",
+                        store.out_dir(&entry.identity).join(&f.path).display()
+                    );
                 }
             }
             Cached::Missing => return Err(Error::NoOutputs(u.key.clone())),
             Cached::Corrupt(why) => {
                 return Err(Error::Store {
                     path: store.object_dir(&entry.identity),
-                    message: format!("output of `{}` is corrupted ({why}); `pipeline run {}` recomputes it", u.key, stage_name),
+                    message: format!(
+                        "output of `{}` is corrupted ({why}); `pipeline run {}` recomputes it",
+                        u.key, stage_name
+                    ),
                 })
             }
         }

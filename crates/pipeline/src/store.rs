@@ -39,7 +39,9 @@ pub const PROTOCOL_VERSION: u32 = 1;
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = path.with_extension(format!("{}.tmp", std::process::id()));
     let mut f = std::fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    f.write_all(bytes).and_then(|_| f.sync_all()).map_err(|e| Error::io(&tmp, e))?;
+    f.write_all(bytes)
+        .and_then(|_| f.sync_all())
+        .map_err(|e| Error::io(&tmp, e))?;
     std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
 }
 
@@ -146,7 +148,11 @@ fn walk(dir: &Path, rel: &str, out: &mut Vec<String>) -> Result<()> {
     for entry in rd {
         let entry = entry.map_err(|e| Error::io(dir, e))?;
         let name = entry.file_name().to_string_lossy().into_owned();
-        let rel_name = if rel.is_empty() { name } else { format!("{rel}/{name}") };
+        let rel_name = if rel.is_empty() {
+            name
+        } else {
+            format!("{rel}/{name}")
+        };
         let ft = entry.file_type().map_err(|e| Error::io(entry.path(), e))?;
         if ft.is_dir() {
             walk(&entry.path(), &rel_name, out)?;
@@ -173,13 +179,18 @@ pub fn list_files(dir: &Path) -> Result<Vec<String>> {
 impl Store {
     /// Opens (and creates) the store under `workspace/artifacts`.
     pub fn open(workspace: &Path) -> Result<Self> {
-        let root = workspace.join("artifacts");
+        let store = Self::open_read(workspace);
+        store.create_dirs()?;
+        Ok(store)
+    }
+
+    /// Creates the store's directories.
+    pub fn create_dirs(&self) -> Result<()> {
         for d in ["objects", "tmp", "trash", "logs"] {
-            let p = root.join(d);
+            let p = self.root.join(d);
             std::fs::create_dir_all(&p).map_err(|e| Error::io(&p, e))?;
         }
-        let cache = HashCache::load(&root.join("hash-cache.json"));
-        Ok(Self { root, cache })
+        Ok(())
     }
 
     /// Opens the store for reading only (nothing is created).
@@ -205,7 +216,9 @@ impl Store {
         let mpath = dir.join("manifest.json");
         let bytes = match std::fs::read(&mpath) {
             Ok(b) => b,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound && !dir.exists() => return Cached::Missing,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound && !dir.exists() => {
+                return Cached::Missing
+            }
             Err(_) => return Cached::Corrupt("manifest.json is missing".into()),
         };
         let manifest: Manifest = match serde_json::from_slice(&bytes) {
@@ -219,15 +232,25 @@ impl Store {
         };
         let expected: Vec<&str> = manifest.files.iter().map(|f| f.path.as_str()).collect();
         if found != expected {
-            let missing: Vec<&&str> = expected.iter().filter(|p| !found.iter().any(|f| f == **p)).collect();
-            let extra: Vec<&String> = found.iter().filter(|f| !expected.contains(&f.as_str())).collect();
-            return Cached::Corrupt(format!("file set changed (missing {missing:?}, unexpected {extra:?})"));
+            let missing: Vec<&&str> = expected
+                .iter()
+                .filter(|p| !found.iter().any(|f| f == **p))
+                .collect();
+            let extra: Vec<&String> = found
+                .iter()
+                .filter(|f| !expected.contains(&f.as_str()))
+                .collect();
+            return Cached::Corrupt(format!(
+                "file set changed (missing {missing:?}, unexpected {extra:?})"
+            ));
         }
         let paths: Vec<PathBuf> = manifest.files.iter().map(|f| out.join(&f.path)).collect();
         for (f, h) in manifest.files.iter().zip(self.cache.hash_all(&paths)) {
             match h {
                 Ok(h) if h.blake3 == f.blake3 && h.size == f.size => {}
-                Ok(_) => return Cached::Corrupt(format!("{} no longer matches its manifest", f.path)),
+                Ok(_) => {
+                    return Cached::Corrupt(format!("{} no longer matches its manifest", f.path))
+                }
                 Err(e) => return Cached::Corrupt(e.to_string()),
             }
         }
@@ -240,7 +263,10 @@ impl Store {
         if !dir.exists() {
             return Ok(());
         }
-        let trash = self.root.join("trash").join(format!("{identity}-{}", std::process::id()));
+        let trash = self
+            .root
+            .join("trash")
+            .join(format!("{identity}-{}", std::process::id()));
         std::fs::rename(&dir, &trash).map_err(|e| Error::io(&dir, e))?;
         self.cache.forget_under(&dir);
         remove_tree(&trash)
@@ -249,7 +275,10 @@ impl Store {
     /// A fresh working directory for computing `identity`: `tmp/<identity>-<pid>/` with an
     /// empty `out/`.
     pub fn tmp_dir(&self, identity: &str) -> Result<PathBuf> {
-        let dir = self.root.join("tmp").join(format!("{identity}-{}", std::process::id()));
+        let dir = self
+            .root
+            .join("tmp")
+            .join(format!("{identity}-{}", std::process::id()));
         if dir.exists() {
             remove_tree(&dir)?;
         }
@@ -270,7 +299,14 @@ impl Store {
 
     /// Commits a finished unit: hashes `tmp/.../out`, writes the manifest and renames the
     /// directory to `objects/<identity>` (replacing an existing object).
-    pub fn commit(&self, tmp: &Path, identity: &str, unit: &str, summary: Option<String>, duration_ms: u64) -> Result<Manifest> {
+    pub fn commit(
+        &self,
+        tmp: &Path,
+        identity: &str,
+        unit: &str,
+        summary: Option<String>,
+        duration_ms: u64,
+    ) -> Result<Manifest> {
         let out = tmp.join("out");
         let rels = list_files(&out)?;
         use rayon::prelude::*;
@@ -280,11 +316,19 @@ impl Store {
                 let p = out.join(rel);
                 let f = std::fs::File::open(&p).map_err(|e| Error::io(&p, e))?;
                 // Read-only: a stage reading it as input cannot modify it by accident.
-                f.set_permissions(std::fs::Permissions::from_mode(0o444)).map_err(|e| Error::io(&p, e))?;
+                f.set_permissions(std::fs::Permissions::from_mode(0o444))
+                    .map_err(|e| Error::io(&p, e))?;
                 f.sync_all().map_err(|e| Error::io(&p, e))?;
                 let before = Stamp::of(&f.metadata().map_err(|e| Error::io(&p, e))?);
                 let (blake3, size) = hash_file(&p)?;
-                Ok((ManifestFile { path: rel.clone(), size, blake3 }, before))
+                Ok((
+                    ManifestFile {
+                        path: rel.clone(),
+                        size,
+                        blake3,
+                    },
+                    before,
+                ))
             })
             .collect();
         let mut files = Vec::new();
@@ -303,7 +347,10 @@ impl Store {
             summary,
             duration_ms,
         };
-        write_atomic(&tmp.join("manifest.json"), &serde_json::to_vec_pretty(&manifest).expect("serialisable"))?;
+        write_atomic(
+            &tmp.join("manifest.json"),
+            &serde_json::to_vec_pretty(&manifest).expect("serialisable"),
+        )?;
         sync_dir(tmp);
         self.discard(identity)?;
         let dest = self.object_dir(identity);
@@ -312,7 +359,8 @@ impl Store {
         // The files kept their inodes and stamps through the rename: seed the cache.
         let new_out = dest.join("out");
         for (f, s) in manifest.files.iter().zip(stamps) {
-            self.cache.insert(&new_out.join(&f.path), s, f.blake3.clone());
+            self.cache
+                .insert(&new_out.join(&f.path), s, f.blake3.clone());
         }
         Ok(manifest)
     }
@@ -339,7 +387,10 @@ impl Store {
     pub fn write_lock_record(&self, rec: &LockRecord) -> Result<()> {
         let mut rec = rec.clone();
         rec.version = 1;
-        write_atomic(&self.lock_record_path(), &serde_json::to_vec_pretty(&rec).expect("serialisable"))
+        write_atomic(
+            &self.lock_record_path(),
+            &serde_json::to_vec_pretty(&rec).expect("serialisable"),
+        )
     }
 }
 
@@ -371,7 +422,9 @@ mod tests {
         std::fs::create_dir_all(tmp.join("out/sub")).unwrap();
         std::fs::write(tmp.join("out/a.txt"), b"A").unwrap();
         std::fs::write(tmp.join("out/sub/b.txt"), b"B").unwrap();
-        let m = store.commit(&tmp, "abc", "u", Some("ok".into()), 5).unwrap();
+        let m = store
+            .commit(&tmp, "abc", "u", Some("ok".into()), 5)
+            .unwrap();
         assert_eq!(m.files.len(), 2);
         assert!(!tmp.exists());
         assert!(matches!(store.verify("abc"), Cached::Valid(_)));
@@ -391,7 +444,11 @@ mod tests {
 
     #[test]
     fn output_hash_depends_on_names_and_content() {
-        let f = |p: &str, h: &str| ManifestFile { path: p.into(), size: 1, blake3: h.into() };
+        let f = |p: &str, h: &str| ManifestFile {
+            path: p.into(),
+            size: 1,
+            blake3: h.into(),
+        };
         assert_ne!(output_hash(&[f("a", "1")]), output_hash(&[f("b", "1")]));
         assert_ne!(output_hash(&[f("a", "1")]), output_hash(&[f("a", "2")]));
         assert_eq!(output_hash(&[f("a", "1")]), output_hash(&[f("a", "1")]));

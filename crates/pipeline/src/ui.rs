@@ -46,9 +46,11 @@ impl Ui {
         let bar = self.multi.as_ref().map(|m| {
             let b = m.add(ProgressBar::new(0));
             b.set_style(
-                ProgressStyle::with_template("{prefix:>24.bold} [{bar:30}] {pos}/{len} {elapsed:>4} {wide_msg}")
-                    .expect("valid template")
-                    .progress_chars("=> "),
+                ProgressStyle::with_template(
+                    "{prefix:>24.bold} [{bar:30}] {pos}/{len} {elapsed:>4} {wide_msg}",
+                )
+                .expect("valid template")
+                .progress_chars("=> "),
             );
             b.set_prefix(name.to_owned());
             b.enable_steady_tick(Duration::from_millis(200));
@@ -86,8 +88,13 @@ impl UnitView<'_> {
                 let mut last = self.last_decile.lock().unwrap_or_else(|e| e.into_inner());
                 if *last != Some(decile) {
                     *last = Some(decile);
-                    let msg = if p.message.is_empty() { String::new() } else { format!(" {}", p.message) };
-                    self.ui.line(&format!("[{}] {}/{}{msg}", self.name, p.done, p.total));
+                    let msg = if p.message.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" {}", p.message)
+                    };
+                    self.ui
+                        .line(&format!("[{}] {}/{}{msg}", self.name, p.done, p.total));
                 }
             }
         }

@@ -15,14 +15,20 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let duration: f64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(1.0);
     let runs: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(5);
-    let config = SimulationConfig { duration, ..Default::default() };
+    let config = SimulationConfig {
+        duration,
+        ..Default::default()
+    };
     // A smooth stand-in profile (0.6 mm, 20 m and 3.7 m wavelengths) over the whole rail:
     // the cost does not depend on the profile's content.
     let n = 5401;
     let x: Vec<f64> = (0..n).map(|i| i as f64 * 0.1).collect();
     let eta: Vec<f64> = x
         .iter()
-        .map(|x| 6e-4 * (x * std::f64::consts::TAU / 20.0).sin() + 1e-4 * (x * std::f64::consts::TAU / 3.7).sin())
+        .map(|x| {
+            6e-4 * (x * std::f64::consts::TAU / 20.0).sin()
+                + 1e-4 * (x * std::f64::consts::TAU / 3.7).sin()
+        })
         .collect();
     let profile = Profile::new(x, eta).expect("valid profile");
     let sim = Simulation::new(&SampleParams::NOMINAL, &config, Some(profile)).expect("valid model");

@@ -95,7 +95,10 @@ mod tests {
             let order = (pair[0] / pair[1]).log2();
             // Asymptotic order 2; the first-step (psi = phi = 0) local error is O(dt^2) once,
             // which does not lower the global order. Allow +-0.15 for pre-asymptotic effects.
-            assert!((order - 2.0).abs() < 0.15, "observed order {order} from {errs:?}");
+            assert!(
+                (order - 2.0).abs() < 0.15,
+                "observed order {order} from {errs:?}"
+            );
         }
     }
 
@@ -105,9 +108,16 @@ mod tests {
         let (w, dt) = (1.0, 0.05);
         let steps = (1000.0 * 2.0 * std::f64::consts::PI / dt) as usize;
         let mut last_energy = 0.0;
-        integrate(&[1.0], &[0.0], dt, steps, |_, x, _, a| a[0] = -w * w * x[0], |_, _, x, v, _| {
-            last_energy = 0.5 * (v[0] * v[0] + w * w * x[0] * x[0]);
-        });
+        integrate(
+            &[1.0],
+            &[0.0],
+            dt,
+            steps,
+            |_, x, _, a| a[0] = -w * w * x[0],
+            |_, _, x, v, _| {
+                last_energy = 0.5 * (v[0] * v[0] + w * w * x[0] * x[0]);
+            },
+        );
         // A dissipative scheme of order 2 would lose ~ (w dt)^3 per step: e^{-0.125*125000/...};
         // here the energy stays within the O((w dt)^2) = 0.25% oscillation of the method.
         assert!((last_energy - 0.5).abs() < 5e-3, "{last_energy}");

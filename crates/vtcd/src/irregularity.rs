@@ -351,6 +351,17 @@ impl ProfileGenerator {
 
     /// The profile of sample `id`: `eta(x_n)` in metres, positive downward.
     pub fn profile(&self, id: u64) -> Vec<f64> {
+        let mut out = vec![0.0; self.n];
+        self.profile_into(id, &mut out);
+        out
+    }
+
+    /// Writes the profile of sample `id` into `out` (length [`Self::len`]).
+    ///
+    /// # Panics
+    /// If `out.len() != self.len()`.
+    pub fn profile_into(&self, id: u64, out: &mut [f64]) {
+        assert_eq!(out.len(), self.n, "profile buffer length");
         let mut stream = SampleStream::new(self.seed, Purpose::Irregularity, id);
         let mut spectrum = vec![Complex::new(0.0, 0.0); self.n];
         for &(k, power) in &self.bins {
@@ -362,7 +373,9 @@ impl ProfileGenerator {
             spectrum[self.n - k] = c.conj();
         }
         self.fft.process(&mut spectrum);
-        spectrum.into_iter().map(|c| c.re).collect()
+        for (o, c) in out.iter_mut().zip(&spectrum) {
+            *o = c.re;
+        }
     }
 }
 
@@ -577,11 +590,11 @@ mod tests {
             f = fi;
         }
         let averages = samples as f64 * welch_segments(g.len(), seg) as f64; // 32 x 15 = 480
-        // The average of K Hann periodograms of a Gaussian process has relative std about
-        // 1/sqrt(K) = 4.6%; each bin may deviate by 4 of those (0.7 dB). (Random-phase
-        // profiles have fixed amplitudes and scatter less: about 2.5% observed.) Checked from
-        // 1.25 f_lo to 0.96 f_hi (0.0125-0.48 1/m): closer to the band edges the window's main
-        // lobe (+-2 bins) straddles the edge where S drops to zero.
+                                                                             // The average of K Hann periodograms of a Gaussian process has relative std about
+                                                                             // 1/sqrt(K) = 4.6%; each bin may deviate by 4 of those (0.7 dB). (Random-phase
+                                                                             // profiles have fixed amplitudes and scatter less: about 2.5% observed.) Checked from
+                                                                             // 1.25 f_lo to 0.96 f_hi (0.0125-0.48 1/m): closer to the band edges the window's main
+                                                                             // lobe (+-2 bins) straddles the edge where S drops to zero.
         let tol = 4.0 / averages.sqrt();
         let [f_lo, f_hi] = g.band();
         let mut ratios = Vec::new();
@@ -589,13 +602,17 @@ mod tests {
             if *fi >= 1.25 * f_lo && *fi <= 0.96 * f_hi {
                 let s = g.psd().value(*fi) * 1e-6;
                 let r = p / s;
-                assert!((r - 1.0).abs() < tol, "f {fi}: ratio {r} ({:.2} dB)", 10.0 * r.log10());
+                assert!(
+                    (r - 1.0).abs() < tol,
+                    "f {fi}: ratio {r} ({:.2} dB)",
+                    10.0 * r.log10()
+                );
                 ratios.push(r);
             }
         }
         assert!(ratios.len() > 350, "{}", ratios.len()); // 383 bins of 0.0012 1/m
-        // The band average of the ratios has std ~ 1/sqrt(K * bins) = 0.2%; 1% also covers
-        // the residual window bias of the curved log-log spectrum.
+                                                         // The band average of the ratios has std ~ 1/sqrt(K * bins) = 0.2%; 1% also covers
+                                                         // the residual window bias of the curved log-log spectrum.
         let avg = ratios.iter().sum::<f64>() / ratios.len() as f64;
         assert!((avg - 1.0).abs() < 0.01, "{avg}");
     }

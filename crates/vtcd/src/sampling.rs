@@ -379,14 +379,23 @@ mod tests {
         )
         .unwrap();
         assert_eq!(p.ranges["v_kmh"], RangeSpec::Absolute([300.0, 350.0]));
-        assert_eq!(p.validate().unwrap().ranges()[0], [0.8 * 38880.0, 1.2 * 38880.0]);
-        let e = serde_json::from_str::<SamplingParams>(r#"{"seed": 3, "n_train": 2, "n_validation": 1, "ranges": {"m_c": 5}}"#)
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("`[min, max]` or `{nominal: X, factor: [lo, hi]}`"), "{e}");
-        let e = serde_json::from_str::<SamplingParams>(r#"{"seed": 3, "n_train": 2, "n_valid": 1}"#)
-            .unwrap_err()
-            .to_string();
+        assert_eq!(
+            p.validate().unwrap().ranges()[0],
+            [0.8 * 38880.0, 1.2 * 38880.0]
+        );
+        let e = serde_json::from_str::<SamplingParams>(
+            r#"{"seed": 3, "n_train": 2, "n_validation": 1, "ranges": {"m_c": 5}}"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("`[min, max]` or `{nominal: X, factor: [lo, hi]}`"),
+            "{e}"
+        );
+        let e =
+            serde_json::from_str::<SamplingParams>(r#"{"seed": 3, "n_train": 2, "n_valid": 1}"#)
+                .unwrap_err()
+                .to_string();
         assert!(e.contains("unknown field `n_valid`"), "{e}");
     }
 

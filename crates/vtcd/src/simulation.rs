@@ -260,29 +260,55 @@ impl SimulationConfig {
     /// Checks every field (names the field and its allowed range). The time-step limit
     /// depends on the vehicle and is checked per sample by [`Simulation::new`].
     pub fn validate(&self) -> Result<()> {
-        for (name, value) in [("duration", self.duration), ("dt", self.dt), ("gravity", self.gravity), ("wheel_radius", self.wheel_radius)] {
+        for (name, value) in [
+            ("duration", self.duration),
+            ("dt", self.dt),
+            ("gravity", self.gravity),
+            ("wheel_radius", self.wheel_radius),
+        ] {
             if !(value.is_finite() && value > 0.0) {
                 return Err(out_of_range(name, value, "finite and > 0"));
             }
         }
         if self.output_every == 0 {
-            return Err(out_of_range("output_every", 0.0, "an integer >= 1 (steps between stored rows)"));
+            return Err(out_of_range(
+                "output_every",
+                0.0,
+                "an integer >= 1 (steps between stored rows)",
+            ));
         }
         if self.n_outputs() < 1 {
-            let allowed = format!("at least output_every * dt = {} s", self.output_every as f64 * self.dt);
+            let allowed = format!(
+                "at least output_every * dt = {} s",
+                self.output_every as f64 * self.dt
+            );
             return Err(out_of_range("duration", self.duration, allowed));
         }
-        for (name, value) in [("startup_zero_fraction", self.startup_zero_fraction), ("startup_ramp_fraction", self.startup_ramp_fraction)] {
+        for (name, value) in [
+            ("startup_zero_fraction", self.startup_zero_fraction),
+            ("startup_ramp_fraction", self.startup_ramp_fraction),
+        ] {
             if !(0.0..=1.0).contains(&value) {
                 return Err(out_of_range(name, value, "in [0, 1]"));
             }
         }
         let sum = self.startup_zero_fraction + self.startup_ramp_fraction;
         if sum > 1.0 {
-            return Err(out_of_range("startup_ramp_fraction", self.startup_ramp_fraction, format!("<= 1 - startup_zero_fraction = {}", 1.0 - self.startup_zero_fraction)));
+            return Err(out_of_range(
+                "startup_ramp_fraction",
+                self.startup_ramp_fraction,
+                format!(
+                    "<= 1 - startup_zero_fraction = {}",
+                    1.0 - self.startup_zero_fraction
+                ),
+            ));
         }
         if !(self.x0.is_finite() && self.x0 > 0.0) {
-            return Err(out_of_range("x0", self.x0, "finite and > 0 (inside the rail)"));
+            return Err(out_of_range(
+                "x0",
+                self.x0,
+                "finite and > 0 (inside the rail)",
+            ));
         }
         self.track().validate()
     }
@@ -318,8 +344,14 @@ impl Profile {
                 expected: x.len().max(2),
             });
         }
-        if let Some(w) = x.windows(2).find(|w| !(w[1] > w[0]) || !w[1].is_finite() || !w[0].is_finite()) {
-            return Err(out_of_range("x", w[1], format!("finite and strictly increasing (after {})", w[0])));
+        if let Some(w) = x.windows(2).find(|w| {
+            w[1] <= w[0] || w[0].is_nan() || w[1].is_nan() || !w[1].is_finite() || !w[0].is_finite()
+        }) {
+            return Err(out_of_range(
+                "x",
+                w[1],
+                format!("finite and strictly increasing (after {})", w[0]),
+            ));
         }
         if let Some(e) = eta.iter().find(|e| !e.is_finite()) {
             return Err(out_of_range("eta", *e, "finite"));
@@ -335,7 +367,10 @@ impl Profile {
     /// `eta` at `x` by linear interpolation (clamped to the ends; callers check coverage).
     #[inline]
     pub fn at(&self, x: f64) -> f64 {
-        let i = self.x.partition_point(|&p| p <= x).clamp(1, self.x.len() - 1);
+        let i = self
+            .x
+            .partition_point(|&p| p <= x)
+            .clamp(1, self.x.len() - 1);
         let (x0, x1) = (self.x[i - 1], self.x[i]);
         let w = ((x - x0) / (x1 - x0)).clamp(0.0, 1.0);
         self.eta[i - 1] + w * (self.eta[i] - self.eta[i - 1])
@@ -432,7 +467,7 @@ pub struct Simulation {
 /// Scratch space of the force evaluation.
 struct Workspace {
     dst: SineTransform,
-    shapes: Vec<f64>,
+    shapes: Vec<[f64; 4]>,
     seat_in: Vec<f64>,
     seat: Vec<f64>,
     fastener: Vec<f64>,
@@ -443,19 +478,37 @@ impl Simulation {
     /// Builds and checks one sample's model: configuration, parameters (masses and
     /// stiffnesses > 0, dampings >= 0), the time step against the stability bound, and that the
     /// wheels stay on the rail and, while the irregularity is on, on the profile.
-    pub fn new(params: &SampleParams, config: &SimulationConfig, profile: Option<Profile>) -> Result<Self> {
+    pub fn new(
+        params: &SampleParams,
+        config: &SimulationConfig,
+        profile: Option<Profile>,
+    ) -> Result<Self> {
         config.validate()?;
         for (name, value) in crate::params::PARAMETER_NAMES.iter().zip(params.to_array()) {
             let damping = matches!(*name, "c_p" | "c_s" | "c_f");
-            let ok = value.is_finite() && if damping { value >= 0.0 } else { value > 0.0 || *name == "v_kmh" && value == 0.0 };
+            let ok = value.is_finite()
+                && if damping {
+                    value >= 0.0
+                } else {
+                    value > 0.0 || *name == "v_kmh" && value == 0.0
+                };
             if !ok {
-                return Err(out_of_range(name, value, if damping { "finite and >= 0" } else { "finite and > 0" }));
+                return Err(out_of_range(
+                    name,
+                    value,
+                    if damping {
+                        "finite and >= 0"
+                    } else {
+                        "finite and > 0"
+                    },
+                ));
             }
         }
         let track = config.track();
         let vehicle = Vehicle::new(params, config.gravity);
         let hertz_g = contact::hertz_constant(config.wheel_radius);
-        stability::spectrum_bound(&vehicle, &track, params.k_f, params.c_f, hertz_g).check(config.dt)?;
+        stability::spectrum_bound(&vehicle, &track, params.k_f, params.c_f, hertz_g)
+            .check(config.dt)?;
         let (lc, lt) = (params.l_c, params.l_t);
         let offsets = [2.0 * (lc + lt), 2.0 * lc, 2.0 * lt, 0.0];
         let sim = Self {
@@ -470,8 +523,14 @@ impl Simulation {
             offsets,
             profile,
         };
-        let t_end = config.n_outputs().saturating_sub(1) as f64 * config.output_every as f64 * config.dt;
-        let span = |t0: f64| [config.x0 + sim.speed * t0, config.x0 + sim.speed * t_end + offsets[0]];
+        let t_end =
+            config.n_outputs().saturating_sub(1) as f64 * config.output_every as f64 * config.dt;
+        let span = |t0: f64| {
+            [
+                config.x0 + sim.speed * t0,
+                config.x0 + sim.speed * t_end + offsets[0],
+            ]
+        };
         let need = span(0.0);
         let length = track.length();
         if !(need[0] > 0.0 && need[1] < length) {
@@ -495,7 +554,8 @@ impl Simulation {
                     have_hi: have[1],
                     need_lo: need[0],
                     need_hi: need[1],
-                    hint: "generate profiles that cover the whole run plus the vehicle length".to_owned(),
+                    hint: "generate profiles that cover the whole run plus the vehicle length"
+                        .to_owned(),
                 });
             }
         }
@@ -520,7 +580,7 @@ impl Simulation {
         let (nm, nf) = (self.track.n_m, self.track.n_f);
         Workspace {
             dst: SineTransform::new(nf),
-            shapes: vec![0.0; 4 * nm],
+            shapes: vec![[0.0; 4]; nm],
             seat_in: vec![0.0; nm],
             seat: vec![0.0; nf],
             fastener: vec![0.0; nf],
@@ -543,20 +603,28 @@ impl Simulation {
     }
 
     /// `A = M^-1 F(X, V, t)`; returns the wheel quantities.
-    fn accelerations(&self, ws: &mut Workspace, t: f64, x: &[f64], v: &[f64], a: &mut [f64]) -> Wheels {
+    fn accelerations(
+        &self,
+        ws: &mut Workspace,
+        t: f64,
+        x: &[f64],
+        v: &[f64],
+        a: &mut [f64],
+    ) -> Wheels {
         let nm = self.track.n_m;
         let [_, rq, rs, rb] = self.layout();
         let (q, qd) = (&x[rq.clone()], &v[rq.clone()]);
-        let mut w = Wheels { x: self.wheel_positions(t), ..Default::default() };
+        let mut w = Wheels {
+            x: self.wheel_positions(t),
+            ..Default::default()
+        };
         let ramp = self.config.ramp(t);
         let mut z = [0.0; NUM_DOFS];
         let mut zd = [0.0; NUM_DOFS];
         z.copy_from_slice(&x[..NUM_DOFS]);
         zd.copy_from_slice(&v[..NUM_DOFS]);
+        w.z_r = self.rail.wheel_shapes(&w.x, q, &mut ws.shapes);
         for i in 0..4 {
-            let y = &mut ws.shapes[i * nm..(i + 1) * nm];
-            self.rail.shapes_at(w.x[i], y);
-            w.z_r[i] = Rail::displacement(y, q);
             w.eta[i] = match (&self.profile, ramp > 0.0) {
                 (Some(p), true) => ramp * p.at(w.x[i]),
                 _ => 0.0,
@@ -591,12 +659,9 @@ impl Simulation {
         // Modal loads: -sum_j F_fj Y_k(x_j) + sum_i P_i Y_k(x_wi).
         ws.dst.apply(&ws.fastener[1..], &mut ws.modal);
         let aq = &mut a[rq];
-        let sh = &ws.shapes;
-        let (y1, y2, y3, y4) = (&sh[..nm], &sh[nm..2 * nm], &sh[2 * nm..3 * nm], &sh[3 * nm..]);
-        let [p1, p2, p3, p4] = w.p;
-        for k in 0..nm {
-            aq[k] = -self.rail.omega2[k] * q[k] - scale * ws.modal[k]
-                + (p1 * y1[k] + p2 * y2[k] + p3 * y3[k] + p4 * y4[k]);
+        let p = w.p;
+        for (k, ((ak, y), (&qk, &w2))) in aq.iter_mut().zip(&ws.shapes).zip(q.iter().zip(&self.rail.omega2)).enumerate() {
+            *ak = -w2 * qk - scale * ws.modal[k] + (p[0] * y[0] + p[1] * y[1] + p[2] * y[2] + p[3] * y[3]);
         }
         w
     }
@@ -605,7 +670,11 @@ impl Simulation {
     /// (including step 0) with the state and accelerations at that step. Stops with a
     /// [`Failure`] on a non-finite contact force or vehicle acceleration (checked every step)
     /// or track state (checked at every output step).
-    pub fn run_observed(&self, steps: usize, mut observe: impl FnMut(&StepView)) -> std::result::Result<(), Failure> {
+    pub fn run_observed(
+        &self,
+        steps: usize,
+        mut observe: impl FnMut(&StepView),
+    ) -> std::result::Result<(), Failure> {
         let n = self.state_len();
         let mut ws = self.workspace();
         let (mut x, mut v) = (vec![0.0; n], vec![0.0; n]);
@@ -624,7 +693,14 @@ impl Simulation {
             if step % every == 0 {
                 check_state(t, &x, &v, &a)?;
             }
-            observe(&StepView { step, t, x: &x, v: &v, a: &a, wheels: &wheels });
+            observe(&StepView {
+                step,
+                t,
+                x: &x,
+                v: &v,
+                a: &a,
+                wheels: &wheels,
+            });
         }
         Ok(())
     }
@@ -634,7 +710,9 @@ impl Simulation {
         let n_out = self.config.n_outputs();
         let every = self.config.output_every;
         let mut t_col = Vec::with_capacity(n_out);
-        let mut columns = vec![Vec::with_capacity(n_out); NUM_SIGNALS];
+        let mut columns: Vec<Vec<f64>> = (0..NUM_SIGNALS)
+            .map(|_| Vec::with_capacity(n_out))
+            .collect();
         self.run_observed((n_out - 1) * every, |s| {
             if s.step % every != 0 {
                 return;
@@ -669,15 +747,33 @@ impl Simulation {
         let m = veh.masses();
         let mut kinetic: f64 = (0..NUM_DOFS).map(|i| 0.5 * m[i] * v[i] * v[i]).sum();
         kinetic += v[rq.clone()].iter().map(|q| 0.5 * q * q).sum::<f64>();
-        kinetic += v[rs.clone()].iter().map(|s| 0.5 * tp.m_s * s * s).sum::<f64>();
-        kinetic += v[rb.clone()].iter().map(|b| 0.5 * tp.m_b * b * b).sum::<f64>();
+        kinetic += v[rs.clone()]
+            .iter()
+            .map(|s| 0.5 * tp.m_s * s * s)
+            .sum::<f64>();
+        kinetic += v[rb.clone()]
+            .iter()
+            .map(|b| 0.5 * tp.m_b * b * b)
+            .sum::<f64>();
         let mut z = [0.0; NUM_DOFS];
         z.copy_from_slice(&x[..NUM_DOFS]);
         let susp = veh.suspension_forces(&z, &[0.0; NUM_DOFS]);
-        let mut potential: f64 = susp.secondary.iter().map(|f| 0.5 * f * f / veh.k_s).sum::<f64>()
-            + susp.primary.iter().map(|f| 0.5 * f * f / veh.k_p).sum::<f64>();
+        let mut potential: f64 = susp
+            .secondary
+            .iter()
+            .map(|f| 0.5 * f * f / veh.k_s)
+            .sum::<f64>()
+            + susp
+                .primary
+                .iter()
+                .map(|f| 0.5 * f * f / veh.k_p)
+                .sum::<f64>();
         let q = &x[rq];
-        potential += q.iter().zip(&self.rail.omega2).map(|(q, w2)| 0.5 * w2 * q * q).sum::<f64>();
+        potential += q
+            .iter()
+            .zip(&self.rail.omega2)
+            .map(|(q, w2)| 0.5 * w2 * q * q)
+            .sum::<f64>();
         let mut seat = vec![0.0; tp.n_f];
         let scaled: Vec<f64> = q.iter().map(|q| self.rail.shape_scale * q).collect();
         SineTransform::new(tp.n_f).apply(&scaled, &mut seat[1..]);
@@ -695,7 +791,9 @@ impl Simulation {
             self.rail.shapes_at(wheel_x[i], &mut y);
             let delta = z[FIRST_WHEEL + i] - Rail::displacement(&y, q);
             potential += match self.contact {
-                ContactLaw::Linear { stiffness, preload } => preload * delta + 0.5 * stiffness * delta * delta,
+                ContactLaw::Linear { stiffness, preload } => {
+                    preload * delta + 0.5 * stiffness * delta * delta
+                }
                 ContactLaw::Hertz => {
                     if delta > 0.0 {
                         0.4 * delta.powf(2.5) / self.hertz_g.powf(1.5)
@@ -714,13 +812,21 @@ fn check_wheels(t: f64, w: &Wheels, a: &[f64]) -> std::result::Result<(), Failur
     if let Some(i) = w.p.iter().position(|p| !p.is_finite()) {
         return Err(Failure {
             t,
-            reason: format!("non-finite contact force p_{} = {} at t = {t:.4} s", i + 1, w.p[i]),
+            reason: format!(
+                "non-finite contact force p_{} = {} at t = {t:.4} s",
+                i + 1,
+                w.p[i]
+            ),
         });
     }
     if let Some(i) = a[..NUM_DOFS].iter().position(|x| !x.is_finite()) {
         return Err(Failure {
             t,
-            reason: format!("non-finite vehicle acceleration (dof {}) = {} at t = {t:.4} s", i + 1, a[i]),
+            reason: format!(
+                "non-finite vehicle acceleration (dof {}) = {} at t = {t:.4} s",
+                i + 1,
+                a[i]
+            ),
         });
     }
     Ok(())
@@ -734,7 +840,9 @@ fn check_state(t: f64, x: &[f64], v: &[f64], a: &[f64]) -> std::result::Result<(
             let i = s.iter().position(|x| !x.is_finite()).unwrap_or(0);
             return Err(Failure {
                 t,
-                reason: format!("non-finite track/vehicle {name} (state index {i}) at t = {t:.4} s"),
+                reason: format!(
+                    "non-finite track/vehicle {name} (state index {i}) at t = {t:.4} s"
+                ),
             });
         }
     }
@@ -755,12 +863,21 @@ pub struct SampleInput {
 /// Builds every sample's model in parallel, checking the configuration, the parameters,
 /// the time step and the profile coverage of each before anything runs. The error of the
 /// first bad sample (in input order) is returned, prefixed with its id.
-pub fn prepare(config: &SimulationConfig, inputs: Vec<SampleInput>) -> std::result::Result<Vec<(u64, Simulation)>, (u64, Error)> {
+pub fn prepare(
+    config: &SimulationConfig,
+    inputs: Vec<SampleInput>,
+) -> std::result::Result<Vec<(u64, Simulation)>, (u64, Error)> {
     use rayon::prelude::*;
-    config.validate().map_err(|e| (inputs.first().map_or(0, |s| s.id), e))?;
+    config
+        .validate()
+        .map_err(|e| (inputs.first().map_or(0, |s| s.id), e))?;
     inputs
         .into_par_iter()
-        .map(|s| Simulation::new(&s.params, config, s.profile).map(|sim| (s.id, sim)).map_err(|e| (s.id, e)))
+        .map(|s| {
+            Simulation::new(&s.params, config, s.profile)
+                .map(|sim| (s.id, sim))
+                .map_err(|e| (s.id, e))
+        })
         .collect()
 }
 

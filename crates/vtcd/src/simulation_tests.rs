@@ -1,6 +1,7 @@
 //! Tests of the coupled model against independent truths (`verification.md`). Reduced tracks
 //! (tens to a hundred fasteners) keep them fast in the dev profile; each says why the
 //! property does not depend on the full 900-fastener size.
+#![allow(clippy::needless_range_loop)] // matrix loops read best with indices
 
 use super::*;
 use crate::contact;
@@ -8,20 +9,40 @@ use std::f64::consts::PI;
 
 /// A short track: `n_f` fasteners, `n_f / 2` modes (the paper's ratio).
 fn short_track(n_f: usize) -> TrackParams {
-    TrackParams { n_f, n_m: n_f / 2, ..Default::default() }
+    TrackParams {
+        n_f,
+        n_m: n_f / 2,
+        ..Default::default()
+    }
 }
 
 fn config(tp: &TrackParams, duration: f64, x0: f64) -> SimulationConfig {
-    SimulationConfig { duration, x0, ..Default::default() }.with_track(tp)
+    SimulationConfig {
+        duration,
+        x0,
+        ..Default::default()
+    }
+    .with_track(tp)
 }
 
 /// A vehicle standing still (v = 0) with all dampers off.
 fn undamped_standing() -> SampleParams {
-    SampleParams { v_kmh: 0.0, c_p: 0.0, c_s: 0.0, c_f: 0.0, ..SampleParams::NOMINAL }
+    SampleParams {
+        v_kmh: 0.0,
+        c_p: 0.0,
+        c_s: 0.0,
+        c_f: 0.0,
+        ..SampleParams::NOMINAL
+    }
 }
 
 fn undamped(tp: &TrackParams) -> TrackParams {
-    TrackParams { c_b: 0.0, c_w: 0.0, c_g: 0.0, ..*tp }
+    TrackParams {
+        c_b: 0.0,
+        c_w: 0.0,
+        c_g: 0.0,
+        ..*tp
+    }
 }
 
 /// Dense K and C of the whole model (vehicle, rail modes, sleepers, ballast) by probing the
@@ -58,7 +79,10 @@ fn probed_matrices(sim: &Simulation) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>)
 
 fn linear_contact(sim: &Simulation, load: f64) -> ContactLaw {
     let stiffness = contact::linear_stiffness(load, sim.hertz_g);
-    ContactLaw::Linear { stiffness, preload: load - stiffness * contact::static_compression(load, sim.hertz_g) }
+    ContactLaw::Linear {
+        stiffness,
+        preload: load - stiffness * contact::static_compression(load, sim.hertz_g),
+    }
 }
 
 /// The assembled stiffness and damping of the coupled model (contact linearised) are
@@ -68,8 +92,16 @@ fn linear_contact(sim: &Simulation, load: f64) -> ContactLaw {
 #[test]
 fn coupled_stiffness_and_damping_are_symmetric() {
     let tp = short_track(16);
-    let cfg = SimulationConfig { x0: 0.5, ..config(&tp, 0.01, 0.5) };
-    let p = SampleParams { v_kmh: 0.0, l_c: 3.0, l_t: 1.0, ..SampleParams::NOMINAL };
+    let cfg = SimulationConfig {
+        x0: 0.5,
+        ..config(&tp, 0.01, 0.5)
+    };
+    let p = SampleParams {
+        v_kmh: 0.0,
+        l_c: 3.0,
+        l_t: 1.0,
+        ..SampleParams::NOMINAL
+    };
     let mut sim = Simulation::new(&p, &cfg, None).unwrap();
     sim.contact = linear_contact(&sim, sim.vehicle.w);
     let (k, c, _) = probed_matrices(&sim);
@@ -79,7 +111,12 @@ fn coupled_stiffness_and_damping_are_symmetric() {
             for j in 0..i {
                 // Entries are sums of <= N_f products of O(1e9) terms: round-off ~1e-15 * scale
                 // * N_f; 1e-12 * scale is far above that and far below any missing term.
-                assert!((m[i][j] - m[j][i]).abs() <= 1e-12 * scale, "{name}[{i}][{j}] = {} vs {}", m[i][j], m[j][i]);
+                assert!(
+                    (m[i][j] - m[j][i]).abs() <= 1e-12 * scale,
+                    "{name}[{i}][{j}] = {} vs {}",
+                    m[i][j],
+                    m[j][i]
+                );
             }
         }
     }
@@ -95,7 +132,12 @@ fn coupled_stiffness_and_damping_are_symmetric() {
 fn frequency_bound_exceeds_the_true_highest_frequency() {
     let tp = short_track(24);
     let cfg = config(&tp, 0.01, 0.5);
-    let p = SampleParams { v_kmh: 0.0, l_c: 4.0, l_t: 1.2, ..SampleParams::NOMINAL };
+    let p = SampleParams {
+        v_kmh: 0.0,
+        l_c: 4.0,
+        l_t: 1.2,
+        ..SampleParams::NOMINAL
+    };
     let mut sim = Simulation::new(&p, &cfg, None).unwrap();
     sim.contact = linear_contact(&sim, stability::CONTACT_LOAD_FACTOR * sim.vehicle.w);
     let (k, _, mass) = probed_matrices(&sim);
@@ -104,17 +146,30 @@ fn frequency_bound_exceeds_the_true_highest_frequency() {
     let mut lambda = 0.0;
     for _ in 0..3000 {
         let y: Vec<f64> = (0..n)
-            .map(|i| (0..n).map(|j| k[i][j] / (mass[i] * mass[j]).sqrt() * x[j]).sum())
+            .map(|i| {
+                (0..n)
+                    .map(|j| k[i][j] / (mass[i] * mass[j]).sqrt() * x[j])
+                    .sum()
+            })
             .collect();
-        lambda = y.iter().map(|v| v * v).sum::<f64>().sqrt() / x.iter().map(|v| v * v).sum::<f64>().sqrt();
+        lambda = y.iter().map(|v| v * v).sum::<f64>().sqrt()
+            / x.iter().map(|v| v * v).sum::<f64>().sqrt();
         let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
         x = y.iter().map(|v| v / norm).collect();
     }
     let bound = stability::spectrum_bound(&sim.vehicle, &tp, p.k_f, p.c_f, sim.hertz_g);
     let omega_true = lambda.sqrt();
-    assert!(omega_true <= bound.omega_max, "{omega_true} > {}", bound.omega_max);
+    assert!(
+        omega_true <= bound.omega_max,
+        "{omega_true} > {}",
+        bound.omega_max
+    );
     // And not absurdly loose (within a factor 3), so the dt limit is meaningful.
-    assert!(bound.omega_max < 3.0 * omega_true, "{omega_true} vs {}", bound.omega_max);
+    assert!(
+        bound.omega_max < 3.0 * omega_true,
+        "{omega_true} vs {}",
+        bound.omega_max
+    );
 }
 
 /// With every damper off, the wheels standing still, no irregularity and the contact
@@ -144,13 +199,17 @@ fn energy_is_conserved_without_damping() {
     .unwrap();
     // The energy scale: the static work W * (drop of the wheels) ~ 4 * 70 kN * 1 mm ~ 300 J,
     // which is what sloshes between potential and kinetic forms.
-    let scale = 4.0 * sim.vehicle.w * contact::static_compression(sim.vehicle.w, sim.hertz_g) * 10.0;
+    let scale =
+        4.0 * sim.vehicle.w * contact::static_compression(sim.vehicle.w, sim.hertz_g) * 10.0;
     let e0 = energy[0];
     let dev = energy.iter().fold(0.0f64, |a, e| a.max((e - e0).abs()));
     // The fast track modes carry a small share of the energy and are resolved at w dt <~ 0.4;
     // the observed bound is 0.18% of the scale. A missing or wrong force term (a
     // non-conservative coupling, a one-sided shear) gives O(1) errors or secular drift.
-    assert!(dev < 1e-2 * scale, "max |E - E0| = {dev:e} J vs scale {scale:e} J");
+    assert!(
+        dev < 1e-2 * scale,
+        "max |E - E0| = {dev:e} J vs scale {scale:e} J"
+    );
     // No drift: the mean over the last second equals the mean over the second second (observed
     // 3e-6 of the scale; a numerically damped or anti-damped scheme drifts by orders more).
     let per_s = energy.len() / 20;
@@ -187,14 +246,26 @@ fn static_equilibrium_matches_hertz_and_winkler() {
     let with_shear = tp;
     tp.k_w = 0.0;
     tp.c_w = 0.0;
-    let p = SampleParams { v_kmh: 0.0, ..SampleParams::NOMINAL };
+    let p = SampleParams {
+        v_kmh: 0.0,
+        ..SampleParams::NOMINAL
+    };
     let settle = |tp: &TrackParams| {
         let cfg = config(tp, 3.0, 20.0);
         let sim = Simulation::new(&p, &cfg, None).unwrap();
         let traj = sim.run().unwrap();
         let last = traj.t.len() - 1;
         let get = |c: usize| traj.columns[c][last];
-        (sim, std::array::from_fn::<_, 4, _>(|i| (get(col::P + i), get(col::Z + FIRST_WHEEL + i), get(col::Z_R + i))))
+        (
+            sim,
+            std::array::from_fn::<_, 4, _>(|i| {
+                (
+                    get(col::P + i),
+                    get(col::Z + FIRST_WHEEL + i),
+                    get(col::Z_R + i),
+                )
+            }),
+        )
     };
     let (sim, wheels) = settle(&tp);
     let w = sim.vehicle.w;
@@ -203,12 +274,20 @@ fn static_equilibrium_matches_hertz_and_winkler() {
     let xw = sim.wheel_positions(0.0);
     for (i, &(force, z_w, z_r)) in wheels.iter().enumerate() {
         // Spec: each contact force equals W within 0.5% after settling.
-        assert!((force - w).abs() < 5e-3 * w, "P_{} = {force} vs W = {w}", i + 1);
+        assert!(
+            (force - w).abs() < 5e-3 * w,
+            "P_{} = {force} vs W = {w}",
+            i + 1
+        );
         // Hertz: the compression is G P^(2/3); P = W within 0.5% puts it within 0.34% of
         // G W^(2/3) (= 88 um at 70 kN).
         let delta = z_w - z_r;
         let hertz = contact::static_compression(w, g);
-        assert!((delta - hertz).abs() < 3.4e-3 * hertz, "delta_{} = {delta:e} vs {hertz:e}", i + 1);
+        assert!(
+            (delta - hertz).abs() < 3.4e-3 * hertz,
+            "delta_{} = {delta:e} vs {hertz:e}",
+            i + 1
+        );
         // (a) The same foundation as a modal series on the simply supported rail: with
         // N_M < N_f the discrete sine orthogonality makes the fastener springs act on the
         // retained modes exactly like a continuous Winkler bed k = k_eff / s, so statics is
@@ -220,11 +299,17 @@ fn static_equilibrium_matches_hertz_and_winkler() {
         let modal: f64 = (0..4)
             .map(|h| {
                 sim.rail.shapes_at(xw[h], &mut yh);
-                let g: f64 = (0..tp.n_m).map(|k| yi[k] * yh[k] / (sim.rail.omega2[k] + k_w_free(k, &tp, p.k_f))).sum();
+                let g: f64 = (0..tp.n_m)
+                    .map(|k| yi[k] * yh[k] / (sim.rail.omega2[k] + k_w_free(k, &tp, p.k_f)))
+                    .sum();
                 wheels[h].0 * g
             })
             .sum();
-        assert!((z_r - modal).abs() < 1e-3 * modal, "z_r{} = {z_r:e} vs modal Winkler {modal:e}", i + 1);
+        assert!(
+            (z_r - modal).abs() < 1e-3 * modal,
+            "z_r{} = {z_r:e} vs modal Winkler {modal:e}",
+            i + 1
+        );
         // (b) Zimmermann's infinite beam, all four wheels superposed (the neighbour 2 l_t away
         // adds a few %). The rail keeps N_M = N_f / 2 modes, wavenumbers up to
         // xi_max = N_M pi / L = pi / (2 s); the Fourier integral of the point-load response,
@@ -238,12 +323,19 @@ fn static_equilibrium_matches_hertz_and_winkler() {
         let xi_max = tp.n_m as f64 * PI / tp.length();
         let truncation = 8.0 / (3.0 * PI) * (beta / xi_max).powi(3);
         let ratio = z_r / expect;
-        assert!((ratio - (1.0 - truncation)).abs() < 0.015, "z_r{} / Zimmermann = {ratio} (truncation {truncation})", i + 1);
+        assert!(
+            (ratio - (1.0 - truncation)).abs() < 0.015,
+            "z_r{} / Zimmermann = {ratio} (truncation {truncation})",
+            i + 1
+        );
     }
     // Ballast shear couples neighbouring blocks: it can only stiffen the track.
     let (_, sheared) = settle(&with_shear);
     for i in 0..4 {
-        assert!(sheared[i].2 < wheels[i].2, "shear must reduce the deflection");
+        assert!(
+            sheared[i].2 < wheels[i].2,
+            "shear must reduce the deflection"
+        );
     }
 }
 
@@ -253,7 +345,11 @@ fn static_equilibrium_matches_hertz_and_winkler() {
 /// steps. 60 m of rail and 50 modes: the closed form holds for any length.
 #[test]
 fn moving_load_on_rail_matches_fryba() {
-    let tp = TrackParams { n_f: 100, n_m: 50, ..Default::default() };
+    let tp = TrackParams {
+        n_f: 100,
+        n_m: 50,
+        ..Default::default()
+    };
     let rail = Rail::new(&tp);
     let (load, c) = (7e4, 90.0);
     let l = rail.length;
@@ -265,7 +361,8 @@ fn moving_load_on_rail_matches_fryba() {
             .map(|k| {
                 let wk = rail.omega2[k - 1].sqrt();
                 let big_w = k as f64 * PI * c / l;
-                let q = load * rail.shape_scale * ((big_w * t).sin() - big_w / wk * (wk * t).sin()) / (wk * wk - big_w * big_w);
+                let q = load * rail.shape_scale * ((big_w * t).sin() - big_w / wk * (wk * t).sin())
+                    / (wk * wk - big_w * big_w);
                 q * rail.shape_scale * (k as f64 * PI * x / l).sin()
             })
             .sum()
@@ -305,8 +402,13 @@ fn moving_load_on_rail_matches_fryba() {
 }
 
 fn smooth_profile(length: f64) -> Profile {
-    let x: Vec<f64> = (0..=(length / 0.25) as usize).map(|i| i as f64 * 0.25).collect();
-    let eta = x.iter().map(|x| 5e-4 * (x * 2.0 * PI / 11.0).sin() + 2e-4 * (x * 2.0 * PI / 3.1).cos()).collect();
+    let x: Vec<f64> = (0..=(length / 0.25) as usize)
+        .map(|i| i as f64 * 0.25)
+        .collect();
+    let eta = x
+        .iter()
+        .map(|x| 5e-4 * (x * 2.0 * PI / 11.0).sin() + 2e-4 * (x * 2.0 * PI / 3.1).cos())
+        .collect();
     Profile::new(x, eta).unwrap()
 }
 
@@ -319,7 +421,10 @@ fn smooth_profile(length: f64) -> Profile {
 fn stored_rows_satisfy_the_vehicle_equations() {
     let tp = short_track(200);
     let cfg = config(&tp, 0.5, 20.0);
-    let p = SampleParams { v_kmh: 340.0, ..SampleParams::NOMINAL };
+    let p = SampleParams {
+        v_kmh: 340.0,
+        ..SampleParams::NOMINAL
+    };
     let profile = smooth_profile(tp.length());
     let sim = Simulation::new(&p, &cfg, Some(profile.clone())).unwrap();
     let traj = sim.run().unwrap();
@@ -346,12 +451,21 @@ fn stored_rows_satisfy_the_vehicle_equations() {
             let eta = cfg.ramp(t) * profile.at(xw[i]);
             assert_eq!(get(col::ETA + i, r), eta);
             let delta = get(col::Z + FIRST_WHEEL + i, r) - get(col::Z_R + i, r) - eta;
-            assert_eq!(get(col::P + i, r), contact::contact_force(delta, sim.hertz_g));
+            assert_eq!(
+                get(col::P + i, r),
+                contact::contact_force(delta, sim.hertz_g)
+            );
         }
     }
     for i in 0..NUM_DOFS {
         assert!(scale[i] > 0.0);
-        assert!(residual_max[i] <= 1e-6 * scale[i], "equation {}: {:e} vs scale {:e}", i + 1, residual_max[i], scale[i]);
+        assert!(
+            residual_max[i] <= 1e-6 * scale[i],
+            "equation {}: {:e} vs scale {:e}",
+            i + 1,
+            residual_max[i],
+            scale[i]
+        );
     }
     // The irregularity is zero for the first 10% and on afterwards.
     let eta1 = &traj.columns[col::ETA];
@@ -366,7 +480,10 @@ fn bad_configurations_are_refused_with_the_field_named() {
     let p = SampleParams::NOMINAL;
     let base = SimulationConfig::default();
     let msg = |c: SimulationConfig| Simulation::new(&p, &c, None).unwrap_err().to_string();
-    let e = msg(SimulationConfig { output_every: 0, ..base });
+    let e = msg(SimulationConfig {
+        output_every: 0,
+        ..base
+    });
     assert!(e.contains("output_every"), "{e}");
     let e = msg(SimulationConfig { n_m: 900, ..base });
     assert!(e.contains("n_m") && e.contains("899"), "{e}");
@@ -376,16 +493,29 @@ fn bad_configurations_are_refused_with_the_field_named() {
     assert!(e.contains("`dt`"), "{e}");
     let e = msg(SimulationConfig { dt: 1e-3, ..base });
     assert!(e.contains("stability limit") && e.contains("0.001"), "{e}");
-    let e = msg(SimulationConfig { startup_zero_fraction: 0.95, ..base });
+    let e = msg(SimulationConfig {
+        startup_zero_fraction: 0.95,
+        ..base
+    });
     assert!(e.contains("startup_ramp_fraction"), "{e}");
-    let e = msg(SimulationConfig { duration: 6.0, ..base });
+    let e = msg(SimulationConfig {
+        duration: 6.0,
+        ..base
+    });
     assert!(e.contains("the rail") && e.contains("n_f"), "{e}");
-    let e = Simulation::new(&SampleParams { m_c: -3.0, ..p }, &base, None).unwrap_err().to_string();
+    let e = Simulation::new(&SampleParams { m_c: -3.0, ..p }, &base, None)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("m_c"), "{e}");
     // A profile that stops short of the run.
     let short = Profile::new(vec![0.0, 1.0, 100.0], vec![0.0; 3]).unwrap();
-    let e = Simulation::new(&p, &base, Some(short)).unwrap_err().to_string();
-    assert!(e.contains("irregularity profile") && e.contains("100"), "{e}");
+    let e = Simulation::new(&p, &base, Some(short))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("irregularity profile") && e.contains("100"),
+        "{e}"
+    );
     assert!(Profile::new(vec![0.0, 0.0], vec![0.0; 2]).is_err());
 }
 
@@ -406,7 +536,12 @@ fn non_finite_states_are_failures() {
 fn config_defaults_and_unknown_fields() {
     let c: SimulationConfig = serde_json::from_str("{}").unwrap();
     assert_eq!(c, SimulationConfig::default());
-    assert_eq!((c.n_f, c.n_m, c.output_every, c.n_outputs()), (900, 450, 10, 5000));
-    let e = serde_json::from_str::<SimulationConfig>(r#"{"n_ff": 3}"#).unwrap_err().to_string();
+    assert_eq!(
+        (c.n_f, c.n_m, c.output_every, c.n_outputs()),
+        (900, 450, 10, 5000)
+    );
+    let e = serde_json::from_str::<SimulationConfig>(r#"{"n_ff": 3}"#)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("unknown field `n_ff`"), "{e}");
 }

@@ -101,12 +101,22 @@ pub struct SpectrumBound {
 
 fn vehicle_gershgorin(m: &[[f64; NUM_DOFS]; NUM_DOFS], masses: &[f64; NUM_DOFS]) -> f64 {
     (0..NUM_DOFS)
-        .map(|i| (0..NUM_DOFS).map(|j| m[i][j].abs() / (masses[i] * masses[j]).sqrt()).sum::<f64>())
+        .map(|i| {
+            (0..NUM_DOFS)
+                .map(|j| m[i][j].abs() / (masses[i] * masses[j]).sqrt())
+                .sum::<f64>()
+        })
         .fold(0.0, f64::max)
 }
 
 /// Bounds for one vehicle (`k_f`, `c_f` of its sample) on track `tp` with Hertz constant `g`.
-pub fn spectrum_bound(vehicle: &Vehicle, tp: &TrackParams, k_f: f64, c_f: f64, g: f64) -> SpectrumBound {
+pub fn spectrum_bound(
+    vehicle: &Vehicle,
+    tp: &TrackParams,
+    k_f: f64,
+    c_f: f64,
+    g: f64,
+) -> SpectrumBound {
     let rail = Rail::new(tp);
     let w_rail = rail.omega2.last().copied().unwrap_or(0.0);
     let rail_seat = 1.0 / (tp.m_r * tp.s);
@@ -180,7 +190,14 @@ mod tests {
     /// verification.md's worked limits of the damped oscillator, to the 2 decimals given.
     #[test]
     fn oscillator_limits_match_worked_values() {
-        for (xi, limit) in [(0.0, 2.0), (0.01, 1.96), (0.05, 1.81), (0.1, 1.64), (0.2, 1.35), (0.5, 0.83)] {
+        for (xi, limit) in [
+            (0.0, 2.0),
+            (0.01, 1.96),
+            (0.05, 1.81),
+            (0.1, 1.64),
+            (0.2, 1.35),
+            (0.5, 0.83),
+        ] {
             let got = oscillator_limit(xi);
             assert!((got - limit).abs() < 0.006, "xi {xi}: {got} vs {limit}");
         }
@@ -192,12 +209,20 @@ mod tests {
     fn paper_step_passes_and_large_step_is_refused() {
         let tp = TrackParams::default();
         let g = contact::hertz_constant(0.43);
-        let p = SampleParams { m_w: 0.8 * 1517.0, k_f: 4.5e7, c_f: 5e4, ..SampleParams::NOMINAL };
+        let p = SampleParams {
+            m_w: 0.8 * 1517.0,
+            k_f: 4.5e7,
+            c_f: 5e4,
+            ..SampleParams::NOMINAL
+        };
         let bound = spectrum_bound(&Vehicle::new(&p, 9.81), &tp, p.k_f, p.c_f, g);
         bound.check(1e-4).unwrap();
         let limit = bound.dt_limit();
         assert!(limit > 1e-4 && limit < 1e-3, "{limit}");
         let msg = bound.check(1e-3).unwrap_err().to_string();
-        assert!(msg.contains("0.001") && msg.contains(&format!("{limit:.3e}")), "{msg}");
+        assert!(
+            msg.contains("0.001") && msg.contains(&format!("{limit:.3e}")),
+            "{msg}"
+        );
     }
 }

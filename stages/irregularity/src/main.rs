@@ -34,26 +34,26 @@ fn run() -> Result<String> {
         bail!("{}: sample_id {} appears twice", files[0].display(), w[0]);
     }
 
-    let progress = ctx.progress(ids.len() as u64);
-    let profiles: Vec<Vec<f64>> = ids
-        .par_iter()
-        .map(|&id| {
-            let eta = generator.profile(id as u64);
-            progress.inc(1);
-            eta
-        })
-        .collect();
-
+    // Profiles are written straight into the `eta` column, one chunk per sample.
     let n = generator.len();
-    let x = generator.positions();
+    let progress = ctx.progress(ids.len() as u64);
+    let mut eta = vec![0.0; n * ids.len()];
+    eta.par_chunks_mut(n).zip(&ids).for_each(|(chunk, &id)| {
+        generator.profile_into(id as u64, chunk);
+        progress.inc(1);
+    });
+
     let mut table = Table::default();
     let sample_col = ids
         .iter()
         .flat_map(|&id| std::iter::repeat_n(id, n))
         .collect();
     table.push(schema::SAMPLE_ID, Column::I64(sample_col))?;
-    table.push(schema::TRACK_X, Column::F64(x.repeat(ids.len())))?;
-    table.push(schema::TRACK_ETA, Column::F64(profiles.concat()))?;
+    table.push(
+        schema::TRACK_X,
+        Column::F64(generator.positions().repeat(ids.len())),
+    )?;
+    table.push(schema::TRACK_ETA, Column::F64(eta))?;
     let path = ctx.output_path("irregularity.parquet");
     write_parquet(&path, &table).with_context(|| format!("writing {}", path.display()))?;
     Ok(format!(

@@ -19,15 +19,24 @@ use vtcd::simulation::{self, Profile, SampleInput, SimulationConfig};
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
     let config: SimulationConfig = ctx.params()?;
-    config.validate().with_context(|| format!("stage `{}`: bad parameters", ctx.stage))?;
+    config
+        .validate()
+        .with_context(|| format!("stage `{}`: bad parameters", ctx.stage))?;
 
     let mut cols = vec![schema::SAMPLE_ID];
     cols.extend(schema::PARAMETERS);
     let params = read_parquet_files(&ctx.input_files("params", "params.parquet")?, Some(&cols))?;
     let irr_files = ctx.input_files("irregularity", "irregularity.parquet")?;
-    let irr = read_parquet_files(&irr_files, Some(&[schema::SAMPLE_ID, schema::TRACK_X, schema::TRACK_ETA]))?;
+    let irr = read_parquet_files(
+        &irr_files,
+        Some(&[schema::SAMPLE_ID, schema::TRACK_X, schema::TRACK_ETA]),
+    )?;
     let mut profiles: BTreeMap<i64, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
-    let (ids, xs, etas) = (irr.i64(schema::SAMPLE_ID)?, irr.f64(schema::TRACK_X)?, irr.f64(schema::TRACK_ETA)?);
+    let (ids, xs, etas) = (
+        irr.i64(schema::SAMPLE_ID)?,
+        irr.f64(schema::TRACK_X)?,
+        irr.f64(schema::TRACK_ETA)?,
+    );
     for ((&id, &x), &eta) in ids.iter().zip(xs).zip(etas) {
         if id >= 0 && ctx.shard.owns(id as u64) {
             let p = profiles.entry(id).or_default();
@@ -36,7 +45,10 @@ fn run() -> Result<String> {
         }
     }
     let mut inputs = Vec::new();
-    let values: Vec<&[f64]> = schema::PARAMETERS.iter().map(|n| params.f64(n)).collect::<Result<_, _>>()?;
+    let values: Vec<&[f64]> = schema::PARAMETERS
+        .iter()
+        .map(|n| params.f64(n))
+        .collect::<Result<_, _>>()?;
     for (row, &id) in params.i64(schema::SAMPLE_ID)?.iter().enumerate() {
         if id < 0 {
             bail!("params.parquet: sample_id {id} is negative");
@@ -45,15 +57,25 @@ fn run() -> Result<String> {
             continue;
         }
         let p = SampleParams::from_array(std::array::from_fn(|j| values[j][row]));
-        p.validate().with_context(|| format!("params.parquet: sample {id}"))?;
+        p.validate()
+            .with_context(|| format!("params.parquet: sample {id}"))?;
         let Some((x, eta)) = profiles.remove(&id) else {
-            bail!("irregularity.parquet ({} files) has no profile for sample_id {id}", irr_files.len());
+            bail!(
+                "irregularity.parquet ({} files) has no profile for sample_id {id}",
+                irr_files.len()
+            );
         };
-        let profile = Profile::new(x, eta).with_context(|| format!("irregularity.parquet: sample {id}"))?;
-        inputs.push(SampleInput { id: id as u64, params: p, profile: Some(profile) });
+        let profile =
+            Profile::new(x, eta).with_context(|| format!("irregularity.parquet: sample {id}"))?;
+        inputs.push(SampleInput {
+            id: id as u64,
+            params: p,
+            profile: Some(profile),
+        });
     }
     inputs.sort_by_key(|s| s.id);
-    let sims = simulation::prepare(&config, inputs).map_err(|(id, e)| anyhow::anyhow!("sample {id}: {e}"))?;
+    let sims = simulation::prepare(&config, inputs)
+        .map_err(|(id, e)| anyhow::anyhow!("sample {id}: {e}"))?;
 
     let progress = ctx.progress(sims.len() as u64);
     let path = ctx.output_path("simulation.parquet");
@@ -78,7 +100,12 @@ fn run() -> Result<String> {
     failed.push("reason", Column::Str(failures.1))?;
     pino_data::write_parquet(&ctx.output_path("failures.parquet"), &failed)?;
     let s = ctx.shard;
-    Ok(format!("{} ok, {n_failed} failed, {rows} rows (shard {}/{})", sims.len() - n_failed, s.index + 1, s.count))
+    Ok(format!(
+        "{} ok, {n_failed} failed, {rows} rows (shard {}/{})",
+        sims.len() - n_failed,
+        s.index + 1,
+        s.count
+    ))
 }
 
 /// One sample's rows in schema order: `sample_id`, `t`, then the 42 signals.
@@ -88,7 +115,10 @@ fn table(names: &[String], id: i64, t: &[f64], signals: &[Vec<f64>]) -> Table {
     push(&names[0], Column::I64(vec![id; t.len()]));
     push(&names[1], Column::F64(t.to_vec()));
     for (j, name) in names[2..].iter().enumerate() {
-        push(name, Column::F64(signals.get(j).cloned().unwrap_or_default()));
+        push(
+            name,
+            Column::F64(signals.get(j).cloned().unwrap_or_default()),
+        );
     }
     table
 }
