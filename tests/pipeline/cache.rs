@@ -120,3 +120,69 @@ fn corrupted_cached_file_is_detected_and_recomputed() {
     assert_eq!(std::fs::read(&path).unwrap(), good);
     assert!(ok(ws.run(&["run"])).stdout.contains("Nothing to do"));
 }
+
+#[test]
+fn changed_executable_makes_its_stages_stale() {
+    let ws = Ws::new("basic.yaml");
+    // A private copy of the stage binary, found through the file's `bin_dir`.
+    let bin = ws.path().join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    std::fs::copy(env!("CARGO_BIN_EXE_test-stage"), bin.join("test-stage")).unwrap();
+    ws.set_pipeline(&format!("bin_dir: bin\n{}", ws.pipeline_text()));
+    let run_local = || {
+        let out = std::process::Command::new(pino_mbd_tests::bin("pipeline"))
+            .current_dir(std::env::temp_dir())
+            .args(["-C".as_ref(), ws.path().as_os_str(), "run".as_ref()])
+            .env_remove("PINO_BIN_DIR")
+            .env("TEST_STAGE_LOG", ws.log_path())
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{out:?}");
+    };
+    run_local();
+    assert_eq!(ws.ran().len(), 4);
+    // Same program, different bytes (trailing data is ignored by the ELF loader).
+    let mut f = std::fs::OpenOptions::new()
+        .append(true)
+        .open(bin.join("test-stage"))
+        .unwrap();
+    std::io::Write::write_all(&mut f, b"new build").unwrap();
+    drop(f);
+    let st = std::process::Command::new(pino_mbd_tests::bin("pipeline"))
+        .current_dir(ws.path())
+        .arg("status")
+        .env_remove("PINO_BIN_DIR")
+        .output()
+        .unwrap();
+    let st = String::from_utf8_lossy(&st.stdout);
+    assert!(st.contains("prepare    stale  code changed"), "{st}");
+    run_local();
+    assert_eq!(ws.ran().len(), 4, "every stage uses the changed binary");
+}
+
+#[test]
+fn bin_dir_from_environment_and_plain_progress_lines() {
+    let ws = Ws::new("basic.yaml");
+    let dir = std::path::Path::new(env!("CARGO_BIN_EXE_test-stage"))
+        .parent()
+        .unwrap();
+    let out = std::process::Command::new(pino_mbd_tests::bin("pipeline"))
+        .current_dir(ws.path())
+        .args(["run", "side"])
+        .env("PINO_BIN_DIR", dir)
+        .env("TEST_STAGE_LOG", ws.log_path())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    assert_eq!(
+        ws.ran(),
+        sorted(&["side"]),
+        "a target runs alone when it has no upstream"
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    // Not a terminal: plain lines from the stage's `::progress 3 3`.
+    assert!(
+        err.contains("[side] started") && err.contains("[side] 3/3"),
+        "{err}"
+    );
+}

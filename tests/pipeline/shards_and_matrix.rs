@@ -59,6 +59,24 @@ fn sharded_stage_killed_mid_run_resumes_from_finished_shards() {
     });
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
+    // The gated shards die with the orchestrator (they would wait on the gate forever).
+    let log = std::fs::read_to_string(ws.log_path()).unwrap();
+    for shard in ["simulate#2", "simulate#3"] {
+        let pid = log
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("pid {shard} ")))
+            .expect("pid line");
+        wait_until(&format!("{shard} (pid {pid}) to die"), || {
+            // Gone, or a zombie waiting for init to reap it.
+            std::fs::read_to_string(format!("/proc/{pid}/stat")).map_or(true, |s| {
+                s.rsplit(')')
+                    .next()
+                    .unwrap_or("")
+                    .trim_start()
+                    .starts_with('Z')
+            })
+        });
+    }
     std::fs::remove_file(ws.gate()).unwrap();
     let first = ws.ran();
     assert!(

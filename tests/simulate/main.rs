@@ -258,3 +258,30 @@ fn bad_input_is_refused_with_a_clear_message() {
         "{log}"
     );
 }
+
+/// The `simulate` blocks of `pipeline.yaml` (laptop: 2 s) and `configs/paper.yaml` (5 s) parse
+/// into the stage's parameter type, pass validation, and keep the paper's physics (full
+/// track, dt = 1e-4, 1 kHz); only the duration differs.
+#[test]
+fn pipeline_files_configure_the_paper_physics() {
+    let root = pino_mbd_tests::workspace_root();
+    let mut durations = Vec::new();
+    for file in ["pipeline.yaml", "configs/paper.yaml"] {
+        let text = std::fs::read_to_string(root.join(file)).unwrap();
+        let doc: serde_yaml::Value = serde_yaml::from_str(&text).unwrap();
+        let params = doc["stages"]["simulate"]["params"].clone();
+        let c: vtcd::simulation::SimulationConfig =
+            serde_yaml::from_value(params).unwrap_or_else(|e| panic!("{file}: {e}"));
+        c.validate().unwrap();
+        let paper = vtcd::simulation::SimulationConfig {
+            duration: c.duration,
+            ..Default::default()
+        };
+        assert_eq!(
+            c, paper,
+            "{file}: only the duration may differ from the spec"
+        );
+        durations.push(c.duration);
+    }
+    assert_eq!(durations, [2.0, 5.0]);
+}

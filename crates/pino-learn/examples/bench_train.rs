@@ -2,10 +2,10 @@
 //!
 //! ```text
 //! cargo run --release -p pino-learn --example bench_train -- \
-//!     [width] [modes] [depth] [batch] [points] [matmul|fft] [steps]
+//!     [width] [modes] [depth] [batch] [points] [matmul|fft] [steps] [algorithm]
 //! ```
 //! Builds a synthetic dataset of `points` time points per record (after the 10% start-up
-//! window), runs `steps` optimizer steps of algorithm 4 (data + derivative loss) and reports
+//! window), runs `steps` optimizer steps of `algorithm` (default 4) and reports
 //! the median step time, samples per second, and the forward time for 40 samples.
 use candle_core::Device;
 use pino_learn::config::{ModelConfig, TrainParams};
@@ -36,12 +36,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..Default::default()
     };
     let files = write_dataset(&spec, &dir)?;
-    let mut p = TrainParams::with_algorithm(4);
+    let algorithm: i64 = arg(7, "4").parse()?;
+    let mut p = TrainParams::with_algorithm(algorithm);
     p.width = width;
     p.modes = modes;
     p.depth = Some(depth);
     let (_, train, window) = p.configs()?;
-    let ds = load_dataset(&files.params, &[files.simulation.clone()], None, &window)?;
+    let ds = load_dataset(&files.params, &[files.simulation.clone()], Some(&files.weights), &window)?;
     let cfg = ModelConfig { in_channels: 19, out_channels: 14, width, modes, depth, projection_width: p.projection_width };
     let dev = Device::Cpu;
     let model = Fno::new(cfg, ds.t_points(), 1, transform, &dev)?;

@@ -147,3 +147,17 @@ pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
     }
     result
 }
+
+/// Makes candle (and rayon) single-threaded unless `CANDLE_NUM_THREADS` / `RAYON_NUM_THREADS`
+/// are set. Call first thing in `main`, before any tensor exists. On the shared 2-core
+/// development machine candle's worker pool spin-waits for descheduled workers, and one
+/// thread measured about 1.5-2x faster than two (BENCHMARKS.md, Learning); results do not
+/// depend on the thread count.
+pub fn single_threaded_by_default() {
+    for var in ["CANDLE_NUM_THREADS", "RAYON_NUM_THREADS"] {
+        if std::env::var_os(var).is_none() {
+            // Single-threaded at this point: nothing else reads the environment yet.
+            std::env::set_var(var, "1");
+        }
+    }
+}

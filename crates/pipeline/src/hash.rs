@@ -1,6 +1,6 @@
 //! Content hashing of files with a persistent cache keyed by file identity.
 //!
-//! A file's hash is blake3 of its bytes, hex encoded. Large files are read in 16 MiB chunks
+//! A file's hash is blake3 of its bytes, hex encoded. Large files are read in 1 MiB chunks
 //! and each chunk is hashed with blake3's rayon-parallel tree (`update_rayon`); many files are
 //! hashed in parallel across rayon workers. Hashes are remembered in `artifacts/hash-cache.json`
 //! keyed by path and validated by (device, inode, size, mtime, ctime): the hash is recomputed
@@ -16,8 +16,9 @@ use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-/// Chunk size for reading large files: big enough for blake3's parallel tree to pay off.
-const CHUNK: usize = 16 << 20;
+/// Chunk size for reading large files: 1024 blake3 chunks, enough for its rayon tree to pay
+/// off, and small enough to stay in cache between the `read` copy and the hash.
+const CHUNK: usize = 1 << 20;
 /// Below this size a file is hashed on one thread (the rayon split costs more than it saves).
 const PARALLEL_MIN: u64 = 1 << 20;
 

@@ -83,6 +83,21 @@ impl<'a> Locator<'a> {
         })
     }
 
+    /// Line of the second `key:` at the indentation of the first one found from line `from`
+    /// (1-based): where a duplicate key is.
+    pub fn duplicate_line(&self, from: usize, key: &str) -> Option<usize> {
+        let start = from.saturating_sub(1);
+        let first = (start..self.lines.len()).find(|&j| key_of(self.lines[j]) == Some(key))?;
+        let ind = indent(self.lines[first]);
+        // Only within the enclosing mapping: stop at the first line indented less.
+        let end = (first + 1..self.lines.len())
+            .find(|&j| is_content(self.lines[j]) && indent(self.lines[j]) < ind)
+            .unwrap_or(self.lines.len());
+        (first + 1..end)
+            .find(|&j| indent(self.lines[j]) == ind && key_of(self.lines[j]) == Some(key))
+            .map(|j| j + 1)
+    }
+
     /// Line of a top-level key such as `bin_dir` or `stages` (1 when absent).
     pub fn top_line(&self, key: &str) -> usize {
         self.top(key).map_or(1, |j| j + 1)
@@ -171,6 +186,9 @@ stages:
         // Fallbacks: unknown field -> stage line; unknown stage -> `stages:` line.
         assert_eq!(l.field_line("a", "shards"), 3);
         assert_eq!(l.stage_line("zz"), 2);
+        assert_eq!(l.duplicate_line(3, "cmd"), None);
+        let d = Locator::new("stages:\n  a:\n    cmd: [x]\n  a:\n    cmd: [y]\n");
+        assert_eq!(d.duplicate_line(2, "a"), Some(4));
     }
 
     #[test]

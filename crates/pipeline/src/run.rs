@@ -84,6 +84,10 @@ pub fn select(
             }
         }
     }
+    if force && targets.is_empty() {
+        // `pipeline run --force`: everything.
+        forced = (0..n).flat_map(|i| units_of(p, i)).map(|u| u.key).collect();
+    }
     // Upstream closure: stages are topologically ordered, so one backward pass suffices.
     for i in (0..n).rev() {
         if whole[i] || !partial[i].is_empty() {
@@ -460,5 +464,41 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
             count: failures.len(),
             names: failures.join(", "),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spec::LoadOptions;
+
+    fn keys(units: &[Unit]) -> Vec<&str> {
+        units.iter().map(|u| u.key.as_str()).collect()
+    }
+
+    #[test]
+    fn targets_pull_in_their_upstream_and_force_only_themselves() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("p.yaml");
+        let text = "stages:\n  a:\n    cmd: [x]\n    shards: 2\n  b:\n    cmd: [x]\n    inputs: {i: a}\n    matrix: {k: [1, 2]}\n  c:\n    cmd: [x]\n    inputs: {i: b}\n  d:\n    cmd: [x]\n";
+        std::fs::write(&f, text).unwrap();
+        let p = Pipeline::load(dir.path(), &f, &LoadOptions::default()).unwrap();
+        let (u, forced) = select(&p, &["b[k=2]".into()], true).unwrap();
+        assert_eq!(keys(&u), ["a#0", "a#1", "b[k=2]"]);
+        assert_eq!(forced.into_iter().collect::<Vec<_>>(), ["b[k=2]"]);
+        let (u, forced) = select(&p, &["c".into()], false).unwrap();
+        assert_eq!(keys(&u), ["a#0", "a#1", "b[k=1]", "b[k=2]", "c"]);
+        assert!(forced.is_empty());
+        let (u, forced) = select(&p, &[], true).unwrap();
+        assert_eq!(u.len(), 6);
+        assert_eq!(forced.len(), 6);
+        assert!(matches!(
+            select(&p, &["b[k=3]".into()], false),
+            Err(Error::Usage(_))
+        ));
+        assert!(matches!(
+            select(&p, &["zz".into()], false),
+            Err(Error::Usage(_))
+        ));
     }
 }

@@ -17,12 +17,49 @@ use serde_json::{Map, Value};
 use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
 
+/// A string-keyed mapping that rejects duplicate keys (YAML allows them silently; a stage
+/// or parameter defined twice is almost always a mistake). The error carries the position.
+struct UniqueMap<V>(BTreeMap<String, V>);
+
+impl<'de, V: Deserialize<'de>> Deserialize<'de> for UniqueMap<V> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Vis<V>(std::marker::PhantomData<V>);
+        impl<'de, V: Deserialize<'de>> serde::de::Visitor<'de> for Vis<V> {
+            type Value = UniqueMap<V>;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a mapping")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut m: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                let mut out = BTreeMap::new();
+                while let Some(k) = m.next_key::<String>()? {
+                    if out.contains_key(&k) {
+                        return Err(serde::de::Error::custom(format!("duplicate key `{k}`")));
+                    }
+                    let v = m.next_value()?;
+                    out.insert(k, v);
+                }
+                Ok(UniqueMap(out))
+            }
+        }
+        d.deserialize_map(Vis(std::marker::PhantomData))
+    }
+}
+
+impl<V> Default for UniqueMap<V> {
+    fn default() -> Self {
+        Self(BTreeMap::new())
+    }
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawPipeline {
     #[serde(default)]
     bin_dir: Option<String>,
-    stages: BTreeMap<String, RawStage>,
+    stages: UniqueMap<RawStage>,
 }
 
 #[derive(Deserialize)]
@@ -30,13 +67,13 @@ struct RawPipeline {
 struct RawStage {
     cmd: Vec<String>,
     #[serde(default)]
-    params: Option<Map<String, Value>>,
+    params: Option<UniqueMap<Value>>,
     #[serde(default)]
-    inputs: Option<BTreeMap<String, String>>,
+    inputs: Option<UniqueMap<String>>,
     #[serde(default)]
     shards: Option<usize>,
     #[serde(default)]
-    matrix: Option<BTreeMap<String, Vec<Value>>>,
+    matrix: Option<UniqueMap<Vec<Value>>>,
 }
 
 /// One matrix expansion of a stage (the stage itself when it has no matrix).
@@ -206,7 +243,19 @@ impl Pipeline {
         let base = abs_file.parent().unwrap_or(&workspace).to_path_buf();
 
         let raw: RawPipeline = serde_yaml::from_str(&text).map_err(|e| {
-            let (line, column) = e.location().map_or((1, 1), |l| (l.line(), l.column()));
+            let (mut line, mut column) = e.location().map_or((1, 1), |l| (l.line(), l.column()));
+            // serde_yaml places a duplicate-key error at the mapping's start; point at the
+            // duplicate itself when the text shows it.
+            let msg = e.to_string();
+            if let Some(key) = msg
+                .split("duplicate key `")
+                .nth(1)
+                .and_then(|r| r.split('`').next())
+            {
+                if let Some(l) = Locator::new(&text).duplicate_line(line, key) {
+                    (line, column) = (l, 1);
+                }
+            }
             Error::Yaml {
                 file: display.clone(),
                 line,
@@ -240,7 +289,7 @@ impl Pipeline {
         };
 
         let mut stages = BTreeMap::new();
-        for (name, rs) in raw.stages {
+        for (name, rs) in raw.stages.0 {
             let line = loc.stage_line(&name);
             if !valid_name(&name) {
                 return Err(spec_err(
@@ -268,7 +317,7 @@ impl Pipeline {
                     format!("stage `{name}`: `shards` must be at least 1"),
                 ));
             }
-            let inputs = rs.inputs.unwrap_or_default();
+            let inputs = rs.inputs.map(|m| m.0).unwrap_or_default();
             for input in inputs.keys() {
                 if !valid_name(input) {
                     return Err(spec_err(
@@ -277,8 +326,11 @@ impl Pipeline {
                     ));
                 }
             }
-            let params = rs.params.unwrap_or_default();
-            let matrix = rs.matrix.unwrap_or_default();
+            let params: Map<String, Value> = rs
+                .params
+                .map(|m| m.0.into_iter().collect())
+                .unwrap_or_default();
+            let matrix = rs.matrix.map(|m| m.0).unwrap_or_default();
             for (k, values) in &matrix {
                 let l = loc.word_line(&name, "matrix", k);
                 if params.contains_key(k) {
@@ -585,6 +637,11 @@ mod tests {
             e.contains(":4:") && e.contains("unknown field `shard`"),
             "{e}"
         );
+        // Duplicates are refused, located at the second occurrence.
+        let e = load("stages:\n  a:\n    cmd: [x]\n  a:\n    cmd: [y]\n", &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("duplicate key `a`") && e.contains(":4:"), "{e}");
         let e = load("bin_dir: ../x\nstages: {}\n", &[])
             .unwrap_err()
             .to_string();

@@ -44,13 +44,11 @@ impl Ui {
     /// A unit starts running.
     pub fn start(&self, name: &str) -> UnitView<'_> {
         let bar = self.multi.as_ref().map(|m| {
-            let b = m.add(ProgressBar::new(0));
+            // A spinner until the stage reports its first `::progress` total.
+            let b = m.add(ProgressBar::new_spinner());
             b.set_style(
-                ProgressStyle::with_template(
-                    "{prefix:>24.bold} [{bar:30}] {pos}/{len} {elapsed:>4} {wide_msg}",
-                )
-                .expect("valid template")
-                .progress_chars("=> "),
+                ProgressStyle::with_template("{prefix:>24.bold} {spinner} {elapsed:>4} {wide_msg}")
+                    .expect("valid template"),
             );
             b.set_prefix(name.to_owned());
             b.enable_steady_tick(Duration::from_millis(200));
@@ -79,6 +77,15 @@ impl UnitView<'_> {
     pub fn progress(&self, p: &ProgressLine) {
         match &self.bar {
             Some(b) => {
+                if b.length() != Some(p.total) {
+                    b.set_style(
+                        ProgressStyle::with_template(
+                            "{prefix:>24.bold} [{bar:30}] {pos}/{len} {elapsed:>4} {wide_msg}",
+                        )
+                        .expect("valid template")
+                        .progress_chars("=> "),
+                    );
+                }
                 b.set_length(p.total);
                 b.set_position(p.done);
                 b.set_message(p.message.clone());

@@ -5,7 +5,9 @@
 //! RAYON_NUM_THREADS=1 cargo run --release -p vtcd --example bench_simulate -- [duration_s] [runs]
 //! ```
 //! Prints each run and the median. The solver itself is single-threaded; rayon only spreads
-//! samples in the stage.
+//! samples in the stage. Besides wall time it reads this thread's on-CPU time from
+//! `/proc/thread-self/schedstat` (Linux), which stays meaningful when other processes share
+//! the cores; the median of that CPU time is the headline figure.
 
 use std::time::Instant;
 use vtcd::params::SampleParams;
@@ -32,15 +34,34 @@ fn main() {
         .collect();
     let profile = Profile::new(x, eta).expect("valid profile");
     let sim = Simulation::new(&SampleParams::NOMINAL, &config, Some(profile)).expect("valid model");
+    let bound = vtcd::stability::spectrum_bound(
+        &sim.vehicle,
+        &sim.track,
+        sim.params.k_f,
+        sim.params.c_f,
+        sim.hertz_g,
+        [config.x0, config.x0 + sim.speed * duration + sim.offsets[0]],
+    );
+    println!(
+        "stability: omega_max <= {:.0} rad/s, damping rate <= {:.0} 1/s, dt limit {:.3e} s (dt = {:e})",
+        bound.omega_max,
+        bound.damping_max,
+        bound.dt_limit(),
+        config.dt
+    );
+    transforms_only(&config, 3);
     let mut per_sim_second = Vec::new();
     for run in 0..runs {
         let start = Instant::now();
+        let cpu0 = thread_cpu_seconds();
         let traj = sim.run().expect("finite run");
-        let secs = start.elapsed().as_secs_f64();
+        let cpu = thread_cpu_seconds().zip(cpu0).map(|(b, a)| b - a);
+        let wall = start.elapsed().as_secs_f64();
+        let secs = cpu.unwrap_or(wall);
         let ratio = secs / duration;
         let steps = config.steps();
         println!(
-            "run {run}: {secs:.3} s for {duration} s simulated ({steps} steps, {:.2} us/step, {} rows): {ratio:.4} s per simulated s",
+            "run {run}: cpu {secs:.3} s (wall {wall:.3} s) for {duration} s simulated ({steps} steps, {:.2} us/step, {} rows): {ratio:.4} s per simulated s",
             secs / steps as f64 * 1e6,
             traj.t.len()
         );
@@ -54,5 +75,39 @@ fn main() {
         "paper scale (5 s): {sample_secs:.2} s per sample per core, {:.0} samples/hour on 2 cores, 20000 samples in {:.1} h on 2 cores",
         2.0 * 3600.0 / sample_secs,
         20000.0 * sample_secs / 2.0 / 3600.0
+    );
+}
+
+/// On-CPU time of this thread (s), from `/proc/thread-self/schedstat` (first field, ns).
+fn thread_cpu_seconds() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: f64 = text.split_whitespace().next()?.parse().ok()?;
+    Some(ns * 1e-9)
+}
+
+/// Times the two sine transforms of a step alone (modal -> fasteners with N_M inputs,
+/// fasteners -> modes with N_M outputs), the floor of this solver's step.
+fn transforms_only(config: &SimulationConfig, runs: usize) {
+    let (nf, nm) = (config.n_f, config.n_m);
+    let mut dst = vtcd::rail::SineTransform::new(nf);
+    let modal: Vec<f64> = (0..nm).map(|k| 1.0 / (1.0 + k as f64)).collect();
+    let (mut seat, mut back) = (vec![0.0; nf - 1], vec![0.0; nm]);
+    let steps = config.steps();
+    let mut per_step = Vec::new();
+    for _ in 0..runs {
+        let cpu0 = thread_cpu_seconds().unwrap_or(0.0);
+        let start = Instant::now();
+        for _ in 0..steps {
+            dst.apply(&modal, &mut seat);
+            dst.apply(&seat, &mut back);
+        }
+        let secs = thread_cpu_seconds().map_or(start.elapsed().as_secs_f64(), |t| t - cpu0);
+        per_step.push(secs / steps as f64);
+        std::hint::black_box(&back);
+    }
+    per_step.sort_by(f64::total_cmp);
+    println!(
+        "two sine transforms alone: {:.2} us per step (median of {runs})",
+        per_step[runs / 2] * 1e6
     );
 }

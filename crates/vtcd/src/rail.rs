@@ -189,28 +189,36 @@ impl SineTransform {
     /// `u_1..u_m` (`m <= N-1`, the rest is zero); `out.len() <= N - 1`.
     pub fn apply(&mut self, input: &[f64], out: &mut [f64]) {
         let n = self.n;
-        assert!(input.len() < n && out.len() < n, "DST-I of N = {n}: at most N - 1 values");
+        assert!(
+            input.len() < n && out.len() < n,
+            "DST-I of N = {n}: at most N - 1 values"
+        );
         // u_pad[m] = u_m for 0 <= m <= N (u_0 = u_N = 0, zeros past the input); the odd
         // extension is y_m = u_pad[m] for m <= N and y_m = -u_pad[2N - m] for m > N.
         self.pad[1..=input.len()].copy_from_slice(input);
         self.pad[input.len() + 1..].fill(0.0);
-        let pad = &self.pad;
-        // z_i = y_{2i} + i y_{2i+1}: indices 2i+1 <= N come from the head, the rest mirrored.
+        // z_i = y_{2i} + i y_{2i+1}: for i < ceil(N/2) both indices are <= N (the head);
+        // for the rest, with m = N - 1 - i, z_i = -(u_pad[2m+2] + i u_pad[2m+1]).
         let head = n.div_ceil(2);
-        for (i, z) in self.buf[..head].iter_mut().enumerate() {
-            *z = Complex64::new(pad[2 * i], pad[2 * i + 1]);
+        let (first, rest) = self.buf.split_at_mut(head);
+        for (z, u) in first.iter_mut().zip(self.pad.chunks_exact(2)) {
+            *z = Complex64::new(u[0], u[1]);
         }
-        for (i, z) in self.buf.iter_mut().enumerate().skip(head) {
-            *z = Complex64::new(-pad[2 * n - 2 * i], -pad[2 * n - 2 * i - 1]);
+        let mirrored = self.pad[1..].chunks_exact(2).take(n - head).rev();
+        for (z, u) in rest.iter_mut().zip(mirrored) {
+            *z = Complex64::new(-u[1], -u[0]);
         }
-        self.fft.process_with_scratch(&mut self.buf, &mut self.scratch);
+        self.fft
+            .process_with_scratch(&mut self.buf, &mut self.scratch);
         // out_j = -Im(E_j + e^{-i pi j/N} O_j) / 2, written out in real arithmetic:
-        // 4 out_j = cos_j (Z_j.re - Z_{N-j}.re) + sin_j (Z_j.im + Z_{N-j}.im) - (Z_j.im - Z_{N-j}.im).
+        // 4 out_j = cos_j (Z_j.re - Z_{N-j}.re) + sin_j (Z_j.im + Z_{N-j}.im)
+        //           - (Z_j.im - Z_{N-j}.im).
+        let m = out.len();
         let z = &self.buf;
-        for (j, o) in out.iter_mut().enumerate() {
-            let j = j + 1;
-            let (a, b) = (z[j], z[n - j]);
-            *o = self.cos4[j] * (a.re - b.re) + self.sin4[j] * (a.im + b.im) - 0.25 * (a.im - b.im);
+        let up = z[1..=m].iter().zip(z[n - m..].iter().rev());
+        let trig = self.cos4[1..=m].iter().zip(&self.sin4[1..=m]);
+        for ((o, (a, b)), (c, s)) in out.iter_mut().zip(up).zip(trig) {
+            *o = c * (a.re - b.re) + s * (a.im + b.im) - 0.25 * (a.im - b.im);
         }
     }
 }
@@ -318,6 +326,24 @@ mod tests {
                     k + 1
                 );
             }
+        }
+        // The fused four-wheel evaluation gives the same shapes and Z_r = sum_k Y_k q_k.
+        let xs = [30.3, 100.0, 255.5, 539.0];
+        let q: Vec<f64> = (0..tp.n_m).map(|k| 1.0 / (1.0 + k as f64)).collect();
+        let mut fused = vec![[0.0; 4]; tp.n_m];
+        let z = rail.wheel_shapes(&xs, &q, &mut fused);
+        for (i, &x) in xs.iter().enumerate() {
+            rail.shapes_at(x, &mut y);
+            for k in 0..tp.n_m {
+                // 128-mode rotation runs: ~128 eps plus the angle's last bit (see above).
+                assert!((fused[k][i] - y[k]).abs() < 1e-12 * rail.shape_scale);
+            }
+            let direct = Rail::displacement(&y, &q);
+            assert!(
+                (z[i] - direct).abs() < 1e-12 * rail.shape_scale * 10.0,
+                "{} vs {direct}",
+                z[i]
+            );
         }
         // w_1 = (pi/L)^2 sqrt(EI/m_r) for L = 540 m: 3.3846e-5 * 330.5 = 0.011187 rad/s.
         let w1 = rail.omega2[0].sqrt();

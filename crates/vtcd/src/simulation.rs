@@ -507,8 +507,7 @@ impl Simulation {
         let track = config.track();
         let vehicle = Vehicle::new(params, config.gravity);
         let hertz_g = contact::hertz_constant(config.wheel_radius);
-        stability::spectrum_bound(&vehicle, &track, params.k_f, params.c_f, hertz_g)
-            .check(config.dt)?;
+
         let (lc, lt) = (params.l_c, params.l_t);
         let offsets = [2.0 * (lc + lt), 2.0 * lc, 2.0 * lt, 0.0];
         let sim = Self {
@@ -543,6 +542,8 @@ impl Simulation {
                 hint: "lengthen the track (n_f), shorten the run (duration) or move x0".to_owned(),
             });
         }
+        stability::spectrum_bound(&vehicle, &track, params.k_f, params.c_f, hertz_g, need)
+            .check(config.dt)?;
         if let Some(p) = &sim.profile {
             let t_on = config.startup_zero_fraction * config.duration;
             let need = span(t_on.min(t_end));
@@ -611,7 +612,6 @@ impl Simulation {
         v: &[f64],
         a: &mut [f64],
     ) -> Wheels {
-        let nm = self.track.n_m;
         let [_, rq, rs, rb] = self.layout();
         let (q, qd) = (&x[rq.clone()], &v[rq.clone()]);
         let mut w = Wheels {
@@ -660,8 +660,14 @@ impl Simulation {
         ws.dst.apply(&ws.fastener[1..], &mut ws.modal);
         let aq = &mut a[rq];
         let p = w.p;
-        for (k, ((ak, y), (&qk, &w2))) in aq.iter_mut().zip(&ws.shapes).zip(q.iter().zip(&self.rail.omega2)).enumerate() {
-            *ak = -w2 * qk - scale * ws.modal[k] + (p[0] * y[0] + p[1] * y[1] + p[2] * y[2] + p[3] * y[3]);
+        for (k, ((ak, y), (&qk, &w2))) in aq
+            .iter_mut()
+            .zip(&ws.shapes)
+            .zip(q.iter().zip(&self.rail.omega2))
+            .enumerate()
+        {
+            *ak = -w2 * qk - scale * ws.modal[k]
+                + (p[0] * y[0] + p[1] * y[1] + p[2] * y[2] + p[3] * y[3]);
         }
         w
     }

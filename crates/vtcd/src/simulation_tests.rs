@@ -157,7 +157,9 @@ fn frequency_bound_exceeds_the_true_highest_frequency() {
         let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
         x = y.iter().map(|v| v / norm).collect();
     }
-    let bound = stability::spectrum_bound(&sim.vehicle, &tp, p.k_f, p.c_f, sim.hertz_g);
+    let xw = sim.wheel_positions(0.0);
+    let bound =
+        stability::spectrum_bound(&sim.vehicle, &tp, p.k_f, p.c_f, sim.hertz_g, [xw[3], xw[0]]);
     let omega_true = lambda.sqrt();
     assert!(
         omega_true <= bound.omega_max,

@@ -17,9 +17,15 @@
 //! w_max^2 <= w_{N_M}^2                                 rail bending, highest mode
 //!          + k_f (1/(m_r s) + 1/m_s)                   fasteners (exact: sine orthogonality)
 //!          + k_b (1/m_s + 1/m_b) + (k_g + 4 k_w) / m_b sleeper-ballast-subgrade, shear
-//!          + k_H (1/m_w + 4 * 2 N_M / (m_r L))         linearised Hertz, 4 wheels on the rail
+//!          + k_H (1/m_w + lambda_max(G))               linearised Hertz, 4 wheels on the rail
 //!          + Gershgorin(vehicle)                       suspension
 //! ```
+//! `G_ih = sum_k Y_k(x_i) Y_k(x_h) = (1/(m_r L)) sum_k [cos(k pi (x_i - x_h)/L) - cos(k pi
+//! (x_i + x_h)/L)]` is the wheels' 4x4 Gram matrix. Its Gershgorin bound uses the Dirichlet
+//! kernel, `|sum_{k=1}^{N} cos k theta| <= D(theta) = min(N, 1/(2 |sin(theta/2)|) + 1/2)`:
+//! with every wheel at least `e` from both rail ends during the run and wheels at least
+//! `d = min(2 l_t, 2 (l_c - l_t))` apart, `G_ii <= (N_M + D_e) / (m_r L)` and
+//! `|G_ih| <= (D_d + D_e) / (m_r L)`, `D_e = D(2 pi e / L)`, `D_d = D(pi d / L)`.
 //! with `k_H = 1.5 P^(1/3) / G` linearised at [`CONTACT_LOAD_FACTOR`] times the static wheel
 //! load (`k_H` grows only as `P^(1/3)`). The same split bounds the damping rate `c_max`. A `dt`
 //! is accepted when every oscillator with `w <= w_max` and `2 xi w <= c_max` is stable.
@@ -28,6 +34,7 @@ use crate::contact;
 use crate::rail::Rail;
 use crate::track::TrackParams;
 use crate::vehicle::{Vehicle, NUM_DOFS};
+use std::f64::consts::PI;
 
 /// Wheel load (in static wheel loads `W`) at which the Hertz contact is linearised for the
 /// frequency bound: dynamic loads of these runs stay well below 3 W, and the bound grows only
@@ -109,19 +116,20 @@ fn vehicle_gershgorin(m: &[[f64; NUM_DOFS]; NUM_DOFS], masses: &[f64; NUM_DOFS])
         .fold(0.0, f64::max)
 }
 
-/// Bounds for one vehicle (`k_f`, `c_f` of its sample) on track `tp` with Hertz constant `g`.
+/// Bounds for one vehicle (`k_f`, `c_f` of its sample) on track `tp` with Hertz constant `g`,
+/// its wheels staying within `wheel_span = [lowest, highest]` positions (m) during the run.
 pub fn spectrum_bound(
     vehicle: &Vehicle,
     tp: &TrackParams,
     k_f: f64,
     c_f: f64,
     g: f64,
+    wheel_span: [f64; 2],
 ) -> SpectrumBound {
     let rail = Rail::new(tp);
     let w_rail = rail.omega2.last().copied().unwrap_or(0.0);
     let rail_seat = 1.0 / (tp.m_r * tp.s);
-    // Largest |Y_k(x)|^2 summed over modes: 2 N_M / (m_r L); four wheels share the rail.
-    let rail_point = 4.0 * 2.0 * tp.n_m as f64 / (tp.m_r * tp.length());
+    let rail_point = wheel_gram_bound(vehicle, tp, wheel_span);
     let k_h = contact::linear_stiffness(CONTACT_LOAD_FACTOR * vehicle.w, g);
     let masses = vehicle.masses();
     let omega2 = w_rail
@@ -138,6 +146,28 @@ pub fn spectrum_bound(
         omega_max: omega2.sqrt(),
         damping_max: damping,
     }
+}
+
+/// Gershgorin bound of `lambda_max(G)` (1/kg) for the wheels' Gram matrix (module doc).
+fn wheel_gram_bound(vehicle: &Vehicle, tp: &TrackParams, wheel_span: [f64; 2]) -> f64 {
+    let (n, l) = (tp.n_m as f64, tp.length());
+    let dirichlet = |half_angle: f64| {
+        let s = half_angle.sin().abs();
+        if s > 0.0 {
+            (0.5 / s + 0.5).min(n)
+        } else {
+            n
+        }
+    };
+    let edge = wheel_span[0].min(l - wheel_span[1]).max(0.0);
+    let spacing = (2.0 * vehicle.l_t)
+        .min(2.0 * (vehicle.l_c - vehicle.l_t))
+        .max(0.0);
+    let d_e = dirichlet(PI * edge / l);
+    let d_d = dirichlet(PI * spacing / (2.0 * l));
+    let row = (n + d_e) + 3.0 * (d_d + d_e);
+    // Never above the trivial bound 4 wheels x 2 N_M / (m_r L).
+    row.min(8.0 * n) / (tp.m_r * l)
 }
 
 impl SpectrumBound {
@@ -215,7 +245,7 @@ mod tests {
             c_f: 5e4,
             ..SampleParams::NOMINAL
         };
-        let bound = spectrum_bound(&Vehicle::new(&p, 9.81), &tp, p.k_f, p.c_f, g);
+        let bound = spectrum_bound(&Vehicle::new(&p, 9.81), &tp, p.k_f, p.c_f, g, [20.0, 531.6]);
         bound.check(1e-4).unwrap();
         let limit = bound.dt_limit();
         assert!(limit > 1e-4 && limit < 1e-3, "{limit}");

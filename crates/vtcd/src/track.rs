@@ -172,25 +172,30 @@ pub fn substructure(
     .all(|&l| l == n));
     let (inv_ms, inv_mb) = (1.0 / tp.m_s, 1.0 / tp.m_b);
     let (k_b, c_b, k_g, c_g, k_w, c_w) = (tp.k_b, tp.c_b, tp.k_g, tp.c_g, tp.k_w, tp.c_w);
-    // One fastener column given its ballast neighbours (zero beyond the ends). Interior
-    // columns run in a branch-free loop the compiler vectorises.
-    let mut column = |j: usize, zl: f64, vl: f64, zr: f64, vr: f64| {
-        let ff = rail_seat[j] - k_f * zs[j] - c_f * vs[j];
-        let fb = k_b * (zs[j] - zb[j]) + c_b * (vs[j] - vb[j]);
-        let shear = k_w * (2.0 * zb[j] - zl - zr) + c_w * (2.0 * vb[j] - vl - vr);
-        fastener[j] = ff;
-        a_s[j] = (ff - fb) * inv_ms;
-        a_b[j] = (fb - k_g * zb[j] - c_g * vb[j] - shear) * inv_mb;
-    };
-    if n == 1 {
-        column(0, 0.0, 0.0, 0.0, 0.0);
-        return;
+    // Pass 1: each column on its own, with the shear's own-block part 2 k_w Z_bj + 2 c_w Z_bj'.
+    // Plain zipped slices: no bounds checks, vectorised.
+    let (k_self, c_self) = (k_g + 2.0 * k_w, c_g + 2.0 * c_w);
+    let columns = rail_seat.iter().zip(zs).zip(vs).zip(zb.iter().zip(vb));
+    let outputs = fastener.iter_mut().zip(a_s.iter_mut()).zip(a_b.iter_mut());
+    for ((((&seat, &zs), &vs), (&zb, &vb)), ((ff_out, as_out), ab_out)) in columns.zip(outputs) {
+        let ff = seat - k_f * zs - c_f * vs;
+        let fb = k_b * (zs - zb) + c_b * (vs - vb);
+        *ff_out = ff;
+        *as_out = (ff - fb) * inv_ms;
+        *ab_out = (fb - k_self * zb - c_self * vb) * inv_mb;
     }
-    column(0, 0.0, 0.0, zb[1], vb[1]);
-    for j in 1..n - 1 {
-        column(j, zb[j - 1], vb[j - 1], zb[j + 1], vb[j + 1]);
+    // Pass 2: the neighbours' part of the shear, + k_w (Z_b,j-1 + Z_b,j+1) + c_w (..'), with
+    // blocks beyond the ends fixed at zero.
+    if n >= 2 {
+        let (kw, cw) = (k_w * inv_mb, c_w * inv_mb);
+        a_b[0] += kw * zb[1] + cw * vb[1];
+        a_b[n - 1] += kw * zb[n - 2] + cw * vb[n - 2];
+        let left = zb[..n - 2].iter().zip(&vb[..n - 2]);
+        let right = zb[2..].iter().zip(&vb[2..]);
+        for (a, ((zl, vl), (zr, vr))) in a_b[1..n - 1].iter_mut().zip(left.zip(right)) {
+            *a += kw * (zl + zr) + cw * (vl + vr);
+        }
     }
-    column(n - 1, zb[n - 2], vb[n - 2], 0.0, 0.0);
 }
 
 #[cfg(test)]

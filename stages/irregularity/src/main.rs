@@ -7,9 +7,12 @@
 //! Samples are generated in parallel; each depends only on `(seed, sample_id)`.
 
 use anyhow::{bail, Context, Result};
-use pino_data::{read_parquet_files, schema, write_parquet, Column, Table};
+use pino_data::{read_parquet_files, schema, Column, StreamWriter, Table};
 use rayon::prelude::*;
 use vtcd::irregularity::IrregularityParams;
+
+/// Samples per Parquet row group (64 x 5400 points at the defaults: 2.8 MB per column).
+const SAMPLES_PER_GROUP: usize = 64;
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
@@ -34,28 +37,37 @@ fn run() -> Result<String> {
         bail!("{}: sample_id {} appears twice", files[0].display(), w[0]);
     }
 
-    // Profiles are written straight into the `eta` column, one chunk per sample.
+    // Row groups of SAMPLES_PER_GROUP samples (a fixed layout: same bytes for any thread
+    // count); within a group the profiles are generated in parallel straight into `eta`.
     let n = generator.len();
     let progress = ctx.progress(ids.len() as u64);
-    let mut eta = vec![0.0; n * ids.len()];
-    eta.par_chunks_mut(n).zip(&ids).for_each(|(chunk, &id)| {
-        generator.profile_into(id as u64, chunk);
-        progress.inc(1);
-    });
-
-    let mut table = Table::default();
-    let sample_col = ids
-        .iter()
-        .flat_map(|&id| std::iter::repeat_n(id, n))
-        .collect();
-    table.push(schema::SAMPLE_ID, Column::I64(sample_col))?;
-    table.push(
-        schema::TRACK_X,
-        Column::F64(generator.positions().repeat(ids.len())),
-    )?;
-    table.push(schema::TRACK_ETA, Column::F64(eta))?;
     let path = ctx.output_path("irregularity.parquet");
-    write_parquet(&path, &table).with_context(|| format!("writing {}", path.display()))?;
+    let x = generator.positions();
+    let mut writer = None;
+    for group in ids.chunks(SAMPLES_PER_GROUP) {
+        let mut eta = vec![0.0; n * group.len()];
+        eta.par_chunks_mut(n).zip(group).for_each(|(chunk, &id)| {
+            generator.profile_into(id as u64, chunk);
+            progress.inc(1);
+        });
+        let mut table = Table::default();
+        let sample_col = group
+            .iter()
+            .flat_map(|&id| std::iter::repeat_n(id, n))
+            .collect();
+        table.push(schema::SAMPLE_ID, Column::I64(sample_col))?;
+        table.push(schema::TRACK_X, Column::F64(x.repeat(group.len())))?;
+        table.push(schema::TRACK_ETA, Column::F64(eta))?;
+        let w = match &mut writer {
+            Some(w) => w,
+            None => writer.insert(StreamWriter::create(&path, &table)?),
+        };
+        w.write(&table)?;
+    }
+    writer
+        .context("no samples in params.parquet")?
+        .finish()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(format!(
         "{} profiles x {n} points ({:.1} m at dx {} m), RMS {:.3} mm over {}-{} m wavelengths",
         ids.len(),

@@ -63,6 +63,7 @@ fn run() -> Result<()> {
 }
 
 fn main() {
+    pino_learn::single_threaded_by_default();
     if let Err(e) = run() {
         eprintln!("train: {e:#}");
         std::process::exit(1);

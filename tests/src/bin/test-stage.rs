@@ -34,6 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ctx.stage.clone()
     };
     log(&format!("start {unit}"));
+    log(&format!("pid {unit} {}", std::process::id()));
 
     let gated = get("gated").and_then(|v| v.as_bool()).unwrap_or(false)
         || get("gated_shards")

@@ -1,0 +1,142 @@
+//! End-to-end: the real `train`, `evaluate` and `predict` binaries on a small synthetic dataset
+//! (rigid-rail vehicle records that satisfy the ODEs exactly, `pino_learn::synthetic`), driven
+//! through the stage protocol's `--context FILE`.
+//!
+//! Build the binaries first: `cargo build -p train -p evaluate -p predict`.
+
+use pino_mbd_tests::bin;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn context(dir: &Path, name: &str, params: serde_json::Value, inputs: serde_json::Value) -> (PathBuf, PathBuf) {
+    let out = dir.join(format!("{name}-out"));
+    std::fs::create_dir_all(&out).unwrap();
+    let ctx = serde_json::json!({
+        "protocol": 1, "stage": name, "params": params, "inputs": inputs, "output": out,
+    });
+    let path = dir.join(format!("{name}.json"));
+    std::fs::write(&path, serde_json::to_string(&ctx).unwrap()).unwrap();
+    (path, out)
+}
+
+fn run(binary: &str, args: &[&str]) -> Output {
+    Command::new(bin(binary)).args(args).output().expect("binary runs")
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+#[test]
+fn train_evaluate_predict_end_to_end_and_bad_input() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let data = dir.join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    let spec = pino_learn::synthetic::SyntheticSpec {
+        n_train: 4,
+        n_validation: 2,
+        duration: 0.2,
+        ..Default::default()
+    };
+    pino_learn::synthetic::write_dataset(&spec, &data).unwrap();
+    let inputs = serde_json::json!({"params": [data], "dataset": [data], "weights": [data]});
+    let small = |alg: i64| {
+        serde_json::json!({"algorithm": alg, "width": 8, "modes": 6, "projection_width": 16,
+                           "epochs": 2, "batch_size": 2})
+    };
+
+    // Two algorithms: 3 uses phi and the ODE residual, 5 the derivative loss and depth 5.
+    let mut models = Vec::new();
+    for alg in [3, 5] {
+        let (ctx, out) = context(dir, &format!("train{alg}"), small(alg), inputs.clone());
+        let o = run("train", &["--context", ctx.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", text(&o));
+        let log = text(&o);
+        assert!(log.contains("::progress 2 2") && log.contains("ETA"), "{log}");
+        assert!(log.contains("::summary algorithm"), "{log}");
+        for f in ["model.safetensors", "model.json", "history.parquet"] {
+            assert!(out.join(f).is_file(), "{f} missing");
+        }
+        assert!(!out.join("checkpoint.json").exists(), "checkpoints are removed at the end");
+        models.push(out);
+    }
+
+    let (ctx, out) = context(
+        dir,
+        "evaluate",
+        serde_json::json!({"plot_samples": 1}),
+        serde_json::json!({"params": [data], "dataset": [data], "models": models}),
+    );
+    let o = run("evaluate", &["--context", ctx.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let t4 = pino_data::read_parquet(&out.join("table4.parquet"), None).unwrap();
+    assert_eq!(t4.i64("algorithm").unwrap(), &[3, 5]);
+    assert!(t4.f64("solutions_pct").unwrap().iter().all(|v| v.is_finite() && *v > 0.0));
+    assert_eq!(t4.f64("paper_second_derivatives_pct").unwrap(), &[20.79, 3.20]);
+    let md = std::fs::read_to_string(out.join("table4.md")).unwrap();
+    assert!(md.contains("| 5 | PINO-MBD (direct derivatives) | 5 |"), "{md}");
+    let ch = pino_data::read_parquet(&out.join("channel_errors.parquet"), None).unwrap();
+    assert_eq!(ch.num_rows(), 2 * (14 + 10 + 10));
+    for f in ["table4.csv", "channel_errors.csv", "training_curves.png", "pred_alg3_sample4.png", "plots.md"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+
+    // predict: two sets from YAML, one override, a profile file.
+    let yaml = dir.join("sets.yaml");
+    std::fs::write(&yaml, "- {k_s: 4.2e5}\n- {v_kmh: 320}\n").unwrap();
+    let profile = dir.join("profile.parquet");
+    let xs: Vec<f64> = (0..2000).map(|k| k as f64 * 0.25).collect();
+    let mut t = pino_data::Table::default();
+    t.push("x", pino_data::Column::F64(xs.clone())).unwrap();
+    t.push("eta", pino_data::Column::F64(xs.iter().map(|x| 3e-4 * (x / 7.0).sin()).collect())).unwrap();
+    pino_data::write_parquet(&profile, &t).unwrap();
+    let pred = dir.join("pred.parquet");
+    let o = run(
+        "predict",
+        &[
+            "--model", models[1].to_str().unwrap(), "--params", yaml.to_str().unwrap(),
+            "--set", "c_p=2.1e4", "--profile", profile.to_str().unwrap(), "--out", pred.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let p = pino_data::read_parquet(&pred, None).unwrap();
+    // 180 window points -> 178 interior rows per set.
+    assert_eq!(p.num_rows(), 2 * 178);
+    for c in ["set", "t", "z_c", "z_r4", "beta_c_v", "z_w4_a", "eta_1"] {
+        assert!(p.column(c).is_ok(), "column {c}");
+    }
+    assert!(p.f64("z_w1_a").unwrap().iter().all(|v| v.is_finite()));
+
+    // Bad input: unknown algorithm, missing column, model of another configuration.
+    let (ctx, _) = context(dir, "bad-alg", serde_json::json!({"algorithm": 6}), inputs.clone());
+    let o = run("train", &["--context", ctx.to_str().unwrap()]);
+    assert!(!o.status.success() && text(&o).contains("unknown algorithm 6"), "{}", text(&o));
+
+    let broken = dir.join("broken");
+    std::fs::create_dir_all(&broken).unwrap();
+    let sim = pino_data::read_parquet(&data.join("simulation.parquet"), None).unwrap();
+    let mut cut = pino_data::Table::default();
+    for (name, col) in sim.columns() {
+        if name != "z_w3_a" {
+            cut.push(name, col.clone()).unwrap();
+        }
+    }
+    pino_data::write_parquet(&broken.join("simulation.parquet"), &cut).unwrap();
+    let (ctx, _) = context(
+        dir,
+        "bad-col",
+        small(1),
+        serde_json::json!({"params": [data], "dataset": [broken], "weights": [data]}),
+    );
+    let o = run("train", &["--context", ctx.to_str().unwrap()]);
+    assert!(!o.status.success() && text(&o).contains("missing column `z_w3_a`"), "{}", text(&o));
+
+    std::fs::copy(models[0].join("model.json"), models[1].join("model.json")).unwrap();
+    let o = run(
+        "predict",
+        &["--model", models[1].to_str().unwrap(), "--seed", "1", "--out", pred.to_str().unwrap()],
+    );
+    assert!(!o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("model.safetensors") && text(&o).contains("depth 3"), "{}", text(&o));
+}
