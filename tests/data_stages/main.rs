@@ -337,3 +337,58 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
         );
     }
 }
+
+#[test]
+fn weights_of_a_simulated_dataset_vanish_without_noise() {
+    // The chain sample-params -> irregularity -> simulate -> weights on a short run. With
+    // r = 1e-12 phi is the clean residual max_t |R_i| of the stored solution, which the
+    // simulator makes consistent to round-off: below 1e-6 of the wheel load W (about 70 kN;
+    // observed ~1e-10 W). With r = 2% every phi is far above that.
+    let dir = tempfile::tempdir().unwrap();
+    let sampling = r#"{"seed": 2, "n_train": 2, "n_validation": 1}"#;
+    let (ctx, sp) = context(dir.path(), "sample-params", sampling, "");
+    ok("sample-params", &ctx, 1);
+    let inputs = format!(r#""params": ["{}"]"#, sp.display());
+    let (ctx, ir) = context(dir.path(), "irregularity", r#"{"seed": 2}"#, &inputs);
+    ok("irregularity", &ctx, 2);
+    let inputs = format!(
+        r#""params": ["{}"], "irregularity": ["{}"]"#,
+        sp.display(),
+        ir.display()
+    );
+    let (ctx, sim) = context(dir.path(), "simulate", r#"{"duration": 0.05}"#, &inputs);
+    ok("simulate", &ctx, 2);
+    let inputs = format!(
+        r#""params": ["{}"], "dataset": ["{}"]"#,
+        sp.display(),
+        sim.display()
+    );
+    let mut phi = Vec::new();
+    for (stage, r) in [("weights-clean", 1e-12), ("weights-noised", 0.02)] {
+        let (ctx, out) = context(
+            dir.path(),
+            stage,
+            &format!(r#"{{"seed": 2, "noise_ratio": {r}}}"#),
+            &inputs,
+        );
+        ok("weights", &ctx, 2);
+        let w = read_parquet(&out.join("weights.parquet"), None).unwrap();
+        assert_eq!(w.i64("sample_id").unwrap(), &[0, 1]);
+        let cols: Vec<Vec<f64>> = schema::phi_columns()
+            .iter()
+            .map(|c| w.f64(c).unwrap().to_vec())
+            .collect();
+        phi.push(cols);
+    }
+    let load = 7e4;
+    for (i, (clean, noised)) in phi[0].iter().zip(&phi[1]).enumerate() {
+        for (c, n) in clean.iter().zip(noised) {
+            assert!(*c < 1e-6 * load, "phi_{} clean {c}", i + 1);
+            assert!(
+                *n > 1e3 * c.max(1e-9),
+                "phi_{} noised {n} vs clean {c}",
+                i + 1
+            );
+        }
+    }
+}

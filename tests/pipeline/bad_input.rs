@@ -48,6 +48,10 @@ fn bad_pipeline_files_are_refused_with_file_and_line() {
             "escape_bin_dir.yaml",
             &["bad.yaml:1:", "bin_dir `../elsewhere/bin`"],
         ),
+        (
+            "duplicate_stage.yaml",
+            &["bad.yaml:6:", "duplicate key `a`"],
+        ),
     ];
     for (file, wanted) in cases {
         let ws = Ws::new("basic.yaml");

@@ -67,6 +67,30 @@ fn main() {
         );
         per_sim_second.push(ratio);
     }
+    // Plausibility of the physics on this run: wheel-load range after the fade-in, rail
+    // deflection under wheel 1, car-body motion.
+    let traj = sim.run().expect("finite run");
+    let from = traj.t.len() / 5;
+    let range = |c: usize| {
+        let v = &traj.columns[c][from..];
+        let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (lo, hi)
+    };
+    let col = vtcd::simulation::col::P;
+    let (p_lo, p_hi) = range(col);
+    let (zr_lo, zr_hi) = range(vtcd::simulation::col::Z_R);
+    let (zc_lo, zc_hi) = range(vtcd::simulation::col::Z);
+    println!(
+        "physics: P_1 in [{:.1}, {:.1}] kN (W = {:.1} kN), z_r1 in [{:.3}, {:.3}] mm, z_c in [{:.3}, {:.3}] mm",
+        p_lo / 1e3,
+        p_hi / 1e3,
+        sim.vehicle.w / 1e3,
+        zr_lo * 1e3,
+        zr_hi * 1e3,
+        zc_lo * 1e3,
+        zc_hi * 1e3
+    );
     per_sim_second.sort_by(f64::total_cmp);
     let median = per_sim_second[per_sim_second.len() / 2];
     println!("median: {median:.4} s compute per simulated s (paper MATLAB: 25; target 0.2)");

@@ -11,10 +11,11 @@
 //! ```
 //! On the fastener grid `Y_k(x_j) = sqrt(2/(m_r L)) sin(pi j k / N_f)`: both the modal-to-fastener
 //! map and its transpose are the DST-I `S_jk = sin(pi j k / N_f)` (`j, k = 1..N_f-1`; `x_0 = 0`
-//! is a node of every mode). [`SineTransform`] evaluates it in `O(N_f log N_f)` through one
-//! complex FFT of length `N_f` (the real FFT of the length-`2 N_f` odd extension, packed as
-//! even + i odd samples), instead of the `O(N_f N_M)` dense product ([`dense_sine_product`],
-//! kept as the reference the tests compare against).
+//! is a node of every mode). [`SineTransform`] evaluates it in `O(N_f log N_f)`: for even `N_f`
+//! through one complex FFT of length `N_f / 2` (a real FFT of a symmetrised sequence), for odd
+//! `N_f` through one complex FFT of length `N_f` (the real FFT of the length-`2 N_f` odd
+//! extension), instead of the `O(N_f N_M)` dense product ([`dense_sine_product`], kept as the
+//! reference the tests compare against to round-off).
 
 use rustfft::num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
@@ -125,8 +126,8 @@ impl Rail {
     }
 }
 
-/// The DST-I `out_j = sum_{k=1}^{N-1} u_k sin(pi j k / N)` for `j = 1..N-1`, evaluated with
-/// one complex FFT of length `N`.
+/// The DST-I `out_j = sum_{k=1}^{N-1} u_k sin(pi j k / N)` for `j = 1..N-1`. Even `N` goes
+/// through [`HalfSize`] (complex FFT of length `N/2`); odd `N` as follows (length `N`).
 ///
 /// With `y` the odd extension of `u` to length `2N` (`y_0 = y_N = 0`, `y_{2N-m} = -y_m`), its
 /// DFT is `Y_j = -2i out_j`. Packing `z_n = y_{2n} + i y_{2n+1}` (length `N`) and
@@ -143,6 +144,94 @@ pub struct SineTransform {
     /// `cos(pi j / N) / 4` and `sin(pi j / N) / 4`, `j = 0..N-1`.
     cos4: Vec<f64>,
     sin4: Vec<f64>,
+    /// The faster route for even `N` (see [`HalfSize`]).
+    half: Option<HalfSize>,
+}
+
+/// DST-I of even `N` through a real FFT of length `N`, itself one complex FFT of length `N/2`
+/// (half the work of the odd-extension route). With the symmetric/antisymmetric split
+/// ```text
+/// y_0 = 0,  y_j = sin(pi j / N) (u_j + u_{N-j}) + (u_j - u_{N-j}) / 2   (j = 1..N-1)
+/// Y_k = sum_j y_j exp(-2 pi i j k / N) = R_k + i I_k
+/// ```
+/// the symmetric part gives `R_k = F_{2k+1} - F_{2k-1}` (product-to-sum of
+/// `2 sin(pi j/N) cos(2 pi j k/N)`) and the antisymmetric part `I_k = -F_{2k}`, so
+/// `F_{2k} = -I_k`, `F_1 = R_0 / 2`, `F_{2k+1} = F_{2k-1} + R_k` (a running sum: rounding grows
+/// like sqrt(k) eps, tested against the dense product). The real FFT packs
+/// `z_n = y_{2n} + i y_{2n+1}` and unpacks `Y_k = E_k + exp(-2 pi i k / N) O_k` as above.
+struct HalfSize {
+    fft: Arc<dyn Fft<f64>>,
+    buf: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+    /// `sin(pi j / N)`, `j = 0..N-1`.
+    sin_pre: Vec<f64>,
+    /// `exp(-2 pi i k / N)`, `k = 0..N/2-1`.
+    twiddle: Vec<Complex64>,
+    /// Pre-processed sequence `y`, length `N`.
+    y: Vec<f64>,
+}
+
+impl HalfSize {
+    fn new(n: usize) -> Self {
+        let h = n / 2;
+        let fft = FftPlanner::new().plan_fft_forward(h);
+        let scratch = vec![Complex64::new(0.0, 0.0); fft.get_inplace_scratch_len()];
+        Self {
+            fft,
+            buf: vec![Complex64::new(0.0, 0.0); h],
+            scratch,
+            sin_pre: (0..n).map(|j| (PI * j as f64 / n as f64).sin()).collect(),
+            twiddle: (0..h)
+                .map(|k| {
+                    let (s, c) = (2.0 * PI * k as f64 / n as f64).sin_cos();
+                    Complex64::new(c, -s)
+                })
+                .collect(),
+            y: vec![0.0; n],
+        }
+    }
+
+    /// `pad` is `u_0..u_N` (zero ends); writes `F_1..F_m` into `out` (`m = out.len()`).
+    fn apply(&mut self, pad: &[f64], out: &mut [f64]) {
+        let n = self.y.len();
+        let h = n / 2;
+        self.y[0] = 0.0;
+        let fwd = pad[1..n].iter();
+        let bwd = pad[1..n].iter().rev();
+        for ((y, s), (a, b)) in self.y[1..]
+            .iter_mut()
+            .zip(&self.sin_pre[1..])
+            .zip(fwd.zip(bwd))
+        {
+            *y = s * (a + b) + 0.5 * (a - b);
+        }
+        for (z, y) in self.buf.iter_mut().zip(self.y.chunks_exact(2)) {
+            *z = Complex64::new(y[0], y[1]);
+        }
+        self.fft
+            .process_with_scratch(&mut self.buf, &mut self.scratch);
+        let m = out.len();
+        if m == 0 {
+            return;
+        }
+        let z = &self.buf;
+        // k = 0: E_0 = Re z_0, O_0 = Im z_0, so R_0 = Re z_0 + Im z_0 and F_1 = R_0 / 2.
+        let mut odd = 0.5 * (z[0].re + z[0].im);
+        out[0] = odd;
+        // k >= 1 (k <= m/2 <= N/2 - 1): Y_k from Z_k and conj Z_{N/2-k}; F_{2k} = -I_k,
+        // F_{2k+1} = F_{2k-1} + R_k.
+        let kmax = m / 2;
+        let half = Complex64::new(0.0, -0.5);
+        for k in 1..=kmax {
+            let (a, b) = (z[k], z[h - k].conj());
+            let yk = (a + b) * 0.5 + self.twiddle[k] * ((a - b) * half);
+            out[2 * k - 1] = -yk.im;
+            odd += yk.re;
+            if 2 * k < m {
+                out[2 * k] = odd;
+            }
+        }
+    }
 }
 
 impl std::fmt::Debug for SineTransform {
@@ -172,6 +261,7 @@ impl SineTransform {
             pad: vec![0.0; n + 1],
             cos4: (0..n).map(|j| 0.25 * angle(j).cos()).collect(),
             sin4: (0..n).map(|j| 0.25 * angle(j).sin()).collect(),
+            half: (n & 1 == 0).then(|| HalfSize::new(n)),
         }
     }
 
@@ -197,6 +287,10 @@ impl SineTransform {
         // extension is y_m = u_pad[m] for m <= N and y_m = -u_pad[2N - m] for m > N.
         self.pad[1..=input.len()].copy_from_slice(input);
         self.pad[input.len() + 1..].fill(0.0);
+        if let Some(half) = &mut self.half {
+            half.apply(&self.pad, out);
+            return;
+        }
         // z_i = y_{2i} + i y_{2i+1}: for i < ceil(N/2) both indices are <= N (the head);
         // for the rest, with m = N - 1 - i, z_i = -(u_pad[2m+2] + i u_pad[2m+1]).
         let head = n.div_ceil(2);

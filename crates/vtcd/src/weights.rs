@@ -243,8 +243,8 @@ pub fn max_abs_residuals(
         });
         let r = vehicle.residuals(&z, &v, &a, &p);
         for (m, ri) in max.iter_mut().zip(r) {
-            // A NaN residual must not vanish in max(): propagate it.
-            *m = if ri.is_nan() {
+            // f64::max drops NaN: keep a NaN once seen so that bad data cannot hide.
+            *m = if m.is_nan() || ri.is_nan() {
                 f64::NAN
             } else {
                 m.max(ri.abs())
@@ -292,7 +292,15 @@ pub fn magnitude_weights(
         eta,
     };
     let vehicle = Vehicle::new(params, cfg.gravity);
-    max_abs_residuals(&vehicle, hertz_constant(cfg.wheel_radius), &view, 0)
+    let phi = max_abs_residuals(&vehicle, hertz_constant(cfg.wheel_radius), &view, 0)?;
+    if let Some(i) = phi.iter().position(|x| !x.is_finite()) {
+        return Err(Error::OutOfRange {
+            name: format!("phi_{} of sample {sample_id}", i + 1),
+            value: phi[i],
+            allowed: "finite (the record holds non-finite values)".to_owned(),
+        });
+    }
+    Ok(phi)
 }
 
 #[cfg(test)]
@@ -512,5 +520,15 @@ mod tests {
             eta: empty,
         };
         assert!(magnitude_weights(&cfg(1, 0.02, 0.1), &p, 0, &s).is_err());
+        // A NaN anywhere in the window is refused, even when later points are finite.
+        let mut rec = Record::consistent(&p, 50);
+        rec.v[2][10] = f64::NAN;
+        let e = magnitude_weights(&cfg(1, 0.02, 0.1), &p, 9, &rec.signals())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("phi_") && e.contains("of sample 9") && e.contains("finite"),
+            "{e}"
+        );
     }
 }

@@ -27,23 +27,7 @@ fn run() -> Result<String> {
     cols.extend(schema::PARAMETERS);
     let params = read_parquet_files(&ctx.input_files("params", "params.parquet")?, Some(&cols))?;
     let irr_files = ctx.input_files("irregularity", "irregularity.parquet")?;
-    let irr = read_parquet_files(
-        &irr_files,
-        Some(&[schema::SAMPLE_ID, schema::TRACK_X, schema::TRACK_ETA]),
-    )?;
-    let mut profiles: BTreeMap<i64, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
-    let (ids, xs, etas) = (
-        irr.i64(schema::SAMPLE_ID)?,
-        irr.f64(schema::TRACK_X)?,
-        irr.f64(schema::TRACK_ETA)?,
-    );
-    for ((&id, &x), &eta) in ids.iter().zip(xs).zip(etas) {
-        if id >= 0 && ctx.shard.owns(id as u64) {
-            let p = profiles.entry(id).or_default();
-            p.0.push(x);
-            p.1.push(eta);
-        }
-    }
+    let mut profiles = owned_profiles(&irr_files, ctx.shard)?;
     let mut inputs = Vec::new();
     let values: Vec<&[f64]> = schema::PARAMETERS
         .iter()
@@ -106,6 +90,39 @@ fn run() -> Result<String> {
         s.index + 1,
         s.count
     ))
+}
+
+/// One profile's positions (m) and values (m).
+type XEta = (Vec<f64>, Vec<f64>);
+
+/// The profiles of the samples this shard owns, grouped by sample id (rows of one sample are
+/// consecutive in `irregularity.parquet`, sorted by x). The full table is freed on return.
+fn owned_profiles(
+    files: &[std::path::PathBuf],
+    shard: stage_kit::Shard,
+) -> Result<BTreeMap<i64, XEta>> {
+    let irr = read_parquet_files(
+        files,
+        Some(&[schema::SAMPLE_ID, schema::TRACK_X, schema::TRACK_ETA]),
+    )?;
+    let (ids, xs, etas) = (
+        irr.i64(schema::SAMPLE_ID)?,
+        irr.f64(schema::TRACK_X)?,
+        irr.f64(schema::TRACK_ETA)?,
+    );
+    let mut profiles: BTreeMap<i64, XEta> = BTreeMap::new();
+    let mut start = 0;
+    while start < ids.len() {
+        let id = ids[start];
+        let end = start + ids[start..].iter().take_while(|&&i| i == id).count();
+        if id >= 0 && shard.owns(id as u64) {
+            let p = profiles.entry(id).or_default();
+            p.0.extend_from_slice(&xs[start..end]);
+            p.1.extend_from_slice(&etas[start..end]);
+        }
+        start = end;
+    }
+    Ok(profiles)
 }
 
 /// One sample's rows in schema order: `sample_id`, `t`, then the 42 signals.
