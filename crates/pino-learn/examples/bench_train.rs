@@ -42,7 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     p.modes = modes;
     p.depth = Some(depth);
     let (_, train, window) = p.configs()?;
-    let ds = load_dataset(&files.params, &[files.simulation.clone()], Some(&files.weights), &window)?;
+    let ds = load_dataset(&files.params, std::slice::from_ref(&files.simulation), Some(&files.weights), &window)?;
     let cfg = ModelConfig { in_channels: 19, out_channels: 14, width, modes, depth, projection_width: p.projection_width };
     let dev = Device::Cpu;
     let model = Fno::new(cfg, ds.t_points(), 1, transform, &dev)?;

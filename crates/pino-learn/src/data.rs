@@ -197,7 +197,7 @@ pub fn load_dataset(
                 format!("sample {id}: time step {} at row {k} differs from the mean step {dt} (need a uniform, increasing grid)", ts[k] - ts[k - 1]),
             ));
         }
-        if !(dt > 0.0) {
+        if dt.is_nan() || dt <= 0.0 {
             return Err(dataset_err(first_file, format!("sample {id}: time is not increasing (dt = {dt})")));
         }
         match grid {

@@ -70,7 +70,7 @@ impl LossContext {
             std: self.norm.outputs.std[DOFS..].to_vec(),
         };
         let (z_r, _, _) = derivatives(&u_n.narrow(2, DOFS, 4)?, &rail_stats, self.dt)?;
-        residuals(&z, &v, &a, &z_r, &batch.eta, &batch.params, self.config.gravity, self.hertz_g())
+        residuals((&z, &v, &a), &z_r, &batch.eta, &batch.params, self.config.gravity, self.hertz_g())
     }
 
     /// `L_deriv` of a prediction.

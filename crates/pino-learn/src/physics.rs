@@ -43,14 +43,12 @@ pub fn derivatives(u_n: &Tensor, stats: &ChannelStats, dt: f64) -> Result<(Tenso
     Ok((z, v, a))
 }
 
-/// The ten residuals `R [B, T', 10]` (f64, N or N m) from physical `z, v, a [B, T', 10]`, rail
+/// The ten residuals `R [B, T', 10]` (f64, N or N m) from physical `(z, v, a)`, each `[B, T', 10]`, rail
 /// displacements `z_r [B, T', 4]`, irregularity `eta [B, T', 4]`, parameters `params [B, 14]`
 /// (spec order, whole-vehicle masses), gravity `g` (m/s^2) and Hertz constant `hertz_g`
 /// (m/N^(2/3)).
 pub fn residuals(
-    z: &Tensor,
-    v: &Tensor,
-    a: &Tensor,
+    (z, v, a): (&Tensor, &Tensor, &Tensor),
     z_r: &Tensor,
     eta: &Tensor,
     params: &Tensor,
@@ -137,9 +135,7 @@ mod tests {
             let want = veh.residuals(&z, &v, &a, &pc);
             let t = |x: &[f64], c: usize| Tensor::from_slice(x, (1, 1, c), &dev).unwrap();
             let r = residuals(
-                &t(&z, 10),
-                &t(&v, 10),
-                &t(&a, 10),
+                (&t(&z, 10), &t(&v, 10), &t(&a, 10)),
                 &t(&zr, 4),
                 &t(&eta, 4),
                 &Tensor::from_slice(&p, (1, 14), &dev).unwrap(),

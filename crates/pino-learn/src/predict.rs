@@ -219,8 +219,8 @@ pub fn predict(
         for n in 1..tp - 1 {
             set_col.push(s as i64);
             t_col.push(times[n]);
-            for c in 0..OUT_CHANNELS {
-                cols[c].1.push(ph.u[n * OUT_CHANNELS + c]);
+            for (c, col) in cols.iter_mut().take(OUT_CHANNELS).enumerate() {
+                col.1.push(ph.u[n * OUT_CHANNELS + c]);
             }
             for c in 0..DOFS {
                 cols[OUT_CHANNELS + c].1.push(ph.v[(n - 1) * DOFS + c]);
@@ -239,6 +239,9 @@ pub fn predict(
     }
     Ok((table, meta))
 }
+
+/// The parameter type of a set (re-exported so that callers need not depend on `vtcd`).
+pub type NominalParams = SampleParams;
 
 #[cfg(test)]
 mod tests {
@@ -279,6 +282,3 @@ mod tests {
         assert!((eta[8] - 1e-3 * x1).abs() < 1e-12);
     }
 }
-
-/// The parameter type of a set (re-exported so that callers need not depend on `vtcd`).
-pub type NominalParams = SampleParams;

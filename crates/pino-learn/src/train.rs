@@ -295,9 +295,7 @@ pub fn read_history(path: &Path) -> Result<Vec<HistoryRow>> {
 /// `history.parquet`. Checkpoints live in `out` while training and are removed at the end.
 pub fn train_to_dir(
     ds: &Dataset,
-    model_cfg: ModelConfig,
-    cfg: TrainConfig,
-    window: WindowConfig,
+    (model_cfg, cfg, window): (ModelConfig, TrainConfig, WindowConfig),
     transform: Transform,
     out: &Path,
     device: &Device,
@@ -409,7 +407,7 @@ mod tests {
         let dev = Device::Cpu;
         let out = dir.path().join("model");
         std::fs::create_dir_all(&out).unwrap();
-        let outcome = train_to_dir(&ds, m, t, WindowConfig::default(), Transform::Matmul, &out, &dev, &mut |_| {}).unwrap();
+        let outcome = train_to_dir(&ds, (m, t, WindowConfig::default()), Transform::Matmul, &out, &dev, &mut |_| {}).unwrap();
         let (back, meta) = checkpoint::load_model(&out, Transform::Matmul, &dev).unwrap();
         assert_eq!(meta, outcome.meta);
         assert_eq!(params_of(&back), params_of(&outcome.model));

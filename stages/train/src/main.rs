@@ -14,7 +14,8 @@ use stage_kit::StageContext;
 fn run() -> Result<()> {
     let ctx = StageContext::load()?;
     let p: TrainParams = ctx.params()?;
-    let (model, train, window) = p.configs().with_context(|| format!("stage `{}`", ctx.stage))?;
+    let configs = p.configs().with_context(|| format!("stage `{}`", ctx.stage))?;
+    let (_, train, window) = configs;
     let device = p.device.device()?;
     let params = ctx.input_files("params", "params.parquet")?;
     let [params] = params.as_slice() else {
@@ -29,7 +30,7 @@ fn run() -> Result<()> {
     };
     let ds = load_dataset(params, &sims, weights.as_deref(), &window)?;
     let progress = ctx.progress(train.epochs as u64);
-    let outcome = train_to_dir(&ds, model, train, window, Transform::Matmul, &ctx.output, &device, &mut |r| {
+    let outcome = train_to_dir(&ds, configs, Transform::Matmul, &ctx.output, &device, &mut |r| {
         let left = (r.epochs - r.row.epoch) as f64 * r.seconds_per_epoch;
         progress.set(
             r.row.epoch as u64,
