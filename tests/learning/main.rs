@@ -8,7 +8,12 @@ use pino_mbd_tests::bin;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn context(dir: &Path, name: &str, params: serde_json::Value, inputs: serde_json::Value) -> (PathBuf, PathBuf) {
+fn context(
+    dir: &Path,
+    name: &str,
+    params: serde_json::Value,
+    inputs: serde_json::Value,
+) -> (PathBuf, PathBuf) {
     let out = dir.join(format!("{name}-out"));
     std::fs::create_dir_all(&out).unwrap();
     let ctx = serde_json::json!({
@@ -20,11 +25,18 @@ fn context(dir: &Path, name: &str, params: serde_json::Value, inputs: serde_json
 }
 
 fn run(binary: &str, args: &[&str]) -> Output {
-    Command::new(bin(binary)).args(args).output().expect("binary runs")
+    Command::new(bin(binary))
+        .args(args)
+        .output()
+        .expect("binary runs")
 }
 
 fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
 }
 
 #[test]
@@ -53,12 +65,18 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         let o = run("train", &["--context", ctx.to_str().unwrap()]);
         assert!(o.status.success(), "{}", text(&o));
         let log = text(&o);
-        assert!(log.contains("::progress 2 2") && log.contains("ETA"), "{log}");
+        assert!(
+            log.contains("::progress 2 2") && log.contains("ETA"),
+            "{log}"
+        );
         assert!(log.contains("::summary algorithm"), "{log}");
         for f in ["model.safetensors", "model.json", "history.parquet"] {
             assert!(out.join(f).is_file(), "{f} missing");
         }
-        assert!(!out.join("checkpoint.json").exists(), "checkpoints are removed at the end");
+        assert!(
+            !out.join("checkpoint.json").exists(),
+            "checkpoints are removed at the end"
+        );
         models.push(out);
     }
 
@@ -72,13 +90,29 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     assert!(o.status.success(), "{}", text(&o));
     let t4 = pino_data::read_parquet(&out.join("table4.parquet"), None).unwrap();
     assert_eq!(t4.i64("algorithm").unwrap(), &[3, 5]);
-    assert!(t4.f64("solutions_pct").unwrap().iter().all(|v| v.is_finite() && *v > 0.0));
-    assert_eq!(t4.f64("paper_second_derivatives_pct").unwrap(), &[20.79, 3.20]);
+    assert!(t4
+        .f64("solutions_pct")
+        .unwrap()
+        .iter()
+        .all(|v| v.is_finite() && *v > 0.0));
+    assert_eq!(
+        t4.f64("paper_second_derivatives_pct").unwrap(),
+        &[20.79, 3.20]
+    );
     let md = std::fs::read_to_string(out.join("table4.md")).unwrap();
-    assert!(md.contains("| 5 | PINO-MBD (direct derivatives) | 5 |"), "{md}");
+    assert!(
+        md.contains("| 5 | PINO-MBD (direct derivatives) | 5 |"),
+        "{md}"
+    );
     let ch = pino_data::read_parquet(&out.join("channel_errors.parquet"), None).unwrap();
     assert_eq!(ch.num_rows(), 2 * (14 + 10 + 10));
-    for f in ["table4.csv", "channel_errors.csv", "training_curves.png", "pred_alg3_sample4.png", "plots.md"] {
+    for f in [
+        "table4.csv",
+        "channel_errors.csv",
+        "training_curves.png",
+        "pred_alg3_sample4.png",
+        "plots.md",
+    ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
 
@@ -89,14 +123,26 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     let xs: Vec<f64> = (0..2000).map(|k| k as f64 * 0.25).collect();
     let mut t = pino_data::Table::default();
     t.push("x", pino_data::Column::F64(xs.clone())).unwrap();
-    t.push("eta", pino_data::Column::F64(xs.iter().map(|x| 3e-4 * (x / 7.0).sin()).collect())).unwrap();
+    t.push(
+        "eta",
+        pino_data::Column::F64(xs.iter().map(|x| 3e-4 * (x / 7.0).sin()).collect()),
+    )
+    .unwrap();
     pino_data::write_parquet(&profile, &t).unwrap();
     let pred = dir.join("pred.parquet");
     let o = run(
         "predict",
         &[
-            "--model", models[1].to_str().unwrap(), "--params", yaml.to_str().unwrap(),
-            "--set", "c_p=2.1e4", "--profile", profile.to_str().unwrap(), "--out", pred.to_str().unwrap(),
+            "--model",
+            models[1].to_str().unwrap(),
+            "--params",
+            yaml.to_str().unwrap(),
+            "--set",
+            "c_p=2.1e4",
+            "--profile",
+            profile.to_str().unwrap(),
+            "--out",
+            pred.to_str().unwrap(),
         ],
     );
     assert!(o.status.success(), "{}", text(&o));
@@ -109,9 +155,18 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     assert!(p.f64("z_w1_a").unwrap().iter().all(|v| v.is_finite()));
 
     // Bad input: unknown algorithm, missing column, model of another configuration.
-    let (ctx, _) = context(dir, "bad-alg", serde_json::json!({"algorithm": 6}), inputs.clone());
+    let (ctx, _) = context(
+        dir,
+        "bad-alg",
+        serde_json::json!({"algorithm": 6}),
+        inputs.clone(),
+    );
     let o = run("train", &["--context", ctx.to_str().unwrap()]);
-    assert!(!o.status.success() && text(&o).contains("unknown algorithm 6"), "{}", text(&o));
+    assert!(
+        !o.status.success() && text(&o).contains("unknown algorithm 6"),
+        "{}",
+        text(&o)
+    );
 
     let broken = dir.join("broken");
     std::fs::create_dir_all(&broken).unwrap();
@@ -130,13 +185,48 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         serde_json::json!({"params": [data], "dataset": [broken], "weights": [data]}),
     );
     let o = run("train", &["--context", ctx.to_str().unwrap()]);
-    assert!(!o.status.success() && text(&o).contains("missing column `z_w3_a`"), "{}", text(&o));
+    assert!(
+        !o.status.success() && text(&o).contains("missing column `z_w3_a`"),
+        "{}",
+        text(&o)
+    );
 
     std::fs::copy(models[0].join("model.json"), models[1].join("model.json")).unwrap();
     let o = run(
         "predict",
-        &["--model", models[1].to_str().unwrap(), "--seed", "1", "--out", pred.to_str().unwrap()],
+        &[
+            "--model",
+            models[1].to_str().unwrap(),
+            "--seed",
+            "1",
+            "--out",
+            pred.to_str().unwrap(),
+        ],
     );
     assert!(!o.status.success(), "{}", text(&o));
-    assert!(text(&o).contains("model.safetensors") && text(&o).contains("depth 3"), "{}", text(&o));
+    assert!(
+        text(&o).contains("model.safetensors") && text(&o).contains("depth 3"),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
+fn pipeline_files_parameter_blocks_parse_into_the_learning_types() {
+    for file in ["pipeline.yaml", "configs/paper.yaml"] {
+        let path = pino_mbd_tests::workspace_root().join(file);
+        let doc: serde_yaml::Value =
+            serde_yaml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let stages = &doc["stages"];
+        for alg in 1..=5 {
+            let mut params = stages["train"]["params"].clone();
+            params["algorithm"] = serde_yaml::Value::from(alg);
+            let p: pino_learn::config::TrainParams = serde_yaml::from_value(params).unwrap();
+            let (m, _, _) = p.configs().unwrap_or_else(|e| panic!("{file}: {e}"));
+            assert_eq!(m.depth, if alg == 5 { 5 } else { 3 }, "{file}");
+        }
+        let _: pino_learn::eval::EvalParams =
+            serde_yaml::from_value(stages["evaluate"]["params"].clone())
+                .unwrap_or_else(|e| panic!("{file}: {e}"));
+    }
 }

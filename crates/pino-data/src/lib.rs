@@ -26,7 +26,9 @@ mod table;
 mod parquet_io;
 mod stream;
 
-pub use parquet_io::{read_parquet, read_parquet_files, row_count, write_parquet, write_parquet_with};
+pub use parquet_io::{
+    for_each_batch, read_parquet, read_parquet_files, row_count, write_parquet, write_parquet_with,
+};
 pub use stream::StreamWriter;
 pub use table::{Column, Table};
 

@@ -6,8 +6,8 @@
 
 use crate::{Column, Error, Result, Table};
 use arrow_array::{Array, ArrayRef, Float64Array, Int64Array, RecordBatch, StringArray};
-use arrow_schema::{DataType, Field, Schema};
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use arrow_schema::{DataType, Field, Schema, SchemaRef};
+use parquet::arrow::arrow_reader::{ParquetRecordBatchReader, ParquetRecordBatchReaderBuilder};
 use parquet::arrow::{ArrowWriter, ProjectionMask};
 use parquet::basic::Compression;
 use parquet::file::properties::WriterProperties;
@@ -107,9 +107,12 @@ pub fn row_count(path: &Path) -> Result<usize> {
     Ok(builder.metadata().file_metadata().num_rows() as usize)
 }
 
-/// Reads the named columns (all columns when `columns` is `None`) of one Parquet file.
-/// Columns come back in the order asked for.
-pub fn read_parquet(path: &Path, columns: Option<&[&str]>) -> Result<Table> {
+/// Opens `path` and projects it onto the named columns (all when `None`): the batch reader,
+/// the wanted names in order, and the file's Arrow schema.
+fn projected_reader(
+    path: &Path,
+    columns: Option<&[&str]>,
+) -> Result<(ParquetRecordBatchReader, Vec<String>, SchemaRef)> {
     let file = File::open(path).map_err(|e| io(path, e))?;
     let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| pq(path, e))?;
     let arrow_schema = builder.schema().clone();
@@ -137,6 +140,13 @@ pub fn read_parquet(path: &Path, columns: Option<&[&str]>) -> Result<Table> {
         .with_batch_size(64 * 1024)
         .build()
         .map_err(|e| pq(path, e))?;
+    Ok((reader, wanted, arrow_schema))
+}
+
+/// Reads the named columns (all columns when `columns` is `None`) of one Parquet file.
+/// Columns come back in the order asked for.
+pub fn read_parquet(path: &Path, columns: Option<&[&str]>) -> Result<Table> {
+    let (reader, wanted, arrow_schema) = projected_reader(path, columns)?;
 
     let mut cols: Vec<Column> = Vec::new();
     let mut first = true;
@@ -183,6 +193,29 @@ pub fn read_parquet_files(paths: &[PathBuf], columns: Option<&[&str]>) -> Result
         table.append(read_parquet(p, columns)?)?;
     }
     Ok(table)
+}
+
+/// Streams the named columns of one Parquet file as tables of at most 64 Ki rows each, in
+/// file order, to `f` (for files too large to hold whole; an empty file calls `f` never).
+pub fn for_each_batch(
+    path: &Path,
+    columns: Option<&[&str]>,
+    mut f: impl FnMut(Table) -> Result<()>,
+) -> Result<()> {
+    let (reader, wanted, _) = projected_reader(path, columns)?;
+    for batch in reader {
+        let batch = batch.map_err(|e| pq(path, e))?;
+        let schema = batch.schema();
+        let mut table = Table::with_origin(path);
+        for name in &wanted {
+            let idx = schema.index_of(name).map_err(|e| pq(path, e))?;
+            let mut col = empty_column(path, name, schema.field(idx).data_type())?;
+            append_array(path, name, &mut col, batch.column(idx).as_ref())?;
+            table.push(name, col)?;
+        }
+        f(table)?;
+    }
+    Ok(())
 }
 
 fn empty_column(path: &Path, name: &str, dt: &DataType) -> Result<Column> {

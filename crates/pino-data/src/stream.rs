@@ -202,4 +202,30 @@ mod tests {
         assert_eq!(read_parquet(&empty, None).unwrap().num_rows(), 0);
         write_parquet(&dir.path().join("w.parquet"), &table(vec![1], vec![1.0])).unwrap();
     }
+
+    /// `for_each_batch` streams a file in order, in batches of at most 64 Ki rows, with the
+    /// asked-for columns only.
+    #[test]
+    fn batches_stream_the_file_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("b.parquet");
+        let n = 150_000;
+        let ids: Vec<i64> = (0..n).collect();
+        let xs: Vec<f64> = (0..n).map(|i| i as f64 * 0.5).collect();
+        write_parquet(&path, &table(ids.clone(), xs)).unwrap();
+        let mut seen = Vec::new();
+        let mut batches = 0;
+        crate::for_each_batch(&path, Some(&["sample_id"]), |t| {
+            assert!(t.num_rows() <= 64 * 1024);
+            assert_eq!(t.names().collect::<Vec<_>>(), vec!["sample_id"]);
+            seen.extend_from_slice(t.i64("sample_id")?);
+            batches += 1;
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(seen, ids);
+        assert!(batches >= 3);
+        let err = crate::for_each_batch(&path, Some(&["nope"]), |_| Ok(())).unwrap_err();
+        assert!(err.to_string().contains("`nope`"), "{err}");
+    }
 }

@@ -25,7 +25,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let depth: usize = arg(2, "3").parse()?;
     let batch: usize = arg(3, "8").parse()?;
     let points: usize = arg(4, "1800").parse()?;
-    let transform = if arg(5, "matmul") == "fft" { Transform::Fft } else { Transform::Matmul };
+    let transform = if arg(5, "matmul") == "fft" {
+        Transform::Fft
+    } else {
+        Transform::Matmul
+    };
     let steps: usize = arg(6, "10").parse()?;
     let dir = std::env::temp_dir().join(format!("pino-bench-{points}"));
     std::fs::create_dir_all(&dir)?;
@@ -42,12 +46,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     p.modes = modes;
     p.depth = Some(depth);
     let (_, train, window) = p.configs()?;
-    let ds = load_dataset(&files.params, std::slice::from_ref(&files.simulation), Some(&files.weights), &window)?;
-    let cfg = ModelConfig { in_channels: 19, out_channels: 14, width, modes, depth, projection_width: p.projection_width };
+    let ds = load_dataset(
+        &files.params,
+        std::slice::from_ref(&files.simulation),
+        Some(&files.weights),
+        &window,
+    )?;
+    let cfg = ModelConfig {
+        in_channels: 19,
+        out_channels: 14,
+        width,
+        modes,
+        depth,
+        projection_width: p.projection_width,
+    };
     let dev = Device::Cpu;
     let model = Fno::new(cfg, ds.t_points(), 1, transform, &dev)?;
     let norm = ds.normalisation()?;
-    let loss = LossContext { config: train, norm: norm.clone(), dt: ds.dt, f_ref: ds.mean_wheel_load(9.81) };
+    let loss = LossContext {
+        config: train,
+        norm: norm.clone(),
+        dt: ds.dt,
+        f_ref: ds.mean_wheel_load(9.81),
+    };
     let items = prepare(&ds, &norm);
     let idx: Vec<usize> = (0..batch).collect();
     let b = make_batch(&items, &idx, ds.t_points(), &dev)?;
@@ -69,7 +90,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let t0 = Instant::now();
         for c in val.chunks(8) {
             let vb = make_batch(&items, c, ds.t_points(), &dev)?;
-            let _ = model.forward(&vb.x)?.to_dtype(candle_core::DType::F32)?.flatten_all()?.to_vec1::<f32>()?;
+            let _ = model
+                .forward(&vb.x)?
+                .to_dtype(candle_core::DType::F32)?
+                .flatten_all()?
+                .to_vec1::<f32>()?;
         }
         inf.push(t0.elapsed().as_secs_f64());
     }

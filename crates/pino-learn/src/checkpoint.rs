@@ -49,7 +49,9 @@ pub struct TimeGrid {
 impl TimeGrid {
     /// The window's times.
     pub fn times(&self) -> Vec<f64> {
-        (0..self.t_points).map(|k| self.t0 + k as f64 * self.dt).collect()
+        (0..self.t_points)
+            .map(|k| self.t0 + k as f64 * self.dt)
+            .collect()
     }
 }
 
@@ -121,7 +123,10 @@ struct CheckpointJson {
 }
 
 fn save_tensors(path: &Path, tensors: &HashMap<String, Tensor>) -> Result<()> {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
     candle_core::safetensors::save(tensors, &tmp)?;
     let f = std::fs::File::open(&tmp).map_err(|e| io_err(&tmp, e))?;
@@ -131,7 +136,10 @@ fn save_tensors(path: &Path, tensors: &HashMap<String, Tensor>) -> Result<()> {
 
 fn load_tensors(path: &Path, device: &Device) -> Result<HashMap<String, Tensor>> {
     if !path.is_file() {
-        return Err(io_err(path, std::io::Error::new(std::io::ErrorKind::NotFound, "no such file")));
+        return Err(io_err(
+            path,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        ));
     }
     candle_core::safetensors::load(path, device).map_err(|e| Error::Format {
         path: path.to_owned(),
@@ -173,12 +181,25 @@ pub fn load_model(dir: &Path, transform: Transform, device: &Device) -> Result<(
     }
     let weights = dir.join(MODEL_WEIGHTS);
     let tensors = load_tensors(&weights, device)?;
-    let model = Fno::from_tensors(meta.model, meta.grid.t_points, &tensors, transform, &weights, device)?;
+    let model = Fno::from_tensors(
+        meta.model,
+        meta.grid.t_points,
+        &tensors,
+        transform,
+        &weights,
+        device,
+    )?;
     Ok((model, meta))
 }
 
 /// Writes a checkpoint (tensors first, then the sidecar).
-pub fn save_checkpoint(dir: &Path, model: &Fno, adam: &Adam, meta: &ModelMeta, state: &TrainState) -> Result<()> {
+pub fn save_checkpoint(
+    dir: &Path,
+    model: &Fno,
+    adam: &Adam,
+    meta: &ModelMeta,
+    state: &TrainState,
+) -> Result<()> {
     let mut tensors = HashMap::new();
     for (i, (name, var)) in model.vars().iter().enumerate() {
         tensors.insert(format!("param.{name}"), var.as_tensor().clone());
@@ -201,7 +222,11 @@ pub fn has_checkpoint(dir: &Path) -> bool {
 }
 
 /// Loads a checkpoint: model, optimizer, metadata and state.
-pub fn load_checkpoint(dir: &Path, transform: Transform, device: &Device) -> Result<(Fno, Adam, ModelMeta, TrainState)> {
+pub fn load_checkpoint(
+    dir: &Path,
+    transform: Transform,
+    device: &Device,
+) -> Result<(Fno, Adam, ModelMeta, TrainState)> {
     let json: CheckpointJson = read_json(&dir.join(CHECKPOINT_META))?;
     let path = dir.join(CHECKPOINT_TENSORS);
     let all = load_tensors(&path, device)?;
@@ -210,7 +235,14 @@ pub fn load_checkpoint(dir: &Path, transform: Transform, device: &Device) -> Res
             .filter_map(|(k, v)| k.strip_prefix(prefix).map(|n| (n.to_owned(), v.clone())))
             .collect()
     };
-    let model = Fno::from_tensors(json.meta.model, json.meta.grid.t_points, &pick("param."), transform, &path, device)?;
+    let model = Fno::from_tensors(
+        json.meta.model,
+        json.meta.grid.t_points,
+        &pick("param."),
+        transform,
+        &path,
+        device,
+    )?;
     let mut adam = Adam::new(model.vars())?;
     let (m, v) = (pick("adam_m."), pick("adam_v."));
     for (i, (name, var)) in model.vars().iter().enumerate() {

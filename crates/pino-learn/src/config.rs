@@ -139,8 +139,18 @@ impl ModelConfig {
                 })
             }
         };
-        check("width", self.width, (1..=4096).contains(&self.width), "1..=4096".into())?;
-        check("depth", self.depth, (1..=64).contains(&self.depth), "1..=64".into())?;
+        check(
+            "width",
+            self.width,
+            (1..=4096).contains(&self.width),
+            "1..=4096".into(),
+        )?;
+        check(
+            "depth",
+            self.depth,
+            (1..=64).contains(&self.depth),
+            "1..=64".into(),
+        )?;
         check(
             "projection_width",
             self.projection_width,
@@ -251,10 +261,7 @@ impl TrainConfig {
         if self.lr_decay_every == 0 {
             return bad("lr_decay_every", "0".into(), ">= 1 epoch");
         }
-        for (f, v) in [
-            ("lambda_ode", self.lambda_ode),
-            ("lambda_d", self.lambda_d),
-        ] {
+        for (f, v) in [("lambda_ode", self.lambda_ode), ("lambda_d", self.lambda_d)] {
             if !(v >= 0.0 && v.is_finite()) {
                 return bad(f, v.to_string(), ">= 0");
             }
@@ -287,19 +294,19 @@ fn d_proj() -> usize {
     64
 }
 fn d_epochs() -> usize {
-    60
+    50
 }
 fn d_batch() -> usize {
-    8
+    4
 }
 fn d_lr() -> f64 {
-    5e-4
+    1e-3
 }
 fn d_decay() -> f64 {
     0.75
 }
 fn d_decay_every() -> usize {
-    30
+    10
 }
 fn d_lambda_ode() -> f64 {
     0.25
@@ -488,7 +495,10 @@ mod tests {
             assert_eq!(Algorithm::from_id(a.id()).unwrap(), a);
         }
         let err = Algorithm::from_id(7).unwrap_err().to_string();
-        assert!(err.contains("unknown algorithm 7") && err.contains("1 (FNO)"), "{err}");
+        assert!(
+            err.contains("unknown algorithm 7") && err.contains("1 (FNO)"),
+            "{err}"
+        );
         let p: std::result::Result<TrainParams, _> =
             serde_json::from_value(serde_json::json!({"algorithm": 9}));
         let err = p.unwrap().configs().unwrap_err().to_string();
@@ -504,8 +514,9 @@ mod tests {
         assert_eq!(m.depth, 5);
         let (m, _, _) = TrainParams::with_algorithm(4).configs().unwrap();
         assert_eq!(m.depth, 3);
-        assert_eq!(t.lr_at(29), 5e-4);
-        assert!((t.lr_at(30) - 3.75e-4).abs() < 1e-15);
+        assert_eq!(t.lr_at(9), 1e-3);
+        assert!((t.lr_at(10) - 7.5e-4).abs() < 1e-15);
+        assert!((t.lr_at(25) - 1e-3 * 0.75 * 0.75).abs() < 1e-15);
         assert!(m.validate(64).is_ok());
         assert!(m.validate(63).is_err(), "32 modes need 64 points");
     }

@@ -123,7 +123,11 @@ pub fn read_weights(path: &Path) -> Result<Vec<(i64, [f64; DOFS])>> {
         if let Some(i) = phi.iter().position(|p| !(p.is_finite() && *p > 0.0)) {
             return Err(dataset_err(
                 path,
-                format!("sample {id}: phi_{} = {} must be finite and > 0", i + 1, phi[i]),
+                format!(
+                    "sample {id}: phi_{} = {} must be finite and > 0",
+                    i + 1,
+                    phi[i]
+                ),
             ));
         }
         out.push((id, phi));
@@ -159,11 +163,28 @@ pub fn load_dataset(
             .map(|n| table.f64(n))
             .collect::<pino_data::Result<_>>()?)
     };
-    let sol_names: Vec<String> = schema::solution_channels().iter().map(|s| s.to_string()).collect();
-    let vel_names: Vec<String> = schema::VEHICLE_DOFS.iter().map(|s| schema::velocity(s)).collect();
-    let acc_names: Vec<String> = schema::VEHICLE_DOFS.iter().map(|s| schema::acceleration(s)).collect();
-    let eta_names: Vec<String> = schema::ETA_UNDER_WHEEL.iter().map(|s| s.to_string()).collect();
-    let (sol, vel, acc, eta) = (get(&sol_names)?, get(&vel_names)?, get(&acc_names)?, get(&eta_names)?);
+    let sol_names: Vec<String> = schema::solution_channels()
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let vel_names: Vec<String> = schema::VEHICLE_DOFS
+        .iter()
+        .map(|s| schema::velocity(s))
+        .collect();
+    let acc_names: Vec<String> = schema::VEHICLE_DOFS
+        .iter()
+        .map(|s| schema::acceleration(s))
+        .collect();
+    let eta_names: Vec<String> = schema::ETA_UNDER_WHEEL
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let (sol, vel, acc, eta) = (
+        get(&sol_names)?,
+        get(&vel_names)?,
+        get(&acc_names)?,
+        get(&eta_names)?,
+    );
 
     // Contiguous runs of one sample id.
     let mut runs: Vec<(i64, usize, usize)> = Vec::new();
@@ -188,17 +209,25 @@ pub fn load_dataset(
         let n = hi - lo;
         let ts = &times[lo..hi];
         if n < 3 {
-            return Err(dataset_err(first_file, format!("sample {id} has {n} time points, need >= 3")));
+            return Err(dataset_err(
+                first_file,
+                format!("sample {id} has {n} time points, need >= 3"),
+            ));
         }
         let dt = (ts[n - 1] - ts[0]) / (n - 1) as f64;
-        if let Some(k) = (1..n).find(|&k| ((ts[k] - ts[k - 1]) - dt).abs() > 1e-6 * dt.abs().max(1e-12)) {
+        if let Some(k) =
+            (1..n).find(|&k| ((ts[k] - ts[k - 1]) - dt).abs() > 1e-6 * dt.abs().max(1e-12))
+        {
             return Err(dataset_err(
                 first_file,
                 format!("sample {id}: time step {} at row {k} differs from the mean step {dt} (need a uniform, increasing grid)", ts[k] - ts[k - 1]),
             ));
         }
         if dt.is_nan() || dt <= 0.0 {
-            return Err(dataset_err(first_file, format!("sample {id}: time is not increasing (dt = {dt})")));
+            return Err(dataset_err(
+                first_file,
+                format!("sample {id}: time is not increasing (dt = {dt})"),
+            ));
         }
         match grid {
             None => grid = Some((n, dt, ts[0], id)),
@@ -209,7 +238,9 @@ pub fn load_dataset(
                         format!("sample {id} has {n} time points but sample {id0} has {n0}: all records must have the same length"),
                     ));
                 }
-                if (dt - dt0).abs() > 1e-9 * dt0 || (ts[0] - t00).abs() > 1e-9 * dt0.max(1e-12) * 1e3 {
+                if (dt - dt0).abs() > 1e-9 * dt0
+                    || (ts[0] - t00).abs() > 1e-9 * dt0.max(1e-12) * 1e3
+                {
                     return Err(dataset_err(
                         first_file,
                         format!("sample {id} has time grid (t0 {}, dt {dt}) but sample {id0} has (t0 {t00}, dt {dt0})", ts[0]),
@@ -217,7 +248,10 @@ pub fn load_dataset(
                 }
             }
         }
-        let keep: Vec<usize> = (window.first_index(n)..n).step_by(window.time_stride).map(|k| lo + k).collect();
+        let keep: Vec<usize> = (window.first_index(n)..n)
+            .step_by(window.time_stride)
+            .map(|k| lo + k)
+            .collect();
         if t_window.is_empty() {
             t_window = keep.iter().map(|&r| times[r]).collect();
         }
@@ -234,15 +268,11 @@ pub fn load_dataset(
                 format!("sample {id} is in the simulation but not in the parameters file"),
             ));
         };
-        let phi = match &weights {
-            Some(w) => Some(w.iter().find(|(wid, _)| *wid == id).map(|(_, p)| *p).ok_or_else(|| {
-                dataset_err(
-                    weights_file.unwrap_or(params_file),
-                    format!("no ODE weights for sample {id}"),
-                )
-            })?),
-            None => None,
-        };
+        // The weights stage covers the training split only; `train` checks that every
+        // training sample has its phi when the algorithm needs it.
+        let phi = weights
+            .as_ref()
+            .and_then(|w| w.iter().find(|(wid, _)| *wid == id).map(|(_, p)| *p));
         samples.push(Sample {
             id,
             split,
@@ -258,7 +288,10 @@ pub fn load_dataset(
         return Err(dataset_err(first_file, "the simulation has no rows".into()));
     };
     if t_window.len() < 3 {
-        return Err(dataset_err(first_file, format!("the window keeps {} points, need >= 3", t_window.len())));
+        return Err(dataset_err(
+            first_file,
+            format!("the window keeps {} points, need >= 3", t_window.len()),
+        ));
     }
     samples.sort_by_key(|s| s.id);
     Ok(Dataset {
@@ -277,22 +310,38 @@ impl Dataset {
 
     /// Indices of the samples of one split.
     pub fn split_indices(&self, split: Split) -> Vec<usize> {
-        (0..self.samples.len()).filter(|&i| self.samples[i].split == split).collect()
+        (0..self.samples.len())
+            .filter(|&i| self.samples[i].split == split)
+            .collect()
     }
 
     /// Mean static wheel load W (N) over the training split: the PINO force scale F_ref.
     pub fn mean_wheel_load(&self, gravity: f64) -> f64 {
-        let train: Vec<&Sample> = self.samples.iter().filter(|s| s.split == Split::Train).collect();
+        let train: Vec<&Sample> = self
+            .samples
+            .iter()
+            .filter(|s| s.split == Split::Train)
+            .collect();
         let sum: f64 = train
             .iter()
-            .map(|s| vtcd::vehicle::Vehicle::new(&vtcd::params::SampleParams::from_array(s.params), gravity).w)
+            .map(|s| {
+                vtcd::vehicle::Vehicle::new(
+                    &vtcd::params::SampleParams::from_array(s.params),
+                    gravity,
+                )
+                .w
+            })
             .sum();
         sum / train.len().max(1) as f64
     }
 
     /// Z-score statistics over the training split.
     pub fn normalisation(&self) -> Result<Normalisation> {
-        let train: Vec<&Sample> = self.samples.iter().filter(|s| s.split == Split::Train).collect();
+        let train: Vec<&Sample> = self
+            .samples
+            .iter()
+            .filter(|s| s.split == Split::Train)
+            .collect();
         if train.is_empty() {
             return Err(Error::Dataset {
                 path: PathBuf::from("params.parquet"),
@@ -304,8 +353,14 @@ impl Dataset {
         in_names.extend(schema::ETA_UNDER_WHEEL);
         in_names.extend(schema::PARAMETERS);
         let sol = schema::solution_channels();
-        let vel: Vec<String> = schema::VEHICLE_DOFS.iter().map(|s| schema::velocity(s)).collect();
-        let acc: Vec<String> = schema::VEHICLE_DOFS.iter().map(|s| schema::acceleration(s)).collect();
+        let vel: Vec<String> = schema::VEHICLE_DOFS
+            .iter()
+            .map(|s| schema::velocity(s))
+            .collect();
+        let acc: Vec<String> = schema::VEHICLE_DOFS
+            .iter()
+            .map(|s| schema::acceleration(s))
+            .collect();
         let vel: Vec<&str> = vel.iter().map(String::as_str).collect();
         let acc: Vec<&str> = acc.iter().map(String::as_str).collect();
         Ok(Normalisation {
@@ -384,17 +439,27 @@ pub struct Batch {
 }
 
 /// Builds the batch of `items[idx]` on `device`.
-pub fn make_batch(items: &[Prepared], idx: &[usize], t_points: usize, device: &Device) -> Result<Batch> {
+pub fn make_batch(
+    items: &[Prepared],
+    idx: &[usize],
+    t_points: usize,
+    device: &Device,
+) -> Result<Batch> {
     let b = idx.len();
     let t = t_points;
     let interior = |blk: &[f32], c: usize| -> Vec<f32> { blk[c..(t - 1) * c].to_vec() };
-    let cat32 = |f: &dyn Fn(&Prepared) -> Vec<f32>| -> Vec<f32> { idx.iter().flat_map(|&i| f(&items[i])).collect() };
+    let cat32 = |f: &dyn Fn(&Prepared) -> Vec<f32>| -> Vec<f32> {
+        idx.iter().flat_map(|&i| f(&items[i])).collect()
+    };
     let x = Tensor::from_vec(cat32(&|p| p.x.clone()), (b, t, IN_CHANNELS), device)?;
     let u = Tensor::from_vec(cat32(&|p| p.u.clone()), (b, t, OUT_CHANNELS), device)?;
     let v = Tensor::from_vec(cat32(&|p| interior(&p.v, DOFS)), (b, t - 2, DOFS), device)?;
     let a = Tensor::from_vec(cat32(&|p| interior(&p.a, DOFS)), (b, t - 2, DOFS), device)?;
     let params: Vec<f64> = idx.iter().flat_map(|&i| items[i].params).collect();
-    let eta: Vec<f64> = idx.iter().flat_map(|&i| items[i].eta[4..(t - 1) * 4].to_vec()).collect();
+    let eta: Vec<f64> = idx
+        .iter()
+        .flat_map(|&i| items[i].eta[4..(t - 1) * 4].to_vec())
+        .collect();
     let phi: Vec<f64> = idx.iter().flat_map(|&i| items[i].phi).collect();
     Ok(Batch {
         x,
@@ -405,4 +470,101 @@ pub fn make_batch(items: &[Prepared], idx: &[usize], t_points: usize, device: &D
         eta: Tensor::from_vec(eta, (b, t - 2, 4), device)?,
         phi: Tensor::from_vec(phi, (b, DOFS), device)?.to_dtype(DType::F64)?,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::{write_dataset, SyntheticSpec};
+    use pino_data::{read_parquet, write_parquet, Column, Table};
+
+    /// Rewrites `file` keeping the rows where `keep(row)` and the columns where `col(name)`.
+    fn rewrite(file: &Path, keep: &dyn Fn(usize) -> bool, col: &dyn Fn(&str) -> bool) {
+        let t = read_parquet(file, None).unwrap();
+        let rows: Vec<usize> = (0..t.num_rows()).filter(|&r| keep(r)).collect();
+        let mut out = Table::default();
+        for (name, c) in t.columns() {
+            if !col(name) {
+                continue;
+            }
+            let c = match c {
+                Column::F64(v) => Column::F64(rows.iter().map(|&r| v[r]).collect()),
+                Column::I64(v) => Column::I64(rows.iter().map(|&r| v[r]).collect()),
+                Column::Str(v) => Column::Str(rows.iter().map(|&r| v[r].clone()).collect()),
+            };
+            out.push(name, c).unwrap();
+        }
+        write_parquet(file, &out).unwrap();
+    }
+
+    #[test]
+    fn window_statistics_and_bad_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = SyntheticSpec {
+            n_train: 2,
+            n_validation: 1,
+            duration: 0.1,
+            ..Default::default()
+        };
+        let f = write_dataset(&spec, dir.path()).unwrap();
+        let ds = load_dataset(
+            &f.params,
+            std::slice::from_ref(&f.simulation),
+            Some(&f.weights),
+            &WindowConfig::default(),
+        )
+        .unwrap();
+        // 100 points, the first 10 dropped.
+        assert_eq!((ds.t_points(), ds.record_points), (90, 100));
+        assert!((ds.t[0] - 0.01).abs() < 1e-12 && (ds.dt - 1e-3).abs() < 1e-15);
+        assert_eq!(ds.split_indices(Split::Validation), vec![2]);
+        let norm = ds.normalisation().unwrap();
+        // Stats come from the training split only: sample 2's parameters do not move them.
+        let m_c_mean = (ds.samples[0].params[0] + ds.samples[1].params[0]) / 2.0;
+        assert!((norm.inputs.mean[5] - m_c_mean).abs() < 1e-9 * m_c_mean);
+
+        // Mismatched record lengths: sample 1 loses its last row.
+        rewrite(&f.simulation, &|r| r != 199, &|_| true);
+        let err = load_dataset(
+            &f.params,
+            std::slice::from_ref(&f.simulation),
+            None,
+            &WindowConfig::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("sample 1 has 99 time points but sample 0 has 100"),
+            "{err}"
+        );
+
+        // A missing column is named with its file.
+        rewrite(&f.simulation, &|_| true, &|c| c != "beta_t2_v");
+        let err = load_dataset(
+            &f.params,
+            std::slice::from_ref(&f.simulation),
+            None,
+            &WindowConfig::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("simulation.parquet") && err.contains("missing column `beta_t2_v`"),
+            "{err}"
+        );
+
+        // A non-positive phi is refused with its sample and column.
+        let w = read_parquet(&f.weights, None).unwrap();
+        let mut bad = Table::default();
+        for (name, c) in w.columns() {
+            let c = match (name.as_str(), c) {
+                ("phi_4", Column::F64(v)) => Column::F64(v.iter().map(|_| 0.0).collect()),
+                _ => c.clone(),
+            };
+            bad.push(name, c).unwrap();
+        }
+        write_parquet(&f.weights, &bad).unwrap();
+        let err = read_weights(&f.weights).unwrap_err().to_string();
+        assert!(err.contains("sample 0: phi_4 = 0"), "{err}");
+    }
 }

@@ -23,6 +23,31 @@ use pino_data::{schema, write_parquet, Column, Table};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+fn d_plots() -> usize {
+    2
+}
+fn d_batch() -> usize {
+    8
+}
+fn d_device() -> crate::config::DeviceKind {
+    crate::config::DeviceKind::Cpu
+}
+
+/// The `evaluate` stage's parameters as they appear in pipeline.yaml.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EvalParams {
+    /// Validation samples plotted per model.
+    #[serde(default = "d_plots")]
+    pub plot_samples: usize,
+    /// Samples per forward pass.
+    #[serde(default = "d_batch")]
+    pub batch_size: usize,
+    /// "cpu" or "cuda".
+    #[serde(default = "d_device")]
+    pub device: crate::config::DeviceKind,
+}
+
 /// Evaluation settings.
 #[derive(Debug, Clone)]
 pub struct EvalOptions {
@@ -179,11 +204,10 @@ fn channel_errors(ds: &Dataset, val: &[usize], preds: &[Physical]) -> Vec<Channe
                 sx += x2;
                 n += rows;
             }
-            let (worst, worst_rel) = rels
-                .iter()
-                .enumerate()
-                .filter(|(_, r)| r.is_finite())
-                .fold((0usize, f64::NEG_INFINITY), |(bi, bv), (i, &r)| if r > bv { (i, r) } else { (bi, bv) });
+            let (worst, worst_rel) = rels.iter().enumerate().filter(|(_, r)| r.is_finite()).fold(
+                (0usize, f64::NEG_INFINITY),
+                |(bi, bv), (i, &r)| if r > bv { (i, r) } else { (bi, bv) },
+            );
             let finite: Vec<f64> = rels.iter().copied().filter(|r| r.is_finite()).collect();
             out.push(ChannelError {
                 channel,
@@ -217,7 +241,9 @@ fn plot_sample(path: &Path, ds: &Dataset, i: usize, pred: &Physical) -> Result<(
             panels.push(vec![
                 Series {
                     x: x.clone(),
-                    y: (0..rows).map(|r| scale * exact[(r + off) * nch + c]).collect(),
+                    y: (0..rows)
+                        .map(|r| scale * exact[(r + off) * nch + c])
+                        .collect(),
                     color: BLACK,
                 },
                 Series {
@@ -323,8 +349,13 @@ pub fn evaluate(
             let ds = load_dataset(params_file, simulation_files, None, &meta.window)?;
             cache.push((meta.window, ds));
         }
-        let ds = &cache.iter().find(|(w, _)| *w == meta.window).expect("cached").1;
-        if ds.t_points() != meta.grid.t_points || (ds.dt - meta.grid.dt).abs() > 1e-9 * meta.grid.dt {
+        let ds = &cache
+            .iter()
+            .find(|(w, _)| *w == meta.window)
+            .expect("cached")
+            .1;
+        if ds.t_points() != meta.grid.t_points || (ds.dt - meta.grid.dt).abs() > 1e-9 * meta.grid.dt
+        {
             return Err(Error::Dataset {
                 path: simulation_files.first().cloned().unwrap_or_default(),
                 message: format!(
@@ -351,16 +382,30 @@ pub fn evaluate(
             dt: meta.grid.dt,
             f_ref: meta.f_ref,
         };
-        let per = evaluate_split(&model, &ctx, &items, &val, ds.t_points(), opts.batch_size, device)?;
+        let per = evaluate_split(
+            &model,
+            &ctx,
+            &items,
+            &val,
+            ds.t_points(),
+            opts.batch_size,
+            device,
+        )?;
         let mean = |v: &[f64]| 100.0 * v.iter().sum::<f64>() / v.len() as f64;
         let table4 = [mean(&per[0]), mean(&per[1]), mean(&per[2])];
-        let (preds, wall) = predict_samples(&model, &items, &val, ds.t_points(), opts.batch_size, device)?;
+        let (preds, wall) =
+            predict_samples(&model, &items, &val, ds.t_points(), opts.batch_size, device)?;
         let phys: Vec<Physical> = preds.iter().map(|p| to_physical(p, &meta)).collect();
         let channels = channel_errors(ds, &val, &phys);
         let alg = meta.train.algorithm.id();
         for (k, &i) in val.iter().take(opts.plot_samples).enumerate() {
             let id = ds.samples[i].id;
-            plot_sample(&out.join(format!("pred_alg{alg}_sample{id}.png")), ds, i, &phys[k])?;
+            plot_sample(
+                &out.join(format!("pred_alg{alg}_sample{id}.png")),
+                ds,
+                i,
+                &phys[k],
+            )?;
         }
         let simulated = val.len() as f64 * ds.t_points() as f64 * ds.dt;
         results.push(ModelResult {
@@ -388,16 +433,47 @@ pub fn evaluate(
 fn write_outputs(out: &Path, results: &[ModelResult]) -> Result<()> {
     let mut t = Table::default();
     let f = |g: &dyn Fn(&ModelResult) -> f64| Column::F64(results.iter().map(g).collect());
-    t.push("algorithm", Column::I64(results.iter().map(|r| r.meta.train.algorithm.id()).collect()))?;
-    t.push("name", Column::Str(results.iter().map(|r| r.meta.train.algorithm.name().to_owned()).collect()))?;
-    t.push("depth", Column::I64(results.iter().map(|r| r.meta.model.depth as i64).collect()))?;
+    t.push(
+        "algorithm",
+        Column::I64(
+            results
+                .iter()
+                .map(|r| r.meta.train.algorithm.id())
+                .collect(),
+        ),
+    )?;
+    t.push(
+        "name",
+        Column::Str(
+            results
+                .iter()
+                .map(|r| r.meta.train.algorithm.name().to_owned())
+                .collect(),
+        ),
+    )?;
+    t.push(
+        "depth",
+        Column::I64(results.iter().map(|r| r.meta.model.depth as i64).collect()),
+    )?;
     t.push("solutions_pct", f(&|r| r.table4[0]))?;
     t.push("first_derivatives_pct", f(&|r| r.table4[1]))?;
     t.push("second_derivatives_pct", f(&|r| r.table4[2]))?;
-    t.push("paper_solutions_pct", f(&|r| r.meta.train.algorithm.paper_table4()[0]))?;
-    t.push("paper_first_derivatives_pct", f(&|r| r.meta.train.algorithm.paper_table4()[1]))?;
-    t.push("paper_second_derivatives_pct", f(&|r| r.meta.train.algorithm.paper_table4()[2]))?;
-    t.push("validation_samples", Column::I64(results.iter().map(|r| r.samples as i64).collect()))?;
+    t.push(
+        "paper_solutions_pct",
+        f(&|r| r.meta.train.algorithm.paper_table4()[0]),
+    )?;
+    t.push(
+        "paper_first_derivatives_pct",
+        f(&|r| r.meta.train.algorithm.paper_table4()[1]),
+    )?;
+    t.push(
+        "paper_second_derivatives_pct",
+        f(&|r| r.meta.train.algorithm.paper_table4()[2]),
+    )?;
+    t.push(
+        "validation_samples",
+        Column::I64(results.iter().map(|r| r.samples as i64).collect()),
+    )?;
     t.push("prediction_speed", f(&|r| r.speed))?;
     write_parquet(&out.join("table4.parquet"), &t)?;
     write_csv(&out.join("table4.csv"), &t)?;
@@ -439,16 +515,44 @@ fn write_outputs(out: &Path, results: &[ModelResult]) -> Result<()> {
     let mut c = Table::default();
     let rows: Vec<(i64, &ChannelError)> = results
         .iter()
-        .flat_map(|r| r.channels.iter().map(move |ch| (r.meta.train.algorithm.id(), ch)))
+        .flat_map(|r| {
+            r.channels
+                .iter()
+                .map(move |ch| (r.meta.train.algorithm.id(), ch))
+        })
         .collect();
-    c.push("algorithm", Column::I64(rows.iter().map(|(a, _)| *a).collect()))?;
-    c.push("channel", Column::Str(rows.iter().map(|(_, e)| e.channel.clone()).collect()))?;
-    c.push("unit", Column::Str(rows.iter().map(|(_, e)| e.unit.to_owned()).collect()))?;
-    c.push("rel_l2_pct", Column::F64(rows.iter().map(|(_, e)| e.rel_l2_pct).collect()))?;
-    c.push("rms_error", Column::F64(rows.iter().map(|(_, e)| e.rms_error).collect()))?;
-    c.push("rms_exact", Column::F64(rows.iter().map(|(_, e)| e.rms_exact).collect()))?;
-    c.push("worst_sample_id", Column::I64(rows.iter().map(|(_, e)| e.worst_sample).collect()))?;
-    c.push("worst_rel_l2_pct", Column::F64(rows.iter().map(|(_, e)| e.worst_rel_l2_pct).collect()))?;
+    c.push(
+        "algorithm",
+        Column::I64(rows.iter().map(|(a, _)| *a).collect()),
+    )?;
+    c.push(
+        "channel",
+        Column::Str(rows.iter().map(|(_, e)| e.channel.clone()).collect()),
+    )?;
+    c.push(
+        "unit",
+        Column::Str(rows.iter().map(|(_, e)| e.unit.to_owned()).collect()),
+    )?;
+    c.push(
+        "rel_l2_pct",
+        Column::F64(rows.iter().map(|(_, e)| e.rel_l2_pct).collect()),
+    )?;
+    c.push(
+        "rms_error",
+        Column::F64(rows.iter().map(|(_, e)| e.rms_error).collect()),
+    )?;
+    c.push(
+        "rms_exact",
+        Column::F64(rows.iter().map(|(_, e)| e.rms_exact).collect()),
+    )?;
+    c.push(
+        "worst_sample_id",
+        Column::I64(rows.iter().map(|(_, e)| e.worst_sample).collect()),
+    )?;
+    c.push(
+        "worst_rel_l2_pct",
+        Column::F64(rows.iter().map(|(_, e)| e.worst_rel_l2_pct).collect()),
+    )?;
     write_parquet(&out.join("channel_errors.parquet"), &c)?;
     write_csv(&out.join("channel_errors.csv"), &c)?;
 

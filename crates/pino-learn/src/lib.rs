@@ -106,6 +106,16 @@ pub enum Error {
         /// The configuration, as text.
         config: String,
     },
+    /// A model file holds a tensor its configuration does not have (another depth, ...).
+    #[error("{path}: tensor `{tensor}` is not part of the configuration {config} (a model file from another configuration?)")]
+    UnexpectedTensor {
+        /// The weights file.
+        path: PathBuf,
+        /// The tensor name.
+        tensor: String,
+        /// The configuration, as text.
+        config: String,
+    },
     /// Training diverged (a loss is not finite).
     #[error("training diverged at epoch {epoch}, step {step}: loss = {loss}")]
     Diverged {

@@ -58,7 +58,10 @@ impl LossContext {
             let std = Tensor::from_slice(&s.std, (1, 1, DOFS), x.device())?;
             Ok(x.broadcast_sub(&mean)?.broadcast_div(&std)?)
         };
-        Ok((zs(&v, &self.norm.velocities)?, zs(&a, &self.norm.accelerations)?))
+        Ok((
+            zs(&v, &self.norm.velocities)?,
+            zs(&a, &self.norm.accelerations)?,
+        ))
     }
 
     /// ODE residuals `[B, T-2, 10]` (N, N m) of a z-scored prediction.
@@ -70,13 +73,21 @@ impl LossContext {
             std: self.norm.outputs.std[DOFS..].to_vec(),
         };
         let (z_r, _, _) = derivatives(&u_n.narrow(2, DOFS, 4)?, &rail_stats, self.dt)?;
-        residuals((&z, &v, &a), &z_r, &batch.eta, &batch.params, self.config.gravity, self.hertz_g())
+        residuals(
+            (&z, &v, &a),
+            &z_r,
+            &batch.eta,
+            &batch.params,
+            self.config.gravity,
+            self.hertz_g(),
+        )
     }
 
     /// `L_deriv` of a prediction.
     pub fn deriv_loss(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
         let (v, a) = self.predicted_derivatives(u_n)?;
-        Ok((rel_l2(&v, &batch.v.to_dtype(DType::F64)?)? + rel_l2(&a, &batch.a.to_dtype(DType::F64)?)?)?)
+        Ok((rel_l2(&v, &batch.v.to_dtype(DType::F64)?)?
+            + rel_l2(&a, &batch.a.to_dtype(DType::F64)?)?)?)
     }
 
     /// `L_ode_global`.
@@ -160,8 +171,14 @@ mod tests {
         // Sample 0: truth (3, 4), pred (3, 4) + (0, 5) -> 5/5 = 1; sample 1: exact -> 0.
         let truth = Tensor::from_vec(vec![3.0f64, 4.0, 1.0, 0.0], (2, 1, 2), &dev).unwrap();
         let pred = Tensor::from_vec(vec![3.0f64, 9.0, 1.0, 0.0], (2, 1, 2), &dev).unwrap();
-        let per = rel_l2_per_sample(&pred, &truth).unwrap().to_vec1::<f64>().unwrap();
+        let per = rel_l2_per_sample(&pred, &truth)
+            .unwrap()
+            .to_vec1::<f64>()
+            .unwrap();
         assert_eq!(per, vec![1.0, 0.0]);
-        assert_eq!(rel_l2(&pred, &truth).unwrap().to_scalar::<f64>().unwrap(), 0.5);
+        assert_eq!(
+            rel_l2(&pred, &truth).unwrap().to_scalar::<f64>().unwrap(),
+            0.5
+        );
     }
 }

@@ -55,7 +55,13 @@ pub fn parameter_shapes(c: &ModelConfig) -> Vec<(String, Vec<usize>)> {
 
 impl Fno {
     /// A freshly initialised model for windows of `t_points` points.
-    pub fn new(config: ModelConfig, t_points: usize, seed: u64, transform: Transform, device: &Device) -> Result<Self> {
+    pub fn new(
+        config: ModelConfig,
+        t_points: usize,
+        seed: u64,
+        transform: Transform,
+        device: &Device,
+    ) -> Result<Self> {
         config.validate(t_points)?;
         let mut rng = vtcd::rng::SampleStream::new(seed, vtcd::rng::Purpose::Training, INIT_STREAM);
         let mut vars = Vec::new();
@@ -67,12 +73,16 @@ impl Fno {
             } else {
                 let fan_in = if name.ends_with(".bias") {
                     // The bias belongs to the weight listed just before it.
-                    vars.last().map(|(_, v): &(String, Var)| v.dims()[0]).unwrap_or(1)
+                    vars.last()
+                        .map(|(_, v): &(String, Var)| v.dims()[0])
+                        .unwrap_or(1)
                 } else {
                     shape[0]
                 };
                 let bound = 1.0 / (fan_in as f64).sqrt();
-                (0..n).map(|_| rng.uniform_in(-bound, bound) as f32).collect()
+                (0..n)
+                    .map(|_| rng.uniform_in(-bound, bound) as f32)
+                    .collect()
             };
             vars.push((name, Var::from_vec(values, shape, device)?));
         }
@@ -108,18 +118,19 @@ impl Fno {
                     config: config.to_string(),
                 });
             }
-            vars.push((name, Var::from_tensor(&t.to_dtype(DType::F32)?.to_device(device)?)?));
+            vars.push((
+                name,
+                Var::from_tensor(&t.to_dtype(DType::F32)?.to_device(device)?)?,
+            ));
         }
         let extra: Vec<&String> = tensors
             .keys()
             .filter(|k| !vars.iter().any(|(n, _)| n == *k))
             .collect();
-        if let Some(name) = extra.first() {
-            return Err(Error::ModelMismatch {
+        if let Some(name) = extra.iter().min() {
+            return Err(Error::UnexpectedTensor {
                 path: origin.to_owned(),
                 tensor: (*name).clone(),
-                found: tensors[*name].dims().to_vec(),
-                expected: vec![],
                 config: config.to_string(),
             });
         }
@@ -172,7 +183,11 @@ impl Fno {
                 self.var(&format!("layers.{l}.wi")),
             )?;
             let y = (k + self.pointwise(&v, &format!("layers.{l}"))?)?;
-            v = if l + 1 < self.config.depth { y.gelu()? } else { y };
+            v = if l + 1 < self.config.depth {
+                y.gelu()?
+            } else {
+                y
+            };
         }
         let h = self.pointwise(&v, "proj1")?.gelu()?;
         self.pointwise(&h, "proj2")
@@ -209,9 +224,19 @@ mod tests {
         );
         let mut other = cfg();
         other.width = 9;
-        let err = Fno::from_tensors(other, 20, &a.tensors(), Transform::Matmul, Path::new("m.safetensors"), &dev)
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("m.safetensors") && err.contains("lift.weight") && err.contains("width 9"), "{err}");
+        let err = Fno::from_tensors(
+            other,
+            20,
+            &a.tensors(),
+            Transform::Matmul,
+            Path::new("m.safetensors"),
+            &dev,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("m.safetensors") && err.contains("lift.weight") && err.contains("width 9"),
+            "{err}"
+        );
     }
 }

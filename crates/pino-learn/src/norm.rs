@@ -20,7 +20,10 @@ pub struct ChannelStats {
 
 impl ChannelStats {
     /// Statistics of row-major `[rows, names.len()]` blocks, all rows weighted equally.
-    pub fn from_blocks<'a>(names: &[&str], blocks: impl Iterator<Item = &'a [f64]> + Clone) -> Self {
+    pub fn from_blocks<'a>(
+        names: &[&str],
+        blocks: impl Iterator<Item = &'a [f64]> + Clone,
+    ) -> Self {
         let c = names.len();
         let mut sum = vec![0.0; c];
         let mut n = 0usize;

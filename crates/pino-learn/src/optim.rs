@@ -33,8 +33,14 @@ impl Adam {
     pub fn new(vars: &[(String, Var)]) -> Result<Self> {
         let zeros = |v: &Var| v.as_tensor().zeros_like();
         Ok(Self {
-            m: vars.iter().map(|(_, v)| zeros(v)).collect::<candle_core::Result<_>>()?,
-            v: vars.iter().map(|(_, v)| zeros(v)).collect::<candle_core::Result<_>>()?,
+            m: vars
+                .iter()
+                .map(|(_, v)| zeros(v))
+                .collect::<candle_core::Result<_>>()?,
+            v: vars
+                .iter()
+                .map(|(_, v)| zeros(v))
+                .collect::<candle_core::Result<_>>()?,
             step: 0,
             beta1: 0.9,
             beta2: 0.999,
@@ -48,14 +54,20 @@ impl Adam {
         let c1 = 1.0 - self.beta1.powi(self.step as i32);
         let c2 = 1.0 - self.beta2.powi(self.step as i32);
         for (i, (_, var)) in vars.iter().enumerate() {
-            let Some(g) = grads.get(var.as_tensor()) else { continue };
+            // Gradients (and everything computed from them) carry the backward graph, which
+            // references this step's forward graph: detach, or the moments chain every step's
+            // graph together and memory grows without bound.
+            let Some(g) = grads.get(var.as_tensor()).map(Tensor::detach) else {
+                continue;
+            };
+            let g = &g;
             let m = ((&self.m[i] * self.beta1)? + (g * (1.0 - self.beta1))?)?;
             let v = ((&self.v[i] * self.beta2)? + (g.sqr()? * (1.0 - self.beta2))?)?;
             let denom = ((&v * (1.0 / c2))?.sqrt()? + self.eps)?;
             let update = ((&m * (lr / c1))? / denom)?;
-            var.set(&(var.as_tensor() - update)?)?;
-            self.m[i] = m;
-            self.v[i] = v;
+            var.set(&(var.as_tensor().detach() - update)?)?;
+            self.m[i] = m.detach();
+            self.v[i] = v.detach();
         }
         Ok(())
     }
@@ -72,12 +84,18 @@ mod tests {
         let dev = Device::Cpu;
         let p = Var::from_vec(vec![1.0f32, -2.0], 2, &dev).unwrap();
         let vars = vec![("p".to_owned(), p.clone())];
-        let loss = (p.as_tensor().sqr().unwrap() * 3.0).unwrap().sum_all().unwrap();
+        let loss = (p.as_tensor().sqr().unwrap() * 3.0)
+            .unwrap()
+            .sum_all()
+            .unwrap();
         let grads = loss.backward().unwrap();
         let mut adam = Adam::new(&vars).unwrap();
         adam.step(&vars, &grads, 0.1).unwrap();
         let after = p.as_tensor().to_vec1::<f32>().unwrap();
-        assert!((after[0] - 0.9).abs() < 1e-6 && (after[1] + 1.9).abs() < 1e-6, "{after:?}");
+        assert!(
+            (after[0] - 0.9).abs() < 1e-6 && (after[1] + 1.9).abs() < 1e-6,
+            "{after:?}"
+        );
         assert_eq!(adam.step, 1);
     }
 }

@@ -21,13 +21,21 @@ use crate::Result;
 use candle_core::{DType, Tensor};
 
 fn stats_tensor(values: &[f64], like: &Tensor) -> Result<Tensor> {
-    Ok(Tensor::from_slice(values, (1, 1, values.len()), like.device())?)
+    Ok(Tensor::from_slice(
+        values,
+        (1, 1, values.len()),
+        like.device(),
+    )?)
 }
 
 /// De-normalised interior values, first and second differences of `u_n [B, T, C]`
 /// (z-scored, any float dtype) with channel statistics `stats` (first C channels used):
 /// three f64 tensors `[B, T-2, C]` in physical units.
-pub fn derivatives(u_n: &Tensor, stats: &ChannelStats, dt: f64) -> Result<(Tensor, Tensor, Tensor)> {
+pub fn derivatives(
+    u_n: &Tensor,
+    stats: &ChannelStats,
+    dt: f64,
+) -> Result<(Tensor, Tensor, Tensor)> {
     let (_, t, c) = u_n.dims3()?;
     let u = u_n.to_dtype(DType::F64)?;
     let std = stats_tensor(&stats.std[..c], &u)?;
@@ -78,14 +86,20 @@ pub fn residuals(
         Ok(((ch(x, bogie)? + (pitch * sign)?)? - ch(x, wheel)?)?)
     };
     let fs = |sign, bogie| -> Result<Tensor> {
-        Ok((sec(sign, bogie, z)?.broadcast_mul(&k_s)? + sec(sign, bogie, v)?.broadcast_mul(&c_s)?)?)
+        Ok((sec(sign, bogie, z)?.broadcast_mul(&k_s)?
+            + sec(sign, bogie, v)?.broadcast_mul(&c_s)?)?)
     };
     let fp = |sign, bogie, wheel| -> Result<Tensor> {
         Ok((pri(sign, bogie, wheel, z)?.broadcast_mul(&k_p)?
             + pri(sign, bogie, wheel, v)?.broadcast_mul(&c_p)?)?)
     };
     let (fs1, fs2) = (fs(-1.0, 2)?, fs(1.0, 4)?);
-    let fp = [fp(-1.0, 2, 6)?, fp(1.0, 2, 7)?, fp(-1.0, 4, 8)?, fp(1.0, 4, 9)?];
+    let fp = [
+        fp(-1.0, 2, 6)?,
+        fp(1.0, 2, 7)?,
+        fp(-1.0, 4, 8)?,
+        fp(1.0, 4, 9)?,
+    ];
     let acc = |i: usize, mass: &Tensor| -> Result<Tensor> { Ok(ch(a, i)?.broadcast_mul(mass)?) };
     let mut r = vec![
         (acc(0, &m_c)? + (&fs1 + &fs2)?)?,
@@ -124,13 +138,21 @@ mod tests {
             let mut p = SampleParams::NOMINAL.to_array();
             p.iter_mut().for_each(|x| *x *= s.uniform_in(0.8, 1.2));
             let veh = Vehicle::new(&SampleParams::from_array(p), 9.81);
-            let z: [f64; 10] = std::array::from_fn(|i| if i >= 6 { 9e-5 + 1e-5 * s.normal() } else { 1e-3 * s.normal() });
+            let z: [f64; 10] = std::array::from_fn(|i| {
+                if i >= 6 {
+                    9e-5 + 1e-5 * s.normal()
+                } else {
+                    1e-3 * s.normal()
+                }
+            });
             let v: [f64; 10] = std::array::from_fn(|_| 0.05 * s.normal());
             let a: [f64; 10] = std::array::from_fn(|_| 2.0 * s.normal());
             let zr: [f64; 4] = std::array::from_fn(|_| 2e-6 * s.normal());
-            let eta: [f64; 4] = std::array::from_fn(|i| if i == 3 { 1.0 } else { 3e-6 * s.normal() });
+            let eta: [f64; 4] =
+                std::array::from_fn(|i| if i == 3 { 1.0 } else { 3e-6 * s.normal() });
             // Wheel 4 is lifted off (eta = 1 m): its contact force is zero.
-            let pc: [f64; 4] = std::array::from_fn(|i| vtcd::contact::contact_force(z[6 + i] - zr[i] - eta[i], g));
+            let pc: [f64; 4] =
+                std::array::from_fn(|i| vtcd::contact::contact_force(z[6 + i] - zr[i] - eta[i], g));
             assert_eq!(pc[3], 0.0);
             let want = veh.residuals(&z, &v, &a, &pc);
             let t = |x: &[f64], c: usize| Tensor::from_slice(x, (1, 1, c), &dev).unwrap();
@@ -148,7 +170,12 @@ mod tests {
             .to_vec1::<f64>()
             .unwrap();
             for i in 0..10 {
-                assert!((r[i] - want[i]).abs() <= 1e-9 * 1e5, "sample {k} eq {i}: {} vs {}", r[i], want[i]);
+                assert!(
+                    (r[i] - want[i]).abs() <= 1e-9 * 1e5,
+                    "sample {k} eq {i}: {} vs {}",
+                    r[i],
+                    want[i]
+                );
             }
         }
     }
@@ -158,12 +185,23 @@ mod tests {
         // u = 3 + 2 t + 5 t^2 in normalised units, std 2, mean 1: v = 2 (2 + 10 t), a = 20.
         let dev = Device::Cpu;
         let dt = 0.01;
-        let u: Vec<f64> = (0..6).map(|n| {
-            let t = n as f64 * dt;
-            3.0 + 2.0 * t + 5.0 * t * t
-        }).collect();
-        let stats = ChannelStats { names: vec!["x".into()], mean: vec![1.0], std: vec![2.0] };
-        let (z, v, a) = derivatives(&Tensor::from_vec(u.clone(), (1, 6, 1), &dev).unwrap(), &stats, dt).unwrap();
+        let u: Vec<f64> = (0..6)
+            .map(|n| {
+                let t = n as f64 * dt;
+                3.0 + 2.0 * t + 5.0 * t * t
+            })
+            .collect();
+        let stats = ChannelStats {
+            names: vec!["x".into()],
+            mean: vec![1.0],
+            std: vec![2.0],
+        };
+        let (z, v, a) = derivatives(
+            &Tensor::from_vec(u.clone(), (1, 6, 1), &dev).unwrap(),
+            &stats,
+            dt,
+        )
+        .unwrap();
         let (z, v, a) = (
             z.flatten_all().unwrap().to_vec1::<f64>().unwrap(),
             v.flatten_all().unwrap().to_vec1::<f64>().unwrap(),

@@ -13,7 +13,13 @@ pub const BLACK: Rgb = [0, 0, 0];
 /// Red (prediction).
 pub const RED: Rgb = [220, 40, 40];
 /// A palette for one line per algorithm (1..5): blue, orange, green, purple, red.
-pub const PALETTE: [Rgb; 5] = [[31, 119, 180], [255, 127, 14], [44, 160, 44], [148, 103, 189], [214, 39, 40]];
+pub const PALETTE: [Rgb; 5] = [
+    [31, 119, 180],
+    [255, 127, 14],
+    [44, 160, 44],
+    [148, 103, 189],
+    [214, 39, 40],
+];
 
 /// One polyline.
 #[derive(Debug, Clone)]
@@ -136,13 +142,33 @@ fn render(fig: &Figure) -> Canvas {
     let margin = 24i64;
     for (p, series) in fig.panels.iter().enumerate() {
         let (ox, oy) = ((p % fig.cols * pw) as i64, (p / fig.cols * ph) as i64);
-        let (x0, y0, x1, y1) = (ox + margin, oy + margin, ox + pw as i64 - 8, oy + ph as i64 - margin);
+        let (x0, y0, x1, y1) = (
+            ox + margin,
+            oy + margin,
+            ox + pw as i64 - 8,
+            oy + ph as i64 - margin,
+        );
         let finite = |v: &f64| v.is_finite();
-        let xs = series.iter().flat_map(|s| s.x.iter().copied()).filter(finite);
-        let ys = series.iter().flat_map(|s| s.y.iter().copied()).filter(finite);
-        let (xmin, xmax) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
-        let (mut ymin, mut ymax) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
-        for (a, b) in [((x0, y0), (x1, y0)), ((x1, y0), (x1, y1)), ((x1, y1), (x0, y1)), ((x0, y1), (x0, y0))] {
+        let xs = series
+            .iter()
+            .flat_map(|s| s.x.iter().copied())
+            .filter(finite);
+        let ys = series
+            .iter()
+            .flat_map(|s| s.y.iter().copied())
+            .filter(finite);
+        let (xmin, xmax) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+        let (mut ymin, mut ymax) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+        for (a, b) in [
+            ((x0, y0), (x1, y0)),
+            ((x1, y0), (x1, y1)),
+            ((x1, y1), (x0, y1)),
+            ((x0, y1), (x0, y0)),
+        ] {
             cv.line(a, b, [120, 120, 120], false);
         }
         if !(xmin.is_finite() && ymin.is_finite()) {
@@ -215,7 +241,14 @@ mod tests {
             rows: 1,
             cols: 2,
             panel: (200, 120),
-            panels: vec![vec![Series { x: x.clone(), y, color: RED }], vec![]],
+            panels: vec![
+                vec![Series {
+                    x: x.clone(),
+                    y,
+                    color: RED,
+                }],
+                vec![],
+            ],
         };
         let p = dir.path().join("a.png");
         write_png(&p, &fig).unwrap();

@@ -34,14 +34,23 @@ fn fmt_err(path: &Path, message: String) -> Error {
 }
 
 fn set_param(p: &mut [f64; 14], name: &str, value: f64, origin: &Path) -> Result<()> {
-    let k = PARAMETER_NAMES.iter().position(|n| *n == name).ok_or_else(|| {
-        fmt_err(
-            origin,
-            format!("unknown parameter `{name}`; allowed: {}", PARAMETER_NAMES.join(", ")),
-        )
-    })?;
+    let k = PARAMETER_NAMES
+        .iter()
+        .position(|n| *n == name)
+        .ok_or_else(|| {
+            fmt_err(
+                origin,
+                format!(
+                    "unknown parameter `{name}`; allowed: {}",
+                    PARAMETER_NAMES.join(", ")
+                ),
+            )
+        })?;
     if !(value.is_finite() && value > 0.0) {
-        return Err(fmt_err(origin, format!("parameter `{name}` = {value} must be finite and > 0")));
+        return Err(fmt_err(
+            origin,
+            format!("parameter `{name}` = {value} must be finite and > 0"),
+        ));
     }
     p[k] = value;
     Ok(())
@@ -111,10 +120,16 @@ pub fn read_profile(path: &Path, sample_id: Option<i64>) -> Result<Profile> {
         (None, _) => (0..x.len()).collect(),
     };
     if rows.is_empty() {
-        return Err(fmt_err(path, format!("no profile rows for sample_id {sample_id:?}")));
+        return Err(fmt_err(
+            path,
+            format!("no profile rows for sample_id {sample_id:?}"),
+        ));
     }
-    Profile::new(rows.iter().map(|&r| x[r]).collect(), rows.iter().map(|&r| eta[r]).collect())
-        .map_err(|e| fmt_err(path, e.to_string()))
+    Profile::new(
+        rows.iter().map(|&r| x[r]).collect(),
+        rows.iter().map(|&r| eta[r]).collect(),
+    )
+    .map_err(|e| fmt_err(path, e.to_string()))
 }
 
 /// A generated profile: the `irregularity` stage's defaults with `seed`, sample `id`.
@@ -122,7 +137,8 @@ pub fn generated_profile(seed: u64, id: u64) -> Result<Profile> {
     let gen = vtcd::irregularity::IrregularityParams::with_seed(seed)
         .validate()
         .map_err(|e| fmt_err(Path::new("--seed"), e.to_string()))?;
-    Profile::new(gen.positions(), gen.profile(id)).map_err(|e| fmt_err(Path::new("--seed"), e.to_string()))
+    Profile::new(gen.positions(), gen.profile(id))
+        .map_err(|e| fmt_err(Path::new("--seed"), e.to_string()))
 }
 
 /// Placement and start-up of the records the model was trained on.
@@ -147,7 +163,13 @@ impl Default for Placement {
 }
 
 /// Irregularity under the four wheels `[T, 4]` at times `t` for one parameter set.
-pub fn wheel_irregularity(p: &SampleParams, profile: &Profile, t: &[f64], duration: f64, place: &Placement) -> Result<Vec<f64>> {
+pub fn wheel_irregularity(
+    p: &SampleParams,
+    profile: &Profile,
+    t: &[f64],
+    duration: f64,
+    place: &Placement,
+) -> Result<Vec<f64>> {
     let cfg = SimulationConfig {
         duration,
         startup_zero_fraction: place.startup_zero_fraction,
@@ -191,13 +213,22 @@ pub fn predict(
     let mut x = Vec::with_capacity(sets.len() * tp * 19);
     let mut etas = Vec::with_capacity(sets.len());
     for p in sets {
-        p.validate().map_err(|e| fmt_err(Path::new("parameters"), e.to_string()))?;
+        p.validate()
+            .map_err(|e| fmt_err(Path::new("parameters"), e.to_string()))?;
         let eta = wheel_irregularity(p, profile, &times, duration, place)?;
-        x.extend(meta.norm.inputs.normalise(&input_block(&times, &eta, &p.to_array())));
+        x.extend(
+            meta.norm
+                .inputs
+                .normalise(&input_block(&times, &eta, &p.to_array())),
+        );
         etas.push(eta);
     }
     let xt = Tensor::from_vec(x, (sets.len(), tp, 19), device)?;
-    let u = model.forward(&xt)?.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>()?;
+    let u = model
+        .forward(&xt)?
+        .to_dtype(DType::F32)?
+        .flatten_all()?
+        .to_vec1::<f32>()?;
     let mut cols: Vec<(String, Vec<f64>)> = Vec::new();
     let sol = schema::solution_channels();
     for name in &sol {
@@ -224,7 +255,9 @@ pub fn predict(
             }
             for c in 0..DOFS {
                 cols[OUT_CHANNELS + c].1.push(ph.v[(n - 1) * DOFS + c]);
-                cols[OUT_CHANNELS + DOFS + c].1.push(ph.a[(n - 1) * DOFS + c]);
+                cols[OUT_CHANNELS + DOFS + c]
+                    .1
+                    .push(ph.a[(n - 1) * DOFS + c]);
             }
             for i in 0..4 {
                 cols[OUT_CHANNELS + 2 * DOFS + i].1.push(etas[s][n * 4 + i]);
@@ -261,7 +294,10 @@ mod tests {
         apply_override(&mut s, "l_c=8.5").unwrap();
         assert!(s.iter().all(|p| p.l_c == 8.5));
         let err = parse_param_sets("- {kk: 1}\n", o).unwrap_err().to_string();
-        assert!(err.contains("sets.yaml") && err.contains("unknown parameter `kk`"), "{err}");
+        assert!(
+            err.contains("sets.yaml") && err.contains("unknown parameter `kk`"),
+            "{err}"
+        );
         assert!(apply_override(&mut s, "m_c=-1").is_err());
         assert!(apply_override(&mut s, "m_c").is_err());
     }

@@ -48,12 +48,22 @@ pub struct Dft {
 
 impl Dft {
     /// Bases for `t_points` and `modes` in `dtype` on `device`.
-    pub fn new(t_points: usize, modes: usize, transform: Transform, dtype: DType, device: &Device) -> Result<Self> {
+    pub fn new(
+        t_points: usize,
+        modes: usize,
+        transform: Transform,
+        dtype: DType,
+        device: &Device,
+    ) -> Result<Self> {
         let (t, m) = (t_points, modes);
         let mut fwd = vec![0.0f64; 2 * m * t];
         let mut inv = vec![0.0f64; t * 2 * m];
         for k in 0..m {
-            let c = if k == 0 { 1.0 / t as f64 } else { 2.0 / t as f64 };
+            let c = if k == 0 {
+                1.0 / t as f64
+            } else {
+                2.0 / t as f64
+            };
             for n in 0..t {
                 // Reduce k*n mod T first so the angle stays accurate for long records.
                 let theta = 2.0 * PI * ((k * n) % t) as f64 / t as f64;
@@ -116,8 +126,7 @@ pub fn mix_modes(x: &Tensor, wr: &Tensor, wi: &Tensor) -> Result<Tensor> {
     let bottom = Tensor::cat(&[&wi.neg()?, wr], 2)?;
     let w = Tensor::cat(&[&top, &bottom], 1)?; // [M, 2C, 2C']
     let y = xm.matmul(&w)?; // [M, B, 2C']
-    Ok(y
-        .reshape((m, b, 2, co))?
+    Ok(y.reshape((m, b, 2, co))?
         .permute((1, 2, 0, 3))?
         .contiguous()?
         .reshape((b, 2 * m, co))?)
@@ -193,7 +202,11 @@ impl FftOp {
 
     fn run_rows(&self, input: &[f64], n: usize, forward: bool) -> Vec<f64> {
         use rayon::prelude::*;
-        let (len_in, len_out) = if forward { (self.t, 2 * self.m) } else { (2 * self.m, self.t) };
+        let (len_in, len_out) = if forward {
+            (self.t, 2 * self.m)
+        } else {
+            (2 * self.m, self.t)
+        };
         let mut out = vec![0.0; n * len_out];
         out.par_chunks_mut(len_out)
             .zip(input.par_chunks(len_in))
@@ -219,7 +232,11 @@ impl CustomOp1 for FftOp {
         }
     }
 
-    fn cpu_fwd(&self, storage: &CpuStorage, layout: &Layout) -> candle_core::Result<(CpuStorage, Shape)> {
+    fn cpu_fwd(
+        &self,
+        storage: &CpuStorage,
+        layout: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
         let (n, len) = layout.shape().dims2()?;
         let (o1, o2) = layout
             .contiguous_offsets()
@@ -227,12 +244,18 @@ impl CustomOp1 for FftOp {
         let as_f64: Vec<f64> = match storage {
             CpuStorage::F64(v) => v[o1..o2].to_vec(),
             CpuStorage::F32(v) => v[o1..o2].iter().map(|&x| x as f64).collect(),
-            _ => return Err(candle_core::Error::Msg("fft op supports f32 and f64".into())),
+            _ => {
+                return Err(candle_core::Error::Msg(
+                    "fft op supports f32 and f64".into(),
+                ))
+            }
         };
         let forward = self.dir == Direction::Forward;
         let expect = if forward { self.t } else { 2 * self.m };
         if len != expect {
-            return Err(candle_core::Error::Msg(format!("fft op: row length {len}, expected {expect}")));
+            return Err(candle_core::Error::Msg(format!(
+                "fft op: row length {len}, expected {expect}"
+            )));
         }
         let out = self.run_rows(&as_f64, n, forward);
         let len_out = out.len() / n.max(1);
@@ -243,7 +266,12 @@ impl CustomOp1 for FftOp {
         Ok((storage, Shape::from((n, len_out))))
     }
 
-    fn bwd(&self, _arg: &Tensor, _res: &Tensor, grad_res: &Tensor) -> candle_core::Result<Option<Tensor>> {
+    fn bwd(
+        &self,
+        _arg: &Tensor,
+        _res: &Tensor,
+        grad_res: &Tensor,
+    ) -> candle_core::Result<Option<Tensor>> {
         // The adjoint of the truncated forward DFT maps a cotangent (gr, gi) to
         // g_t = sum_m gr_m cos - gi_m sin = Re sum_m (gr + i gi) e^{i theta}: an inverse
         // transform with weights 1 instead of c_m. The adjoint of the inverse maps g_t to
@@ -265,16 +293,24 @@ impl CustomOp1 for AdjointOp {
         "truncated-dft-adjoint"
     }
 
-    fn cpu_fwd(&self, storage: &CpuStorage, layout: &Layout) -> candle_core::Result<(CpuStorage, Shape)> {
+    fn cpu_fwd(
+        &self,
+        storage: &CpuStorage,
+        layout: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
         let op = &self.inner;
         let (n, _) = layout.shape().dims2()?;
-        let (o1, o2) = layout
-            .contiguous_offsets()
-            .ok_or_else(|| candle_core::Error::Msg("fft adjoint needs a contiguous input".into()))?;
+        let (o1, o2) = layout.contiguous_offsets().ok_or_else(|| {
+            candle_core::Error::Msg("fft adjoint needs a contiguous input".into())
+        })?;
         let g: Vec<f64> = match storage {
             CpuStorage::F64(v) => v[o1..o2].to_vec(),
             CpuStorage::F32(v) => v[o1..o2].iter().map(|&x| x as f64).collect(),
-            _ => return Err(candle_core::Error::Msg("fft op supports f32 and f64".into())),
+            _ => {
+                return Err(candle_core::Error::Msg(
+                    "fft op supports f32 and f64".into(),
+                ))
+            }
         };
         let out = match op.dir {
             Direction::Forward => {
@@ -335,11 +371,20 @@ mod tests {
         for tr in [Transform::Matmul, Transform::Fft] {
             let dft = Dft::new(t, m, tr, DType::F64, &dev).unwrap();
             let xt = Tensor::from_vec(x.clone(), (1, t, 1), &dev).unwrap();
-            let spec = dft.forward(&xt).unwrap().flatten_all().unwrap().to_vec1::<f64>().unwrap();
+            let spec = dft
+                .forward(&xt)
+                .unwrap()
+                .flatten_all()
+                .unwrap()
+                .to_vec1::<f64>()
+                .unwrap();
             // Direct sums: Re X_2 = T/2, Im X_4 = +T/4 (x = -0.5 sin -> -sum x sin = 0.5 T/2).
             assert!((spec[0] - 0.3 * t as f64).abs() < 1e-12);
             assert!((spec[2] - t as f64 / 2.0).abs() < 1e-12, "{tr:?} {spec:?}");
-            assert!((spec[m + 4] - t as f64 / 4.0).abs() < 1e-12, "{tr:?} {spec:?}");
+            assert!(
+                (spec[m + 4] - t as f64 / 4.0).abs() < 1e-12,
+                "{tr:?} {spec:?}"
+            );
             let back = dft.inverse(&dft.forward(&xt).unwrap()).unwrap();
             let back = back.flatten_all().unwrap().to_vec1::<f64>().unwrap();
             for (a, b) in x.iter().zip(&back) {
@@ -363,13 +408,27 @@ mod tests {
             let wi = Var::from_vec(rand_vec(m * c * co, 3), (m, c, co), &dev).unwrap();
             let r = Tensor::from_vec(rand_vec(b * t * co, 4), (b, t, co), &dev).unwrap();
             let loss = |x: &Tensor, wr: &Tensor, wi: &Tensor| -> Tensor {
-                (spectral_conv(&dft, x, wr, wi).unwrap() * &r).unwrap().sum_all().unwrap()
+                (spectral_conv(&dft, x, wr, wi).unwrap() * &r)
+                    .unwrap()
+                    .sum_all()
+                    .unwrap()
             };
             let l = loss(x.as_tensor(), wr.as_tensor(), wi.as_tensor());
             let grads = l.backward().unwrap();
             for (k, var) in [&x, &wr, &wi].into_iter().enumerate() {
-                let g = grads.get(var.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f64>().unwrap();
-                let base = var.as_tensor().flatten_all().unwrap().to_vec1::<f64>().unwrap();
+                let g = grads
+                    .get(var.as_tensor())
+                    .unwrap()
+                    .flatten_all()
+                    .unwrap()
+                    .to_vec1::<f64>()
+                    .unwrap();
+                let base = var
+                    .as_tensor()
+                    .flatten_all()
+                    .unwrap()
+                    .to_vec1::<f64>()
+                    .unwrap();
                 let h = 1e-3;
                 for (i, gi) in g.iter().enumerate() {
                     let eval = |d: f64| -> f64 {
@@ -383,7 +442,9 @@ mod tests {
                                 [&x, &wr, &wi][j].as_tensor().clone()
                             }
                         });
-                        loss(&args[0], &args[1], &args[2]).to_scalar::<f64>().unwrap()
+                        loss(&args[0], &args[1], &args[2])
+                            .to_scalar::<f64>()
+                            .unwrap()
                     };
                     let fd = (eval(h) - eval(-h)) / (2.0 * h);
                     assert!(
@@ -399,14 +460,28 @@ mod tests {
     fn both_transforms_agree_in_f32() {
         let (b, t, c, m) = (2, 50, 4, 8);
         let dev = Device::Cpu;
-        let x = Tensor::from_vec(rand_vec(b * t * c, 5), (b, t, c), &dev).unwrap().to_dtype(DType::F32).unwrap();
-        let wr = Tensor::from_vec(rand_vec(m * c * c, 6), (m, c, c), &dev).unwrap().to_dtype(DType::F32).unwrap();
-        let wi = Tensor::from_vec(rand_vec(m * c * c, 7), (m, c, c), &dev).unwrap().to_dtype(DType::F32).unwrap();
+        let x = Tensor::from_vec(rand_vec(b * t * c, 5), (b, t, c), &dev)
+            .unwrap()
+            .to_dtype(DType::F32)
+            .unwrap();
+        let wr = Tensor::from_vec(rand_vec(m * c * c, 6), (m, c, c), &dev)
+            .unwrap()
+            .to_dtype(DType::F32)
+            .unwrap();
+        let wi = Tensor::from_vec(rand_vec(m * c * c, 7), (m, c, c), &dev)
+            .unwrap()
+            .to_dtype(DType::F32)
+            .unwrap();
         let ys: Vec<Vec<f32>> = [Transform::Matmul, Transform::Fft]
             .into_iter()
             .map(|tr| {
                 let dft = Dft::new(t, m, tr, DType::F32, &dev).unwrap();
-                spectral_conv(&dft, &x, &wr, &wi).unwrap().flatten_all().unwrap().to_vec1().unwrap()
+                spectral_conv(&dft, &x, &wr, &wi)
+                    .unwrap()
+                    .flatten_all()
+                    .unwrap()
+                    .to_vec1()
+                    .unwrap()
             })
             .collect();
         // f32 sums of ~50 terms of size ~1: 1e-5 absolute.

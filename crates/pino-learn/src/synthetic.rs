@@ -121,7 +121,8 @@ pub fn simulate(p: &SampleParams, spec: &SyntheticSpec, id: u64) -> Record {
         let e = eta(t);
         std::array::from_fn(|i| contact_force(z[6 + i] - e[i], hertz))
     };
-    let accel = |z: &[f64; NUM_DOFS], v: &[f64; NUM_DOFS], t: f64| veh.accelerations(z, v, &contact(z, t));
+    let accel =
+        |z: &[f64; NUM_DOFS], v: &[f64; NUM_DOFS], t: f64| veh.accelerations(z, v, &contact(z, t));
     let d0 = static_compression(veh.w, hertz);
     let mut z = [0.0; NUM_DOFS];
     for i in [0, 2, 4, 6, 7, 8, 9] {
@@ -138,7 +139,9 @@ pub fn simulate(p: &SampleParams, spec: &SyntheticSpec, id: u64) -> Record {
         eta: Vec::with_capacity(n_out),
         p: Vec::with_capacity(n_out),
     };
-    let add = |x: &[f64; NUM_DOFS], k: &[f64; NUM_DOFS], f: f64| -> [f64; NUM_DOFS] { std::array::from_fn(|i| x[i] + f * k[i]) };
+    let add = |x: &[f64; NUM_DOFS], k: &[f64; NUM_DOFS], f: f64| -> [f64; NUM_DOFS] {
+        std::array::from_fn(|i| x[i] + f * k[i])
+    };
     for n in 0..n_out {
         let t = n as f64 * spec.dt_out;
         rec.t.push(t);
@@ -223,12 +226,22 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         schema::SPLIT,
         Column::Str(
             (0..n)
-                .map(|i| if i < spec.n_train { schema::SPLIT_TRAIN } else { schema::SPLIT_VALIDATION }.to_owned())
+                .map(|i| {
+                    if i < spec.n_train {
+                        schema::SPLIT_TRAIN
+                    } else {
+                        schema::SPLIT_VALIDATION
+                    }
+                    .to_owned()
+                })
                 .collect(),
         ),
     )?;
     for (k, name) in schema::PARAMETERS.iter().enumerate() {
-        pt.push(name, Column::F64(samples.iter().map(|(p, _)| p.to_array()[k]).collect()))?;
+        pt.push(
+            name,
+            Column::F64(samples.iter().map(|(p, _)| p.to_array()[k]).collect()),
+        )?;
     }
     let files = SyntheticFiles {
         params: dir.join("params.parquet"),
@@ -239,11 +252,22 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
 
     let mut st = Table::default();
     let rows = |f: &dyn Fn(&Record, usize) -> f64| -> Column {
-        Column::F64(samples.iter().flat_map(|(_, r)| (0..r.t.len()).map(move |k| f(r, k))).collect())
+        Column::F64(
+            samples
+                .iter()
+                .flat_map(|(_, r)| (0..r.t.len()).map(move |k| f(r, k)))
+                .collect(),
+        )
     };
     st.push(
         schema::SAMPLE_ID,
-        Column::I64(samples.iter().enumerate().flat_map(|(i, (_, r))| std::iter::repeat_n(i as i64, r.t.len())).collect()),
+        Column::I64(
+            samples
+                .iter()
+                .enumerate()
+                .flat_map(|(i, (_, r))| std::iter::repeat_n(i as i64, r.t.len()))
+                .collect(),
+        ),
     )?;
     st.push(schema::TIME, rows(&|r, k| r.t[k]))?;
     for (i, name) in schema::VEHICLE_DOFS.iter().enumerate() {
@@ -286,14 +310,18 @@ mod tests {
 
     #[test]
     fn stored_triples_satisfy_the_equations_and_rk4_is_accurate() {
-        let spec = SyntheticSpec { duration: 0.2, ..Default::default() };
+        let spec = SyntheticSpec {
+            duration: 0.2,
+            ..Default::default()
+        };
         let p = sample_params(1, 0);
         let rec = simulate(&p, &spec, 0);
         let veh = Vehicle::new(&p, 9.81);
         let g = hertz_constant(0.43);
         let mut max_r: f64 = 0.0;
         for k in 0..rec.t.len() {
-            let pc: [f64; 4] = std::array::from_fn(|i| contact_force(rec.z[k][6 + i] - rec.eta[k][i], g));
+            let pc: [f64; 4] =
+                std::array::from_fn(|i| contact_force(rec.z[k][6 + i] - rec.eta[k][i], g));
             let r = veh.residuals(&rec.z[k], &rec.v[k], &rec.a[k], &pc);
             max_r = r.iter().fold(max_r, |m, x| m.max(x.abs()));
         }
@@ -303,10 +331,18 @@ mod tests {
         // differences agree to O(dt^2 z''') (a few percent of the velocity scale at worst).
         let w = 6;
         let vmax = rec.v.iter().map(|v| v[w].abs()).fold(0.0, f64::max);
-        assert!(vmax > 1e-4, "the irregularity must excite the wheel: {vmax}");
+        assert!(
+            vmax > 1e-4,
+            "the irregularity must excite the wheel: {vmax}"
+        );
         for k in 1..rec.t.len() - 1 {
             let fd = (rec.z[k + 1][w] - rec.z[k - 1][w]) / (2.0 * spec.dt_out);
-            assert!((fd - rec.v[k][w]).abs() < 0.05 * vmax, "t {}: {fd} vs {}", rec.t[k], rec.v[k][w]);
+            assert!(
+                (fd - rec.v[k][w]).abs() < 0.05 * vmax,
+                "t {}: {fd} vs {}",
+                rec.t[k],
+                rec.v[k][w]
+            );
         }
     }
 }

@@ -58,7 +58,12 @@ pub struct EpochReport {
 }
 
 /// The metadata a model trained on `ds` with these settings carries.
-pub fn model_meta(ds: &Dataset, model: ModelConfig, train: TrainConfig, window: WindowConfig) -> Result<ModelMeta> {
+pub fn model_meta(
+    ds: &Dataset,
+    model: ModelConfig,
+    train: TrainConfig,
+    window: WindowConfig,
+) -> Result<ModelMeta> {
     Ok(ModelMeta {
         format: checkpoint::MODEL_FORMAT.to_owned(),
         model,
@@ -139,7 +144,11 @@ pub fn train(
         });
     }
     if cfg.algorithm.needs_phi() {
-        if let Some(s) = train_idx.iter().map(|&i| &ds.samples[i]).find(|s| s.phi.is_none()) {
+        if let Some(s) = train_idx
+            .iter()
+            .map(|&i| &ds.samples[i])
+            .find(|s| s.phi.is_none())
+        {
             return Err(Error::Dataset {
                 path: PathBuf::from("weights.parquet"),
                 message: format!(
@@ -150,8 +159,11 @@ pub fn train(
         }
     }
     let meta = model_meta(ds, model_cfg, cfg, window)?;
-    let (model, mut adam, mut state, resumed_after) = if checkpoint::has_checkpoint(&opts.checkpoint_dir) {
-        let (model, adam, old, state) = checkpoint::load_checkpoint(&opts.checkpoint_dir, opts.transform, device)?;
+    let (model, mut adam, mut state, resumed_after) = if checkpoint::has_checkpoint(
+        &opts.checkpoint_dir,
+    ) {
+        let (model, adam, old, state) =
+            checkpoint::load_checkpoint(&opts.checkpoint_dir, opts.transform, device)?;
         if old != meta {
             return Err(Error::Format {
                 path: opts.checkpoint_dir.join(checkpoint::CHECKPOINT_META),
@@ -181,7 +193,10 @@ pub fn train(
     let started = Instant::now();
     let first_epoch = state.epochs_done;
     for epoch in first_epoch..cfg.epochs {
-        if opts.stop_after_epochs.is_some_and(|k| state.epochs_done >= k) {
+        if opts
+            .stop_after_epochs
+            .is_some_and(|k| state.epochs_done >= k)
+        {
             break;
         }
         let lr = cfg.lr_at(epoch);
@@ -208,7 +223,15 @@ pub fn train(
             batches += 1;
         }
         let n = batches.max(1) as f64;
-        let val = evaluate_split(&model, &loss, &items, &val_idx, t_points, cfg.batch_size, device)?;
+        let val = evaluate_split(
+            &model,
+            &loss,
+            &items,
+            &val_idx,
+            t_points,
+            cfg.batch_size,
+            device,
+        )?;
         let row = HistoryRow {
             epoch: epoch + 1,
             step: adam.step,
@@ -246,8 +269,14 @@ pub fn history_table(history: &[HistoryRow]) -> Result<pino_data::Table> {
     use pino_data::Column;
     let mut t = pino_data::Table::default();
     let f = |g: fn(&HistoryRow) -> f64| Column::F64(history.iter().map(g).collect());
-    t.push("epoch", Column::I64(history.iter().map(|r| r.epoch as i64).collect()))?;
-    t.push("step", Column::I64(history.iter().map(|r| r.step as i64).collect()))?;
+    t.push(
+        "epoch",
+        Column::I64(history.iter().map(|r| r.epoch as i64).collect()),
+    )?;
+    t.push(
+        "step",
+        Column::I64(history.iter().map(|r| r.step as i64).collect()),
+    )?;
     t.push("lr", f(|r| r.lr))?;
     t.push("loss_total", f(|r| r.loss_total))?;
     t.push("loss_data", f(|r| r.loss_data))?;
@@ -308,7 +337,10 @@ pub fn train_to_dir(
     };
     let outcome = train(ds, model_cfg, cfg, window, &opts, device, report)?;
     checkpoint::save_model(out, &outcome.model, &outcome.meta)?;
-    pino_data::write_parquet(&out.join("history.parquet"), &history_table(&outcome.history)?)?;
+    pino_data::write_parquet(
+        &out.join("history.parquet"),
+        &history_table(&outcome.history)?,
+    )?;
     for f in [checkpoint::CHECKPOINT_TENSORS, checkpoint::CHECKPOINT_META] {
         let p = out.join(f);
         std::fs::remove_file(&p).map_err(|e| crate::io_err(&p, e))?;
@@ -333,7 +365,13 @@ mod tests {
             ..Default::default()
         };
         let f = write_dataset(&spec, dir).unwrap();
-        load_dataset(&f.params, &[f.simulation], Some(&f.weights), &WindowConfig::default()).unwrap()
+        load_dataset(
+            &f.params,
+            &[f.simulation],
+            Some(&f.weights),
+            &WindowConfig::default(),
+        )
+        .unwrap()
     }
 
     fn small(algorithm: i64, epochs: usize) -> (ModelConfig, TrainConfig) {
@@ -354,7 +392,13 @@ mod tests {
         model
             .vars()
             .iter()
-            .map(|(_, v)| v.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap())
+            .map(|(_, v)| {
+                v.as_tensor()
+                    .flatten_all()
+                    .unwrap()
+                    .to_vec1::<f32>()
+                    .unwrap()
+            })
             .collect()
     }
 
@@ -395,7 +439,16 @@ mod tests {
             checkpoint_dir: b_dir.clone(),
             stop_after_epochs: None,
         };
-        let err = train(&ds, m2, t, WindowConfig::default(), &opts, &dev, &mut |_| {}).unwrap_err();
+        let err = train(
+            &ds,
+            m2,
+            t,
+            WindowConfig::default(),
+            &opts,
+            &dev,
+            &mut |_| {},
+        )
+        .unwrap_err();
         assert!(err.to_string().contains("another configuration"), "{err}");
     }
 
@@ -407,30 +460,58 @@ mod tests {
         let dev = Device::Cpu;
         let out = dir.path().join("model");
         std::fs::create_dir_all(&out).unwrap();
-        let outcome = train_to_dir(&ds, (m, t, WindowConfig::default()), Transform::Matmul, &out, &dev, &mut |_| {}).unwrap();
+        let outcome = train_to_dir(
+            &ds,
+            (m, t, WindowConfig::default()),
+            Transform::Matmul,
+            &out,
+            &dev,
+            &mut |_| {},
+        )
+        .unwrap();
         let (back, meta) = checkpoint::load_model(&out, Transform::Matmul, &dev).unwrap();
         assert_eq!(meta, outcome.meta);
         assert_eq!(params_of(&back), params_of(&outcome.model));
-        assert_eq!(read_history(&out.join("history.parquet")).unwrap(), outcome.history);
+        assert_eq!(
+            read_history(&out.join("history.parquet")).unwrap(),
+            outcome.history
+        );
         // Checkpoints (with Adam moments) round-trip too.
         let ck = dir.path().join("ck");
         std::fs::create_dir_all(&ck).unwrap();
         let mut adam = Adam::new(outcome.model.vars()).unwrap();
         adam.step = 7;
         adam.m[0] = (adam.m[0].ones_like().unwrap() * 0.25).unwrap();
-        let state = TrainState { epochs_done: 1, step: 7, history: outcome.history.clone() };
+        let state = TrainState {
+            epochs_done: 1,
+            step: 7,
+            history: outcome.history.clone(),
+        };
         checkpoint::save_checkpoint(&ck, &outcome.model, &adam, &outcome.meta, &state).unwrap();
-        let (m2, a2, meta2, s2) = checkpoint::load_checkpoint(&ck, Transform::Matmul, &dev).unwrap();
+        let (m2, a2, meta2, s2) =
+            checkpoint::load_checkpoint(&ck, Transform::Matmul, &dev).unwrap();
         assert_eq!((meta2, s2), (outcome.meta.clone(), state));
         assert_eq!(params_of(&m2), params_of(&outcome.model));
         assert_eq!(a2.step, 7);
-        assert_eq!(a2.m[0].flatten_all().unwrap().to_vec1::<f32>().unwrap(), adam.m[0].flatten_all().unwrap().to_vec1::<f32>().unwrap());
+        assert_eq!(
+            a2.m[0].flatten_all().unwrap().to_vec1::<f32>().unwrap(),
+            adam.m[0].flatten_all().unwrap().to_vec1::<f32>().unwrap()
+        );
         // A model.json of another configuration next to these weights is refused by name.
         let mut other = outcome.meta.clone();
         other.model.width += 1;
-        std::fs::write(out.join("model.json"), serde_json::to_string(&other).unwrap()).unwrap();
-        let err = checkpoint::load_model(&out, Transform::Matmul, &dev).unwrap_err().to_string();
-        assert!(err.contains("model.safetensors") && err.contains("width 9"), "{err}");
+        std::fs::write(
+            out.join("model.json"),
+            serde_json::to_string(&other).unwrap(),
+        )
+        .unwrap();
+        let err = checkpoint::load_model(&out, Transform::Matmul, &dev)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("model.safetensors") && err.contains("width 9"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -446,7 +527,12 @@ mod tests {
         let norm = ds.normalisation().unwrap();
         let items = prepare(&ds, &norm);
         let model = Fno::new(m, ds.t_points(), 1, Transform::Matmul, &dev).unwrap();
-        let loss = LossContext { config: t, norm, dt: ds.dt, f_ref: ds.mean_wheel_load(9.81) };
+        let loss = LossContext {
+            config: t,
+            norm,
+            dt: ds.dt,
+            f_ref: ds.mean_wheel_load(9.81),
+        };
         let batch = make_batch(&items, &[0, 1], ds.t_points(), &dev).unwrap();
         let mut adam = Adam::new(model.vars()).unwrap();
         let mut first = None;
@@ -471,14 +557,25 @@ mod tests {
         let items = prepare(&ds, &norm);
         let (_, t) = small(2, 1);
         let dev = Device::Cpu;
-        let ctx = LossContext { config: t, norm, dt: ds.dt, f_ref: ds.mean_wheel_load(9.81) };
+        let ctx = LossContext {
+            config: t,
+            norm,
+            dt: ds.dt,
+            f_ref: ds.mean_wheel_load(9.81),
+        };
         let idx: Vec<usize> = (0..ds.samples.len()).collect();
         let batch = make_batch(&items, &idx, ds.t_points(), &dev).unwrap();
         let level = |noise: f64| -> f64 {
             let mut s = vtcd::rng::SampleStream::new(3, vtcd::rng::Purpose::WeightNoise, 0);
-            let n: Vec<f32> = (0..batch.u.elem_count()).map(|_| (noise * s.normal()) as f32).collect();
-            let u = (&batch.u + candle_core::Tensor::from_vec(n, batch.u.shape(), &dev).unwrap()).unwrap();
-            ctx.ode_global_loss(&u, &batch).unwrap().to_scalar::<f64>().unwrap()
+            let n: Vec<f32> = (0..batch.u.elem_count())
+                .map(|_| (noise * s.normal()) as f32)
+                .collect();
+            let u = (&batch.u + candle_core::Tensor::from_vec(n, batch.u.shape(), &dev).unwrap())
+                .unwrap();
+            ctx.ode_global_loss(&u, &batch)
+                .unwrap()
+                .to_scalar::<f64>()
+                .unwrap()
         };
         // Exact displacements, derivatives by central differences: the residual is the
         // O(dt^2) truncation error of the smooth (< 10 Hz) synthetic response plus f32

@@ -127,7 +127,7 @@ impl Rail {
 }
 
 /// The DST-I `out_j = sum_{k=1}^{N-1} u_k sin(pi j k / N)` for `j = 1..N-1`. Even `N` goes
-/// through [`HalfSize`] (complex FFT of length `N/2`); odd `N` as follows (length `N`).
+/// through `HalfSize` (complex FFT of length `N/2`); odd `N` as follows (length `N`).
 ///
 /// With `y` the odd extension of `u` to length `2N` (`y_0 = y_N = 0`, `y_{2N-m} = -y_m`), its
 /// DFT is `Y_j = -2i out_j`. Packing `z_n = y_{2n} + i y_{2n+1}` (length `N`) and
@@ -144,7 +144,7 @@ pub struct SineTransform {
     /// `cos(pi j / N) / 4` and `sin(pi j / N) / 4`, `j = 0..N-1`.
     cos4: Vec<f64>,
     sin4: Vec<f64>,
-    /// The faster route for even `N` (see [`HalfSize`]).
+    /// The faster route for even `N` (see `HalfSize`).
     half: Option<HalfSize>,
 }
 

@@ -475,9 +475,11 @@ struct Workspace {
 }
 
 impl Simulation {
-    /// Builds and checks one sample's model: configuration, parameters (masses and
-    /// stiffnesses > 0, dampings >= 0), the time step against the stability bound, and that the
-    /// wheels stay on the rail and, while the irregularity is on, on the profile.
+    /// Builds and checks one sample's model: configuration, parameters (masses, stiffnesses and
+    /// lengths > 0 with `l_t < l_c` so the wheels keep their order; dampings and speed >= 0, zero
+    /// for the tests' undamped or standing vehicles), that the wheels stay on the rail and,
+    /// while the irregularity is on, on the profile, and the time step against the stability
+    /// bound.
     pub fn new(
         params: &SampleParams,
         config: &SimulationConfig,
@@ -503,6 +505,10 @@ impl Simulation {
                     },
                 ));
             }
+        }
+        if params.l_t >= params.l_c {
+            let allowed = format!("< l_c = {} (the bogies must not overlap)", params.l_c);
+            return Err(out_of_range("l_t", params.l_t, allowed));
         }
         let track = config.track();
         let vehicle = Vehicle::new(params, config.gravity);

@@ -509,6 +509,10 @@ fn bad_configurations_are_refused_with_the_field_named() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("m_c"), "{e}");
+    let e = Simulation::new(&SampleParams { l_t: 9.5, ..p }, &base, None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("l_t") && e.contains("overlap"), "{e}");
     // A profile that stops short of the run.
     let short = Profile::new(vec![0.0, 1.0, 100.0], vec![0.0; 3]).unwrap();
     let e = Simulation::new(&p, &base, Some(short))

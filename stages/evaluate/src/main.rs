@@ -4,42 +4,20 @@
 //! directory per expansion of `train`). Writes `table4.{parquet,csv,md}`,
 //! `channel_errors.{parquet,csv}`, prediction and training-curve PNGs and `plots.md`.
 use anyhow::{bail, Result};
-use pino_learn::config::DeviceKind;
-use pino_learn::eval::{evaluate, EvalOptions};
+use pino_learn::eval::{evaluate, EvalOptions, EvalParams};
 use pino_learn::spectral::Transform;
 use stage_kit::StageContext;
 
-fn d_plots() -> usize {
-    2
-}
-fn d_batch() -> usize {
-    8
-}
-fn d_device() -> DeviceKind {
-    DeviceKind::Cpu
-}
-
-#[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    /// Validation samples plotted per model.
-    #[serde(default = "d_plots")]
-    plot_samples: usize,
-    /// Samples per forward pass.
-    #[serde(default = "d_batch")]
-    batch_size: usize,
-    /// "cpu" or "cuda".
-    #[serde(default = "d_device")]
-    device: DeviceKind,
-}
-
 fn run() -> Result<()> {
     let ctx = StageContext::load()?;
-    let p: Params = ctx.params()?;
+    let p: EvalParams = ctx.params()?;
     let device = p.device.device()?;
     let params = ctx.input_files("params", "params.parquet")?;
     let [params] = params.as_slice() else {
-        bail!("input `params` must hold exactly one params.parquet, found {}", params.len());
+        bail!(
+            "input `params` must hold exactly one params.parquet, found {}",
+            params.len()
+        );
     };
     let sims = ctx.input_files("dataset", "simulation.parquet")?;
     let models = ctx.input_dirs("models")?.to_vec();
@@ -52,9 +30,15 @@ fn run() -> Result<()> {
         transform: Transform::Matmul,
     };
     let progress = ctx.progress(models.len() as u64);
-    let results = evaluate(params, &sims, &models, &ctx.output, &opts, &device, &mut |done, msg| {
-        progress.set(done as u64, msg)
-    })?;
+    let results = evaluate(
+        params,
+        &sims,
+        &models,
+        &ctx.output,
+        &opts,
+        &device,
+        &mut |done, msg| progress.set(done as u64, msg),
+    )?;
     let rows: Vec<String> = results
         .iter()
         .map(|r| {
@@ -67,7 +51,10 @@ fn run() -> Result<()> {
             )
         })
         .collect();
-    let speed = results.iter().map(|r| r.speed).fold(f64::INFINITY, f64::min);
+    let speed = results
+        .iter()
+        .map(|r| r.speed)
+        .fold(f64::INFINITY, f64::min);
     stage_kit::summary(&format!(
         "Table 4 (solutions/first/second) {}; prediction >= {speed:.0} simulated s per wall s",
         rows.join(", ")

@@ -10,11 +10,16 @@
 use anyhow::{Context, Result};
 use clap::Parser;
 use pino_learn::config::DeviceKind;
-use pino_learn::predict::{apply_override, generated_profile, parse_param_sets, predict, read_profile, Placement};
+use pino_learn::predict::{
+    apply_override, generated_profile, parse_param_sets, predict, read_profile, Placement,
+};
 use std::path::PathBuf;
 
 #[derive(Parser)]
-#[command(name = "predict", about = "Predict vehicle responses with a trained PINO-MBD model")]
+#[command(
+    name = "predict",
+    about = "Predict vehicle responses with a trained PINO-MBD model"
+)]
 struct Args {
     /// Model directory (model.safetensors + model.json from `train`).
     #[arg(long)]
@@ -56,7 +61,8 @@ fn run() -> Result<()> {
     .device()?;
     let mut sets = match &args.params {
         Some(path) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
             parse_param_sets(&text, path)?
         }
         None => vec![vtcd_nominal()],
@@ -69,7 +75,10 @@ fn run() -> Result<()> {
         (None, Some(seed)) => generated_profile(seed, args.profile_id.unwrap_or(0).max(0) as u64)?,
         (None, None) => anyhow::bail!("give an irregularity: --profile FILE or --seed N"),
     };
-    let place = Placement { x0: args.x0, ..Placement::default() };
+    let place = Placement {
+        x0: args.x0,
+        ..Placement::default()
+    };
     let started = std::time::Instant::now();
     let (table, meta) = predict(&args.model, &sets, &profile, &place, &device)?;
     let wall = started.elapsed().as_secs_f64();

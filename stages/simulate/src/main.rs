@@ -11,8 +11,9 @@
 //! the first sample runs.
 
 use anyhow::{bail, Context, Result};
-use pino_data::{read_parquet_files, schema, Column, StreamWriter, Table};
+use pino_data::{for_each_batch, read_parquet_files, schema, Column, StreamWriter, Table};
 use std::collections::BTreeMap;
+use std::path::PathBuf;
 use vtcd::params::SampleParams;
 use vtcd::simulation::{self, Profile, SampleInput, SimulationConfig};
 
@@ -95,32 +96,28 @@ fn run() -> Result<String> {
 /// One profile's positions (m) and values (m).
 type XEta = (Vec<f64>, Vec<f64>);
 
-/// The profiles of the samples this shard owns, grouped by sample id (rows of one sample are
-/// consecutive in `irregularity.parquet`, sorted by x). The full table is freed on return.
-fn owned_profiles(
-    files: &[std::path::PathBuf],
-    shard: stage_kit::Shard,
-) -> Result<BTreeMap<i64, XEta>> {
-    let irr = read_parquet_files(
-        files,
-        Some(&[schema::SAMPLE_ID, schema::TRACK_X, schema::TRACK_ETA]),
-    )?;
-    let (ids, xs, etas) = (
-        irr.i64(schema::SAMPLE_ID)?,
-        irr.f64(schema::TRACK_X)?,
-        irr.f64(schema::TRACK_ETA)?,
-    );
+/// The profiles of the samples this shard owns, grouped by sample id. The files are streamed
+/// batch by batch (at paper scale they hold 119 M rows), keeping only this shard's rows; the
+/// rows of one sample are consecutive and sorted by x (checked by `Profile::new`).
+fn owned_profiles(files: &[PathBuf], shard: stage_kit::Shard) -> Result<BTreeMap<i64, XEta>> {
     let mut profiles: BTreeMap<i64, XEta> = BTreeMap::new();
-    let mut start = 0;
-    while start < ids.len() {
-        let id = ids[start];
-        let end = start + ids[start..].iter().take_while(|&&i| i == id).count();
-        if id >= 0 && shard.owns(id as u64) {
-            let p = profiles.entry(id).or_default();
-            p.0.extend_from_slice(&xs[start..end]);
-            p.1.extend_from_slice(&etas[start..end]);
-        }
-        start = end;
+    let cols = [schema::SAMPLE_ID, schema::TRACK_X, schema::TRACK_ETA];
+    for file in files {
+        for_each_batch(file, Some(&cols), |t| {
+            let (ids, xs, etas) = (t.i64(cols[0])?, t.f64(cols[1])?, t.f64(cols[2])?);
+            let mut start = 0;
+            while start < ids.len() {
+                let id = ids[start];
+                let end = start + ids[start..].iter().take_while(|&&i| i == id).count();
+                if id >= 0 && shard.owns(id as u64) {
+                    let p = profiles.entry(id).or_default();
+                    p.0.extend_from_slice(&xs[start..end]);
+                    p.1.extend_from_slice(&etas[start..end]);
+                }
+                start = end;
+            }
+            Ok(())
+        })?;
     }
     Ok(profiles)
 }

@@ -14,38 +14,54 @@ use stage_kit::StageContext;
 fn run() -> Result<()> {
     let ctx = StageContext::load()?;
     let p: TrainParams = ctx.params()?;
-    let configs = p.configs().with_context(|| format!("stage `{}`", ctx.stage))?;
+    let configs = p
+        .configs()
+        .with_context(|| format!("stage `{}`", ctx.stage))?;
     let (_, train, window) = configs;
     let device = p.device.device()?;
     let params = ctx.input_files("params", "params.parquet")?;
     let [params] = params.as_slice() else {
-        bail!("input `params` must hold exactly one params.parquet, found {}", params.len());
+        bail!(
+            "input `params` must hold exactly one params.parquet, found {}",
+            params.len()
+        );
     };
     let sims = ctx.input_files("dataset", "simulation.parquet")?;
     let weights = if train.algorithm.needs_phi() {
         let w = ctx.input_files("weights", "weights.parquet")?;
-        Some(w.first().cloned().context("algorithm 3 needs weights.parquet from the `weights` stage")?)
+        Some(
+            w.first()
+                .cloned()
+                .context("algorithm 3 needs weights.parquet from the `weights` stage")?,
+        )
     } else {
         None
     };
     let ds = load_dataset(params, &sims, weights.as_deref(), &window)?;
     let progress = ctx.progress(train.epochs as u64);
-    let outcome = train_to_dir(&ds, configs, Transform::Matmul, &ctx.output, &device, &mut |r| {
-        let left = (r.epochs - r.row.epoch) as f64 * r.seconds_per_epoch;
-        progress.set(
-            r.row.epoch as u64,
-            &format!(
-                "loss {:.4e} (data {:.4e}) val {:.2}% / {:.2}% / {:.2}% lr {:.2e} ETA {:.0} s",
-                r.row.loss_total,
-                r.row.loss_data,
-                100.0 * r.row.val_solution,
-                100.0 * r.row.val_first,
-                100.0 * r.row.val_second,
-                r.row.lr,
-                left
-            ),
-        )
-    })?;
+    let outcome = train_to_dir(
+        &ds,
+        configs,
+        Transform::Matmul,
+        &ctx.output,
+        &device,
+        &mut |r| {
+            let left = (r.epochs - r.row.epoch) as f64 * r.seconds_per_epoch;
+            progress.set(
+                r.row.epoch as u64,
+                &format!(
+                    "loss {:.4e} (data {:.4e}) val {:.2}% / {:.2}% / {:.2}% lr {:.2e} ETA {:.0} s",
+                    r.row.loss_total,
+                    r.row.loss_data,
+                    100.0 * r.row.val_solution,
+                    100.0 * r.row.val_first,
+                    100.0 * r.row.val_second,
+                    r.row.lr,
+                    left
+                ),
+            )
+        },
+    )?;
     let last = outcome.history.last().context("no epoch was trained")?;
     stage_kit::summary(&format!(
         "algorithm {} ({}), {} params, {} epochs on {} samples x {} points: validation {:.2}% / {:.2}% / {:.2}%{}",
