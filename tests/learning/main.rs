@@ -79,6 +79,17 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         );
         models.push(out);
     }
+    // Same inputs, same bytes: a second run of algorithm 3 reproduces every file.
+    let (ctx, again) = context(dir, "train3-again", small(3), inputs.clone());
+    let o = run("train", &["--context", ctx.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    for f in ["model.safetensors", "model.json", "history.parquet"] {
+        let a = std::fs::read(models[0].join(f)).unwrap();
+        assert!(
+            a == std::fs::read(again.join(f)).unwrap(),
+            "{f} differs between runs"
+        );
+    }
 
     let (ctx, out) = context(
         dir,
@@ -112,6 +123,7 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         "training_curves.png",
         "pred_alg3_sample4.png",
         "plots.md",
+        "speed.csv",
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
