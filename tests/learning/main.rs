@@ -116,7 +116,7 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         "{md}"
     );
     let ch = pino_data::read_parquet(&out.join("channel_errors.parquet"), None).unwrap();
-    assert_eq!(ch.num_rows(), 2 * (14 + 10 + 10));
+    assert_eq!(ch.num_rows(), 2 * (14 + 10 + 10 + 4));
     for f in [
         "table4.csv",
         "channel_errors.csv",

@@ -21,10 +21,10 @@
 //! ```
 #![warn(missing_docs)]
 
-pub mod schema;
-mod table;
 mod parquet_io;
+pub mod schema;
 mod stream;
+mod table;
 
 pub use parquet_io::{
     for_each_batch, read_parquet, read_parquet_files, row_count, write_parquet, write_parquet_with,

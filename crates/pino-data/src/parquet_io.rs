@@ -79,7 +79,8 @@ pub fn write_parquet_with(path: &Path, table: &Table, row_group_rows: usize) -> 
     let tmp = temp_path(path);
     let result = (|| {
         let file = File::create(&tmp).map_err(|e| io(&tmp, e))?;
-        let mut writer = ArrowWriter::try_new(file, schema, Some(props)).map_err(|e| pq(path, e))?;
+        let mut writer =
+            ArrowWriter::try_new(file, schema, Some(props)).map_err(|e| pq(path, e))?;
         writer.write(&batch).map_err(|e| pq(path, e))?;
         let mut file = writer.into_inner().map_err(|e| pq(path, e))?;
         file.flush().map_err(|e| io(&tmp, e))?;
@@ -116,7 +117,11 @@ fn projected_reader(
     let file = File::open(path).map_err(|e| io(path, e))?;
     let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| pq(path, e))?;
     let arrow_schema = builder.schema().clone();
-    let present: Vec<String> = arrow_schema.fields().iter().map(|f| f.name().clone()).collect();
+    let present: Vec<String> = arrow_schema
+        .fields()
+        .iter()
+        .map(|f| f.name().clone())
+        .collect();
     let wanted: Vec<String> = match columns {
         Some(cols) => cols.iter().map(|s| s.to_string()).collect(),
         None => present.clone(),
@@ -173,7 +178,9 @@ pub fn read_parquet(path: &Path, columns: Option<&[&str]>) -> Result<Table> {
         cols = wanted
             .iter()
             .map(|name| {
-                let field = arrow_schema.field_with_name(name).map_err(|e| pq(path, e))?;
+                let field = arrow_schema
+                    .field_with_name(name)
+                    .map_err(|e| pq(path, e))?;
                 empty_column(path, name, field.data_type())
             })
             .collect::<Result<_>>()?;
@@ -236,7 +243,9 @@ fn empty_column(path: &Path, name: &str, dt: &DataType) -> Result<Column> {
 
 fn append_array(path: &Path, name: &str, col: &mut Column, array: &dyn Array) -> Result<()> {
     use arrow_array::cast::AsArray;
-    use arrow_array::types::{Float32Type, Float64Type, Int32Type, Int64Type, UInt32Type, UInt64Type};
+    use arrow_array::types::{
+        Float32Type, Float64Type, Int32Type, Int64Type, UInt32Type, UInt64Type,
+    };
     let nulls = |n: usize| -> Result<()> {
         if n > 0 {
             Err(Error::ColumnType {
@@ -265,13 +274,25 @@ fn append_array(path: &Path, name: &str, col: &mut Column, array: &dyn Array) ->
             v.extend_from_slice(array.as_primitive::<Int64Type>().values())
         }
         (Column::I64(v), DataType::Int32) => v.extend(
-            array.as_primitive::<Int32Type>().values().iter().map(|&x| x as i64),
+            array
+                .as_primitive::<Int32Type>()
+                .values()
+                .iter()
+                .map(|&x| x as i64),
         ),
         (Column::I64(v), DataType::UInt32) => v.extend(
-            array.as_primitive::<UInt32Type>().values().iter().map(|&x| x as i64),
+            array
+                .as_primitive::<UInt32Type>()
+                .values()
+                .iter()
+                .map(|&x| x as i64),
         ),
         (Column::I64(v), DataType::UInt64) => v.extend(
-            array.as_primitive::<UInt64Type>().values().iter().map(|&x| x as i64),
+            array
+                .as_primitive::<UInt64Type>()
+                .values()
+                .iter()
+                .map(|&x| x as i64),
         ),
         (Column::Str(v), DataType::Utf8) => v.extend(
             array
@@ -305,8 +326,11 @@ mod tests {
         let mut t = Table::default();
         t.push("sample_id", Column::I64(vec![3, 3, 4])).unwrap();
         t.push("t", Column::F64(vec![0.0, 1e-3, 0.0])).unwrap();
-        t.push("split", Column::Str(vec!["train".into(), "train".into(), "validation".into()]))
-            .unwrap();
+        t.push(
+            "split",
+            Column::Str(vec!["train".into(), "train".into(), "validation".into()]),
+        )
+        .unwrap();
         t
     }
 
@@ -322,7 +346,10 @@ mod tests {
         assert_eq!(back.columns(), sample().columns());
         assert_eq!(row_count(&a).unwrap(), 3);
         // No temporary file is left behind.
-        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
         assert_eq!(names.len(), 2, "{names:?}");
     }
 

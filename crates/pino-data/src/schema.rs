@@ -43,7 +43,11 @@ pub const ACCELERATION_SUFFIX: &str = "_a";
 
 /// The 14 solution channels the neural operator predicts: vehicle DOFs then rail.
 pub fn solution_channels() -> Vec<&'static str> {
-    VEHICLE_DOFS.iter().chain(RAIL_UNDER_WHEEL.iter()).copied().collect()
+    VEHICLE_DOFS
+        .iter()
+        .chain(RAIL_UNDER_WHEEL.iter())
+        .copied()
+        .collect()
 }
 
 /// `z_c` -> `z_c_v`.

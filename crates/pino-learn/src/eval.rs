@@ -6,7 +6,8 @@
 //! vehicle accelerations, both from central differences of the prediction at interior points.
 //! Per channel: `||pred - exact|| / ||exact||` in physical units (mean over samples, %), the
 //! RMS error in an engineer's unit (mm, mrad, mm/s, mrad/s, m/s^2, rad/s^2) and the worst
-//! sample. Speed: simulated seconds (validation samples x window length) per wall second of
+//! sample; also the Hertz contact forces `p_1..p_4` (kN) implied by the predicted `z_w - z_r`
+//! and the exact irregularity. Speed: simulated seconds (validation samples x window length) per wall second of
 //! forward passes.
 
 use crate::checkpoint::{load_model, ModelMeta};
@@ -168,7 +169,12 @@ pub fn predict_samples(
     Ok((out, wall))
 }
 
-fn channel_errors(ds: &Dataset, val: &[usize], preds: &[Physical]) -> Vec<ChannelError> {
+fn channel_errors(
+    ds: &Dataset,
+    val: &[usize],
+    preds: &[Physical],
+    hertz_g: f64,
+) -> Vec<ChannelError> {
     let t = ds.t_points();
     let names = schema::solution_channels();
     let mut out = Vec::new();
@@ -219,6 +225,48 @@ fn channel_errors(ds: &Dataset, val: &[usize], preds: &[Physical]) -> Vec<Channe
                 worst_rel_l2_pct: 100.0 * worst_rel,
             });
         }
+    }
+    // Contact forces (kN): Hertz of the predicted against the exact `z_w - z_r - eta`.
+    for i in 0..4 {
+        let force = |u: &[f64], eta: &[f64], r: usize| {
+            let delta =
+                u[r * OUT_CHANNELS + 6 + i] - u[r * OUT_CHANNELS + DOFS + i] - eta[r * 4 + i];
+            vtcd::contact::contact_force(delta, hertz_g) * 1e-3
+        };
+        let mut rels = Vec::with_capacity(val.len());
+        let (mut se, mut sx) = (0.0, 0.0);
+        for (k, &s) in val.iter().enumerate() {
+            let smp = &ds.samples[s];
+            let (mut e2, mut x2) = (0.0, 0.0);
+            for r in 0..t {
+                let (x, p) = (force(&smp.u, &smp.eta, r), force(&preds[k].u, &smp.eta, r));
+                e2 += (p - x) * (p - x);
+                x2 += x * x;
+            }
+            rels.push((e2 / x2.max(1e-300)).sqrt());
+            se += e2;
+            sx += x2;
+        }
+        let (worst, worst_rel) =
+            rels.iter()
+                .enumerate()
+                .fold((0usize, f64::NEG_INFINITY), |(bi, bv), (i, &r)| {
+                    if r > bv {
+                        (i, r)
+                    } else {
+                        (bi, bv)
+                    }
+                });
+        let n = (val.len() * t).max(1) as f64;
+        out.push(ChannelError {
+            channel: schema::CONTACT_FORCES[i].to_owned(),
+            unit: "kN",
+            rel_l2_pct: 100.0 * rels.iter().sum::<f64>() / rels.len().max(1) as f64,
+            rms_error: (se / n).sqrt(),
+            rms_exact: (sx / n).sqrt(),
+            worst_sample: val.get(worst).map(|&i| ds.samples[i].id).unwrap_or(-1),
+            worst_rel_l2_pct: 100.0 * worst_rel,
+        });
     }
     out
 }
@@ -396,7 +444,12 @@ pub fn evaluate(
         let (preds, wall) =
             predict_samples(&model, &items, &val, ds.t_points(), opts.batch_size, device)?;
         let phys: Vec<Physical> = preds.iter().map(|p| to_physical(p, &meta)).collect();
-        let channels = channel_errors(ds, &val, &phys);
+        let channels = channel_errors(
+            ds,
+            &val,
+            &phys,
+            vtcd::contact::hertz_constant(meta.train.wheel_radius),
+        );
         let alg = meta.train.algorithm.id();
         for (k, &i) in val.iter().take(opts.plot_samples).enumerate() {
             let id = ds.samples[i].id;

@@ -195,7 +195,10 @@ mod tests {
         }
         assert_eq!(ctx.params::<P>().unwrap().seed, 7);
         assert_eq!(ctx.input_dirs("up").unwrap().len(), 2);
-        assert_eq!(ctx.input_files("up", "x.parquet").unwrap(), vec![b.join("x.parquet")]);
+        assert_eq!(
+            ctx.input_files("up", "x.parquet").unwrap(),
+            vec![b.join("x.parquet")]
+        );
         assert!(ctx.shard.owns(5) && !ctx.shard.owns(4));
         let err = ctx.input_dirs("down").unwrap_err().to_string();
         assert!(err.contains("`down`") && err.contains("up"), "{err}");

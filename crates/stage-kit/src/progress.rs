@@ -66,7 +66,12 @@ impl Progress {
     fn emit(&self, done: u64, message: Option<&str>) {
         let mut out = std::io::stdout().lock();
         let _ = match message {
-            Some(m) => writeln!(out, "{PROGRESS_PREFIX} {done} {} {}", self.total, one_line(m)),
+            Some(m) => writeln!(
+                out,
+                "{PROGRESS_PREFIX} {done} {} {}",
+                self.total,
+                one_line(m)
+            ),
             None => writeln!(out, "{PROGRESS_PREFIX} {done} {}", self.total),
         };
         let _ = out.flush();

@@ -1,0 +1,133 @@
+//! The whole product, end to end: the real `pipeline.yaml` (every stage, as a user runs it)
+//! driven by the real `pipeline` binary on the real stage binaries, shrunk through `--set`
+//! to seconds of work: 6 samples of 0.5 s on a 120 m track, tiny networks, 2 epochs.
+//!
+//! What it proves: the stages agree on the artifact contract (file names, columns, input
+//! wiring, shards and the train matrix), the outputs are the public schema, and a second run
+//! is a no-op. Accuracy is not asserted here (2 epochs learn little); the learning tests do.
+
+use pino_data::{read_parquet, schema};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Overrides that keep the real physics and wiring but cost seconds in the dev profile.
+/// The track is 200 fasteners (120 m): the front wheel starts at most 20 + 2 (1.2 * 9 + 1.2 *
+/// 1.2) = 44.5 m and travels at most 350/3.6 * 0.5 = 48.6 m, so it ends at 93 m, inside both
+/// the rail and the 120 m irregularity profile.
+const TINY: &[&str] = &[
+    "sample-params.n_train=4",
+    "sample-params.n_validation=2",
+    "irregularity.length=120.0",
+    "simulate.duration=0.5",
+    "simulate.n_f=200",
+    "simulate.n_m=100",
+    "train.epochs=2",
+    "train.width=8",
+    "train.modes=8",
+    "train.projection_width=16",
+    "train.batch_size=2",
+    "evaluate.plot_samples=1",
+];
+
+fn pipeline(ws: &Path, args: &[&str]) -> Output {
+    let mut cmd = Command::new(pino_mbd_tests::bin("pipeline"));
+    cmd.current_dir(ws)
+        .arg("--bin-dir")
+        .arg(pino_mbd_tests::bin_dir())
+        .env_remove("PINO_BIN_DIR");
+    for s in TINY {
+        cmd.arg("--set").arg(s);
+    }
+    cmd.args(args).output().expect("pipeline runs")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "exit {:?}\nstdout:\n{}\nstderr:\n{}",
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn show(ws: &Path, stage: &str) -> Vec<PathBuf> {
+    let o = pipeline(ws, &["show", stage]);
+    assert!(o.status.success(), "show {stage}: {}", text(&o));
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(PathBuf::from)
+        .collect()
+}
+
+fn named<'a>(files: &'a [PathBuf], name: &str) -> Vec<&'a PathBuf> {
+    files
+        .iter()
+        .filter(|p| p.file_name().is_some_and(|n| n == name))
+        .collect()
+}
+
+#[test]
+fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
+    let ws = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        pino_mbd_tests::workspace_root().join("pipeline.yaml"),
+        ws.path().join("pipeline.yaml"),
+    )
+    .unwrap();
+
+    let first = pipeline(ws.path(), &["run"]);
+    assert!(first.status.success(), "{}", text(&first));
+
+    // The simulation is the public schema, both shards together hold every sample once.
+    let sim = show(ws.path(), "simulate");
+    let shards = named(&sim, "simulation.parquet");
+    assert_eq!(shards.len(), 2, "two shards: {sim:?}");
+    let mut ids = Vec::new();
+    for file in &shards {
+        let t = read_parquet(file, None).unwrap();
+        let names: Vec<String> = t.names().map(str::to_owned).collect();
+        assert_eq!(names, schema::simulation_columns(), "{}", file.display());
+        let mut these: Vec<i64> = t.i64(schema::SAMPLE_ID).unwrap().to_vec();
+        these.dedup();
+        ids.extend(these);
+        for p in schema::CONTACT_FORCES {
+            assert!(t.f64(p).unwrap().iter().all(|x| x.is_finite() && *x >= 0.0));
+        }
+    }
+    ids.sort();
+    assert_eq!(ids, (0..6).collect::<Vec<i64>>());
+
+    // phi for the four training samples, positive and finite.
+    let weights = show(ws.path(), "weights");
+    let w = read_parquet(named(&weights, "weights.parquet")[0], None).unwrap();
+    assert_eq!(w.i64(schema::SAMPLE_ID).unwrap(), &[0, 1, 2, 3]);
+    for c in schema::phi_columns() {
+        assert!(
+            w.f64(&c).unwrap().iter().all(|x| x.is_finite() && *x > 0.0),
+            "{c}"
+        );
+    }
+
+    // One model per algorithm of the matrix, and a Table 4 row for each.
+    let models = show(ws.path(), "train");
+    assert_eq!(named(&models, "model.safetensors").len(), 5, "{models:?}");
+    let eval = show(ws.path(), "evaluate");
+    let table = read_parquet(named(&eval, "table4.parquet")[0], None).unwrap();
+    assert_eq!(table.num_rows(), 5);
+    let md = std::fs::read_to_string(named(&eval, "table4.md")[0]).unwrap();
+    assert!(md.contains('|'), "{md}");
+    assert!(
+        eval.iter()
+            .any(|p| p.extension().is_some_and(|e| e == "png")),
+        "plots: {eval:?}"
+    );
+
+    // Same inputs: nothing to do.
+    let second = pipeline(ws.path(), &["run"]);
+    assert!(second.status.success(), "{}", text(&second));
+    assert!(
+        text(&second).contains("Nothing to do"),
+        "second run should do nothing: {}",
+        text(&second)
+    );
+}
