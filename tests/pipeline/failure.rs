@@ -32,3 +32,26 @@ fn failing_stage_shows_stderr_caches_nothing_and_others_finish() {
     );
     assert_eq!(ws.run(&["show", "bad"]).code, 1);
 }
+
+#[test]
+fn scratch_survives_a_failed_attempt_and_is_dropped_after_success() {
+    // The scratch directory is how a long stage (training) resumes after a crash: it must be
+    // handed to the next attempt of the same unit, and removed once the output is committed.
+    let ws = Ws::new("basic.yaml");
+    ws.set_pipeline(
+        "stages:\n  resumable:\n    cmd: [test-stage]\n    params: {fail_first_attempts: 1}\n",
+    );
+    let first = ws.run(&["run"]);
+    assert_eq!(first.code, 1, "{first:?}");
+    let scratch_root = ws.path().join("artifacts/scratch");
+    let kept: Vec<_> = std::fs::read_dir(&scratch_root).unwrap().collect();
+    assert_eq!(kept.len(), 1, "one scratch dir kept for the failed unit");
+    let second = ws.run(&["run"]);
+    assert_eq!(second.code, 0, "{second:?}");
+    assert!(
+        ws.output_of("resumable").contains("earlier attempts 1"),
+        "the retry saw the first attempt's scratch: {}",
+        ws.output_of("resumable")
+    );
+    assert_eq!(std::fs::read_dir(&scratch_root).unwrap().count(), 0);
+}

@@ -327,12 +327,13 @@ pub fn train_to_dir(
     (model_cfg, cfg, window): (ModelConfig, TrainConfig, WindowConfig),
     transform: Transform,
     out: &Path,
+    checkpoint_dir: &Path,
     device: &Device,
     report: &mut dyn FnMut(&EpochReport),
 ) -> Result<TrainOutcome> {
     let opts = TrainOptions {
         transform,
-        checkpoint_dir: out.to_owned(),
+        checkpoint_dir: checkpoint_dir.to_owned(),
         stop_after_epochs: None,
     };
     let outcome = train(ds, model_cfg, cfg, window, &opts, device, report)?;
@@ -342,7 +343,7 @@ pub fn train_to_dir(
         &history_table(&outcome.history)?,
     )?;
     for f in [checkpoint::CHECKPOINT_TENSORS, checkpoint::CHECKPOINT_META] {
-        let p = out.join(f);
+        let p = checkpoint_dir.join(f);
         std::fs::remove_file(&p).map_err(|e| crate::io_err(&p, e))?;
     }
     Ok(outcome)
@@ -464,6 +465,7 @@ mod tests {
             &ds,
             (m, t, WindowConfig::default()),
             Transform::Matmul,
+            &out,
             &out,
             &dev,
             &mut |_| {},

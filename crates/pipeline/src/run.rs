@@ -185,12 +185,14 @@ fn compute(
 ) -> Result<std::result::Result<Manifest, String>> {
     let stage = &cx.p.stages[u.stage];
     let work = cx.store.tmp_dir(&entry.identity)?;
+    let scratch = cx.store.scratch_dir(&entry.identity)?;
     let context = serde_json::json!({
         "protocol": PROTOCOL_VERSION,
         "stage": stage.expansions[u.expansion].name,
         "params": entry.params,
         "inputs": dirs,
         "output": work.join("out"),
+        "scratch": scratch,
         "shard": {"index": u.shard, "count": stage.shards},
     });
     crate::store::write_atomic(
@@ -216,6 +218,7 @@ fn compute(
             took.as_millis() as u64,
         ) {
             Ok(m) => {
+                cx.store.drop_scratch(&entry.identity)?;
                 view.finish(&format!("ran in {}", fmt_duration(took)));
                 Ok(Ok(m))
             }

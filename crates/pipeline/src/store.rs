@@ -8,6 +8,7 @@
 //! objects/<identity>/context.json   the context the stage was started with
 //! objects/<identity>/log.txt        the stage's stdout and stderr
 //! tmp/<identity>-<pid>/             a unit being computed (removed at the next run's start)
+//! scratch/<identity>/               resumable state of a unit; survives failed attempts, dropped on commit
 //! trash/                            objects being replaced or deleted
 //! logs/<unit>.failed.log            the log of the last failed attempt of a unit
 //! pipeline.lock.json                lock record: pipeline file -> unit -> current identity
@@ -285,6 +286,25 @@ impl Store {
         let out = dir.join("out");
         std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
         Ok(dir)
+    }
+
+    /// `scratch/<identity>/`: the unit's persistent scratch directory, created if missing. It
+    /// survives a failed or killed run (a stage keeps resumable state there, such as training
+    /// checkpoints) and is deleted once the unit's output is committed. Keyed by identity, so a
+    /// unit never sees the scratch of another configuration.
+    pub fn scratch_dir(&self, identity: &str) -> Result<PathBuf> {
+        let dir = self.root.join("scratch").join(identity);
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        Ok(dir)
+    }
+
+    /// Deletes the scratch directory of `identity` (after its output was committed).
+    pub fn drop_scratch(&self, identity: &str) -> Result<()> {
+        let dir = self.root.join("scratch").join(identity);
+        if dir.exists() {
+            remove_tree(&dir)?;
+        }
+        Ok(())
     }
 
     /// Deletes debris of killed runs (`tmp/`, `trash/`). Call only under the run lock.

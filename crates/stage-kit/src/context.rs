@@ -40,6 +40,8 @@ struct RawContext {
     #[serde(default)]
     inputs: BTreeMap<String, Vec<PathBuf>>,
     output: PathBuf,
+    #[serde(default)]
+    scratch: Option<PathBuf>,
     #[serde(default = "whole")]
     shard: Shard,
 }
@@ -57,6 +59,10 @@ pub struct StageContext {
     pub output: PathBuf,
     /// This process's shard.
     pub shard: Shard,
+    /// A directory that survives a failed or killed attempt of this very unit (same identity)
+    /// and is deleted once its output is committed: the place for resumable state such as
+    /// checkpoints. `None` when the stage runs by hand without one.
+    pub scratch: Option<PathBuf>,
     params: serde_json::Value,
     inputs: BTreeMap<String, Vec<PathBuf>>,
     path: PathBuf,
@@ -99,6 +105,7 @@ impl StageContext {
             stage: raw.stage,
             output: raw.output,
             shard: raw.shard,
+            scratch: raw.scratch,
             params: raw.params,
             inputs: raw.inputs,
             path: path.to_owned(),

@@ -11,6 +11,7 @@
 //!   "params": { "epochs": 40, "algorithm": 3 },
 //!   "inputs": { "dataset": ["/ws/artifacts/objects/ab12/out", "/ws/artifacts/objects/cd34/out"] },
 //!   "output": "/ws/artifacts/tmp/ef56/out",
+//!   "scratch": "/ws/artifacts/scratch/ef56",
 //!   "shard": { "index": 0, "count": 1 }
 //! }
 //! ```
@@ -23,6 +24,9 @@
 //! - `output`: an existing, empty directory. The stage writes its files there; the
 //!   orchestrator verifies, hashes and moves it into the content-addressed store only after
 //!   the stage exits 0. A nonzero exit discards it.
+//! - `scratch` (optional): a directory kept across failed or killed attempts of the same unit
+//!   (same identity) and deleted after a successful commit; resumable state (checkpoints)
+//!   goes there, so `pipeline run` after a crash resumes instead of starting over.
 //! - `shard`: this process's shard index and the shard count (0 of 1 when unsharded).
 //!
 //! A stage reports progress by printing `::progress DONE TOTAL [MESSAGE]` lines on stdout and a

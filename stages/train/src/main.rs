@@ -2,8 +2,9 @@
 //!
 //! Inputs: `params` (params.parquet), `dataset` (simulation.parquet shards), `weights`
 //! (weights.parquet, used by algorithm 3). Writes `model.safetensors`, `model.json` and
-//! `history.parquet`; checkpoints after every epoch in the output directory, from which a
-//! rerun in the same directory resumes.
+//! `history.parquet`; checkpoints after every epoch in the unit's scratch directory (kept by
+//! `pipeline` across killed runs of the same configuration; the output directory when run by
+//! hand), from which the next run resumes.
 use anyhow::{bail, Context, Result};
 use pino_learn::config::TrainParams;
 use pino_learn::data::load_dataset;
@@ -44,6 +45,9 @@ fn run() -> Result<()> {
         configs,
         Transform::Matmul,
         &ctx.output,
+        // The orchestrator's scratch survives a killed run of this very unit, so the next
+        // `pipeline run` resumes from the last epoch; by hand, checkpoints live in the output.
+        ctx.scratch.as_deref().unwrap_or(&ctx.output),
         &device,
         &mut |r| {
             let left = (r.epochs - r.row.epoch) as f64 * r.seconds_per_epoch;

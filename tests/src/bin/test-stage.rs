@@ -5,7 +5,9 @@
 //! Parameters (all optional; any other key, such as a matrix key, is just carried along):
 //! `file` (output name, default `out.txt`), `fail` (print to stderr and exit 3), `steps`
 //! (progress steps), `summary` (the `::summary` text), `gated` / `gated_shards` (while the
-//! file named by env `TEST_STAGE_GATE` exists, wait: lets a test hold a stage mid-run).
+//! file named by env `TEST_STAGE_GATE` exists, wait: lets a test hold a stage mid-run),
+//! `fail_first_attempts` (count attempts in the unit's scratch directory and fail until this
+//! many have failed; the output then records how many earlier attempts the scratch kept).
 //! If env `TEST_STAGE_LOG` names a file, `start UNIT` and `end UNIT` lines are appended to it,
 //! so tests can count which units really ran.
 
@@ -47,6 +49,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
     }
+    let mut earlier_attempts = None;
+    if let Some(n) = get("fail_first_attempts").and_then(|v| v.as_u64()) {
+        let scratch = ctx
+            .scratch
+            .as_ref()
+            .ok_or("no scratch directory in the context")?;
+        let counter = scratch.join("attempts");
+        let before: u64 = std::fs::read_to_string(&counter)
+            .ok()
+            .and_then(|s| s.trim().parse().ok())
+            .unwrap_or(0);
+        std::fs::write(&counter, format!("{}", before + 1))?;
+        if before < n {
+            eprintln!("boom: attempt {} of {unit} fails on purpose", before + 1);
+            return Err("deliberate failure".into());
+        }
+        earlier_attempts = Some(before);
+    }
     if get("fail").and_then(|v| v.as_bool()).unwrap_or(false) {
         eprintln!("early noise that the tail may drop");
         eprintln!("boom: deliberate failure in {unit}");
@@ -78,6 +98,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
             }
         }
+    }
+    if let Some(k) = earlier_attempts {
+        text.push_str(&format!("earlier attempts {k}\n"));
     }
     for _ in 0..steps {
         progress.inc(1);
