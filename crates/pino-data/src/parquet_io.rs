@@ -19,14 +19,14 @@ use std::sync::Arc;
 /// Rows per row group by default (about 1 MiB per f64 column).
 const DEFAULT_ROW_GROUP: usize = 128 * 1024;
 
-fn pq(path: &Path, e: impl std::fmt::Display) -> Error {
+pub(crate) fn pq(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Parquet {
         path: path.to_owned(),
         message: e.to_string(),
     }
 }
 
-fn io(path: &Path, source: std::io::Error) -> Error {
+pub(crate) fn io(path: &Path, source: std::io::Error) -> Error {
     Error::Io {
         path: path.to_owned(),
         source,

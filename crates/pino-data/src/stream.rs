@@ -5,6 +5,7 @@
 //! dropping an unfinished writer removes the temporary file. Equal sequences of tables give
 //! equal bytes.
 
+use crate::parquet_io::{io, pq};
 use crate::{Column, Error, Result, Table};
 use arrow_array::{ArrayRef, Float64Array, Int64Array, RecordBatch, StringArray};
 use arrow_schema::{DataType, Field, Schema, SchemaRef};
@@ -15,20 +16,6 @@ use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-fn pq(path: &Path, e: impl std::fmt::Display) -> Error {
-    Error::Parquet {
-        path: path.to_owned(),
-        message: e.to_string(),
-    }
-}
-
-fn io(path: &Path, source: std::io::Error) -> Error {
-    Error::Io {
-        path: path.to_owned(),
-        source,
-    }
-}
 
 /// Writes a Parquet file row group by row group.
 pub struct StreamWriter {

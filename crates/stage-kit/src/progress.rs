@@ -88,3 +88,19 @@ pub fn summary(text: &str) {
 fn one_line(s: &str) -> String {
     s.replace(['\n', '\r'], " ")
 }
+
+/// Ends a stage process: on success prints the `::summary` line and exits 0; on error prints
+/// the error with its causes (`{:#}`, as anyhow shows a chain) on stderr and exits 1, which the
+/// orchestrator reports as a failed stage.
+pub fn finish<E: std::fmt::Display>(result: std::result::Result<String, E>) -> ! {
+    match result {
+        Ok(text) => {
+            summary(&text);
+            std::process::exit(0)
+        }
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::exit(1)
+        }
+    }
+}

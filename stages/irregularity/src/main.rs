@@ -80,11 +80,5 @@ fn run() -> Result<String> {
 }
 
 fn main() {
-    match run() {
-        Ok(summary) => stage_kit::summary(&summary),
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            std::process::exit(1);
-        }
-    }
+    stage_kit::finish(run())
 }

@@ -138,11 +138,5 @@ fn table(names: &[String], id: i64, t: &[f64], signals: &[Vec<f64>]) -> Table {
 }
 
 fn main() {
-    match run() {
-        Ok(summary) => stage_kit::summary(&summary),
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            std::process::exit(1);
-        }
-    }
+    stage_kit::finish(run())
 }
