@@ -41,40 +41,14 @@ pub fn write_parquet(path: &Path, table: &Table) -> Result<()> {
 /// Writes `table` to `path` atomically with `row_group_rows` rows per row group (a
 /// per-sample row group, for instance, lets readers skip samples cheaply).
 pub fn write_parquet_with(path: &Path, table: &Table, row_group_rows: usize) -> Result<()> {
-    let fields: Vec<Field> = table
-        .columns()
-        .iter()
-        .map(|(name, col)| {
-            let dt = match col {
-                Column::F64(_) => DataType::Float64,
-                Column::I64(_) => DataType::Int64,
-                Column::Str(_) => DataType::Utf8,
-            };
-            Field::new(name, dt, false)
-        })
-        .collect();
-    let schema = Arc::new(Schema::new(fields));
-    let arrays: Vec<ArrayRef> = table
-        .columns()
-        .iter()
-        .map(|(_, col)| -> ArrayRef {
-            match col {
-                Column::F64(v) => Arc::new(Float64Array::from(v.clone())),
-                Column::I64(v) => Arc::new(Int64Array::from(v.clone())),
-                Column::Str(v) => Arc::new(StringArray::from(v.clone())),
-            }
-        })
-        .collect();
+    let schema = arrow_schema(table);
+    let arrays = arrow_arrays(table);
     let batch = if arrays.is_empty() {
         RecordBatch::new_empty(schema.clone())
     } else {
         RecordBatch::try_new(schema.clone(), arrays).map_err(|e| pq(path, e))?
     };
-    let props = WriterProperties::builder()
-        .set_compression(Compression::SNAPPY)
-        .set_max_row_group_row_count(Some(row_group_rows.max(1)))
-        .set_created_by("pino-mbd".to_owned())
-        .build();
+    let props = writer_properties(row_group_rows.max(1));
 
     let tmp = temp_path(path);
     let result = (|| {
@@ -93,7 +67,51 @@ pub fn write_parquet_with(path: &Path, table: &Table, row_group_rows: usize) -> 
     result
 }
 
-fn temp_path(path: &Path) -> PathBuf {
+/// The Arrow type of a column.
+pub(crate) fn data_type(col: &Column) -> DataType {
+    match col {
+        Column::F64(_) => DataType::Float64,
+        Column::I64(_) => DataType::Int64,
+        Column::Str(_) => DataType::Utf8,
+    }
+}
+
+/// The Arrow schema of a table (every column non-nullable).
+pub(crate) fn arrow_schema(table: &Table) -> SchemaRef {
+    let fields: Vec<Field> = table
+        .columns()
+        .iter()
+        .map(|(name, col)| Field::new(name, data_type(col), false))
+        .collect();
+    Arc::new(Schema::new(fields))
+}
+
+/// The table's columns as Arrow arrays.
+pub(crate) fn arrow_arrays(table: &Table) -> Vec<ArrayRef> {
+    table
+        .columns()
+        .iter()
+        .map(|(_, col)| -> ArrayRef {
+            match col {
+                Column::F64(v) => Arc::new(Float64Array::from(v.clone())),
+                Column::I64(v) => Arc::new(Int64Array::from(v.clone())),
+                Column::Str(v) => Arc::new(StringArray::from(v.clone())),
+            }
+        })
+        .collect()
+}
+
+/// The fixed writer settings (Snappy, `created_by`), so equal tables give equal bytes.
+pub(crate) fn writer_properties(max_row_group_rows: usize) -> WriterProperties {
+    WriterProperties::builder()
+        .set_compression(Compression::SNAPPY)
+        .set_max_row_group_row_count(Some(max_row_group_rows))
+        .set_created_by("pino-mbd".to_owned())
+        .build()
+}
+
+/// `dir/.NAME.tmp-PID`: where a file is written before its rename into place.
+pub(crate) fn temp_path(path: &Path) -> PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())

@@ -5,17 +5,16 @@
 //! dropping an unfinished writer removes the temporary file. Equal sequences of tables give
 //! equal bytes.
 
-use crate::parquet_io::{io, pq};
-use crate::{Column, Error, Result, Table};
-use arrow_array::{ArrayRef, Float64Array, Int64Array, RecordBatch, StringArray};
-use arrow_schema::{DataType, Field, Schema, SchemaRef};
+use crate::parquet_io::{
+    arrow_arrays, arrow_schema, data_type, io, pq, temp_path, writer_properties,
+};
+use crate::{Error, Result, Table};
+use arrow_array::RecordBatch;
+use arrow_schema::SchemaRef;
 use parquet::arrow::ArrowWriter;
-use parquet::basic::Compression;
-use parquet::file::properties::WriterProperties;
 use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// Writes a Parquet file row group by row group.
 pub struct StreamWriter {
@@ -39,22 +38,10 @@ impl StreamWriter {
     /// Starts `path` with the column names and types of `template` (its rows are not
     /// written; an empty table is the usual template).
     pub fn create(path: &Path, template: &Table) -> Result<Self> {
-        let fields: Vec<Field> = template
-            .columns()
-            .iter()
-            .map(|(name, col)| Field::new(name, data_type(col), false))
-            .collect();
-        let schema = Arc::new(Schema::new(fields));
-        let props = WriterProperties::builder()
-            .set_compression(Compression::SNAPPY)
-            .set_max_row_group_row_count(Some(usize::MAX))
-            .set_created_by("pino-mbd".to_owned())
-            .build();
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+        let schema = arrow_schema(template);
+        // One row group per `write` call: the writer never splits one on its own.
+        let props = writer_properties(usize::MAX);
+        let tmp = temp_path(path);
         let file = File::create(&tmp).map_err(|e| io(&tmp, e))?;
         let writer =
             ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(|e| pq(path, e))?;
@@ -96,19 +83,8 @@ impl StreamWriter {
         if table.num_rows() == 0 {
             return Ok(());
         }
-        let arrays: Vec<ArrayRef> = table
-            .columns()
-            .iter()
-            .map(|(_, col)| -> ArrayRef {
-                match col {
-                    Column::F64(v) => Arc::new(Float64Array::from(v.clone())),
-                    Column::I64(v) => Arc::new(Int64Array::from(v.clone())),
-                    Column::Str(v) => Arc::new(StringArray::from(v.clone())),
-                }
-            })
-            .collect();
-        let batch =
-            RecordBatch::try_new(self.schema.clone(), arrays).map_err(|e| pq(&self.path, e))?;
+        let batch = RecordBatch::try_new(self.schema.clone(), arrow_arrays(table))
+            .map_err(|e| pq(&self.path, e))?;
         let writer = self.writer.as_mut().expect("writer present until finish");
         writer.write(&batch).map_err(|e| pq(&self.path, e))?;
         writer.flush().map_err(|e| pq(&self.path, e))?;
@@ -139,18 +115,10 @@ impl Drop for StreamWriter {
     }
 }
 
-fn data_type(col: &Column) -> DataType {
-    match col {
-        Column::F64(_) => DataType::Float64,
-        Column::I64(_) => DataType::Int64,
-        Column::Str(_) => DataType::Utf8,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{read_parquet, write_parquet};
+    use crate::{read_parquet, write_parquet, Column};
 
     fn table(ids: Vec<i64>, xs: Vec<f64>) -> Table {
         let mut t = Table::default();
