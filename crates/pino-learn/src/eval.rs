@@ -15,7 +15,7 @@ use crate::config::{WindowConfig, DOFS, OUT_CHANNELS};
 use crate::data::{load_dataset, make_batch, prepare, Dataset, Split};
 use crate::loss::LossContext;
 use crate::model::Fno;
-use crate::plot::{write_png, Figure, Series, BLACK, PALETTE, RED};
+use crate::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
 use crate::spectral::Transform;
 use crate::train::{evaluate_split, read_history};
 use crate::{write_atomic, Error, Result};
@@ -271,40 +271,77 @@ fn channel_errors(
     out
 }
 
-fn plot_sample(path: &Path, ds: &Dataset, i: usize, pred: &Physical) -> Result<()> {
+/// "5 PINO-MBD (direct derivatives), depth 5": the depth tells algorithms 4 and 5 apart.
+fn alg_label(meta: &ModelMeta) -> String {
+    let alg = meta.train.algorithm;
+    format!("{} {}, depth {}", alg.id(), alg.name(), meta.model.depth)
+}
+
+fn plot_sample(
+    path: &Path,
+    ds: &Dataset,
+    i: usize,
+    pred: &Physical,
+    meta: &ModelMeta,
+) -> Result<()> {
     let s = &ds.samples[i];
     let t = ds.t_points();
     let mut panels = Vec::new();
     // Rows: car body z_c (channel 0), front wheel z_w1 (channel 6); columns: displacement
     // (mm), velocity (mm/s), acceleration (m/s^2).
-    for c in [0usize, 6] {
-        for order in 0..3 {
-            let (_, scale) = unit_of(schema::VEHICLE_DOFS[c], order);
+    for (c, body) in [(0usize, "car body"), (6, "wheel 1")] {
+        for (order, quantity) in ["displacement", "velocity", "acceleration"]
+            .into_iter()
+            .enumerate()
+        {
+            let name = schema::VEHICLE_DOFS[c];
+            let (unit, scale) = unit_of(name, order);
             let (exact, p, nch, rows, off) = match order {
                 0 => (&s.u, &pred.u, OUT_CHANNELS, t, 0),
                 1 => (&s.v, &pred.v, DOFS, t - 2, 1),
                 _ => (&s.a, &pred.a, DOFS, t - 2, 1),
             };
             let x: Vec<f64> = (0..rows).map(|r| ds.t[r + off]).collect();
-            panels.push(vec![
-                Series {
-                    x: x.clone(),
-                    y: (0..rows)
-                        .map(|r| scale * exact[(r + off) * nch + c])
-                        .collect(),
-                    color: BLACK,
-                },
-                Series {
-                    x,
-                    y: (0..rows).map(|r| scale * p[r * nch + c]).collect(),
-                    color: RED,
-                },
-            ]);
+            let xlabel = format!(
+                "t (s) {:.2} - {:.2}",
+                x.first().copied().unwrap_or(0.0),
+                x.last().copied().unwrap_or(0.0)
+            );
+            panels.push(Panel {
+                title: format!("{body} {name}: {quantity} ({unit})"),
+                xlabel,
+                series: vec![
+                    Series {
+                        x: x.clone(),
+                        y: (0..rows)
+                            .map(|r| scale * exact[(r + off) * nch + c])
+                            .collect(),
+                        color: BLACK,
+                    },
+                    Series {
+                        x,
+                        y: (0..rows).map(|r| scale * p[r * nch + c]).collect(),
+                        color: RED,
+                    },
+                ],
+            });
         }
     }
     write_png(
         path,
         &Figure {
+            title: format!(
+                "validation sample {} predicted by algorithm {}",
+                s.id,
+                alg_label(meta)
+            ),
+            legend: vec![
+                (BLACK, "black: exact (solver)".into()),
+                (
+                    RED,
+                    format!("red: predicted (alg {})", meta.train.algorithm.id()),
+                ),
+            ],
             rows: 2,
             cols: 3,
             panel: (420, 260),
@@ -314,17 +351,34 @@ fn plot_sample(path: &Path, ds: &Dataset, i: usize, pred: &Physical) -> Result<(
 }
 
 fn plot_training_curves(path: &Path, results: &[ModelResult]) -> Result<bool> {
-    let mut panels = vec![Vec::new(), Vec::new(), Vec::new(), Vec::new()];
-    let mut any = false;
+    let titles = [
+        "training loss (log10)",
+        "validation rel. L2, solutions (log10)",
+        "validation rel. L2, first derivatives (log10)",
+        "validation rel. L2, second derivatives (log10)",
+    ];
+    let mut panels: Vec<Panel> = titles
+        .iter()
+        .map(|t| Panel {
+            title: (*t).into(),
+            xlabel: String::new(),
+            series: Vec::new(),
+        })
+        .collect();
+    let mut legend = Vec::new();
+    let mut epochs = (f64::INFINITY, f64::NEG_INFINITY);
     for r in results {
         let hist_path = r.dir.join("history.parquet");
         if !hist_path.is_file() {
             continue;
         }
         let h = read_history(&hist_path)?;
-        any = true;
         let color = PALETTE[(r.meta.train.algorithm.id() as usize - 1) % PALETTE.len()];
+        legend.push((color, alg_label(&r.meta)));
         let x: Vec<f64> = h.iter().map(|row| row.epoch as f64).collect();
+        for &e in x.first().into_iter().chain(x.last()) {
+            epochs = (epochs.0.min(e), epochs.1.max(e));
+        }
         let lg = |v: f64| if v > 0.0 { v.log10() } else { f64::NAN };
         for (k, f) in [
             |r: &crate::checkpoint::HistoryRow| r.loss_total,
@@ -335,17 +389,23 @@ fn plot_training_curves(path: &Path, results: &[ModelResult]) -> Result<bool> {
         .into_iter()
         .enumerate()
         {
-            panels[k].push(Series {
+            panels[k].series.push(Series {
                 x: x.clone(),
                 y: h.iter().map(|row| lg(f(row))).collect(),
                 color,
             });
         }
     }
+    let any = !legend.is_empty();
     if any {
+        for p in &mut panels {
+            p.xlabel = format!("epoch {} - {}", epochs.0, epochs.1);
+        }
         write_png(
             path,
             &Figure {
+                title: "training history by algorithm".into(),
+                legend,
                 rows: 2,
                 cols: 2,
                 panel: (480, 300),
@@ -458,6 +518,7 @@ pub fn evaluate(
                 ds,
                 i,
                 &phys[k],
+                &meta,
             )?;
         }
         let simulated = val.len() as f64 * ds.t_points() as f64 * ds.dt;
@@ -620,10 +681,13 @@ fn write_outputs(out: &Path, results: &[ModelResult]) -> Result<()> {
     let curves = plot_training_curves(&out.join("training_curves.png"), results)?;
     let mut doc = String::from(
         "# Plots\n\n\
+         Each figure has a title and a colour legend at the top; each panel has a title with \
+         quantity and unit, an x-axis label with the time or epoch range, and its y range (min, \
+         max) printed inside the frame.\n\n\
          `pred_alg{A}_sample{ID}.png`: validation sample ID predicted by algorithm A. Top row car \
          body `z_c`, bottom row front wheel `z_w1`; columns displacement (mm), velocity (mm/s), \
          acceleration (m/s^2) against time. Black: exact (solver), red: prediction (velocities and \
-         accelerations by central differences). The numbers are each panel's y range.\n\n",
+         accelerations by central differences).\n\n",
     );
     if curves {
         doc.push_str(
