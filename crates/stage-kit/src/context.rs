@@ -155,6 +155,21 @@ impl StageContext {
             .collect())
     }
 
+    /// The one file called `file_name` of input `name`, for inputs that are a single artifact
+    /// (not sharded, not a matrix): an error names the count found otherwise.
+    pub fn single_input_file(&self, name: &str, file_name: &str) -> Result<PathBuf> {
+        let mut files = self.input_files(name, file_name)?;
+        if files.len() != 1 {
+            return Err(Error::InputCount {
+                stage: self.stage.clone(),
+                name: name.to_owned(),
+                file_name: file_name.to_owned(),
+                found: files.len(),
+            });
+        }
+        Ok(files.remove(0))
+    }
+
     /// Names of all inputs the pipeline wired to this stage.
     pub fn input_names(&self) -> impl Iterator<Item = &str> {
         self.inputs.keys().map(String::as_str)
@@ -207,6 +222,15 @@ mod tests {
             vec![b.join("x.parquet")]
         );
         assert!(ctx.shard.owns(5) && !ctx.shard.owns(4));
+        assert_eq!(
+            ctx.single_input_file("up", "x.parquet").unwrap(),
+            b.join("x.parquet")
+        );
+        let err = ctx
+            .single_input_file("up", "y.parquet")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("exactly one y.parquet, found 0"), "{err}");
         let err = ctx.input_dirs("down").unwrap_err().to_string();
         assert!(err.contains("`down`") && err.contains("up"), "{err}");
     }

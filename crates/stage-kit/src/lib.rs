@@ -109,6 +109,18 @@ pub enum Error {
         /// The allowed range, as text.
         allowed: String,
     },
+    /// An input that must be one artifact holds no file or several.
+    #[error("stage `{stage}`: input `{name}` must hold exactly one {file_name}, found {found}")]
+    InputCount {
+        /// The stage name.
+        stage: String,
+        /// The input.
+        name: String,
+        /// The file looked for.
+        file_name: String,
+        /// How many were found.
+        found: usize,
+    },
     /// The stage needs an input the pipeline did not wire.
     #[error("stage `{stage}` needs input `{name}`, but the pipeline gives it only [{available}]")]
     MissingInput {

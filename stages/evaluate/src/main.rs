@@ -12,13 +12,7 @@ fn run() -> Result<()> {
     let ctx = StageContext::load()?;
     let p: EvalParams = ctx.params()?;
     let device = p.device.device()?;
-    let params = ctx.input_files("params", "params.parquet")?;
-    let [params] = params.as_slice() else {
-        bail!(
-            "input `params` must hold exactly one params.parquet, found {}",
-            params.len()
-        );
-    };
+    let params = &ctx.single_input_file("params", "params.parquet")?;
     let sims = ctx.input_files("dataset", "simulation.parquet")?;
     let models = ctx.input_dirs("models")?.to_vec();
     if models.is_empty() {

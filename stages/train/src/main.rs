@@ -5,7 +5,7 @@
 //! `history.parquet`; checkpoints after every epoch in the unit's scratch directory (kept by
 //! `pipeline` across killed runs of the same configuration; the output directory when run by
 //! hand), from which the next run resumes.
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use pino_learn::config::TrainParams;
 use pino_learn::data::load_dataset;
 use pino_learn::spectral::Transform;
@@ -20,13 +20,7 @@ fn run() -> Result<()> {
         .with_context(|| format!("stage `{}`", ctx.stage))?;
     let (_, train, window) = configs;
     let device = p.device.device()?;
-    let params = ctx.input_files("params", "params.parquet")?;
-    let [params] = params.as_slice() else {
-        bail!(
-            "input `params` must hold exactly one params.parquet, found {}",
-            params.len()
-        );
-    };
+    let params = &ctx.single_input_file("params", "params.parquet")?;
     let sims = ctx.input_files("dataset", "simulation.parquet")?;
     let weights = if train.algorithm.needs_phi() {
         let w = ctx.input_files("weights", "weights.parquet")?;
