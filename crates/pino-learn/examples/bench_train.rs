@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! cargo run --release -p pino-learn --example bench_train -- \
-//!     [width] [modes] [depth] [batch] [points] [matmul|fft] [steps] [algorithm]
+//!     [width] [modes] [depth] [batch] [points] [fused|matmul] [steps] [algorithm] [padding%]
 //! ```
 //! Builds a synthetic dataset of `points` time points per record (after the 10% start-up
 //! window), runs `steps` optimizer steps of `algorithm` (default 4) and reports
@@ -18,6 +18,7 @@ use pino_learn::synthetic::{write_dataset, SyntheticSpec};
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    pino_learn::tune_allocator();
     let a: Vec<String> = std::env::args().skip(1).collect();
     let arg = |i: usize, d: &str| a.get(i).cloned().unwrap_or_else(|| d.to_owned());
     let width: usize = arg(0, "32").parse()?;
@@ -25,10 +26,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let depth: usize = arg(2, "3").parse()?;
     let batch: usize = arg(3, "8").parse()?;
     let points: usize = arg(4, "1800").parse()?;
-    let transform = if arg(5, "matmul") == "fft" {
-        Transform::Fft
-    } else {
-        Transform::Matmul
+    let transform = match arg(5, "fused").as_str() {
+        "matmul" => Transform::Matmul,
+        "fused" => Transform::Fused,
+        other => return Err(format!("transform `{other}`: allowed fused, matmul").into()),
     };
     let steps: usize = arg(6, "10").parse()?;
     let dir = std::env::temp_dir().join(format!("pino-bench-{points}"));
@@ -59,6 +60,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         modes,
         depth,
         projection_width: p.projection_width,
+        padding_percent: arg(8, "0").parse()?,
     };
     let dev = Device::Cpu;
     let model = Fno::new(cfg, ds.t_points(), 1, transform, &dev)?;
@@ -74,16 +76,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let b = make_batch(&items, &idx, ds.t_points(), &dev)?;
     let mut adam = Adam::new(model.vars())?;
     let mut times = Vec::new();
+    let mut phases = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
     for _ in 0..steps {
         let t0 = Instant::now();
         let u = model.forward(&b.x)?;
+        let t1 = Instant::now();
         let (total, _) = loss.loss(&u, &b)?;
+        let t2 = Instant::now();
         let g = total.backward()?;
+        let t3 = Instant::now();
         adam.step(model.vars(), &g, 1e-4)?;
-        times.push(t0.elapsed().as_secs_f64());
+        let t4 = Instant::now();
+        times.push((t4 - t0).as_secs_f64());
+        for (k, d) in [t1 - t0, t2 - t1, t3 - t2, t4 - t3].into_iter().enumerate() {
+            phases[k].push(d.as_secs_f64());
+        }
     }
-    times.sort_by(f64::total_cmp);
-    let med = times[times.len() / 2];
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let med = median(&mut times);
+    let [f, l, bw, a] = phases.each_mut().map(median);
+    println!(
+        "phases (median ms): forward {:.2}, loss {:.2}, backward {:.2}, adam {:.2}",
+        f * 1e3,
+        l * 1e3,
+        bw * 1e3,
+        a * 1e3
+    );
     let val: Vec<usize> = (spec.n_train..spec.n_train + 40).collect();
     let mut inf = Vec::new();
     for _ in 0..3 {

@@ -122,9 +122,33 @@ pub struct ModelConfig {
     pub depth: usize,
     /// Hidden width of the projection MLP.
     pub projection_width: usize,
+    /// Zeros appended to the time axis inside the network, in percent of the window
+    /// (0 = none; models saved before padding existed read as 0).
+    #[serde(default)]
+    pub padding_percent: usize,
 }
 
 impl ModelConfig {
+    /// Points of the padded time axis for a window of `t_points`: `T` itself without
+    /// padding, else the smallest `2^a 3^b 5^c 7^d >= T (1 + padding/100)` (fast FFT sizes).
+    pub fn padded_points(&self, t_points: usize) -> usize {
+        if self.padding_percent == 0 {
+            return t_points;
+        }
+        let target = t_points + (t_points * self.padding_percent).div_ceil(100);
+        (target..)
+            .find(|&n| {
+                let mut r = n;
+                for p in [2, 3, 5, 7] {
+                    while r % p == 0 {
+                        r /= p;
+                    }
+                }
+                r == 1
+            })
+            .expect("smooth numbers are unbounded")
+    }
+
     /// Checks the sizes against each other and against `t_points` time points (the
     /// truncated DFT needs `M <= T/2`).
     pub fn validate(&self, t_points: usize) -> Result<()> {
@@ -158,6 +182,12 @@ impl ModelConfig {
             "1..=4096".into(),
         )?;
         check(
+            "padding",
+            self.padding_percent,
+            self.padding_percent <= 400,
+            "0..=400 (% of the window)".into(),
+        )?;
+        check(
             "modes",
             self.modes,
             self.modes >= 1 && 2 * self.modes <= t_points,
@@ -170,8 +200,8 @@ impl std::fmt::Display for ModelConfig {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "width {} modes {} depth {} projection {}",
-            self.width, self.modes, self.depth, self.projection_width
+            "width {} modes {} depth {} projection {} padding {}%",
+            self.width, self.modes, self.depth, self.projection_width, self.padding_percent
         )
     }
 }
@@ -226,6 +256,10 @@ pub struct TrainConfig {
     pub lambda_ode: f64,
     /// Weight of the direct-derivative loss (algorithms 4, 5).
     pub lambda_d: f64,
+    /// Weight of an extra relative-L2 term on the rail channels `z_r1..z_r4` alone (0 = the
+    /// paper's loss; older models read as 0).
+    #[serde(default)]
+    pub rail_weight: f64,
     /// Target residual level rho of the weighted ODE loss (algorithm 3).
     pub rho: f64,
     /// Seed of initialisation and shuffling.
@@ -261,7 +295,11 @@ impl TrainConfig {
         if self.lr_decay_every == 0 {
             return bad("lr_decay_every", "0".into(), ">= 1 epoch");
         }
-        for (f, v) in [("lambda_ode", self.lambda_ode), ("lambda_d", self.lambda_d)] {
+        for (f, v) in [
+            ("lambda_ode", self.lambda_ode),
+            ("lambda_d", self.lambda_d),
+            ("rail_weight", self.rail_weight),
+        ] {
             if !(v >= 0.0 && v.is_finite()) {
                 return bad(f, v.to_string(), ">= 0");
             }
@@ -293,6 +331,9 @@ fn d_modes() -> usize {
 fn d_proj() -> usize {
     64
 }
+fn d_padding() -> usize {
+    0
+}
 fn d_epochs() -> usize {
     50
 }
@@ -313,6 +354,9 @@ fn d_lambda_ode() -> f64 {
 }
 fn d_lambda_d() -> f64 {
     1.0
+}
+fn d_rail_weight() -> f64 {
+    0.0
 }
 fn d_rho() -> f64 {
     0.025
@@ -354,6 +398,9 @@ pub struct TrainParams {
     /// Hidden width of the projection MLP.
     #[serde(default = "d_proj")]
     pub projection_width: usize,
+    /// Zeros appended to the time axis inside the network (% of the window).
+    #[serde(default = "d_padding")]
+    pub padding: usize,
     /// Epochs.
     #[serde(default = "d_epochs")]
     pub epochs: usize,
@@ -375,6 +422,9 @@ pub struct TrainParams {
     /// Derivative loss weight.
     #[serde(default = "d_lambda_d")]
     pub lambda_d: f64,
+    /// Weight of the extra rail-channel data term.
+    #[serde(default = "d_rail_weight")]
+    pub rail_weight: f64,
     /// Target residual level of the weighted ODE loss.
     #[serde(default = "d_rho")]
     pub rho: f64,
@@ -415,6 +465,7 @@ impl TrainParams {
             modes: self.modes,
             depth: self.depth.unwrap_or(algorithm.default_depth()),
             projection_width: self.projection_width,
+            padding_percent: self.padding,
         };
         let train = TrainConfig {
             algorithm,
@@ -425,6 +476,7 @@ impl TrainParams {
             lr_decay_every: self.lr_decay_every,
             lambda_ode: self.lambda_ode,
             lambda_d: self.lambda_d,
+            rail_weight: self.rail_weight,
             rho: self.rho,
             seed: self.seed,
             gravity: self.gravity,

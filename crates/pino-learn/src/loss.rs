@@ -7,6 +7,7 @@
 //! L_ode_global = mean_{i,t} |R_i| / F_ref                (F_ref = mean static wheel load W)
 //! L_ode_phi    = mean_{i,t} rho |R_i| / phi_ki
 //! total        = L_data [+ lambda_ode L_ode_* | + lambda_d L_deriv]   (Table 3)
+//!                [+ rail_weight relL2(z_r, z_r*)]        (optional balance of the rail channels)
 //! ```
 
 use crate::config::{Algorithm, TrainConfig, DOFS};
@@ -83,20 +84,98 @@ impl LossContext {
         )
     }
 
-    /// `L_deriv` of a prediction.
+    /// `L_deriv` of a prediction (a fused op for f32 on the CPU, the composition elsewhere).
     pub fn deriv_loss(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
+        if u_n.device().is_cpu() && u_n.dtype() == DType::F32 {
+            let host = |t: &Tensor| t.flatten_all()?.to_vec1::<f32>();
+            let op = crate::kernels::deriv_loss::DerivativeLoss {
+                dofs: DOFS,
+                dt: self.dt,
+                out_std: self.norm.outputs.std.clone(),
+                velocity: (
+                    self.norm.velocities.mean.clone(),
+                    self.norm.velocities.std.clone(),
+                ),
+                acceleration: (
+                    self.norm.accelerations.mean.clone(),
+                    self.norm.accelerations.std.clone(),
+                ),
+                v_target: host(&batch.v)?,
+                a_target: host(&batch.a)?,
+            };
+            return Ok(u_n.contiguous()?.apply_op1(op)?.to_dtype(DType::F64)?);
+        }
+        self.deriv_loss_composed(u_n, batch)
+    }
+
+    /// `L_deriv` as candle ops (any device; the reference of the fused op).
+    pub fn deriv_loss_composed(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
         let (v, a) = self.predicted_derivatives(u_n)?;
         Ok((rel_l2(&v, &batch.v.to_dtype(DType::F64)?)?
             + rel_l2(&a, &batch.a.to_dtype(DType::F64)?)?)?)
     }
 
+    /// The fused residual loss (f32 on the CPU), `None` elsewhere.
+    fn fused_ode_loss(
+        &self,
+        u_n: &Tensor,
+        batch: &Batch,
+        weights: crate::kernels::ode_loss::OdeWeights,
+    ) -> Result<Option<Tensor>> {
+        if !(u_n.device().is_cpu() && u_n.dtype() == DType::F32) {
+            return Ok(None);
+        }
+        let params = batch.params.to_dtype(DType::F64)?.to_vec2::<f64>()?;
+        let vehicles = params
+            .iter()
+            .map(|p| {
+                let p: [f64; 14] = std::array::from_fn(|k| p[k]);
+                vtcd::vehicle::Vehicle::new(
+                    &vtcd::params::SampleParams::from_array(p),
+                    self.config.gravity,
+                )
+            })
+            .collect();
+        let op = crate::kernels::ode_loss::OdeLoss {
+            vehicles,
+            eta: batch.eta.to_dtype(DType::F64)?.flatten_all()?.to_vec1()?,
+            mean: self.norm.outputs.mean.clone(),
+            std: self.norm.outputs.std.clone(),
+            dt: self.dt,
+            hertz_g: self.hertz_g(),
+            weights,
+        };
+        Ok(Some(u_n.contiguous()?.apply_op1(op)?.to_dtype(DType::F64)?))
+    }
+
     /// `L_ode_global`.
     pub fn ode_global_loss(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
+        let weights = crate::kernels::ode_loss::OdeWeights::Global { f_ref: self.f_ref };
+        if let Some(l) = self.fused_ode_loss(u_n, batch, weights)? {
+            return Ok(l);
+        }
+        self.ode_global_loss_composed(u_n, batch)
+    }
+
+    /// `L_ode_global` as candle ops (any device; the reference of the fused op).
+    pub fn ode_global_loss_composed(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
         Ok((self.residuals(u_n, batch)?.abs()?.mean_all()? / self.f_ref)?)
     }
 
     /// `L_ode_phi`.
     pub fn ode_phi_loss(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
+        let weights = crate::kernels::ode_loss::OdeWeights::Phi {
+            rho: self.config.rho,
+            phi: batch.phi.to_dtype(DType::F64)?.flatten_all()?.to_vec1()?,
+        };
+        if let Some(l) = self.fused_ode_loss(u_n, batch, weights)? {
+            return Ok(l);
+        }
+        self.ode_phi_loss_composed(u_n, batch)
+    }
+
+    /// `L_ode_phi` as candle ops (any device; the reference of the fused op).
+    pub fn ode_phi_loss_composed(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
         let r = self.residuals(u_n, batch)?.abs()?;
         let b = r.dim(0)?;
         let phi = batch.phi.reshape((b, 1, DOFS))?;
@@ -128,10 +207,15 @@ impl LossContext {
                 Some((l * self.config.lambda_d)?)
             }
         };
-        let total = match extra {
+        let mut total = match extra {
             Some(e) => (data + e.to_dtype(DType::F32)?)?,
             None => data,
         };
+        if self.config.rail_weight > 0.0 {
+            let rail = rel_l2(&u_n.narrow(2, DOFS, 4)?, &batch.u.narrow(2, DOFS, 4)?)?;
+            values.rail = rail.to_scalar::<f32>()? as f64;
+            total = (total + (rail * self.config.rail_weight)?)?;
+        }
         values.total = total.to_scalar::<f32>()? as f64;
         Ok((total, values))
     }
@@ -158,6 +242,8 @@ pub struct LossValues {
     pub deriv: f64,
     /// `L_ode_global` or `L_ode_phi`.
     pub ode: f64,
+    /// Relative L2 of the rail channels, when `rail_weight > 0`.
+    pub rail: f64,
 }
 
 #[cfg(test)]
@@ -180,5 +266,87 @@ mod tests {
             rel_l2(&pred, &truth).unwrap().to_scalar::<f64>().unwrap(),
             0.5
         );
+    }
+
+    /// The fused derivative and ODE losses (f32, CPU) against their candle compositions on a
+    /// synthetic batch: values and gradients with respect to the prediction.
+    #[test]
+    fn fused_losses_match_the_compositions() {
+        use crate::config::{TrainParams, WindowConfig};
+        use crate::data::{load_dataset, make_batch, prepare};
+        use crate::synthetic::{write_dataset, SyntheticSpec};
+        let dir = tempfile::tempdir().unwrap();
+        let spec = SyntheticSpec {
+            n_train: 3,
+            n_validation: 1,
+            duration: 0.08,
+            ..Default::default()
+        };
+        let f = write_dataset(&spec, dir.path()).unwrap();
+        let ds = load_dataset(
+            &f.params,
+            std::slice::from_ref(&f.simulation),
+            Some(&f.weights),
+            &WindowConfig::default(),
+        )
+        .unwrap();
+        let norm = ds.normalisation().unwrap();
+        let items = prepare(&ds, &norm);
+        let dev = Device::Cpu;
+        let batch = make_batch(&items, &[0, 1, 2], ds.t_points(), &dev).unwrap();
+        let (_, config, _) = TrainParams::with_algorithm(4).configs().unwrap();
+        let ctx = LossContext {
+            config,
+            norm,
+            dt: ds.dt,
+            f_ref: ds.mean_wheel_load(9.81),
+        };
+        // A prediction near the truth, so the residuals have both signs and the contact is
+        // loaded (the Hertz derivative is exercised).
+        let mut s = vtcd::rng::SampleStream::new(9, vtcd::rng::Purpose::Training, 1);
+        let noise: Vec<f32> = (0..batch.u.elem_count())
+            .map(|_| 0.05 * s.normal() as f32)
+            .collect();
+        let u0 = (&batch.u + Tensor::from_vec(noise, batch.u.shape(), &dev).unwrap()).unwrap();
+        type LossFn<'a> = &'a dyn Fn(&Tensor) -> Tensor;
+        let cases: [(&str, LossFn, LossFn); 3] = [
+            ("deriv", &|u| ctx.deriv_loss(u, &batch).unwrap(), &|u| {
+                ctx.deriv_loss_composed(u, &batch).unwrap()
+            }),
+            (
+                "ode global",
+                &|u| ctx.ode_global_loss(u, &batch).unwrap(),
+                &|u| ctx.ode_global_loss_composed(u, &batch).unwrap(),
+            ),
+            ("ode phi", &|u| ctx.ode_phi_loss(u, &batch).unwrap(), &|u| {
+                ctx.ode_phi_loss_composed(u, &batch).unwrap()
+            }),
+        ];
+        for (name, fused, composed) in cases {
+            let run = |f: LossFn| {
+                let u = candle_core::Var::from_tensor(&u0).unwrap();
+                let l = f(u.as_tensor());
+                let g = l.backward().unwrap();
+                let grad = g.get(u.as_tensor()).unwrap().flatten_all().unwrap();
+                (
+                    l.to_dtype(DType::F64).unwrap().to_scalar::<f64>().unwrap(),
+                    grad.to_dtype(DType::F64).unwrap().to_vec1::<f64>().unwrap(),
+                )
+            };
+            let (lf, gf) = run(fused);
+            let (lc, gc) = run(composed);
+            assert!(
+                lc > 0.0 && (lf - lc).abs() <= 1e-5 * lc,
+                "{name}: {lf} vs {lc}"
+            );
+            let scale = gc.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(scale > 0.0, "{name}: zero gradient");
+            for (i, (a, b)) in gf.iter().zip(&gc).enumerate() {
+                assert!(
+                    (a - b).abs() <= 1e-4 * scale,
+                    "{name}: gradient[{i}] fused {a} vs composition {b}"
+                );
+            }
+        }
     }
 }

@@ -1,21 +1,28 @@
 //! The 1-D Fourier neural operator over time (the paper's eq. 22).
 //!
 //! ```text
-//! v_0     = P a                        a [B, T, 19] -> [B, T, W]   pointwise linear (lift)
+//! v_0     = P a + p                    a [B, T, 19] -> [W, B, T]   pointwise linear (lift)
+//! v_0    <- v_0 zero-padded to T_p >= T points on the time axis (padding_percent)
 //! v_{l+1} = s( K_l v_l + W_l v_l + b_l )   l = 0..L-1, s = GELU except after the last layer
-//! u       = Q2 GELU(Q1 v_L + q1) + q2  [B, T, W] -> [B, T, P] -> [B, T, 14]
+//! u       = Q2 GELU(Q1 v_L[.., :T] + q1) + q2   -> [B, T, 14]
 //! ```
-//! `K_l` is the spectral convolution of [`crate::spectral`] on the lowest `M` modes with
-//! complex weights `R_l = wr + i wi` of shape `[M, W, W]`. Pointwise weights are stored
-//! `[in, out]` (so `y = x w + b`).
+//! Activations inside the network are channel-major, `[C, B, T]`: every pointwise layer is
+//! one matrix product over the `B T` columns and every (channel, sample) row is contiguous for
+//! the spectral convolution `K_l` of [`crate::spectral`] (lowest `M` modes of the padded
+//! length, complex weights `R_l = wr + i wi` of shape `[M, W, W]`). Padding makes the window
+//! non-periodic for the spectral layers: without it the end of the window wraps onto its
+//! start. On the CPU the spectral convolution and each layer's `act(. + . + bias)` are fused
+//! kernels ([`crate::kernels`]); elsewhere the same functions are candle compositions.
 //!
-//! Parameters are named `lift.weight`, `lift.bias`, `layers.{l}.wr`, `layers.{l}.wi`,
-//! `layers.{l}.weight`, `layers.{l}.bias`, `proj1.*`, `proj2.*`. Initialisation is seeded:
-//! pointwise weights and biases uniform on `+-1/sqrt(in)`, spectral weights uniform on
-//! `[0, 1/(W W))` as in the reference FNO, all drawn from the `Training` stream of the seed.
+//! Pointwise weights are stored `[in, out]` (so `y = x w + b`). Parameters are named
+//! `lift.weight`, `lift.bias`, `layers.{l}.wr`, `layers.{l}.wi`, `layers.{l}.weight`,
+//! `layers.{l}.bias`, `proj1.*`, `proj2.*`. Initialisation is seeded: pointwise weights and
+//! biases uniform on `+-1/sqrt(in)`, spectral weights uniform on `[0, 1/(W W))` as in the
+//! reference FNO, all drawn from the `Training` stream of the seed.
 
 use crate::config::ModelConfig;
-use crate::spectral::{spectral_conv, Dft, Transform};
+use crate::kernels;
+use crate::spectral::{Dft, Transform};
 use crate::{Error, Result};
 use candle_core::{DType, Device, Tensor, Var};
 use std::collections::HashMap;
@@ -31,6 +38,7 @@ pub struct Fno {
     pub config: ModelConfig,
     vars: Vec<(String, Var)>,
     dft: Dft,
+    t_points: usize,
 }
 
 /// Names and shapes of every parameter for a configuration, in a fixed order.
@@ -86,8 +94,19 @@ impl Fno {
             };
             vars.push((name, Var::from_vec(values, shape, device)?));
         }
-        let dft = Dft::new(t_points, config.modes, transform, DType::F32, device)?;
-        Ok(Self { config, vars, dft })
+        let dft = Dft::new(
+            config.padded_points(t_points),
+            config.modes,
+            transform,
+            DType::F32,
+            device,
+        )?;
+        Ok(Self {
+            config,
+            vars,
+            dft,
+            t_points,
+        })
     }
 
     /// Rebuilds a model from named tensors, checking every name and shape against `config`.
@@ -134,8 +153,19 @@ impl Fno {
                 config: config.to_string(),
             });
         }
-        let dft = Dft::new(t_points, config.modes, transform, DType::F32, device)?;
-        Ok(Self { config, vars, dft })
+        let dft = Dft::new(
+            config.padded_points(t_points),
+            config.modes,
+            transform,
+            DType::F32,
+            device,
+        )?;
+        Ok(Self {
+            config,
+            vars,
+            dft,
+            t_points,
+        })
     }
 
     /// The trainable variables in their fixed order.
@@ -164,33 +194,105 @@ impl Fno {
             .expect("parameter names come from parameter_shapes")
     }
 
+    /// `w^T x` of channel-major `x [C, N]` with the stored `[C, C']` weight: `[C', N]`.
     fn pointwise(&self, x: &Tensor, prefix: &str) -> Result<Tensor> {
-        let (b, t, c) = x.dims3()?;
-        let w = self.var(&format!("{prefix}.weight"));
+        Ok(self.var(&format!("{prefix}.weight")).t()?.matmul(x)?)
+    }
+
+    /// `act(a [+ b] + bias)` over channel-major tensors (composition).
+    fn bias_act(&self, a: &Tensor, b: Option<&Tensor>, prefix: &str, gelu: bool) -> Result<Tensor> {
         let bias = self.var(&format!("{prefix}.bias"));
-        let y = x.reshape((b * t, c))?.matmul(w)?.broadcast_add(bias)?;
-        Ok(y.reshape((b, t, w.dim(1)?))?)
+        let sum = match b {
+            Some(b) => (a + b)?,
+            None => a.clone(),
+        };
+        let mut shape = vec![bias.dim(0)?];
+        shape.resize(a.rank(), 1);
+        let z = sum.broadcast_add(&bias.reshape(shape)?)?;
+        Ok(if gelu { z.gelu()? } else { z })
     }
 
     /// `x [B, T, 19]` (z-scored) -> `u [B, T, 14]` (z-scored).
     pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        let mut v = self.pointwise(x, "lift")?;
-        for l in 0..self.config.depth {
-            let k = spectral_conv(
-                &self.dft,
-                &v,
-                self.var(&format!("layers.{l}.wr")),
-                self.var(&format!("layers.{l}.wi")),
-            )?;
-            let y = (k + self.pointwise(&v, &format!("layers.{l}"))?)?;
-            v = if l + 1 < self.config.depth {
-                y.gelu()?
-            } else {
-                y
-            };
+        match self.dft.plan() {
+            Some(plan) => self.forward_fused(x, plan),
+            None => self.forward_composed(x),
         }
-        let h = self.pointwise(&v, "proj1")?.gelu()?;
-        self.pointwise(&h, "proj2")
+    }
+
+    /// The forward pass as candle compositions (any device; the reference of the fused one).
+    fn forward_composed(&self, x: &Tensor) -> Result<Tensor> {
+        let (b, t, c_in) = x.dims3()?;
+        let (w, t_pad) = (self.config.width, self.dft.t_points);
+        let columns = x.reshape((b * t, c_in))?.t()?; // [19, B T]
+        let lifted = self.bias_act(&self.pointwise(&columns, "lift")?, None, "lift", false)?;
+        let mut v = lifted.reshape((w, b, t))?;
+        if t_pad > t {
+            v = v.pad_with_zeros(2, 0, t_pad - t)?;
+        }
+        for l in 0..self.config.depth {
+            let prefix = format!("layers.{l}");
+            let k = self.dft.conv(
+                &v,
+                self.var(&format!("{prefix}.wr")),
+                self.var(&format!("{prefix}.wi")),
+            )?;
+            let p = self
+                .pointwise(&v.reshape((w, b * t_pad))?, &prefix)?
+                .reshape((w, b, t_pad))?;
+            v = self.bias_act(&k, Some(&p), &prefix, l + 1 < self.config.depth)?;
+        }
+        self.project(v, b, t)
+    }
+
+    /// The forward pass as one fused CPU op ([`kernels::FusedNetwork`]).
+    fn forward_fused(&self, x: &Tensor, plan: &std::sync::Arc<kernels::RealDft>) -> Result<Tensor> {
+        let (b, t, _) = x.dims3()?;
+        let c = &self.config;
+        let shape = kernels::NetworkShape {
+            c_in: c.in_channels,
+            width: c.width,
+            projection: c.projection_width,
+            c_out: c.out_channels,
+            depth: c.depth,
+        };
+        let mut names = vec!["lift.weight".to_owned(), "lift.bias".to_owned()];
+        for l in 0..c.depth {
+            for part in ["weight", "bias", "wr", "wi"] {
+                names.push(format!("layers.{l}.{part}"));
+            }
+        }
+        for p in ["proj1", "proj2"] {
+            names.push(format!("{p}.weight"));
+            names.push(format!("{p}.bias"));
+        }
+        let parts = names
+            .iter()
+            .map(|n| self.var(n).flatten_all())
+            .collect::<candle_core::Result<Vec<_>>>()?;
+        let params = Tensor::cat(&parts, 0)?;
+        let op = kernels::FusedNetwork::new(shape, plan, b, t);
+        Ok(x.contiguous()?.apply_op2(&params, op)?)
+    }
+
+    /// Crop `v [W, B, T_p]` to `T` points and apply the projection MLP: `[B, T, 14]`.
+    fn project(&self, v: Tensor, b: usize, t: usize) -> Result<Tensor> {
+        let (w, _, t_pad) = v.dims3()?;
+        let v = if t_pad > t {
+            v.narrow(2, 0, t)?.contiguous()?
+        } else {
+            v
+        };
+        let v = v.reshape((w, b * t))?;
+        let h = self.bias_act(&self.pointwise(&v, "proj1")?, None, "proj1", true)?;
+        let u = self.bias_act(&self.pointwise(&h, "proj2")?, None, "proj2", false)?;
+        let c_out = u.dim(0)?;
+        Ok(u.reshape((c_out, b, t))?.permute((1, 2, 0))?.contiguous()?)
+    }
+
+    /// Window length `T` the model was built for.
+    pub fn t_points(&self) -> usize {
+        self.t_points
     }
 }
 
@@ -206,6 +308,7 @@ mod tests {
             modes: 4,
             depth: 2,
             projection_width: 16,
+            padding_percent: 0,
         }
     }
 
@@ -238,5 +341,65 @@ mod tests {
             err.contains("m.safetensors") && err.contains("lift.weight") && err.contains("width 9"),
             "{err}"
         );
+    }
+
+    /// The fused network (one CPU op) against the candle composition with the same weights:
+    /// outputs and the gradient of every parameter, with and without time padding.
+    #[test]
+    fn fused_network_matches_the_composition_values_and_gradients() {
+        let dev = Device::Cpu;
+        for padding_percent in [0, 25] {
+            let config = ModelConfig {
+                padding_percent,
+                ..cfg()
+            };
+            let (b, t) = (3, 24);
+            let reference = Fno::new(config, t, 7, Transform::Matmul, &dev).unwrap();
+            let fused = Fno::from_tensors(
+                config,
+                t,
+                &reference.tensors(),
+                Transform::Fused,
+                Path::new("mem"),
+                &dev,
+            )
+            .unwrap();
+            let mut s = vtcd::rng::SampleStream::new(3, vtcd::rng::Purpose::Training, 5);
+            let x: Vec<f32> = (0..b * t * 19).map(|_| s.normal() as f32).collect();
+            let x = Tensor::from_vec(x, (b, t, 19), &dev).unwrap();
+            let r: Vec<f32> = (0..b * t * 14).map(|_| s.normal() as f32).collect();
+            let r = Tensor::from_vec(r, (b, t, 14), &dev).unwrap();
+            let run = |m: &Fno| {
+                let u = m.forward(&x).unwrap();
+                // A loss with a nonlinearity so every gradient path is exercised.
+                let loss = (u.sqr().unwrap() * &r).unwrap().sum_all().unwrap();
+                let grads = loss.backward().unwrap();
+                let flat = |t: &Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+                let g: Vec<(String, Vec<f32>)> = m
+                    .vars()
+                    .iter()
+                    .map(|(n, v)| (n.clone(), flat(grads.get(v.as_tensor()).unwrap())))
+                    .collect();
+                (flat(&u), g)
+            };
+            let (u_ref, g_ref) = run(&reference);
+            let (u_fused, g_fused) = run(&fused);
+            let scale = u_ref.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+            for (a, b) in u_ref.iter().zip(&u_fused) {
+                assert!(
+                    (a - b).abs() <= 1e-5 * scale,
+                    "padding {padding_percent}: {a} vs {b}"
+                );
+            }
+            for ((name, a), (_, b)) in g_ref.iter().zip(&g_fused) {
+                let scale = a.iter().fold(0.0f32, |m, v| m.max(v.abs())).max(1e-6);
+                for (i, (p, q)) in a.iter().zip(b).enumerate() {
+                    assert!(
+                        (p - q).abs() <= 1e-4 * scale,
+                        "padding {padding_percent}: d{name}[{i}] composition {p} vs fused {q}"
+                    );
+                }
+            }
+        }
     }
 }

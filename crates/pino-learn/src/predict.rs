@@ -205,7 +205,7 @@ pub fn predict(
     place: &Placement,
     device: &Device,
 ) -> Result<(Table, ModelMeta)> {
-    let (model, meta) = load_model(model_dir, Transform::Matmul, device)?;
+    let (model, meta) = load_model(model_dir, Transform::for_device(device), device)?;
     let times = meta.grid.times();
     let tp = meta.grid.t_points;
     let record_dt = meta.grid.dt / meta.window.time_stride as f64;

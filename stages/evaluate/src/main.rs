@@ -9,6 +9,7 @@ use pino_learn::spectral::Transform;
 use stage_kit::StageContext;
 
 fn run() -> Result<()> {
+    pino_learn::tune_allocator();
     let ctx = StageContext::load()?;
     let p: EvalParams = ctx.params()?;
     let device = p.device.device()?;
@@ -21,7 +22,7 @@ fn run() -> Result<()> {
     let opts = EvalOptions {
         plot_samples: p.plot_samples,
         batch_size: p.batch_size.max(1),
-        transform: Transform::Matmul,
+        transform: Transform::for_device(&device),
     };
     let progress = ctx.progress(models.len() as u64);
     let results = evaluate(

@@ -52,6 +52,7 @@ struct Args {
 }
 
 fn run() -> Result<()> {
+    pino_learn::tune_allocator();
     let args = Args::parse();
     let device = match args.device.as_str() {
         "cpu" => DeviceKind::Cpu,

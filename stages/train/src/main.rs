@@ -13,6 +13,7 @@ use pino_learn::train::train_to_dir;
 use stage_kit::StageContext;
 
 fn run() -> Result<()> {
+    pino_learn::tune_allocator();
     let ctx = StageContext::load()?;
     let p: TrainParams = ctx.params()?;
     let configs = p
@@ -37,7 +38,7 @@ fn run() -> Result<()> {
     let outcome = train_to_dir(
         &ds,
         configs,
-        Transform::Matmul,
+        Transform::for_device(&device),
         &ctx.output,
         // The orchestrator's scratch survives a killed run of this very unit, so the next
         // `pipeline run` resumes from the last epoch; by hand, checkpoints live in the output.

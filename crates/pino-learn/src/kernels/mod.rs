@@ -1,0 +1,102 @@
+//! Fused CPU kernels of the Fourier neural operator, as candle custom ops with hand-written
+//! backward passes.
+//!
+//! candle's generic ops are the cost of a CPU training step: the spectral convolution as two
+//! dense-basis products grows as `4 M T` per row, and every elementwise op allocates and walks
+//! memory once forward and again backward. Here:
+//! - [`rdft`]: the truncated real DFT on rows, two real rows per rustfft complex FFT;
+//! - [`spectral_op`]: the whole spectral convolution (analysis, complex mode mixing,
+//!   synthesis) and its backward pass, over channel-major `[C, B, T]` activations;
+//! - [`activation`]: `act(a + b + bias)` of a layer in one pass, GELU or identity;
+//! - [`layer`]: a whole layer `act(W^T x + b [+ K x])` as one op (one node of candle's graph);
+//! - [`network`]: the whole FNO as one op built from those layers (what training runs);
+//! - [`deriv_loss`]: the direct-derivative loss of algorithms 4 and 5 (stencils, z-scores,
+//!   relative L2) and its gradient in one pass;
+//! - [`ode_loss`]: the ODE-residual losses of algorithms 2 and 3 and their gradient;
+//! - [`simd`]: the inner loops, compiled for AVX2 + FMA with a run-time switch.
+//!
+//! The candle composition in [`crate::spectral`] and [`crate::model`] computes the same
+//! functions on any device (it is the CUDA path) and is the reference the tests check these
+//! kernels and their gradients against.
+
+pub mod activation;
+pub mod deriv_loss;
+pub mod layer;
+pub mod network;
+pub mod ode_loss;
+pub mod rdft;
+pub mod simd;
+pub mod spectral_op;
+
+use crate::Result;
+use candle_core::Tensor;
+use std::sync::Arc;
+
+pub use activation::BiasActivation;
+pub use layer::FusedLayer;
+pub use network::{FusedNetwork, NetworkShape};
+pub use rdft::RealDft;
+pub use spectral_op::SpectralConvOp;
+
+/// The spectral convolution of channel-major `x [C, B, T]` with weights `wr, wi [M, C, C']`
+/// on the plan `dft` (length `T`, `M` modes): `[C', B, T]`.
+pub fn spectral_conv(dft: &Arc<RealDft>, x: &Tensor, wr: &Tensor, wi: &Tensor) -> Result<Tensor> {
+    let (_, b, _) = x.dims3()?;
+    let op = SpectralConvOp::new(Arc::clone(dft), b);
+    Ok(x.contiguous()?
+        .apply_op3(&wr.contiguous()?, &wi.contiguous()?, op)?)
+}
+
+/// `act(a [+ b] + bias)` of channel-major `a, b [C, ...]` and `bias [C]`: GELU when `gelu`.
+pub fn bias_activation(
+    a: &Tensor,
+    b: Option<&Tensor>,
+    bias: &Tensor,
+    gelu: bool,
+) -> Result<Tensor> {
+    let op = BiasActivation { gelu };
+    let a = a.contiguous()?;
+    let bias = bias.contiguous()?;
+    Ok(match b {
+        Some(b) => a.apply_op3(&b.contiguous()?, &bias, op)?,
+        None => a.apply_op2(&bias, op)?,
+    })
+}
+
+/// `act(W^T x + b [+ K x])` of channel-major `x [C, ...]` as one fused op; `spectral` gives the
+/// plan, batch size and `(wr, wi)` of a Fourier layer.
+pub fn fused_layer(
+    x: &Tensor,
+    weight: &Tensor,
+    bias: &Tensor,
+    spectral: Option<(&Arc<RealDft>, usize, &Tensor, &Tensor)>,
+    gelu: bool,
+) -> Result<Tensor> {
+    let (c_in, c_out) = weight.dims2()?;
+    let mut parts = vec![weight.flatten_all()?, bias.clone()];
+    let op = match spectral {
+        Some((plan, batch, wr, wi)) => {
+            parts.push(wr.flatten_all()?);
+            parts.push(wi.flatten_all()?);
+            FusedLayer::fourier(c_in, gelu, plan, batch)
+        }
+        None => FusedLayer::pointwise(c_in, c_out, gelu),
+    };
+    let params = Tensor::cat(&parts, 0)?;
+    Ok(x.contiguous()?.apply_op2(&params, op)?)
+}
+
+/// Runs `f` on the host f32 data of `t` without copying when it is contiguous on the CPU
+/// (a copy otherwise).
+pub(crate) fn with_host<R>(t: &Tensor, f: impl FnOnce(&[f32]) -> R) -> candle_core::Result<R> {
+    {
+        let (storage, layout) = t.storage_and_layout();
+        if let (candle_core::Storage::Cpu(candle_core::CpuStorage::F32(v)), Some((a, b))) =
+            (&*storage, layout.contiguous_offsets())
+        {
+            return Ok(f(&v[a..b]));
+        }
+    }
+    let copy = t.flatten_all()?.to_vec1::<f32>()?;
+    Ok(f(&copy))
+}
