@@ -268,10 +268,9 @@ mod tests {
         );
     }
 
-    /// The fused derivative and ODE losses (f32, CPU) against their candle compositions on a
-    /// synthetic batch: values and gradients with respect to the prediction.
-    #[test]
-    fn fused_losses_match_the_compositions() {
+    /// A synthetic batch of three samples, its loss context for `algorithm`, and a prediction
+    /// near the truth (residuals of both signs, loaded contacts).
+    fn tiny_case(algorithm: i64) -> (LossContext, Batch, Tensor) {
         use crate::config::{TrainParams, WindowConfig};
         use crate::data::{load_dataset, make_batch, prepare};
         use crate::synthetic::{write_dataset, SyntheticSpec};
@@ -294,20 +293,119 @@ mod tests {
         let items = prepare(&ds, &norm);
         let dev = Device::Cpu;
         let batch = make_batch(&items, &[0, 1, 2], ds.t_points(), &dev).unwrap();
-        let (_, config, _) = TrainParams::with_algorithm(4).configs().unwrap();
+        let (_, config, _) = TrainParams::with_algorithm(algorithm).configs().unwrap();
         let ctx = LossContext {
             config,
             norm,
             dt: ds.dt,
             f_ref: ds.mean_wheel_load(9.81),
         };
-        // A prediction near the truth, so the residuals have both signs and the contact is
-        // loaded (the Hertz derivative is exercised).
         let mut s = vtcd::rng::SampleStream::new(9, vtcd::rng::Purpose::Training, 1);
         let noise: Vec<f32> = (0..batch.u.elem_count())
             .map(|_| 0.05 * s.normal() as f32)
             .collect();
         let u0 = (&batch.u + Tensor::from_vec(noise, batch.u.shape(), &dev).unwrap()).unwrap();
+        (ctx, batch, u0)
+    }
+
+    /// Each algorithm's total loss against its combination computed by hand with plain loops
+    /// (relative L2 per sample, central differences, the solver's residuals).
+    #[test]
+    fn each_algorithm_loss_is_its_hand_computed_combination() {
+        for algorithm in 1..=5 {
+            let (ctx, batch, u) = tiny_case(algorithm);
+            let (b, t, c) = u.dims3().unwrap();
+            let host = |x: &Tensor| -> Vec<f64> {
+                x.to_dtype(DType::F64)
+                    .unwrap()
+                    .flatten_all()
+                    .unwrap()
+                    .to_vec1()
+                    .unwrap()
+            };
+            let (pred, truth, v_t, a_t) =
+                (host(&u), host(&batch.u), host(&batch.v), host(&batch.a));
+            let (params, eta, phi) = (host(&batch.params), host(&batch.eta), host(&batch.phi));
+            let rel = |num: f64, den: f64| (num / den).sqrt();
+            let mut data = 0.0;
+            let mut deriv = 0.0;
+            let (mut ode_global, mut ode_phi) = (0.0, 0.0);
+            let (out, vel, acc) = (
+                &ctx.norm.outputs,
+                &ctx.norm.velocities,
+                &ctx.norm.accelerations,
+            );
+            let g = vtcd::contact::hertz_constant(ctx.config.wheel_radius);
+            for k in 0..b {
+                let sample = |x: &[f64], n: usize, ch: usize| x[(k * t + n) * c + ch];
+                let (mut nu, mut du) = (0.0, 0.0);
+                for i in 0..t * c {
+                    let (p, y) = (pred[k * t * c + i], truth[k * t * c + i]);
+                    nu += (p - y) * (p - y);
+                    du += y * y;
+                }
+                data += rel(nu, du) / b as f64;
+                let p: [f64; 14] = std::array::from_fn(|j| params[k * 14 + j]);
+                let veh = vtcd::vehicle::Vehicle::new(
+                    &vtcd::params::SampleParams::from_array(p),
+                    ctx.config.gravity,
+                );
+                let mut sums = [0.0f64; 4];
+                for n in 1..t - 1 {
+                    let (mut z, mut v, mut a) = ([0.0; 10], [0.0; 10], [0.0; 10]);
+                    for i in 0..10 {
+                        let phys = |m: usize| sample(&pred, m, i) * out.std[i] + out.mean[i];
+                        z[i] = phys(n);
+                        v[i] = (phys(n + 1) - phys(n - 1)) / (2.0 * ctx.dt);
+                        a[i] = (phys(n + 1) - 2.0 * phys(n) + phys(n - 1)) / (ctx.dt * ctx.dt);
+                        let j = (k * (t - 2) + n - 1) * 10 + i;
+                        let zv = (v[i] - vel.mean[i]) / vel.std[i];
+                        let za = (a[i] - acc.mean[i]) / acc.std[i];
+                        sums[0] += (zv - v_t[j]).powi(2);
+                        sums[1] += v_t[j].powi(2);
+                        sums[2] += (za - a_t[j]).powi(2);
+                        sums[3] += a_t[j].powi(2);
+                    }
+                    let contact: [f64; 4] = std::array::from_fn(|w| {
+                        let z_r = sample(&pred, n, 10 + w) * out.std[10 + w] + out.mean[10 + w];
+                        let e = eta[(k * (t - 2) + n - 1) * 4 + w];
+                        vtcd::contact::contact_force(z[6 + w] - z_r - e, g)
+                    });
+                    let r = veh.residuals(&z, &v, &a, &contact);
+                    let count = (b * (t - 2) * 10) as f64;
+                    for i in 0..10 {
+                        ode_global += r[i].abs() / ctx.f_ref / count;
+                        ode_phi += ctx.config.rho * r[i].abs() / phi[k * 10 + i] / count;
+                    }
+                }
+                deriv += (rel(sums[0], sums[1]) + rel(sums[2], sums[3])) / b as f64;
+            }
+            let cfg = &ctx.config;
+            let want = match algorithm {
+                1 => data,
+                2 => data + cfg.lambda_ode * ode_global,
+                3 => data + cfg.lambda_ode * ode_phi,
+                _ => data + cfg.lambda_d * deriv,
+            };
+            let (total, values) = ctx.loss(&u, &batch).unwrap();
+            let got = total
+                .to_dtype(DType::F64)
+                .unwrap()
+                .to_scalar::<f64>()
+                .unwrap();
+            assert!(
+                (got - want).abs() <= 2e-5 * want,
+                "algorithm {algorithm}: loss {got} vs hand-computed {want}"
+            );
+            assert!((values.data - data).abs() <= 2e-5 * data);
+        }
+    }
+
+    /// The fused derivative and ODE losses (f32, CPU) against their candle compositions on a
+    /// synthetic batch: values and gradients with respect to the prediction.
+    #[test]
+    fn fused_losses_match_the_compositions() {
+        let (ctx, batch, u0) = tiny_case(4);
         type LossFn<'a> = &'a dyn Fn(&Tensor) -> Tensor;
         let cases: [(&str, LossFn, LossFn); 3] = [
             ("deriv", &|u| ctx.deriv_loss(u, &batch).unwrap(), &|u| {
