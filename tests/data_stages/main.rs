@@ -47,7 +47,7 @@ fn fails(name: &str, ctx: &Path) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
-const SAMPLING: &str = r#"{"seed": 5, "n_train": 6, "n_validation": 2,
+const SAMPLING: &str = r#"{"seed": 5, "n_train": 6, "n_validation": 2, "n_test": 2,
     "ranges": {"m_c": {"nominal": 38880, "factor": [0.8, 1.2]}, "v_kmh": [300, 350]}}"#;
 
 #[test]
@@ -56,7 +56,7 @@ fn sample_params_and_irregularity_write_their_tables() {
     let (ctx, sp) = context(dir.path(), "sample-params", SAMPLING, "");
     let stdout = ok("sample-params", &ctx, 1);
     assert!(
-        stdout.contains("::summary 6 train + 2 validation samples"),
+        stdout.contains("::summary 6 train + 2 validation + 2 test samples"),
         "{stdout}"
     );
 
@@ -66,11 +66,14 @@ fn sample_params_and_irregularity_write_their_tables() {
     assert_eq!(params.names().collect::<Vec<_>>(), expected);
     assert_eq!(
         params.i64(schema::SAMPLE_ID).unwrap(),
-        &[0, 1, 2, 3, 4, 5, 6, 7]
+        &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9]
     );
     let splits = params.str(schema::SPLIT).unwrap();
     assert!(
-        splits[..6].iter().all(|s| s == "train") && splits[6..].iter().all(|s| s == "validation")
+        splits[..6].iter().all(|s| s == "train")
+            && splits[6..8].iter().all(|s| s == "validation")
+            && splits[8..].iter().all(|s| s == "test"),
+        "{splits:?}"
     );
     assert!(params
         .f64("v_kmh")
@@ -94,7 +97,7 @@ fn sample_params_and_irregularity_write_their_tables() {
     let (ctx, ir) = context(dir.path(), "irregularity", ir_params, &inputs);
     let stdout = ok("irregularity", &ctx, 2);
     assert!(
-        stdout.contains("8 profiles x 5400 points") && stdout.contains("RMS 0.606 mm"),
+        stdout.contains("10 profiles x 5400 points") && stdout.contains("RMS 0.606 mm"),
         "{stdout}"
     );
     let table = read_parquet(&ir.join("irregularity.parquet"), None).unwrap();
@@ -102,13 +105,13 @@ fn sample_params_and_irregularity_write_their_tables() {
         table.names().collect::<Vec<_>>(),
         [schema::SAMPLE_ID, schema::TRACK_X, schema::TRACK_ETA]
     );
-    assert_eq!(table.num_rows(), 8 * 5400);
+    assert_eq!(table.num_rows(), 10 * 5400);
     let (ids, x, eta) = (
         table.i64("sample_id").unwrap(),
         table.f64("x").unwrap(),
         table.f64("eta").unwrap(),
     );
-    for s in 0..8 {
+    for s in 0..10 {
         let rows = s * 5400..(s + 1) * 5400;
         assert!(ids[rows.clone()].iter().all(|&i| i == s as i64));
         assert_eq!(x[rows.start], 0.0);
@@ -132,19 +135,27 @@ fn bad_input_exits_nonzero_with_a_clear_message() {
     let dir = tempfile::tempdir().unwrap();
     let cases = [
         (
-            r#"{"seed": 1, "n_train": 4, "n_validation": 1, "ranges": {"m_c": [-100, 5000]}}"#,
+            r#"{"seed": 1, "n_train": 4, "n_validation": 1, "n_test": 1, "ranges": {"m_c": [-100, 5000]}}"#,
             ["`m_c`", "> 0"],
         ),
         (
-            r#"{"seed": 1, "n_train": 4, "n_validation": 1, "ranges": {"k_f": [4.5e7, 3.5e7]}}"#,
+            r#"{"seed": 1, "n_train": 4, "n_validation": 1, "n_test": 1, "ranges": {"k_f": [4.5e7, 3.5e7]}}"#,
             ["`k_f`", "empty or inverted"],
         ),
         (
-            r#"{"seed": 1, "n_train": 0, "n_validation": 1}"#,
+            r#"{"seed": 1, "n_train": 0, "n_validation": 1, "n_test": 1}"#,
             ["`n_train`", ">= 1"],
         ),
         (
-            r#"{"seed": 1, "n_train": 4, "n_validation": 1, "ranges": {"mass": [1, 2]}}"#,
+            r#"{"seed": 1, "n_train": 4, "n_validation": 1, "n_test": 0}"#,
+            ["`n_test`", ">= 1"],
+        ),
+        (
+            r#"{"seed": 1, "n_train": 4, "n_validation": 1}"#,
+            ["missing field `n_test`", "sample-params.json"],
+        ),
+        (
+            r#"{"seed": 1, "n_train": 4, "n_validation": 1, "n_test": 1, "ranges": {"mass": [1, 2]}}"#,
             ["unknown parameter `mass`", "m_c"],
         ),
         (
@@ -215,12 +226,13 @@ fn weights_reads_shards_and_names_missing_columns() {
     let dir = tempfile::tempdir().unwrap();
     let (ctx, sp) = context(dir.path(), "sample-params", SAMPLING, "");
     ok("sample-params", &ctx, 1);
-    // Two shards, round robin; sample 4 (train) failed and is absent; 6, 7 are validation.
+    // Two shards, round robin; sample 4 (train) failed and is absent; 6, 7 are validation and
+    // 8 a test sample (present, and skipped like validation: weights cover training only).
     let (a, b) = (dir.path().join("shard0"), dir.path().join("shard1"));
     std::fs::create_dir_all(&a).unwrap();
     std::fs::create_dir_all(&b).unwrap();
     synthetic_dataset(&a.join("simulation.parquet"), &[0, 2, 6], None);
-    synthetic_dataset(&b.join("simulation.parquet"), &[1, 3, 5, 7], None);
+    synthetic_dataset(&b.join("simulation.parquet"), &[1, 3, 5, 7, 8], None);
     let inputs = format!(
         r#""params": ["{}"], "dataset": ["{}", "{}"]"#,
         sp.display(),
@@ -257,7 +269,11 @@ fn weights_reads_shards_and_names_missing_columns() {
     let bytes = std::fs::read(out.join("weights.parquet")).unwrap();
     let c = dir.path().join("single");
     std::fs::create_dir_all(&c).unwrap();
-    synthetic_dataset(&c.join("simulation.parquet"), &[0, 1, 2, 3, 5, 6, 7], None);
+    synthetic_dataset(
+        &c.join("simulation.parquet"),
+        &[0, 1, 2, 3, 5, 6, 7, 8],
+        None,
+    );
     let inputs1 = format!(
         r#""params": ["{}"], "dataset": ["{}"]"#,
         sp.display(),
@@ -270,7 +286,7 @@ fn weights_reads_shards_and_names_missing_columns() {
     // A missing column is named with its file.
     synthetic_dataset(
         &b.join("simulation.parquet"),
-        &[1, 3, 5, 7],
+        &[1, 3, 5, 7, 8],
         Some("beta_t1_a"),
     );
     let err = fails("weights", &ctx);
@@ -296,9 +312,9 @@ fn weights_reads_shards_and_names_missing_columns() {
 fn pipeline_files_hold_valid_data_stage_parameters() {
     // The `params:` blocks of both pipeline files go through YAML -> JSON (as the orchestrator
     // passes them) into the stages' checked types, and hold the spec's values.
-    for (file, n_train, n_validation) in [
-        ("pipeline.yaml", 160, 40),
-        ("configs/paper.yaml", 20000, 2000),
+    for (file, n_train, n_validation, n_test) in [
+        ("pipeline.yaml", 160, 40, 100),
+        ("configs/paper.yaml", 20000, 2000, 2000),
     ] {
         let text = std::fs::read_to_string(pino_mbd_tests::workspace_root().join(file)).unwrap();
         let doc: serde_json::Value = serde_yaml::from_str(&text).unwrap();
@@ -307,8 +323,8 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
             serde_json::from_value(params("sample-params")).unwrap();
         let plan = sampling.validate().unwrap();
         assert_eq!(
-            (plan.n_train(), plan.n_validation()),
-            (n_train, n_validation),
+            (plan.n_train(), plan.n_validation(), plan.n_test()),
+            (n_train, n_validation, n_test),
             "{file}"
         );
         let defaults = vtcd::sampling::SamplingParams {
@@ -345,7 +361,7 @@ fn weights_of_a_simulated_dataset_vanish_without_noise() {
     // simulator makes consistent to round-off: below 1e-6 of the wheel load W (about 70 kN;
     // observed ~1e-10 W). With r = 2% every phi is far above that.
     let dir = tempfile::tempdir().unwrap();
-    let sampling = r#"{"seed": 2, "n_train": 2, "n_validation": 1}"#;
+    let sampling = r#"{"seed": 2, "n_train": 2, "n_validation": 1, "n_test": 1}"#;
     let (ctx, sp) = context(dir.path(), "sample-params", sampling, "");
     ok("sample-params", &ctx, 1);
     let inputs = format!(r#""params": ["{}"]"#, sp.display());

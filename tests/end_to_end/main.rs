@@ -1,6 +1,7 @@
 //! The whole product, end to end: the real `pipeline.yaml` (every stage, as a user runs it)
 //! driven by the real `pipeline` binary on the real stage binaries, shrunk through `--set`
-//! to seconds of work: 6 samples of 0.5 s on a 120 m track, tiny networks, 2 epochs.
+//! to seconds of work: 7 samples (4 train, 2 validation, 1 test) of 0.5 s on a 120 m track,
+//! tiny networks, 2 epochs.
 //!
 //! What it proves: the stages agree on the artifact contract (file names, columns, input
 //! wiring, shards and the train matrix), the outputs are the public schema, and a second run
@@ -17,6 +18,7 @@ use std::process::{Command, Output};
 const TINY: &[&str] = &[
     "sample-params.n_train=4",
     "sample-params.n_validation=2",
+    "sample-params.n_test=1",
     "irregularity.length=120.0",
     "simulate.duration=0.5",
     "simulate.n_f=200",
@@ -95,7 +97,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         }
     }
     ids.sort();
-    assert_eq!(ids, (0..6).collect::<Vec<i64>>());
+    assert_eq!(ids, (0..7).collect::<Vec<i64>>());
 
     // phi for the four training samples, positive and finite.
     let weights = show(ws.path(), "weights");

@@ -242,6 +242,10 @@ fn bad_input_is_refused_with_a_clear_message() {
             r#"{"duration": 0.2, "n_f": 150, "n_m": 75, "x0": 5.0, "m_s": -237.0}"#,
             "m_s",
         ),
+        (
+            r#"{"duration": 0.2, "n_f": 150, "n_m": 75, "x0": 5.0, "start": "static"}"#,
+            r#"`start` = "static" is not a start mode; allowed: "equilibrium""#,
+        ),
     ];
     for (i, (params, needle)) in cases.iter().enumerate() {
         let (ok, log, _) = run_stage(dir.path(), &inputs, params, (0, 1), 1, &format!("bad{i}"));
@@ -261,7 +265,8 @@ fn bad_input_is_refused_with_a_clear_message() {
 
 /// The `simulate` blocks of `pipeline.yaml` (laptop: 2 s) and `configs/paper.yaml` (5 s) parse
 /// into the stage's parameter type, pass validation, and keep the paper's physics (full
-/// track, dt = 1e-4, 1 kHz); only the duration differs.
+/// track, dt = 1e-4, 1 kHz); only the duration and the start-up fractions differ (both start
+/// from equilibrium).
 #[test]
 fn pipeline_files_configure_the_paper_physics() {
     let root = pino_mbd_tests::workspace_root();
@@ -275,13 +280,60 @@ fn pipeline_files_configure_the_paper_physics() {
         c.validate().unwrap();
         let paper = vtcd::simulation::SimulationConfig {
             duration: c.duration,
+            startup_zero_fraction: c.startup_zero_fraction,
+            startup_ramp_fraction: c.startup_ramp_fraction,
             ..Default::default()
         };
         assert_eq!(
             c, paper,
-            "{file}: only the duration may differ from the spec"
+            "{file}: only the duration and the start-up fractions may differ from the spec"
         );
+        assert_eq!(c.start, vtcd::simulation::StartMode::Equilibrium, "{file}");
         durations.push(c.duration);
     }
     assert_eq!(durations, [2.0, 5.0]);
+}
+
+/// `start` reaches the solver: from `rest` every sample's first row is the zero state (the
+/// vehicle not yet on the track, contact forces zero); from `equilibrium` (the default) the
+/// first row is the static solution, every contact force equal to the wheel load W and the
+/// car body lowered by the track deflection and the Hertz compression (about a millimetre).
+#[test]
+fn start_mode_selects_the_initial_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = write_inputs(dir.path(), false);
+    let first_rows = |params: &str, tag: &str| {
+        let (ok, log, out) = run_stage(dir.path(), &inputs, params, (0, 1), 2, tag);
+        assert!(ok, "{log}");
+        let t = read_parquet(&out.join("simulation.parquet"), None).unwrap();
+        let times = t.f64(schema::TIME).unwrap();
+        let rows: Vec<usize> = (0..times.len()).filter(|&r| times[r] == 0.0).collect();
+        assert_eq!(rows.len(), N_SAMPLES as usize);
+        let col = |n: &str| {
+            rows.iter()
+                .map(|&r| t.f64(n).unwrap()[r])
+                .collect::<Vec<f64>>()
+        };
+        (col("z_c"), col("p_1"), col("p_4"))
+    };
+    let rest = first_rows(
+        r#"{"duration": 0.05, "n_f": 150, "n_m": 75, "x0": 5.0, "start": "rest"}"#,
+        "rest",
+    );
+    assert!(rest.0.iter().chain(&rest.1).all(|&v| v == 0.0), "{rest:?}");
+    let eq = first_rows(
+        r#"{"duration": 0.05, "n_f": 150, "n_m": 75, "x0": 5.0}"#,
+        "eq",
+    );
+    // Samples are nominal x (0.9 + 0.04 id), sorted by id: W from their masses.
+    for (k, ((&z_c, &p1), &p4)) in eq.0.iter().zip(&eq.1).zip(&eq.2).enumerate() {
+        let f = 0.9 + 0.04 * k as f64;
+        let p = SampleParams::from_array(SampleParams::NOMINAL.to_array().map(|v| v * f));
+        let w = Vehicle::new(&p, 9.81).w;
+        assert!(
+            (p1 / w - 1.0).abs() < 1e-9 && (p4 / w - 1.0).abs() < 1e-9,
+            "{p1} {p4} {w}"
+        );
+        assert!(z_c > 5e-4 && z_c < 2e-3, "z_c(0) = {z_c}");
+    }
 }

@@ -6,12 +6,14 @@
 
 /// Sample identifier column (Int64), present in every per-sample artifact.
 pub const SAMPLE_ID: &str = "sample_id";
-/// Split label column (Utf8): [`SPLIT_TRAIN`] or [`SPLIT_VALIDATION`].
+/// Split label column (Utf8): [`SPLIT_TRAIN`], [`SPLIT_VALIDATION`] or [`SPLIT_TEST`].
 pub const SPLIT: &str = "split";
 /// Split label of training samples.
 pub const SPLIT_TRAIN: &str = "train";
 /// Split label of validation samples.
 pub const SPLIT_VALIDATION: &str = "validation";
+/// Split label of test samples (held out from every choice of settings).
+pub const SPLIT_TEST: &str = "test";
 /// Time column (s).
 pub const TIME: &str = "t";
 /// Position along the track of an irregularity profile (m).

@@ -25,6 +25,8 @@ pub enum Split {
     Train,
     /// Validation.
     Validation,
+    /// Test (held out from every choice of settings).
+    Test,
 }
 
 /// One sample in physical units over the window.
@@ -94,10 +96,13 @@ pub fn read_params(path: &Path) -> Result<Vec<(i64, Split, [f64; 14])>> {
         let split = match split.as_str() {
             schema::SPLIT_TRAIN => Split::Train,
             schema::SPLIT_VALIDATION => Split::Validation,
+            schema::SPLIT_TEST => Split::Test,
             other => {
                 return Err(dataset_err(
                     path,
-                    format!("sample {id}: split `{other}`, allowed `train` or `validation`"),
+                    format!(
+                        "sample {id}: split `{other}`, allowed `train`, `validation` or `test`"
+                    ),
                 ))
             }
         };

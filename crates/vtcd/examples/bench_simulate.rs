@@ -2,8 +2,10 @@
 //! (N_f = 900, N_M = 450, dt = 1e-4), single-threaded, nominal vehicle, irregularity on.
 //!
 //! ```text
-//! RAYON_NUM_THREADS=1 cargo run --release -p vtcd --example bench_simulate -- [duration_s] [runs]
+//! RAYON_NUM_THREADS=1 cargo run --release -p vtcd --example bench_simulate -- [duration_s] [runs] [start]
 //! ```
+//! `start` is `equilibrium` (default) or `rest`; the equilibrium start's static solve is timed
+//! on its own too.
 //! Prints each run and the median. The solver itself is single-threaded; rayon only spreads
 //! samples in the stage. Besides wall time it reads this thread's on-CPU time from
 //! `/proc/thread-self/schedstat` (Linux), which stays meaningful when other processes share
@@ -11,14 +13,20 @@
 
 use std::time::Instant;
 use vtcd::params::SampleParams;
-use vtcd::simulation::{Profile, Simulation, SimulationConfig};
+use vtcd::simulation::{Profile, Simulation, SimulationConfig, StartMode};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let duration: f64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(1.0);
     let runs: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(5);
+    let start = match args.get(3).map(String::as_str) {
+        None | Some("equilibrium") => StartMode::Equilibrium,
+        Some("rest") => StartMode::Rest,
+        Some(other) => panic!("start `{other}`: allowed `equilibrium` or `rest`"),
+    };
     let config = SimulationConfig {
         duration,
+        start,
         ..Default::default()
     };
     // A smooth stand-in profile (0.6 mm, 20 m and 3.7 m wavelengths) over the whole rail:
@@ -50,6 +58,22 @@ fn main() {
         config.dt
     );
     transforms_only(&config, 3);
+    // The initial state alone (the static solve of the equilibrium start), wall-clock median
+    // of 21 (too short for the scheduler's CPU-time accounting).
+    let mut init: Vec<f64> = (0..21)
+        .map(|_| {
+            let start = Instant::now();
+            let x = sim.initial_state().expect("static solve");
+            assert_eq!(x.len(), sim.state_len());
+            start.elapsed().as_secs_f64()
+        })
+        .collect();
+    init.sort_by(f64::total_cmp);
+    println!(
+        "initial state ({:?} start): {:.3} ms wall",
+        config.start,
+        init[10] * 1e3
+    );
     let mut per_sim_second = Vec::new();
     for run in 0..runs {
         let start = Instant::now();

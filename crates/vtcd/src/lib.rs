@@ -16,6 +16,7 @@
 //! - [`rail`]: the modal simply supported rail and its fast sine transform.
 //! - [`integrator`]: Zhai's explicit two-step method.
 //! - [`stability`]: the pre-run time-step check.
+//! - [`statics`]: the static track deflection under the wheel loads (equilibrium start).
 //! - [`simulation`]: the coupled vehicle-track model and its time loop.
 #![warn(missing_docs)]
 
@@ -31,6 +32,7 @@ pub mod integrator;
 pub mod rail;
 pub mod simulation;
 pub mod stability;
+pub mod statics;
 pub mod track;
 
 /// Errors of the physics library; variants carry the offending values.
@@ -102,6 +104,18 @@ pub enum Error {
         need_hi: f64,
         /// How to fix it.
         hint: String,
+    },
+    /// An iterative solve did not reach its tolerance.
+    #[error(
+        "{what} did not converge: relative residual {residual:e} after {iterations} iterations"
+    )]
+    NoConvergence {
+        /// What was being solved.
+        what: String,
+        /// Iterations taken.
+        iterations: usize,
+        /// Final relative residual.
+        residual: f64,
     },
 }
 

@@ -9,6 +9,7 @@
 //! seed: 1
 //! n_train: 160
 //! n_validation: 40
+//! n_test: 100
 //! ranges:
 //!   m_c: {nominal: 38880, factor: [0.8, 1.2]}   # kg, whole vehicle
 //!   v_kmh: [300, 350]                            # km/h
@@ -16,7 +17,9 @@
 //!
 //! Parse ([`SamplingParams`], serde) -> validate ([`SamplingParams::validate`]) -> run
 //! ([`SamplingPlan::draw`]). Sample ids `0..n_train` are the training split, the next
-//! `n_validation` ids the validation split. Sample `id` takes its 14 values, in the spec's
+//! `n_validation` ids the validation split and the `n_test` ids after those the test split
+//! (held out from every choice of settings). Adding the test split therefore leaves the ids,
+//! splits and draws of the training and validation samples unchanged. Sample `id` takes its 14 values, in the spec's
 //! order, from `SampleStream::new(seed, Purpose::Parameters, id)`, so a sample's values depend
 //! only on `(seed, id)`: not on the order, the thread or the shard that draws it.
 
@@ -87,6 +90,8 @@ pub struct SamplingParams {
     pub n_train: u64,
     /// Number of validation samples (the ids after the training ones), at least 1.
     pub n_validation: u64,
+    /// Number of test samples (the ids after the validation ones), at least 1.
+    pub n_test: u64,
     /// Range overrides by parameter name; parameters not listed keep the spec's range.
     #[serde(default)]
     pub ranges: BTreeMap<String, RangeSpec>,
@@ -99,14 +104,17 @@ pub enum Split {
     Train,
     /// Validation sample.
     Validation,
+    /// Test sample: held out for the final report.
+    Test,
 }
 
 impl Split {
-    /// The label written in the `split` column (`"train"` or `"validation"`).
+    /// The label written in the `split` column (`"train"`, `"validation"` or `"test"`).
     pub fn as_str(self) -> &'static str {
         match self {
             Split::Train => "train",
             Split::Validation => "validation",
+            Split::Test => "test",
         }
     }
 }
@@ -117,6 +125,7 @@ pub struct SamplingPlan {
     seed: u64,
     n_train: u64,
     n_validation: u64,
+    n_test: u64,
     ranges: [[f64; 2]; NUM_PARAMETERS],
 }
 
@@ -126,6 +135,7 @@ impl SamplingParams {
         for (field, n) in [
             ("n_train", self.n_train),
             ("n_validation", self.n_validation),
+            ("n_test", self.n_test),
         ] {
             if n == 0 {
                 return Err(Error::OutOfRange {
@@ -135,11 +145,14 @@ impl SamplingParams {
                 });
             }
         }
-        let total = self.n_train.checked_add(self.n_validation);
+        let total = self
+            .n_train
+            .checked_add(self.n_validation)
+            .and_then(|t| t.checked_add(self.n_test));
         if total.is_none_or(|t| t > i64::MAX as u64) {
             return Err(Error::OutOfRange {
-                name: "n_train + n_validation".to_owned(),
-                value: self.n_train as f64 + self.n_validation as f64,
+                name: "n_train + n_validation + n_test".to_owned(),
+                value: self.n_train as f64 + self.n_validation as f64 + self.n_test as f64,
                 allowed: format!("<= {} (sample ids are i64)", i64::MAX),
             });
         }
@@ -178,15 +191,16 @@ impl SamplingParams {
             seed: self.seed,
             n_train: self.n_train,
             n_validation: self.n_validation,
+            n_test: self.n_test,
             ranges,
         })
     }
 }
 
 impl SamplingPlan {
-    /// Total number of samples, `n_train + n_validation`.
+    /// Total number of samples, `n_train + n_validation + n_test`.
     pub fn num_samples(&self) -> u64 {
-        self.n_train + self.n_validation
+        self.n_train + self.n_validation + self.n_test
     }
 
     /// Number of training samples.
@@ -199,17 +213,25 @@ impl SamplingPlan {
         self.n_validation
     }
 
+    /// Number of test samples.
+    pub fn n_test(&self) -> u64 {
+        self.n_test
+    }
+
     /// The checked `[min, max]` of every parameter, in spec order.
     pub fn ranges(&self) -> &[[f64; 2]; NUM_PARAMETERS] {
         &self.ranges
     }
 
-    /// The split of sample `id`: train for `id < n_train`, validation after.
+    /// The split of sample `id`: train for `id < n_train`, then `n_validation` validation
+    /// ids, test after.
     pub fn split(&self, id: u64) -> Split {
         if id < self.n_train {
             Split::Train
-        } else {
+        } else if id < self.n_train + self.n_validation {
             Split::Validation
+        } else {
+            Split::Test
         }
     }
 
@@ -241,6 +263,7 @@ mod tests {
             seed: 11,
             n_train,
             n_validation,
+            n_test: 1,
             ranges: BTreeMap::new(),
         }
     }
@@ -278,9 +301,45 @@ mod tests {
                 (1, "train"),
                 (2, "train"),
                 (3, "validation"),
-                (4, "validation")
+                (4, "validation"),
+                (5, "test")
             ]
         );
+        let plan = SamplingParams {
+            n_test: 3,
+            ..params(2, 1)
+        }
+        .validate()
+        .unwrap();
+        let s: Vec<_> = plan.samples().iter().map(|(_, s, _)| *s).collect();
+        use Split::*;
+        assert_eq!(s, [Train, Train, Validation, Test, Test, Test]);
+        assert_eq!((plan.n_test(), plan.num_samples()), (3, 6));
+    }
+
+    /// The test split is appended after the validation ids: the training and validation
+    /// samples of a plan with a test split are exactly those of the same plan with any other
+    /// test count (ids, splits and draws), so earlier artifacts for them stay valid.
+    #[test]
+    fn test_split_leaves_train_and_validation_unchanged() {
+        let small = SamplingParams {
+            n_test: 1,
+            ..params(7, 3)
+        }
+        .validate()
+        .unwrap();
+        let big = SamplingParams {
+            n_test: 100,
+            ..params(7, 3)
+        }
+        .validate()
+        .unwrap();
+        let (a, b) = (small.samples(), big.samples());
+        assert_eq!(a[..10], b[..10]);
+        assert!(b[10..].iter().all(|(_, s, _)| *s == Split::Test));
+        assert_eq!(b.len(), 110);
+        // Test draws are fresh samples, not copies of training ones.
+        assert_ne!(b[10].2, b[0].2);
     }
 
     #[test]
@@ -374,7 +433,7 @@ mod tests {
     #[test]
     fn parses_both_range_forms_and_refuses_unknown_fields() {
         let p: SamplingParams = serde_json::from_str(
-            r#"{"seed": 3, "n_train": 2, "n_validation": 1,
+            r#"{"seed": 3, "n_train": 2, "n_validation": 1, "n_test": 1,
                 "ranges": {"m_c": {"nominal": 38880, "factor": [0.8, 1.2]}, "v_kmh": [300, 350]}}"#,
         )
         .unwrap();
@@ -384,7 +443,7 @@ mod tests {
             [0.8 * 38880.0, 1.2 * 38880.0]
         );
         let e = serde_json::from_str::<SamplingParams>(
-            r#"{"seed": 3, "n_train": 2, "n_validation": 1, "ranges": {"m_c": 5}}"#,
+            r#"{"seed": 3, "n_train": 2, "n_validation": 1, "n_test": 1, "ranges": {"m_c": 5}}"#,
         )
         .unwrap_err()
         .to_string();
@@ -397,6 +456,12 @@ mod tests {
                 .unwrap_err()
                 .to_string();
         assert!(e.contains("unknown field `n_valid`"), "{e}");
+        let e = serde_json::from_str::<SamplingParams>(
+            r#"{"seed": 3, "n_train": 2, "n_validation": 1}"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("missing field `n_test`"), "{e}");
     }
 
     fn message(p: SamplingParams) -> String {
@@ -451,6 +516,16 @@ mod tests {
         assert!(e.contains("`n_train`") && e.contains(">= 1"), "{e}");
         let e = message(params(5, 0));
         assert!(e.contains("`n_validation`") && e.contains(">= 1"), "{e}");
+        let e = message(SamplingParams {
+            n_test: 0,
+            ..params(5, 1)
+        });
+        assert!(e.contains("`n_test`") && e.contains(">= 1"), "{e}");
+        let e = message(SamplingParams {
+            n_test: u64::MAX,
+            ..params(5, 1)
+        });
+        assert!(e.contains("n_train + n_validation + n_test"), "{e}");
         // Unknown parameter name.
         let e = message(with_range("m_x", RangeSpec::Absolute([1.0, 2.0])));
         assert!(

@@ -18,9 +18,18 @@
 //! `sum_j F_fj Y_k(x_j) = DST(F_f)` (two sine transforms per evaluation, see
 //! [`crate::rail::SineTransform`]); substructure by [`crate::track::substructure`].
 //!
-//! **Start-up protocol.** From the zero state; the irregularity factor `r(t)` is 0 for
-//! `t < z T`, rises linearly to 1 over the next `r T` and stays 1 (`z`, `r` the start-up
-//! fractions, 0.1 and 0.1 by default; `T` the duration).
+//! **Start.** [`StartMode::Equilibrium`] (the default): the run begins at the static solution
+//! of the coupled model at `t = 0` with zero velocities ([`Simulation::initial_state`]): the
+//! track deflected by the four static wheel loads `W` at the wheels' starting positions
+//! ([`crate::statics`]), each wheel `G W^(2/3)` (the static Hertz compression) below the rail
+//! and the irregularity under it, bogies and car body on undeflected suspensions. Every
+//! contact force then equals `W` and no drop transient exists. [`StartMode::Rest`] (the paper's
+//! protocol): from the zero state, the vehicle at its rigid-track equilibrium dropping onto the
+//! track (about 1 mm of car-body bounce, decaying over seconds).
+//!
+//! **Irregularity start-up.** The irregularity factor `r(t)` is 0 for `t < z T`, rises
+//! linearly to 1 over the next `r T` and stays 1 (`z`, `r` the start-up fractions, 0.1 and 0.1
+//! by default; `T` the duration).
 //!
 //! **Outputs.** Every `output_every` steps (including `t = 0`), the row
 //! `t, z (10), z_r (4), z' (10), z'' (10), eta (4), P (4)` where `z''` is the acceleration
@@ -71,6 +80,31 @@ fn d_output_every() -> usize {
 fn d_fraction() -> f64 {
     0.1
 }
+/// How a run starts (`vtcd-model.md`, Start-up protocol and Equilibrium start).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase", try_from = "String")]
+pub enum StartMode {
+    /// Static equilibrium of vehicle and track under the wheel loads, zero velocities.
+    #[default]
+    Equilibrium,
+    /// The zero state: the vehicle is dropped onto the undeflected track (the paper's data).
+    Rest,
+}
+
+impl TryFrom<String> for StartMode {
+    type Error = String;
+    fn try_from(s: String) -> std::result::Result<Self, String> {
+        match s.as_str() {
+            "equilibrium" => Ok(Self::Equilibrium),
+            "rest" => Ok(Self::Rest),
+            other => Err(format!(
+                "`start` = \"{other}\" is not a start mode; allowed: \"equilibrium\" (static \
+                 solution under the wheel loads) or \"rest\" (zero state, the paper's protocol)"
+            )),
+        }
+    }
+}
+
 fn d_x0() -> f64 {
     20.0
 }
@@ -110,6 +144,9 @@ pub struct SimulationConfig {
     /// Keep every this many steps (10 gives 1 kHz at dt = 1e-4). Default 10.
     #[serde(default = "d_output_every")]
     pub output_every: usize,
+    /// Initial state: `equilibrium` (default) or `rest`.
+    #[serde(default)]
+    pub start: StartMode,
     /// Fraction of `T` with the irregularity off. Default 0.1.
     #[serde(default = "d_fraction")]
     pub startup_zero_fraction: f64,
@@ -175,6 +212,7 @@ impl Default for SimulationConfig {
             duration: d_duration(),
             dt: d_dt(),
             output_every: d_output_every(),
+            start: StartMode::default(),
             startup_zero_fraction: d_fraction(),
             startup_ramp_fraction: d_fraction(),
             x0: d_x0(),
@@ -624,17 +662,13 @@ impl Simulation {
             x: self.wheel_positions(t),
             ..Default::default()
         };
-        let ramp = self.config.ramp(t);
         let mut z = [0.0; NUM_DOFS];
         let mut zd = [0.0; NUM_DOFS];
         z.copy_from_slice(&x[..NUM_DOFS]);
         zd.copy_from_slice(&v[..NUM_DOFS]);
         w.z_r = self.rail.wheel_shapes(&w.x, q, &mut ws.shapes);
+        w.eta = self.wheel_irregularity(t, &w.x);
         for i in 0..4 {
-            w.eta[i] = match (&self.profile, ramp > 0.0) {
-                (Some(p), true) => ramp * p.at(w.x[i]),
-                _ => 0.0,
-            };
             w.p[i] = self.contact_force(z[FIRST_WHEEL + i] - w.z_r[i] - w.eta[i]);
         }
         let av = self.vehicle.accelerations(&z, &zd, &w.p);
@@ -678,7 +712,8 @@ impl Simulation {
         w
     }
 
-    /// Runs from the zero state for the configured duration, calling `observe` at every step
+    /// Runs from the initial state ([`Simulation::initial_state`]) for the configured duration,
+    /// calling `observe` at every step
     /// (including step 0) with the state and accelerations at that step. Stops with a
     /// [`Failure`] on a non-finite contact force or vehicle acceleration (checked every step)
     /// or track state (checked at every output step).
@@ -689,7 +724,11 @@ impl Simulation {
     ) -> std::result::Result<(), Failure> {
         let n = self.state_len();
         let mut ws = self.workspace();
-        let (mut x, mut v) = (vec![0.0; n], vec![0.0; n]);
+        let mut x = self.initial_state().map_err(|e| Failure {
+            t: 0.0,
+            reason: format!("initial state: {e}"),
+        })?;
+        let mut v = vec![0.0; n];
         let (mut a, mut a_prev) = (vec![0.0; n], vec![0.0; n]);
         let dt = self.config.dt;
         let every = self.config.output_every;
@@ -715,6 +754,69 @@ impl Simulation {
             });
         }
         Ok(())
+    }
+
+    /// Irregularity under the wheels at positions `x` and time `t` (m): the ramped profile.
+    #[inline]
+    fn wheel_irregularity(&self, t: f64, x: &[f64; 4]) -> [f64; 4] {
+        let ramp = self.config.ramp(t);
+        std::array::from_fn(|i| match (&self.profile, ramp > 0.0) {
+            (Some(p), true) => ramp * p.at(x[i]),
+            _ => 0.0,
+        })
+    }
+
+    /// Contact compression (m) at which the contact force equals `load` (N): `G load^(2/3)`
+    /// for Hertz.
+    pub fn static_compression(&self, load: f64) -> f64 {
+        match self.contact {
+            ContactLaw::Hertz => contact::static_compression(load, self.hertz_g),
+            ContactLaw::Linear { stiffness, preload } => (load - preload) / stiffness,
+        }
+    }
+
+    /// Displacements at `t = 0` (state layout of the module doc; velocities are zero).
+    /// [`StartMode::Rest`]: all zero. [`StartMode::Equilibrium`]: the static solution under the
+    /// four wheel loads `W` (`vtcd-model.md`, Equilibrium start): the track from
+    /// [`crate::statics::track_deflection`]; wheel `i` at `Z_r(x_i) + eta_i(0) + delta_W`
+    /// (`delta_W` the contact compression at load `W`; `eta_i(0)` is zero unless both start-up
+    /// fractions are zero); bogies and car body with every suspension deflection zero:
+    /// `Z_t1 = (Z_w1 + Z_w2) / 2`, `beta_t1 = (Z_w2 - Z_w1) / (2 l_t)` (bogie 2 likewise with
+    /// wheels 3, 4), `Z_c = (Z_t1 + Z_t2) / 2`, `beta_c = (Z_t2 - Z_t1) / (2 l_c)`. Then every
+    /// suspension force is zero, every contact force is `W` and every acceleration vanishes to
+    /// round-off (tested).
+    pub fn initial_state(&self) -> Result<Vec<f64>> {
+        let mut x = vec![0.0; self.state_len()];
+        if self.config.start == StartMode::Rest {
+            return Ok(x);
+        }
+        let w = self.vehicle.w;
+        let xw = self.wheel_positions(0.0);
+        let track = crate::statics::track_deflection(
+            &self.rail,
+            &self.track,
+            self.params.k_f,
+            &xw,
+            &[w; 4],
+        )?;
+        let [_, rq, rs, rb] = self.layout();
+        x[rq].copy_from_slice(&track.q);
+        x[rs].copy_from_slice(&track.sleepers);
+        x[rb].copy_from_slice(&track.ballast);
+        let eta = self.wheel_irregularity(0.0, &xw);
+        let delta = self.static_compression(w);
+        let mut y = vec![0.0; self.track.n_m];
+        let mut zw = [0.0; 4];
+        for i in 0..4 {
+            self.rail.shapes_at(xw[i], &mut y);
+            zw[i] = Rail::displacement(&y, &track.q) + eta[i] + delta;
+        }
+        let (lt, lc) = (self.vehicle.l_t, self.vehicle.l_c);
+        let (zt1, bt1) = ((zw[0] + zw[1]) / 2.0, (zw[1] - zw[0]) / (2.0 * lt));
+        let (zt2, bt2) = ((zw[2] + zw[3]) / 2.0, (zw[3] - zw[2]) / (2.0 * lt));
+        let (zc, bc) = ((zt1 + zt2) / 2.0, (zt2 - zt1) / (2.0 * lc));
+        x[..NUM_DOFS].copy_from_slice(&[zc, bc, zt1, bt1, zt2, bt2, zw[0], zw[1], zw[2], zw[3]]);
+        Ok(x)
     }
 
     /// Runs the configured duration and returns the stored rows.

@@ -1,4 +1,4 @@
-//! Stage `irregularity`: one vertical profile per sample (train and validation) by the
+//! Stage `irregularity`: one vertical profile per sample (every split) by the
 //! spectral random-phase method of `vtcd::irregularity`, written as `irregularity.parquet`:
 //! `sample_id` (i64), `x` (m, `n dx`), `eta` (m, positive downward), sorted by sample then x.
 //!

@@ -1,8 +1,11 @@
 //! Stage `sample-params`: draws every sample's 14 parameters uniformly on their ranges
 //! (`vtcd::sampling`) and writes `params.parquet`: `sample_id` (i64), `split`
-//! ("train"/"validation"), then the 14 parameters (f64, spec order and units).
+//! ("train"/"validation"/"test"), then the 14 parameters (f64, spec order and units).
 //!
-//! Params: `seed`, `n_train`, `n_validation`, optional `ranges` (see `vtcd::sampling`).
+//! Params: `seed`, `n_train`, `n_validation`, `n_test`, optional `ranges` (see
+//! `vtcd::sampling`). Ids `0..n_train` are training samples, the next `n_validation` ids
+//! validation samples and the `n_test` ids after those test samples (held out from every
+//! choice of settings), so the test split leaves the other two unchanged.
 
 use anyhow::{Context, Result};
 use pino_data::{schema, write_parquet, Column, Table};
@@ -32,9 +35,10 @@ fn run() -> Result<String> {
     let path = ctx.output_path("params.parquet");
     write_parquet(&path, &table).with_context(|| format!("writing {}", path.display()))?;
     Ok(format!(
-        "{} train + {} validation samples",
+        "{} train + {} validation + {} test samples",
         plan.n_train(),
-        plan.n_validation()
+        plan.n_validation(),
+        plan.n_test()
     ))
 }
 

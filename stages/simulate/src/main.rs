@@ -7,8 +7,10 @@
 //!
 //! Inputs: `params` (`params.parquet`) and `irregularity` (`irregularity.parquet`: `sample_id`,
 //! `x` m, `eta` m). Params: `vtcd::simulation::SimulationConfig` (every field optional, spec
-//! defaults, unknown names refused). Everything is checked (time-step limit included) before
-//! the first sample runs.
+//! defaults, unknown names refused), among them `start`: `equilibrium` (default: each run
+//! begins at the static solution of vehicle and track under the wheel loads) or `rest` (the
+//! paper's zero state, the vehicle dropping onto the track), and the irregularity start-up
+//! fractions. Everything is checked (time-step limit included) before the first sample runs.
 
 use anyhow::{bail, Context, Result};
 use pino_data::{for_each_batch, read_parquet_files, schema, Column, StreamWriter, Table};
