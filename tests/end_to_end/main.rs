@@ -110,12 +110,13 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         );
     }
 
-    // One model per algorithm of the matrix, and a Table 4 row for each.
+    // One model per algorithm of the matrix, and a Table 4 row for each, after the truth row.
     let models = show(ws.path(), "train");
     assert_eq!(named(&models, "model.safetensors").len(), 5, "{models:?}");
     let eval = show(ws.path(), "evaluate");
     let table = read_parquet(named(&eval, "table4.parquet")[0], None).unwrap();
-    assert_eq!(table.num_rows(), 5);
+    assert_eq!(table.num_rows(), 6);
+    assert_eq!(table.i64("algorithm").unwrap(), &[0, 1, 2, 3, 4, 5]);
     let md = std::fs::read_to_string(named(&eval, "table4.md")[0]).unwrap();
     assert!(md.contains('|'), "{md}");
     assert!(

@@ -48,10 +48,19 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     let spec = pino_learn::synthetic::SyntheticSpec {
         n_train: 4,
         n_validation: 2,
+        n_test: 2,
         duration: 0.2,
         ..Default::default()
     };
     pino_learn::synthetic::write_dataset(&spec, &data).unwrap();
+    // The same samples without a test split (the validation fallback of `evaluate`).
+    let no_test = dir.join("no-test");
+    std::fs::create_dir_all(&no_test).unwrap();
+    pino_learn::synthetic::write_dataset(
+        &pino_learn::synthetic::SyntheticSpec { n_test: 0, ..spec },
+        &no_test,
+    )
+    .unwrap();
     let inputs = serde_json::json!({"params": [data], "dataset": [data], "weights": [data]});
     let small = |alg: i64| {
         serde_json::json!({"algorithm": alg, "width": 8, "modes": 6, "projection_width": 16,
@@ -100,33 +109,63 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     let o = run("evaluate", &["--context", ctx.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
     let t4 = pino_data::read_parquet(&out.join("table4.parquet"), None).unwrap();
-    assert_eq!(t4.i64("algorithm").unwrap(), &[3, 5]);
+    // The truth row (algorithm 0) first: 0 on solutions and forces, a positive floor on
+    // derivatives; then the models, scored on the two test samples.
+    assert_eq!(t4.i64("algorithm").unwrap(), &[0, 3, 5]);
+    assert_eq!(t4.str("split").unwrap(), &["test", "test", "test"]);
+    assert_eq!(t4.i64("samples").unwrap(), &[2, 2, 2]);
+    let sol = t4.f64("solutions_pct").unwrap();
+    assert_eq!(sol[0], 0.0);
+    assert_eq!(t4.f64("contact_forces_pct").unwrap()[0], 0.0);
+    assert!(t4.f64("second_derivatives_pct").unwrap()[0] > 0.0);
+    assert!(sol[1..].iter().all(|v| v.is_finite() && *v > 0.0));
     assert!(t4
-        .f64("solutions_pct")
+        .f64("peak_contact_force_error_pct_w")
         .unwrap()
         .iter()
-        .all(|v| v.is_finite() && *v > 0.0));
-    assert_eq!(
-        t4.f64("paper_second_derivatives_pct").unwrap(),
-        &[20.79, 3.20]
-    );
+        .all(|v| v.is_finite() && *v >= 0.0));
+    let paper = t4.f64("paper_second_derivatives_pct").unwrap();
+    assert!(paper[0].is_nan() && paper[1..] == [20.79, 3.20]);
     let md = std::fs::read_to_string(out.join("table4.md")).unwrap();
     assert!(
-        md.contains("| 5 | PINO-MBD (direct derivatives) | 5 |"),
+        md.contains("| 5 | PINO-MBD (direct derivatives) | 5 |")
+            && md.contains("on the test split (2 samples)")
+            && md.contains("| - | truth (exact solutions, central differences) | - | 0.00 |")
+            && !md.contains("WARNING"),
         "{md}"
     );
     let ch = pino_data::read_parquet(&out.join("channel_errors.parquet"), None).unwrap();
-    assert_eq!(ch.num_rows(), 2 * (14 + 10 + 10 + 4));
+    assert_eq!(ch.num_rows(), 2 * (18 + 10 + 10 + 4));
+    let names = ch.str("channel").unwrap();
+    assert!(names.contains(&"p_4".to_owned()) && names.contains(&"p_4_hertz".to_owned()));
     for f in [
         "table4.csv",
         "channel_errors.csv",
         "training_curves.png",
-        "pred_alg3_sample4.png",
+        "pred_alg3_sample6.png",
         "plots.md",
         "speed.csv",
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
+
+    // Without a test split: scored on validation, and the table says so loudly.
+    let (ctx, out) = context(
+        dir,
+        "evaluate-no-test",
+        serde_json::json!({"plot_samples": 0}),
+        serde_json::json!({"params": [no_test], "dataset": [no_test], "models": models}),
+    );
+    let o = run("evaluate", &["--context", ctx.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("NO TEST SPLIT"), "{}", text(&o));
+    let t4 = pino_data::read_parquet(&out.join("table4.parquet"), None).unwrap();
+    assert_eq!(t4.str("split").unwrap()[0], "validation");
+    let md = std::fs::read_to_string(out.join("table4.md")).unwrap();
+    assert!(
+        md.contains("on the validation split (2 samples)") && md.contains("WARNING"),
+        "{md}"
+    );
 
     // predict: two sets from YAML, one override, a profile file.
     let yaml = dir.join("sets.yaml");
@@ -161,7 +200,9 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     let p = pino_data::read_parquet(&pred, None).unwrap();
     // 180 window points -> 178 interior rows per set.
     assert_eq!(p.num_rows(), 2 * 178);
-    for c in ["set", "t", "z_c", "z_r4", "beta_c_v", "z_w4_a", "eta_1"] {
+    for c in [
+        "set", "t", "z_c", "z_r4", "p_1", "p_4", "beta_c_v", "z_w4_a", "eta_1",
+    ] {
         assert!(p.column(c).is_ok(), "column {c}");
     }
     assert!(p.f64("z_w1_a").unwrap().iter().all(|v| v.is_finite()));

@@ -12,7 +12,7 @@ pub const SPLIT: &str = "split";
 pub const SPLIT_TRAIN: &str = "train";
 /// Split label of validation samples.
 pub const SPLIT_VALIDATION: &str = "validation";
-/// Split label of test samples (held out from every choice of settings).
+/// Split label of test samples (held out from every choice; Table 4 is scored on them).
 pub const SPLIT_TEST: &str = "test";
 /// Time column (s).
 pub const TIME: &str = "t";
@@ -49,6 +49,15 @@ pub fn solution_channels() -> Vec<&'static str> {
         .iter()
         .chain(RAIL_UNDER_WHEEL.iter())
         .copied()
+        .collect()
+}
+
+/// The 18 output channels the neural operator predicts, in channel order: the 14
+/// [`solution_channels`] (displacements) then the contact forces [`CONTACT_FORCES`] (N).
+pub fn output_channels() -> Vec<&'static str> {
+    solution_channels()
+        .into_iter()
+        .chain(CONTACT_FORCES.iter().copied())
         .collect()
 }
 

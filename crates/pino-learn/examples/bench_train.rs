@@ -55,7 +55,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let cfg = ModelConfig {
         in_channels: 19,
-        out_channels: 14,
+        out_channels: pino_learn::config::OUT_CHANNELS,
         width,
         modes,
         depth,
@@ -71,7 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         dt: ds.dt,
         f_ref: ds.mean_wheel_load(9.81),
     };
-    let items = prepare(&ds, &norm);
+    let items = prepare(&ds, &norm)?;
     let idx: Vec<usize> = (0..batch).collect();
     let b = make_batch(&items, &idx, ds.t_points(), &dev)?;
     let mut adam = Adam::new(model.vars())?;

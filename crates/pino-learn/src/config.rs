@@ -6,8 +6,14 @@ use serde::{Deserialize, Serialize};
 
 /// Input channels: `t`, `eta_1..eta_4`, 14 parameters.
 pub const IN_CHANNELS: usize = 19;
-/// Output channels: 10 vehicle DOFs and 4 rail displacements.
-pub const OUT_CHANNELS: usize = 14;
+/// Output channels (`pino_data::schema::output_channels`): 10 vehicle DOFs, 4 rail
+/// displacements (channels `0..SOLUTION_CHANNELS`, the paper's solutions), then the 4 contact
+/// forces `p_1..p_4` (channels `SOLUTION_CHANNELS..OUT_CHANNELS`).
+pub const OUT_CHANNELS: usize = 18;
+/// Displacement channels (vehicle DOFs and rail): the "solutions" of Table 4.
+pub const SOLUTION_CHANNELS: usize = 14;
+/// First contact-force channel.
+pub const FORCE_OFFSET: usize = SOLUTION_CHANNELS;
 /// Vehicle DOFs (equations).
 pub const DOFS: usize = 10;
 
@@ -112,7 +118,7 @@ impl From<Algorithm> for i64 {
 pub struct ModelConfig {
     /// Input channels (19).
     pub in_channels: usize,
-    /// Output channels (14).
+    /// Output channels (18: 14 displacements, 4 contact forces).
     pub out_channels: usize,
     /// Channel width `W` of the Fourier layers.
     pub width: usize,

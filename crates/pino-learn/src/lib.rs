@@ -21,7 +21,8 @@
 //! ```
 //! `R_i` the ten vehicle equations in physical units (N, N m), Hertz contact included.
 //!
-//! Modules: [`config`] (algorithms, sizes), [`data`] (Parquet -> samples), [`norm`],
+//! Modules: [`config`] (algorithms, sizes), [`data`] (Parquet -> samples, streamed),
+//! [`store`] (sample series in memory or spilled), [`norm`],
 //! [`spectral`], [`model`], [`physics`], [`loss`], [`optim`] (Adam, step decay),
 //! [`checkpoint`], [`train`], [`eval`] (Table 4), [`plot`] (PNG), [`predict`], and
 //! [`synthetic`] (small consistent datasets for tests and benchmarks).
@@ -40,6 +41,7 @@ pub mod physics;
 pub mod plot;
 pub mod predict;
 pub mod spectral;
+pub mod store;
 pub mod synthetic;
 pub mod train;
 

@@ -1,7 +1,8 @@
 //! Losses of the five algorithms (`learning.md`, Losses):
 //! ```text
 //! relL2(p, y)  = mean_k ||p_k - y_k|| / ||y_k||          (per sample over channels and time)
-//! L_data       = relL2(u, u*)                            (14 outputs, z-scored)
+//! L_data       = relL2(u, u*)                            (18 outputs: 14 displacements and
+//!                                                         4 contact forces, z-scored)
 //! L_deriv      = relL2(v, v*) + relL2(a, a*)             (10 vehicle DOFs, z-scored with the
 //!                                                         `_v`/`_a` statistics, interior points)
 //! L_ode_global = mean_{i,t} |R_i| / F_ref                (F_ref = mean static wheel load W)
@@ -220,11 +221,16 @@ impl LossContext {
         Ok((total, values))
     }
 
-    /// Table 4 metrics of a prediction, per sample: relative L2 of solutions, first and
-    /// second derivatives (fractions, not percent).
+    /// Table 4 metrics of a prediction, per sample: relative L2 of solutions (the 14
+    /// displacement channels, as in the paper; not the contact forces), first and second
+    /// derivatives (fractions, not percent).
     pub fn metrics_per_sample(&self, u_n: &Tensor, batch: &Batch) -> Result<[Vec<f64>; 3]> {
         let (v, a) = self.predicted_derivatives(u_n)?;
-        let sol = rel_l2_per_sample(&u_n.to_dtype(DType::F64)?, &batch.u.to_dtype(DType::F64)?)?;
+        let disp = |u: &Tensor| -> Result<Tensor> {
+            Ok(u.narrow(2, 0, crate::config::SOLUTION_CHANNELS)?
+                .to_dtype(DType::F64)?)
+        };
+        let sol = rel_l2_per_sample(&disp(u_n)?, &disp(&batch.u)?)?;
         let first = rel_l2_per_sample(&v, &batch.v.to_dtype(DType::F64)?)?;
         let second = rel_l2_per_sample(&a, &batch.a.to_dtype(DType::F64)?)?;
         Ok([sol.to_vec1()?, first.to_vec1()?, second.to_vec1()?])
@@ -290,7 +296,7 @@ mod tests {
         )
         .unwrap();
         let norm = ds.normalisation().unwrap();
-        let items = prepare(&ds, &norm);
+        let items = prepare(&ds, &norm).unwrap();
         let dev = Device::Cpu;
         let batch = make_batch(&items, &[0, 1, 2], ds.t_points(), &dev).unwrap();
         let (_, config, _) = TrainParams::with_algorithm(algorithm).configs().unwrap();

@@ -1,5 +1,6 @@
 //! Prediction for design exploration: a trained model, parameter sets and an irregularity
-//! profile in, the 14 responses and their derivatives out, from one forward pass.
+//! profile in, the 14 displacement responses, the 4 contact forces and the vehicle
+//! derivatives out, from one forward pass.
 //!
 //! The irregularity under wheel `i` follows the `simulate` stage (`vtcd::simulation`):
 //! `eta_i(t) = r(t) eta(x0 + v t + o_i)` with `o = (2 l_c + 2 l_t, 2 l_c, 2 l_t, 0)` (m), the
@@ -7,7 +8,7 @@
 //! duration (the model's record length), and the profile linearly interpolated. The model
 //! sees the same window of times it was trained on. Output rows are the interior points of
 //! the window (`n = 1..T-2`), where the central-difference derivatives exist:
-//! `set, t, <14 solutions>, <10 _v>, <10 _a>, eta_1..eta_4` (SI units).
+//! `set, t, <14 solutions>, p_1..p_4, <10 _v>, <10 _a>, eta_1..eta_4` (SI units, forces N).
 //!
 //! Parameter sets come from YAML, either a list of maps or `{sets: [...]}`; each map gives
 //! any of the 14 parameter names (the rest take the CRH380 nominal values of
@@ -206,6 +207,16 @@ pub fn predict(
     device: &Device,
 ) -> Result<(Table, ModelMeta)> {
     let (model, meta) = load_model(model_dir, Transform::for_device(device), device)?;
+    if meta.model.out_channels != OUT_CHANNELS {
+        return Err(fmt_err(
+            &model_dir.join("model.json"),
+            format!(
+                "the model predicts {} channels; this build predicts {OUT_CHANNELS} ({}): retrain it",
+                meta.model.out_channels,
+                schema::output_channels().join(", ")
+            ),
+        ));
+    }
     let times = meta.grid.times();
     let tp = meta.grid.t_points;
     let record_dt = meta.grid.dt / meta.window.time_stride as f64;
@@ -230,8 +241,7 @@ pub fn predict(
         .flatten_all()?
         .to_vec1::<f32>()?;
     let mut cols: Vec<(String, Vec<f64>)> = Vec::new();
-    let sol = schema::solution_channels();
-    for name in &sol {
+    for name in schema::output_channels() {
         cols.push((name.to_string(), Vec::new()));
     }
     for name in schema::VEHICLE_DOFS {

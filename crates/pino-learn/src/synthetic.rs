@@ -15,7 +15,7 @@
 //! `weights.parquet` (phi from the definition in `learning.md` with noise ratio `r`).
 
 use crate::Result;
-use pino_data::{schema, write_parquet, Column, Table};
+use pino_data::{schema, write_parquet, Column, StreamWriter, Table};
 use std::path::{Path, PathBuf};
 use vtcd::contact::{contact_force, hertz_constant, static_compression};
 use vtcd::params::SampleParams;
@@ -29,6 +29,8 @@ pub struct SyntheticSpec {
     pub n_train: usize,
     /// Validation samples (the following ids).
     pub n_validation: usize,
+    /// Test samples (the ids after validation).
+    pub n_test: usize,
     /// Record duration (s).
     pub duration: f64,
     /// Output spacing (s).
@@ -48,6 +50,7 @@ impl Default for SyntheticSpec {
         Self {
             n_train: 8,
             n_validation: 2,
+            n_test: 0,
             duration: 0.3,
             dt_out: 1e-3,
             substeps: 10,
@@ -208,17 +211,14 @@ pub struct SyntheticFiles {
     pub weights: PathBuf,
 }
 
-/// Generates and writes a dataset into `dir`.
+/// Generates and writes a dataset into `dir`. The simulation is written one row group per
+/// sample (as the `simulate` stage does), generated 64 samples at a time in parallel, so
+/// large benchmark datasets need little memory.
 pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles> {
     use rayon::prelude::*;
-    let n = spec.n_train + spec.n_validation;
-    let samples: Vec<(SampleParams, Record)> = (0..n as u64)
-        .into_par_iter()
-        .map(|id| {
-            let p = sample_params(spec.seed, id);
-            let rec = simulate(&p, spec, id);
-            (p, rec)
-        })
+    let n = spec.n_train + spec.n_validation + spec.n_test;
+    let params: Vec<SampleParams> = (0..n as u64)
+        .map(|id| sample_params(spec.seed, id))
         .collect();
     let mut pt = Table::default();
     pt.push(schema::SAMPLE_ID, Column::I64((0..n as i64).collect()))?;
@@ -229,8 +229,10 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
                 .map(|i| {
                     if i < spec.n_train {
                         schema::SPLIT_TRAIN
-                    } else {
+                    } else if i < spec.n_train + spec.n_validation {
                         schema::SPLIT_VALIDATION
+                    } else {
+                        schema::SPLIT_TEST
                     }
                     .to_owned()
                 })
@@ -240,7 +242,7 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     for (k, name) in schema::PARAMETERS.iter().enumerate() {
         pt.push(
             name,
-            Column::F64(samples.iter().map(|(p, _)| p.to_array()[k]).collect()),
+            Column::F64(params.iter().map(|p| p.to_array()[k]).collect()),
         )?;
     }
     let files = SyntheticFiles {
@@ -250,51 +252,56 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     };
     write_parquet(&files.params, &pt)?;
 
-    let mut st = Table::default();
-    let rows = |f: &dyn Fn(&Record, usize) -> f64| -> Column {
-        Column::F64(
-            samples
-                .iter()
-                .flat_map(|(_, r)| (0..r.t.len()).map(move |k| f(r, k)))
-                .collect(),
-        )
+    let table_of = |id: usize, r: &Record| -> Result<Table> {
+        let mut st = Table::default();
+        let col = |f: &dyn Fn(usize) -> f64| Column::F64((0..r.t.len()).map(f).collect());
+        st.push(schema::SAMPLE_ID, Column::I64(vec![id as i64; r.t.len()]))?;
+        st.push(schema::TIME, col(&|k| r.t[k]))?;
+        for (i, name) in schema::VEHICLE_DOFS.iter().enumerate() {
+            st.push(name, col(&|k| r.z[k][i]))?;
+        }
+        for name in schema::RAIL_UNDER_WHEEL {
+            st.push(name, col(&|_| 0.0))?;
+        }
+        for (i, name) in schema::VEHICLE_DOFS.iter().enumerate() {
+            st.push(&schema::velocity(name), col(&|k| r.v[k][i]))?;
+        }
+        for (i, name) in schema::VEHICLE_DOFS.iter().enumerate() {
+            st.push(&schema::acceleration(name), col(&|k| r.a[k][i]))?;
+        }
+        for (i, name) in schema::ETA_UNDER_WHEEL.iter().enumerate() {
+            st.push(name, col(&|k| r.eta[k][i]))?;
+        }
+        for (i, name) in schema::CONTACT_FORCES.iter().enumerate() {
+            st.push(name, col(&|k| r.p[k][i]))?;
+        }
+        Ok(st)
     };
-    st.push(
-        schema::SAMPLE_ID,
-        Column::I64(
-            samples
-                .iter()
-                .enumerate()
-                .flat_map(|(i, (_, r))| std::iter::repeat_n(i as i64, r.t.len()))
-                .collect(),
-        ),
-    )?;
-    st.push(schema::TIME, rows(&|r, k| r.t[k]))?;
-    for (i, name) in schema::VEHICLE_DOFS.iter().enumerate() {
-        st.push(name, rows(&|r, k| r.z[k][i]))?;
+    let mut writer: Option<StreamWriter> = None;
+    let mut phis: Vec<[f64; NUM_DOFS]> = Vec::with_capacity(n);
+    for lo in (0..n).step_by(64) {
+        let hi = (lo + 64).min(n);
+        let chunk: Vec<(Table, [f64; NUM_DOFS])> = (lo..hi)
+            .into_par_iter()
+            .map(|id| {
+                let p = &params[id];
+                let rec = simulate(p, spec, id as u64);
+                let phi = phi(p, &rec, spec.noise_ratio, spec.seed, id as u64);
+                Ok((table_of(id, &rec)?, phi))
+            })
+            .collect::<Result<_>>()?;
+        for (table, phi) in chunk {
+            if writer.is_none() {
+                writer = Some(StreamWriter::create(&files.simulation, &table)?);
+            }
+            writer.as_mut().expect("created").write(&table)?;
+            phis.push(phi);
+        }
     }
-    for name in schema::RAIL_UNDER_WHEEL {
-        st.push(name, rows(&|_, _| 0.0))?;
+    if let Some(w) = writer {
+        w.finish()?;
     }
-    for (i, name) in schema::VEHICLE_DOFS.iter().enumerate() {
-        st.push(&schema::velocity(name), rows(&|r, k| r.v[k][i]))?;
-    }
-    for (i, name) in schema::VEHICLE_DOFS.iter().enumerate() {
-        st.push(&schema::acceleration(name), rows(&|r, k| r.a[k][i]))?;
-    }
-    for (i, name) in schema::ETA_UNDER_WHEEL.iter().enumerate() {
-        st.push(name, rows(&|r, k| r.eta[k][i]))?;
-    }
-    for (i, name) in schema::CONTACT_FORCES.iter().enumerate() {
-        st.push(name, rows(&|r, k| r.p[k][i]))?;
-    }
-    write_parquet(&files.simulation, &st)?;
 
-    let phis: Vec<[f64; NUM_DOFS]> = samples
-        .iter()
-        .enumerate()
-        .map(|(i, (p, r))| phi(p, r, spec.noise_ratio, spec.seed, i as u64))
-        .collect();
     let mut wt = Table::default();
     wt.push(schema::SAMPLE_ID, Column::I64((0..n as i64).collect()))?;
     for (i, name) in schema::phi_columns().iter().enumerate() {

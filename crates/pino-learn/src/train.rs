@@ -97,7 +97,7 @@ pub fn shuffled(items: &[usize], seed: u64, stream: u64) -> Vec<usize> {
 pub fn evaluate_split(
     model: &Fno,
     loss: &LossContext,
-    items: &[Prepared],
+    items: &Prepared,
     idx: &[usize],
     t_points: usize,
     batch_size: usize,
@@ -188,7 +188,7 @@ pub fn train(
         dt: ds.dt,
         f_ref: meta.f_ref,
     };
-    let items = prepare(ds, &meta.norm);
+    let items = prepare(ds, &meta.norm)?;
     let t_points = ds.t_points();
     let started = Instant::now();
     let first_epoch = state.epochs_done;
@@ -412,7 +412,7 @@ mod tests {
         let dev = Device::Cpu;
         let run = |ckpt: &Path, stop: Option<usize>| {
             let opts = TrainOptions {
-                transform: Transform::Matmul,
+                transform: Transform::Fused,
                 checkpoint_dir: ckpt.to_owned(),
                 stop_after_epochs: stop,
             };
@@ -436,7 +436,7 @@ mod tests {
         let (m2, _) = small(3, 4);
         let m2 = ModelConfig { width: 9, ..m2 };
         let opts = TrainOptions {
-            transform: Transform::Matmul,
+            transform: Transform::Fused,
             checkpoint_dir: b_dir.clone(),
             stop_after_epochs: None,
         };
@@ -464,14 +464,14 @@ mod tests {
         let outcome = train_to_dir(
             &ds,
             (m, t, WindowConfig::default()),
-            Transform::Matmul,
+            Transform::Fused,
             &out,
             &out,
             &dev,
             &mut |_| {},
         )
         .unwrap();
-        let (back, meta) = checkpoint::load_model(&out, Transform::Matmul, &dev).unwrap();
+        let (back, meta) = checkpoint::load_model(&out, Transform::Fused, &dev).unwrap();
         assert_eq!(meta, outcome.meta);
         assert_eq!(params_of(&back), params_of(&outcome.model));
         assert_eq!(
@@ -490,8 +490,7 @@ mod tests {
             history: outcome.history.clone(),
         };
         checkpoint::save_checkpoint(&ck, &outcome.model, &adam, &outcome.meta, &state).unwrap();
-        let (m2, a2, meta2, s2) =
-            checkpoint::load_checkpoint(&ck, Transform::Matmul, &dev).unwrap();
+        let (m2, a2, meta2, s2) = checkpoint::load_checkpoint(&ck, Transform::Fused, &dev).unwrap();
         assert_eq!((meta2, s2), (outcome.meta.clone(), state));
         assert_eq!(params_of(&m2), params_of(&outcome.model));
         assert_eq!(a2.step, 7);
@@ -507,7 +506,7 @@ mod tests {
             serde_json::to_string(&other).unwrap(),
         )
         .unwrap();
-        let err = checkpoint::load_model(&out, Transform::Matmul, &dev)
+        let err = checkpoint::load_model(&out, Transform::Fused, &dev)
             .unwrap_err()
             .to_string();
         assert!(
@@ -518,18 +517,24 @@ mod tests {
 
     #[test]
     fn a_small_model_overfits_a_tiny_batch() {
-        // Learning works: on one batch of two records the data loss must fall 100x. The
+        // Learning works: on one batch of two records the data loss must fall 30x. The
         // z-scored targets start at relative L2 ~1; 400 Adam steps at lr 1e-2 then 200 at 1e-3
-        // on a model with ~4k parameters fit 2 x 180 x 14 values (measured 0.98 -> 0.0036,
-        // 270x; deterministic, so the margin over 100x does not fluctuate).
+        // fit 2 x 180 x 18 values (14 displacements, 4 contact forces; deterministic, so the
+        // margin over 30x does not fluctuate).
         let dir = tempfile::tempdir().unwrap();
         let ds = dataset(dir.path());
-        let (m, mut t) = small(1, 1);
+        let (mut m, mut t) = small(1, 1);
+        // The contact-force outputs carry the wheel-on-Hertz-spring response (~160 Hz), above
+        // the 6 modes of `small` (33 Hz over 0.18 s): 32 modes (178 Hz) cover it (with 6
+        // modes and width 8 the forces stay at 19% relative L2, measured). Measured with
+        // width 16: 1.04 -> 0.0157 (67x; displacements 0.0155, forces 0.0158).
+        m.modes = 32;
+        m.width = 16;
         t.learning_rate = 1e-2;
         let dev = Device::Cpu;
         let norm = ds.normalisation().unwrap();
-        let items = prepare(&ds, &norm);
-        let model = Fno::new(m, ds.t_points(), 1, Transform::Matmul, &dev).unwrap();
+        let items = prepare(&ds, &norm).unwrap();
+        let model = Fno::new(m, ds.t_points(), 1, Transform::Fused, &dev).unwrap();
         let loss = LossContext {
             config: t,
             norm,
@@ -555,7 +560,7 @@ mod tests {
             adam.step(model.vars(), &g, lr).unwrap();
         }
         let first = first.unwrap();
-        assert!(last < first / 100.0, "data loss {first} -> {last}");
+        assert!(last < first / 30.0, "data loss {first} -> {last}");
     }
 
     #[test]
@@ -563,7 +568,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let ds = dataset(dir.path());
         let norm = ds.normalisation().unwrap();
-        let items = prepare(&ds, &norm);
+        let items = prepare(&ds, &norm).unwrap();
         let (_, t) = small(2, 1);
         let dev = Device::Cpu;
         let ctx = LossContext {

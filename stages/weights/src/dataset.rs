@@ -1,11 +1,10 @@
 //! Reading the weights stage's inputs: training parameters from `params.parquet` and, per
-//! simulate shard, the columns of `simulation.parquet` the ten vehicle residuals need, split
-//! into per-sample row ranges.
+//! simulate shard, the columns of `simulation.parquet` the ten vehicle residuals need,
+//! streamed batch by batch and handed on in groups of whole samples (bounded memory).
 
 use anyhow::{bail, Context, Result};
-use pino_data::{read_parquet, read_parquet_files, schema, Table};
-use std::collections::BTreeMap;
-use std::ops::Range;
+use pino_data::{read_parquet_files, schema};
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use vtcd::params::SampleParams;
 use vtcd::weights::SampleSignals;
@@ -31,39 +30,18 @@ pub fn read_params(files: &[PathBuf]) -> Result<BTreeMap<i64, (bool, SampleParam
     Ok(out)
 }
 
-/// The columns of one simulate shard that the residuals need, in [`SampleSignals`] order.
-pub struct ShardData {
-    table: Table,
-    names: Vec<String>,
-    /// `(sample_id, rows)` of each sample, in file order.
-    pub runs: Vec<(i64, Range<usize>)>,
+/// One sample's columns that the residuals need, in [`SampleSignals`] order: `z` (10),
+/// `z_r1..4`, `_v` (10), `_a` (10), `eta_1..4`.
+pub struct SampleData {
+    /// `sample_id`.
+    pub id: i64,
+    cols: Vec<Vec<f64>>,
 }
 
-impl ShardData {
-    /// Reads `sample_id`, the ten DOFs, `z_r1..4`, the `_v` and `_a` columns and `eta_1..4`.
-    pub fn read(path: &Path) -> Result<Self> {
-        let dofs = schema::VEHICLE_DOFS;
-        let names: Vec<String> = std::iter::once(schema::SAMPLE_ID.to_owned())
-            .chain(dofs.iter().map(|s| s.to_string()))
-            .chain(schema::RAIL_UNDER_WHEEL.iter().map(|s| s.to_string()))
-            .chain(dofs.iter().map(|s| schema::velocity(s)))
-            .chain(dofs.iter().map(|s| schema::acceleration(s)))
-            .chain(schema::ETA_UNDER_WHEEL.iter().map(|s| s.to_string()))
-            .collect();
-        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
-        let table = read_parquet(path, Some(&refs))?;
-        for name in &refs[1..] {
-            table.f64(name)?;
-        }
-        let runs = sample_runs(table.i64(schema::SAMPLE_ID)?)
-            .with_context(|| path.display().to_string())?;
-        Ok(Self { table, names, runs })
-    }
-
-    /// The signals of the rows `r` (one sample).
-    pub fn signals(&self, r: &Range<usize>) -> SampleSignals<'_> {
-        // Columns were type-checked in `read`.
-        let col = |k: usize| &self.table.f64(&self.names[1 + k]).expect("checked f64")[r.clone()];
+impl SampleData {
+    /// The signals of this sample.
+    pub fn signals(&self) -> SampleSignals<'_> {
+        let col = |k: usize| self.cols[k].as_slice();
         SampleSignals {
             z: std::array::from_fn(col),
             z_r: std::array::from_fn(|j| col(10 + j)),
@@ -74,20 +52,88 @@ impl ShardData {
     }
 }
 
-/// Contiguous row ranges of each sample id; an id split over two runs is an error.
-fn sample_runs(ids: &[i64]) -> Result<Vec<(i64, Range<usize>)>> {
-    let mut runs: Vec<(i64, Range<usize>)> = Vec::new();
-    let mut seen = std::collections::BTreeSet::new();
-    for (row, &id) in ids.iter().enumerate() {
-        match runs.last_mut() {
-            Some((last, r)) if *last == id => r.end = row + 1,
-            _ => {
-                if !seen.insert(id) {
-                    bail!("rows of sample {id} are not contiguous (row {row}): expected rows sorted by sample_id, t");
-                }
-                runs.push((id, row..row + 1));
-            }
+/// The columns read: `sample_id`, then the [`SampleData`] columns.
+fn column_names() -> Vec<String> {
+    let dofs = schema::VEHICLE_DOFS;
+    std::iter::once(schema::SAMPLE_ID.to_owned())
+        .chain(dofs.iter().map(|s| s.to_string()))
+        .chain(schema::RAIL_UNDER_WHEEL.iter().map(|s| s.to_string()))
+        .chain(dofs.iter().map(|s| schema::velocity(s)))
+        .chain(dofs.iter().map(|s| schema::acceleration(s)))
+        .chain(schema::ETA_UNDER_WHEEL.iter().map(|s| s.to_string()))
+        .collect()
+}
+
+/// Streams the samples of one simulate shard (batch by batch, with column projection), in
+/// file order, in groups of up to `group` samples to `f`; samples for which `keep(id)` is
+/// false are dropped as soon as they are read. Memory: one group of samples plus one batch
+/// of rows. Rows of one sample must be contiguous.
+pub fn for_each_group(
+    path: &Path,
+    group: usize,
+    keep: &dyn Fn(i64) -> Result<bool>,
+    f: &mut dyn FnMut(Vec<SampleData>) -> Result<()>,
+) -> Result<()> {
+    let names = column_names();
+    let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+    let mut seen = BTreeSet::new();
+    let mut current: Option<SampleData> = None;
+    let mut pending: Vec<SampleData> = Vec::new();
+    let mut failure: Option<anyhow::Error> = None;
+    // Closes the current sample; hands a full group to `f`.
+    let mut close = |s: SampleData, pending: &mut Vec<SampleData>, flush: bool| -> Result<()> {
+        if !seen.insert(s.id) {
+            bail!(
+                "rows of sample {} are not contiguous: expected rows sorted by sample_id, t",
+                s.id
+            );
         }
+        if keep(s.id)? {
+            pending.push(s);
+        }
+        if pending.len() >= group || (flush && !pending.is_empty()) {
+            f(std::mem::take(pending))?;
+        }
+        Ok(())
+    };
+    let streamed = pino_data::for_each_batch(path, Some(&refs), |table| {
+        let ids = table.i64(schema::SAMPLE_ID)?;
+        let cols: Vec<&[f64]> = names[1..]
+            .iter()
+            .map(|n| table.f64(n))
+            .collect::<pino_data::Result<_>>()?;
+        let mut lo = 0;
+        while lo < ids.len() {
+            let id = ids[lo];
+            let hi = (lo..ids.len()).find(|&r| ids[r] != id).unwrap_or(ids.len());
+            if current.as_ref().is_some_and(|c| c.id != id) {
+                let done = current.take().expect("checked");
+                if let Err(e) = close(done, &mut pending, false) {
+                    failure = Some(e);
+                    return Err(pino_data::Error::Parquet {
+                        path: path.to_owned(),
+                        message: "stopped".into(),
+                    });
+                }
+            }
+            let s = current.get_or_insert_with(|| SampleData {
+                id,
+                cols: vec![Vec::new(); cols.len()],
+            });
+            for (dst, src) in s.cols.iter_mut().zip(&cols) {
+                dst.extend_from_slice(&src[lo..hi]);
+            }
+            lo = hi;
+        }
+        Ok(())
+    });
+    if let Some(e) = failure {
+        return Err(e.context(path.display().to_string()));
     }
-    Ok(runs)
+    streamed?;
+    match current.take() {
+        Some(last) => close(last, &mut pending, true),
+        None => Ok(()),
+    }
+    .with_context(|| path.display().to_string())
 }

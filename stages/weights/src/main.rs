@@ -4,9 +4,10 @@
 //!
 //! Inputs: `params` (`params.parquet`: split and the 14 parameters), `dataset` (the
 //! `simulation.parquet` of every simulate shard, rows sorted by sample then time). Params:
-//! `seed`, `noise_ratio`, `gravity`, `wheel_radius`, `window_start_fraction`. Shards are read
-//! one at a time (memory: one shard's columns); samples are weighted in parallel, each from its
-//! own noise stream, so the result does not depend on threads or shard layout. Training samples
+//! `seed`, `noise_ratio`, `gravity`, `wheel_radius`, `window_start_fraction`. Shards are
+//! streamed batch by batch (memory: one group of samples, not one shard's columns); samples
+//! are weighted in parallel, each from its own noise stream, so the result does not depend on
+//! threads, grouping or shard layout. Training samples
 //! absent from the dataset (failed simulations) are counted in the summary.
 
 mod dataset;
@@ -34,33 +35,35 @@ fn run() -> Result<String> {
     let n_train = params.values().filter(|(train, _)| *train).count();
     let progress = ctx.progress(n_train as u64);
     let mut phi: BTreeMap<i64, [f64; 10]> = BTreeMap::new();
+    // Samples in groups: weighted in parallel within a group, one group in memory.
+    let group = 16 * rayon::current_num_threads().max(1);
     for file in &files {
-        let shard = dataset::ShardData::read(file)?;
-        if let Some((id, _)) = shard.runs.iter().find(|(id, _)| !params.contains_key(id)) {
-            bail!(
-                "{}: sample {id} is not in params.parquet (inputs from different runs?)",
-                file.display()
-            );
-        }
-        let results: Vec<(i64, vtcd::Result<[f64; 10]>)> = shard
-            .runs
-            .par_iter()
-            .filter(|(id, _)| params[id].0)
-            .map(|(id, rows)| {
-                let out = magnitude_weights(&cfg, &params[id].1, *id as u64, &shard.signals(rows));
-                progress.inc(1);
-                (*id, out)
-            })
-            .collect();
-        for (id, out) in results {
-            let w = out.with_context(|| format!("{}: sample {id}", file.display()))?;
-            if phi.insert(id, w).is_some() {
-                bail!(
-                    "sample {id} appears in more than one dataset file ({})",
-                    file.display()
-                );
+        let keep = |id: i64| -> Result<bool> {
+            match params.get(&id) {
+                Some((train, _)) => Ok(*train),
+                None => bail!("sample {id} is not in params.parquet (inputs from different runs?)"),
             }
-        }
+        };
+        dataset::for_each_group(file, group, &keep, &mut |samples| {
+            let results: Vec<(i64, vtcd::Result<[f64; 10]>)> = samples
+                .par_iter()
+                .map(|s| {
+                    let out = magnitude_weights(&cfg, &params[&s.id].1, s.id as u64, &s.signals());
+                    progress.inc(1);
+                    (s.id, out)
+                })
+                .collect();
+            for (id, out) in results {
+                let w = out.with_context(|| format!("{}: sample {id}", file.display()))?;
+                if phi.insert(id, w).is_some() {
+                    bail!(
+                        "sample {id} appears in more than one dataset file ({})",
+                        file.display()
+                    );
+                }
+            }
+            Ok(())
+        })?;
     }
 
     let mut table = Table::default();
