@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! cargo run --release -p pino-learn --example bench_train -- \
-//!     [width] [modes] [depth] [batch] [points] [fused|matmul] [steps] [algorithm] [padding%]
+//!     [width] [modes] [depth] [batch] [points] [fused|matmul] [steps] [algorithm] [padding%] \
+//!     [inference samples] [inference batch]
 //! ```
 //! Builds a synthetic dataset of `points` time points per record (after the 10% start-up
 //! window), runs `steps` optimizer steps of `algorithm` (default 4) and reports
@@ -105,11 +106,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         bw * 1e3,
         a * 1e3
     );
-    let val: Vec<usize> = (spec.n_train..spec.n_train + 40).collect();
+    // Inference as `evaluate` runs it: batches one after another, the kernels parallel inside.
+    // The 40 validation records are cycled up to the requested count (same cost per sample).
+    let n_infer: usize = arg(9, "40").parse()?;
+    let infer_batch: usize = arg(10, "8").parse()?;
+    let val: Vec<usize> = (0..n_infer).map(|k| spec.n_train + k % 40).collect();
     let mut inf = Vec::new();
     for _ in 0..3 {
         let t0 = Instant::now();
-        for c in val.chunks(8) {
+        for c in val.chunks(infer_batch) {
             let vb = make_batch(&items, c, ds.t_points(), &dev)?;
             let _ = model
                 .forward(&vb.x)?
@@ -121,7 +126,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     inf.sort_by(f64::total_cmp);
     println!(
-        "width {width} modes {modes} depth {depth} batch {batch} T {} {transform:?}: params {}, step median {:.4} s, {:.1} samples/s, inference 40 samples {:.3} s",
+        "width {width} modes {modes} depth {depth} batch {batch} T {} {transform:?}: params {}, step median {:.4} s, {:.1} samples/s, inference {n_infer} samples {:.3} s",
         ds.t_points(),
         model.num_parameters(),
         med,

@@ -190,3 +190,13 @@ pub fn single_threaded_by_default() {
         }
     }
 }
+
+/// For inference stages (`evaluate`, `predict`): candle's own pool single-threaded (its
+/// spin-waiting workers are the problem above) while the fused kernels, which do all the work
+/// of a CPU forward pass, use rayon on every core. Call first thing in `main`.
+pub fn candle_single_threaded_by_default() {
+    if std::env::var_os("CANDLE_NUM_THREADS").is_none() {
+        // Single-threaded at this point: nothing else reads the environment yet.
+        std::env::set_var("CANDLE_NUM_THREADS", "1");
+    }
+}

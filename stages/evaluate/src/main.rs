@@ -67,7 +67,7 @@ fn run() -> Result<()> {
 }
 
 fn main() {
-    pino_learn::single_threaded_by_default();
+    pino_learn::candle_single_threaded_by_default();
     if let Err(e) = run() {
         eprintln!("evaluate: {e:#}");
         std::process::exit(1);

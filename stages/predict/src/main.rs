@@ -99,7 +99,7 @@ fn vtcd_nominal() -> pino_learn::predict::NominalParams {
 }
 
 fn main() {
-    pino_learn::single_threaded_by_default();
+    pino_learn::candle_single_threaded_by_default();
     if let Err(e) = run() {
         eprintln!("predict: {e:#}");
         std::process::exit(1);
