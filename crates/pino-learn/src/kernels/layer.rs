@@ -1,13 +1,10 @@
-//! A whole network layer as one fused CPU op: `y = act(W^T x + b [+ K x])`.
+//! One network layer, fused: `y = act(W^T x + b [+ K x])`, forward and backward on host
+//! memory (the building block of [`super::network`]).
 //!
 //! Channel-major `x [C, B, T]` (or `[C, N]`), pointwise weight `W [C, C']` (stored `[in,
 //! out]`), bias `b [C']`, optionally the spectral convolution `K` of [`super::spectral_op`]
-//! with `wr, wi [M, C, C']`, and `act` GELU or identity. The layer's parameters travel as one
-//! flat tensor `[W | b | wr | wi]` (the model concatenates its named variables, so checkpoints
-//! keep their names), which makes the layer a single node of candle's graph: candle's
-//! backward allocates and zero-fills a gradient for every node's inputs, and a layer written
-//! as separate ops (transposes, reshapes, two products, a sum, a bias, an activation) pays that
-//! for each of them. Forward and backward:
+//! with `wr, wi [M, C, C']`, and `act` GELU or identity. The layer's parameters are one flat
+//! slice `[W | b | wr | wi]`. Forward and backward:
 //! ```text
 //! z = W^T x + b [+ K x]      y = act(z)                     (z kept for backward)
 //! gz = g act'(z)    db = sum_n gz    dW = x gz^T    dx = W gz [+ K^T gz]    dwr, dwi from K
@@ -18,7 +15,6 @@
 use super::simd;
 use super::spectral_op::{SpectralConvOp, C32};
 use super::RealDft;
-use candle_core::{CpuStorage, CustomOp2, Layout, Shape, Tensor};
 use rayon::prelude::*;
 use std::sync::{Arc, Mutex};
 
@@ -125,33 +121,6 @@ impl FusedLayer {
         let (b, rest) = rest.split_at(self.c_out);
         let (wr, wi) = rest.split_at(rest.len() / 2);
         (w, b, wr, wi)
-    }
-
-    fn check(&self, x: &Shape, p: &Shape) -> candle_core::Result<usize> {
-        let dims = x.dims();
-        let n = x.elem_count() / self.c_in.max(1);
-        let ok = dims.first() == Some(&self.c_in)
-            && p.dims() == [self.param_len()]
-            && match &self.spectral {
-                Some(s) => dims.len() == 3 && dims[1] == s.batch() && dims[2] == s.t_points(),
-                None => true,
-            };
-        if !ok {
-            return Err(candle_core::Error::Msg(format!(
-                "fused layer: input {x:?} and parameters {p:?} do not fit {} -> {} channels \
-                 (parameters {})",
-                self.c_in,
-                self.c_out,
-                self.param_len()
-            )));
-        }
-        Ok(n)
-    }
-
-    fn output_shape(&self, x: &Shape) -> Shape {
-        let mut dims = x.dims().to_vec();
-        dims[0] = self.c_out;
-        Shape::from(dims)
     }
 
     /// Host forward over `n` columns; keeps what the backward pass needs.
@@ -271,53 +240,5 @@ impl FusedLayer {
             (n, 1),
         );
         (dx, dparams)
-    }
-}
-
-fn host<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> candle_core::Result<&'a [f32]> {
-    let CpuStorage::F32(v) = s else {
-        return Err(candle_core::Error::Msg(format!(
-            "fused layer: {what} must be f32"
-        )));
-    };
-    let (a, b) = l.contiguous_offsets().ok_or_else(|| {
-        candle_core::Error::Msg(format!("fused layer: {what} must be contiguous"))
-    })?;
-    Ok(&v[a..b])
-}
-
-impl CustomOp2 for FusedLayer {
-    fn name(&self) -> &'static str {
-        "fused-layer"
-    }
-
-    fn cpu_fwd(
-        &self,
-        s1: &CpuStorage,
-        l1: &Layout,
-        s2: &CpuStorage,
-        l2: &Layout,
-    ) -> candle_core::Result<(CpuStorage, Shape)> {
-        let n = self.check(l1.shape(), l2.shape())?;
-        let y = self.forward(host(s1, l1, "input")?, host(s2, l2, "parameters")?, n);
-        Ok((CpuStorage::F32(y), self.output_shape(l1.shape())))
-    }
-
-    fn bwd(
-        &self,
-        x: &Tensor,
-        p: &Tensor,
-        _res: &Tensor,
-        grad: &Tensor,
-    ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>)> {
-        let n = self.check(x.shape(), p.shape())?;
-        let mut g = grad.flatten_all()?.to_vec1::<f32>()?;
-        let (dx, dp) = super::with_host(x, |xh| {
-            super::with_host(p, |ph| self.backward(xh, ph, &mut g, n))
-        })??;
-        Ok((
-            Some(Tensor::from_vec(dx, x.shape(), x.device())?),
-            Some(Tensor::from_vec(dp, p.shape(), p.device())?),
-        ))
     }
 }

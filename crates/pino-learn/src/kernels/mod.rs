@@ -7,19 +7,17 @@
 //! - [`rdft`]: the truncated real DFT on rows, two real rows per rustfft complex FFT;
 //! - [`spectral_op`]: the whole spectral convolution (analysis, complex mode mixing,
 //!   synthesis) and its backward pass, over channel-major `[C, B, T]` activations;
-//! - [`activation`]: `act(a + b + bias)` of a layer in one pass, GELU or identity;
-//! - [`layer`]: a whole layer `act(W^T x + b [+ K x])` as one op (one node of candle's graph);
-//! - [`network`]: the whole FNO as one op built from those layers (what training runs);
+//! - [`layer`]: one layer `act(W^T x + b [+ K x])` forward and backward on host memory;
+//! - [`network`]: the whole FNO as one candle op built from those layers (one graph node);
 //! - [`deriv_loss`]: the direct-derivative loss of algorithms 4 and 5 (stencils, z-scores,
 //!   relative L2) and its gradient in one pass;
 //! - [`ode_loss`]: the ODE-residual losses of algorithms 2 and 3 and their gradient;
-//! - [`simd`]: the inner loops, compiled for AVX2 + FMA with a run-time switch.
+//! - [`simd`]: the inner loops, compiled for AVX2 + FMA and AVX-512 with a run-time switch.
 //!
 //! The candle composition in [`crate::spectral`] and [`crate::model`] computes the same
 //! functions on any device (it is the CUDA path) and is the reference the tests check these
 //! kernels and their gradients against.
 
-pub mod activation;
 pub mod deriv_loss;
 pub mod layer;
 pub mod network;
@@ -32,7 +30,6 @@ use crate::Result;
 use candle_core::Tensor;
 use std::sync::Arc;
 
-pub use activation::BiasActivation;
 pub use layer::FusedLayer;
 pub use network::{FusedNetwork, NetworkShape};
 pub use rdft::RealDft;
@@ -45,45 +42,6 @@ pub fn spectral_conv(dft: &Arc<RealDft>, x: &Tensor, wr: &Tensor, wi: &Tensor) -
     let op = SpectralConvOp::new(Arc::clone(dft), b);
     Ok(x.contiguous()?
         .apply_op3(&wr.contiguous()?, &wi.contiguous()?, op)?)
-}
-
-/// `act(a [+ b] + bias)` of channel-major `a, b [C, ...]` and `bias [C]`: GELU when `gelu`.
-pub fn bias_activation(
-    a: &Tensor,
-    b: Option<&Tensor>,
-    bias: &Tensor,
-    gelu: bool,
-) -> Result<Tensor> {
-    let op = BiasActivation { gelu };
-    let a = a.contiguous()?;
-    let bias = bias.contiguous()?;
-    Ok(match b {
-        Some(b) => a.apply_op3(&b.contiguous()?, &bias, op)?,
-        None => a.apply_op2(&bias, op)?,
-    })
-}
-
-/// `act(W^T x + b [+ K x])` of channel-major `x [C, ...]` as one fused op; `spectral` gives the
-/// plan, batch size and `(wr, wi)` of a Fourier layer.
-pub fn fused_layer(
-    x: &Tensor,
-    weight: &Tensor,
-    bias: &Tensor,
-    spectral: Option<(&Arc<RealDft>, usize, &Tensor, &Tensor)>,
-    gelu: bool,
-) -> Result<Tensor> {
-    let (c_in, c_out) = weight.dims2()?;
-    let mut parts = vec![weight.flatten_all()?, bias.clone()];
-    let op = match spectral {
-        Some((plan, batch, wr, wi)) => {
-            parts.push(wr.flatten_all()?);
-            parts.push(wi.flatten_all()?);
-            FusedLayer::fourier(c_in, gelu, plan, batch)
-        }
-        None => FusedLayer::pointwise(c_in, c_out, gelu),
-    };
-    let params = Tensor::cat(&parts, 0)?;
-    Ok(x.contiguous()?.apply_op2(&params, op)?)
 }
 
 /// Runs `f` on the host f32 data of `t` without copying when it is contiguous on the CPU
