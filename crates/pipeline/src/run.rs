@@ -8,7 +8,8 @@
 //! earlier identities), otherwise the stage runs in `tmp/` and its output is committed. A
 //! failed unit caches nothing; units downstream of it are skipped, independent units go on.
 //! The lock record is rewritten (atomically) after every unit that changes it, so a killed
-//! run keeps everything it finished.
+//! run keeps everything it finished. Where a unit's process runs (this machine or a Slurm
+//! job) is the [`crate::executor`]'s business; verification and commit happen here for both.
 
 use crate::executor::{Executor, ExecutorKind, Job, Ticket};
 use crate::plan::{code_of, entry_for, units_of, Code, Unit};
