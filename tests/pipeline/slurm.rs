@@ -60,8 +60,8 @@ fn queued() -> Vec<String> {
         .collect()
 }
 
-/// The batch scripts submitted in this workspace for `stage`, oldest first, as the array task
-/// ids each one covers.
+/// The batch scripts submitted in this workspace for `stage`, oldest first, as the (sorted)
+/// array task ids each one covers.
 fn submissions(ws: &Ws, stage: &str) -> Vec<Vec<usize>> {
     let dir = ws.path().join("artifacts/slurm/jobs");
     let mut scripts: Vec<(std::time::SystemTime, PathBuf)> = std::fs::read_dir(&dir)
@@ -80,11 +80,13 @@ fn submissions(ws: &Ws, stage: &str) -> Vec<Vec<usize>> {
     scripts
         .iter()
         .map(|(_, p)| {
-            std::fs::read_to_string(p)
+            let mut ids: Vec<usize> = std::fs::read_to_string(p)
                 .unwrap()
                 .lines()
                 .filter_map(|l| l.trim().split_once(") d=").map(|(i, _)| i.parse().unwrap()))
-                .collect()
+                .collect();
+            ids.sort_unstable();
+            ids
         })
         .collect()
 }
