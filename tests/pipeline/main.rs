@@ -11,4 +11,5 @@ mod cache;
 mod concurrency;
 mod failure;
 mod shards_and_matrix;
+mod slurm;
 mod views;

@@ -1,5 +1,6 @@
 //! The command line: `pipeline [-C DIR] [-f FILE] [--bin-dir DIR] [--set S.K=V]... COMMAND`.
 
+use crate::executor::ExecutorKind;
 use crate::run::{run, RunOptions};
 use crate::spec::{LoadOptions, Pipeline};
 use crate::status::{dag, show, status};
@@ -52,6 +53,9 @@ pub enum Command {
         /// Fail at once (exit 2) instead of waiting when another run holds the workspace.
         #[arg(long)]
         no_wait: bool,
+        /// Where units run (overrides the pipeline file's `executor:`).
+        #[arg(long, value_enum, value_name = "local|slurm")]
+        executor: Option<ExecutorKind>,
     },
     /// Every unit as fresh, stale (with the reason) or never run.
     Status,
@@ -89,6 +93,7 @@ fn execute(cli: Cli) -> Result<()> {
             force,
             jobs,
             no_wait,
+            executor,
         } => {
             let ui = Ui::new();
             run(
@@ -98,6 +103,7 @@ fn execute(cli: Cli) -> Result<()> {
                     force,
                     jobs,
                     wait: !no_wait,
+                    executor,
                 },
                 &ui,
             )

@@ -23,6 +23,7 @@
 pub mod cli;
 mod error;
 pub mod exec;
+pub mod executor;
 pub mod hash;
 pub mod locate;
 pub mod plan;

@@ -8,9 +8,10 @@
 //! earlier identities), otherwise the stage runs in `tmp/` and its output is committed. A
 //! failed unit caches nothing; units downstream of it are skipped, independent units go on.
 //! The lock record is rewritten (atomically) after every unit that changes it, so a killed
-//! run keeps everything it finished.
+//! run keeps everything it finished. Where a unit's process runs (this machine or a Slurm
+//! job) is the [`crate::executor`]'s business; verification and commit happen here for both.
 
-use crate::exec;
+use crate::executor::{Executor, ExecutorKind, Job, Ticket};
 use crate::plan::{code_of, entry_for, units_of, Code, Unit};
 use crate::spec::Pipeline;
 use crate::store::{Cached, LockEntry, LockRecord, Manifest, Store, PROTOCOL_VERSION};
@@ -30,6 +31,8 @@ pub struct RunOptions {
     pub jobs: usize,
     /// Wait for another run's lock instead of failing.
     pub wait: bool,
+    /// `--executor`: overrides the pipeline file's `executor:`.
+    pub executor: Option<ExecutorKind>,
 }
 
 /// Units to consider, in dependency order, and the keys of those to force.
@@ -126,6 +129,7 @@ struct Ctx<'a> {
     store: &'a Store,
     ui: &'a Ui,
     codes: &'a HashMap<usize, Code>,
+    executor: &'a Executor,
 }
 
 fn safe_name(key: &str) -> String {
@@ -147,6 +151,7 @@ fn work(
     inputs: BTreeMap<String, Vec<String>>,
     dirs: BTreeMap<String, Vec<String>>,
     force: bool,
+    ticket: Ticket,
 ) -> Outcome {
     let t0 = Instant::now();
     let entry = entry_for(cx.p, u, &cx.codes[&u.stage], inputs);
@@ -169,7 +174,7 @@ fn work(
             Cached::Missing => {}
         }
     }
-    match compute(cx, u, &entry, dirs) {
+    match compute(cx, u, &entry, dirs, ticket) {
         Ok(Ok(m)) => Outcome::Ran(entry, m, t0.elapsed()),
         Ok(Err(msg)) => Outcome::Failed(msg, t0.elapsed()),
         Err(e) => Outcome::Failed(e.to_string(), t0.elapsed()),
@@ -182,9 +187,11 @@ fn compute(
     u: &Unit,
     entry: &LockEntry,
     dirs: BTreeMap<String, Vec<String>>,
+    ticket: Ticket,
 ) -> Result<std::result::Result<Manifest, String>> {
     let stage = &cx.p.stages[u.stage];
-    let work = cx.store.tmp_dir(&entry.identity)?;
+    let placed = cx.executor.work_dir(cx.store, &entry.identity, &u.key)?;
+    let work = placed.dir.clone();
     let scratch = cx.store.scratch_dir(&entry.identity)?;
     let context = serde_json::json!({
         "protocol": PROTOCOL_VERSION,
@@ -195,19 +202,32 @@ fn compute(
         "scratch": scratch,
         "shard": {"index": u.shard, "count": stage.shards},
     });
-    crate::store::write_atomic(
-        &work.join("context.json"),
-        &serde_json::to_vec_pretty(&context).expect("serialisable"),
-    )?;
+    match &placed.attached {
+        // An earlier run's job for this very identity: its context is already there.
+        Some(job) => cx.ui.line(&format!(
+            "[{}] re-attaching to Slurm job {job} of an earlier run",
+            u.key
+        )),
+        None => crate::store::write_atomic(
+            &work.join("context.json"),
+            &serde_json::to_vec_pretty(&context).expect("serialisable"),
+        )?,
+    }
     let view = cx.ui.start(&u.key);
     let t0 = Instant::now();
-    let outcome = exec::run_stage(
-        &cx.codes[&u.stage].exe,
-        &entry.args,
-        &cx.p.workspace,
-        &work,
-        &|pl| view.progress(pl),
-    )?;
+    let job = Job {
+        unit: &u.key,
+        name: &stage.expansions[u.expansion].name,
+        exe: &cx.codes[&u.stage].exe,
+        args: &entry.args,
+        workspace: &cx.p.workspace,
+        resources: &stage.resources,
+        shard: u.shard,
+        sharded: stage.shards > 1,
+    };
+    let outcome = cx
+        .executor
+        .execute(&placed, ticket, &job, &|pl| view.progress(pl))?;
     let took = t0.elapsed();
     if outcome.success {
         match cx.store.commit(
@@ -272,6 +292,7 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
             v.insert(code_of(p, &p.stages[u.stage], &store.cache)?);
         }
     }
+    let executor = Executor::new(opts.executor.unwrap_or(p.executor), &store, &p.workspace)?;
     store.create_dirs()?;
     let lock_path = store.root.join("run.lock");
     let _lock = RunLock::acquire(&lock_path, opts.wait, |pid| {
@@ -281,6 +302,7 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
         ))
     })?;
     store.clean_debris()?;
+    executor.start();
     let mut rec = store.read_lock_record()?;
     let mut entries = rec.pipelines.get(&p.key).cloned().unwrap_or_default();
     let t_run = Instant::now();
@@ -319,14 +341,16 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
         store: &store,
         ui,
         codes: &codes,
+        executor: &executor,
     };
-    let jobs = opts.jobs.max(1);
+    let jobs = executor.parallelism(opts.jobs);
     let mut save_error = None;
 
     std::thread::scope(|s| {
         let (tx, rx) = std::sync::mpsc::channel::<(usize, Outcome)>();
         let mut running = 0;
         loop {
+            let mut dispatch = Vec::new();
             for i in 0..units.len() {
                 if !matches!(state[i], State::Pending) {
                     continue;
@@ -349,7 +373,7 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
                     .iter()
                     .flat_map(|(_, v)| v)
                     .all(|&d| matches!(state[d], State::Done { .. }));
-                if !ready || running >= jobs {
+                if !ready || running + dispatch.len() >= jobs {
                     continue;
                 }
                 let mut inputs = BTreeMap::new();
@@ -371,13 +395,23 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
                     dirs.insert(name.clone(), ds);
                 }
                 state[i] = State::Running;
+                dispatch.push((i, inputs, dirs));
+            }
+            // Units of one stage expansion dispatched together form a batch (one Slurm
+            // array job); the local executor ignores batches.
+            let groups: Vec<(usize, usize)> = dispatch
+                .iter()
+                .map(|(i, _, _)| (units[*i].stage, units[*i].expansion))
+                .collect();
+            let tickets = executor.tickets(&groups);
+            for ((i, inputs, dirs), ticket) in dispatch.into_iter().zip(tickets) {
                 running += 1;
                 let tx = tx.clone();
                 let u = &units[i];
                 let force = forced.contains(&u.key);
                 let cx = &cx;
                 s.spawn(move || {
-                    let _ = tx.send((i, work(cx, u, inputs, dirs, force)));
+                    let _ = tx.send((i, work(cx, u, inputs, dirs, force, ticket)));
                 });
             }
             if running == 0 {

@@ -1,6 +1,7 @@
 //! The pipeline file: parsing, validation, `--set` overrides and matrix expansion.
 //!
-//! A pipeline file is YAML with two top-level keys, `bin_dir` and `stages` (see the README).
+//! A pipeline file is YAML with the top-level keys `bin_dir`, `executor` and `stages` (see the
+//! README); a stage may carry `resources:` for the Slurm executor ([`crate::executor`]).
 //! Parsing is strict (`deny_unknown_fields`), so a misspelt key is an error at its line. After
 //! parsing, the semantic checks run: names, dependencies (every input names a stage), cycles,
 //! shard counts, matrix keys, paths (relative, inside the workspace) and `--set` overrides (the
@@ -10,6 +11,7 @@
 //! Parameters are arbitrary YAML values held as JSON values whose objects have sorted keys,
 //! so `serde_json::to_string` of them is their canonical form (hashing and the context file).
 
+use crate::executor::{ExecutorKind, Resources};
 use crate::locate::Locator;
 use crate::{Error, Result};
 use serde::Deserialize;
@@ -59,6 +61,8 @@ impl<V> Default for UniqueMap<V> {
 struct RawPipeline {
     #[serde(default)]
     bin_dir: Option<String>,
+    #[serde(default)]
+    executor: Option<ExecutorKind>,
     stages: UniqueMap<RawStage>,
 }
 
@@ -74,6 +78,8 @@ struct RawStage {
     shards: Option<usize>,
     #[serde(default)]
     matrix: Option<UniqueMap<Vec<Value>>>,
+    #[serde(default)]
+    resources: Option<Resources>,
 }
 
 /// One matrix expansion of a stage (the stage itself when it has no matrix).
@@ -102,6 +108,8 @@ pub struct Stage {
     pub expansions: Vec<Expansion>,
     /// The `--set` overrides applied to this stage, as given (`KEY=VALUE`).
     pub overrides: Vec<String>,
+    /// What its Slurm jobs ask for (`resources:`; not part of the identity).
+    pub resources: Resources,
 }
 
 /// A loaded, validated pipeline with its stages in dependency order.
@@ -119,6 +127,8 @@ pub struct Pipeline {
     pub stages: Vec<Stage>,
     /// Absolute directory of the pipeline file (YAML paths are relative to it).
     pub base: PathBuf,
+    /// The file's `executor:` (local when absent); `run --executor` overrides it.
+    pub executor: ExecutorKind,
     text: String,
 }
 
@@ -317,6 +327,13 @@ impl Pipeline {
                     format!("stage `{name}`: `shards` must be at least 1"),
                 ));
             }
+            let resources = rs.resources.unwrap_or_default();
+            resources.check().map_err(|why| {
+                spec_err(
+                    loc.field_line(&name, "resources"),
+                    format!("stage `{name}`: {why}"),
+                )
+            })?;
             let inputs = rs.inputs.map(|m| m.0).unwrap_or_default();
             for input in inputs.keys() {
                 if !valid_name(input) {
@@ -354,6 +371,7 @@ impl Pipeline {
                         shards,
                         expansions: Vec::new(),
                         overrides: Vec::new(),
+                        resources,
                     },
                     params,
                     matrix,
@@ -485,6 +503,7 @@ impl Pipeline {
             bin_dir,
             stages,
             base,
+            executor: raw.executor.unwrap_or_default(),
             text,
         })
     }

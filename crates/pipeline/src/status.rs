@@ -4,8 +4,10 @@
 //! upstream outputs it can know (those of fresh upstream units, or of upstream objects already
 //! in the run-cache), and compares it with the lock record. A stale unit's reason is the
 //! difference between its recorded entry and its current one: code, command, parameter
-//! (old -> new), input, shard layout, or a cached output that is missing or corrupted.
+//! (old -> new), input, shard layout, or a cached output that is missing or corrupted. A unit
+//! whose Slurm job is queued or running shows as `submitted` with the job id.
 
+use crate::executor::slurm;
 use crate::plan::{code_of, entry_for, units_of};
 use crate::spec::Pipeline;
 use crate::store::{Cached, LockEntry, Store};
@@ -109,7 +111,12 @@ pub fn status(p: &Pipeline) -> Result<String> {
                             } else {
                                 ""
                             };
+                            // Queued or running on Slurm (`pipeline run --executor slurm`).
+                            let job = (!in_cache)
+                                .then(|| slurm::describe(&store.root, &entry.identity))
+                                .flatten();
                             match old {
+                                _ if job.is_some() => ("submitted", job.unwrap_or_default()),
                                 Some(o) if o.identity == entry.identity => match cached {
                                     Cached::Valid(_) => ("fresh", String::new()),
                                     Cached::Missing => {
