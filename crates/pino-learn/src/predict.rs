@@ -147,9 +147,10 @@ pub fn generated_profile(seed: u64, id: u64) -> Result<Profile> {
 pub struct Placement {
     /// Rear-wheel position at t = 0 (m); the spec's default is 20.
     pub x0: f64,
-    /// Fraction of the record with the irregularity off (0.1).
+    /// Fraction of the record with the irregularity off (0: the `simulate` default since the
+    /// equilibrium start).
     pub startup_zero_fraction: f64,
-    /// Fraction over which it fades in (0.1).
+    /// Fraction over which it fades in (0, as `simulate`).
     pub startup_ramp_fraction: f64,
 }
 
@@ -157,8 +158,8 @@ impl Default for Placement {
     fn default() -> Self {
         Self {
             x0: 20.0,
-            startup_zero_fraction: 0.1,
-            startup_ramp_fraction: 0.1,
+            startup_zero_fraction: 0.0,
+            startup_ramp_fraction: 0.0,
         }
     }
 }
@@ -318,7 +319,11 @@ mod tests {
         let xs: Vec<f64> = (0..=600).map(|k| k as f64).collect();
         let profile = Profile::new(xs.clone(), xs.iter().map(|x| 1e-3 * x).collect()).unwrap();
         let p = SampleParams::NOMINAL;
-        let place = Placement::default();
+        let place = Placement {
+            startup_zero_fraction: 0.1,
+            startup_ramp_fraction: 0.1,
+            ..Placement::default()
+        };
         // duration 1 s: r = 0 before 0.1 s, 0.5 at 0.15 s, 1 after 0.2 s.
         let eta = wheel_irregularity(&p, &profile, &[0.05, 0.15, 0.5], 1.0, &place).unwrap();
         assert_eq!(&eta[..4], &[0.0; 4]);
