@@ -416,8 +416,6 @@ impl NormAccumulator {
     fn new() -> Self {
         let vel = velocity_names();
         let acc = acceleration_names();
-        let refs = |v: &[String]| -> Vec<String> { v.to_vec() };
-        let (vel, acc) = (refs(&vel), refs(&acc));
         let vel: Vec<&str> = vel.iter().map(String::as_str).collect();
         let acc: Vec<&str> = acc.iter().map(String::as_str).collect();
         Self {
