@@ -186,19 +186,22 @@ fn compute(
     let stage = &cx.p.stages[u.stage];
     let work = cx.store.tmp_dir(&entry.identity)?;
     let scratch = cx.store.scratch_dir(&entry.identity)?;
-    let context = serde_json::json!({
-        "protocol": PROTOCOL_VERSION,
-        "stage": stage.expansions[u.expansion].name,
-        "params": entry.params,
-        "inputs": dirs,
-        "output": work.join("out"),
-        "scratch": scratch,
-        "shard": {"index": u.shard, "count": stage.shards},
-    });
-    crate::store::write_atomic(
-        &work.join("context.json"),
-        &serde_json::to_vec_pretty(&context).expect("serialisable"),
-    )?;
+    let context = stage_protocol::Context {
+        protocol: PROTOCOL_VERSION,
+        stage: stage.expansions[u.expansion].name.clone(),
+        params: entry.params.clone(),
+        inputs: dirs
+            .into_iter()
+            .map(|(name, ds)| (name, ds.into_iter().map(std::path::PathBuf::from).collect()))
+            .collect(),
+        output: work.join("out"),
+        scratch: Some(scratch),
+        shard: stage_protocol::Shard {
+            index: u.shard,
+            count: stage.shards,
+        },
+    };
+    crate::store::write_atomic(&work.join(stage_protocol::CONTEXT_FILE), &context.to_json())?;
     let view = cx.ui.start(&u.key);
     let t0 = Instant::now();
     let outcome = exec::run_stage(

@@ -101,10 +101,9 @@ impl std::fmt::Display for ParseError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             ParseError::Malformed(e) => write!(f, "{e}"),
-            ParseError::Version { found } => write!(
-                f,
-                "protocol {found}, this side speaks {PROTOCOL_VERSION}"
-            ),
+            ParseError::Version { found } => {
+                write!(f, "protocol {found}, this side speaks {PROTOCOL_VERSION}")
+            }
         }
     }
 }
@@ -229,7 +228,10 @@ mod tests {
     #[test]
     fn optional_fields_default_and_unknown_fields_are_refused() {
         let c = Context::parse(r#"{"protocol":1,"stage":"s","output":"/o"}"#).unwrap();
-        assert_eq!((c.shard, c.scratch, c.inputs.len()), (Shard::WHOLE, None, 0));
+        assert_eq!(
+            (c.shard, c.scratch, c.inputs.len()),
+            (Shard::WHOLE, None, 0)
+        );
         let e = Context::parse(r#"{"protocol":1,"stage":"s","output":"/o","extra":1}"#)
             .unwrap_err()
             .to_string();
@@ -266,8 +268,17 @@ mod tests {
                 message: ""
             }
         );
-        assert_eq!(parse_line(&summary_line("all good")), Line::Summary("all good"));
-        for log in ["::progress x 4", "::progress 1", "::progressive 1 2", "hello", "::summaryX"] {
+        assert_eq!(
+            parse_line(&summary_line("all good")),
+            Line::Summary("all good")
+        );
+        for log in [
+            "::progress x 4",
+            "::progress 1",
+            "::progressive 1 2",
+            "hello",
+            "::summaryX",
+        ] {
             assert_eq!(parse_line(log), Line::Log(log));
         }
     }
