@@ -293,7 +293,7 @@ fn weights_reads_shards_and_names_missing_columns() {
     let err = fails("weights", &ctx2);
     assert!(
         err.contains("gravity = 9.81")
-            && err.contains("gravity = 9.8,")
+            && err.contains("gravity = 9.8;")
             && err.contains("provenance.parquet"),
         "{err}"
     );

@@ -40,10 +40,10 @@ pub fn workspace_root() -> PathBuf {
 /// `${constants.NAME}` references substituted.
 pub fn stage_params(file: &str, stage: &str) -> serde_json::Value {
     let root = workspace_root();
-    let p = pipeline::spec::Pipeline::load(
+    let p = orchestrator::spec::Pipeline::load(
         &root,
         &root.join(file),
-        &pipeline::spec::LoadOptions::default(),
+        &orchestrator::spec::LoadOptions::default(),
     )
     .unwrap_or_else(|e| panic!("{file}: {e}"));
     p.stage(stage)

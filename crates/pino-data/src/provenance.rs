@@ -95,7 +95,7 @@ mod tests {
             .to_string();
         assert!(
             e.contains("gravity = 9.81")
-                && e.contains("gravity = 9.8,")
+                && e.contains("gravity = 9.8;")
                 && e.contains(PROVENANCE_FILE),
             "{e}"
         );
