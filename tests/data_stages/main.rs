@@ -219,6 +219,11 @@ fn synthetic_dataset(path: &Path, ids: &[i64], drop: Option<&str>) {
         t.push(&col, c).unwrap();
     }
     write_parquet(path, &t).unwrap();
+    pino_data::provenance::write_provenance(
+        &path.with_file_name(pino_data::provenance::PROVENANCE_FILE),
+        &[("gravity", 9.81), ("wheel_radius", 0.43)],
+    )
+    .unwrap();
 }
 
 #[test]
@@ -294,6 +299,20 @@ fn weights_reads_shards_and_names_missing_columns() {
         err.contains("missing column `beta_t1_a`") && err.contains("shard1"),
         "{err}"
     );
+    // A dataset simulated with other constants is refused, naming both values and the file.
+    let (ctx2, _) = context(
+        dir.path(),
+        "weights2",
+        r#"{"seed": 3, "gravity": 9.8}"#,
+        &inputs1,
+    );
+    let err = fails("weights", &ctx2);
+    assert!(
+        err.contains("gravity = 9.81")
+            && err.contains("gravity = 9.8;")
+            && err.contains("provenance.parquet"),
+        "{err}"
+    );
     // Noise ratio out of range.
     let (ctx, _) = context(
         dir.path(),
@@ -316,9 +335,7 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
         ("pipeline.yaml", 160, 40, 100),
         ("configs/paper.yaml", 20000, 2000, 2000),
     ] {
-        let text = std::fs::read_to_string(pino_mbd_tests::workspace_root().join(file)).unwrap();
-        let doc: serde_json::Value = serde_yaml::from_str(&text).unwrap();
-        let params = |stage: &str| doc["stages"][stage]["params"].clone();
+        let params = |stage: &str| pino_mbd_tests::stage_params(file, stage);
         let sampling: vtcd::sampling::SamplingParams =
             serde_json::from_value(params("sample-params")).unwrap();
         let plan = sampling.validate().unwrap();

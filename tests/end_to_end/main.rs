@@ -31,16 +31,26 @@ const TINY: &[&str] = &[
     "evaluate.plot_samples=1",
 ];
 
-fn pipeline(ws: &Path, args: &[&str]) -> Output {
+mod kill_resume;
+
+/// `pipeline` in `ws` on this profile's binaries, with the TINY overrides and then `extra`.
+fn pipeline_cmd(ws: &Path, extra: &[&str]) -> Command {
     let mut cmd = Command::new(pino_mbd_tests::bin("pipeline"));
     cmd.current_dir(ws)
         .arg("--bin-dir")
         .arg(pino_mbd_tests::bin_dir())
         .env_remove("PINO_BIN_DIR");
-    for s in TINY {
+    for s in TINY.iter().chain(extra) {
         cmd.arg("--set").arg(s);
     }
-    cmd.args(args).output().expect("pipeline runs")
+    cmd
+}
+
+fn pipeline(ws: &Path, args: &[&str]) -> Output {
+    pipeline_cmd(ws, &[])
+        .args(args)
+        .output()
+        .expect("pipeline runs")
 }
 
 fn text(o: &Output) -> String {
@@ -52,8 +62,11 @@ fn text(o: &Output) -> String {
     )
 }
 
-fn show(ws: &Path, stage: &str) -> Vec<PathBuf> {
-    let o = pipeline(ws, &["show", stage]);
+fn show(ws: &Path, stage: &str, extra: &[&str]) -> Vec<PathBuf> {
+    let o = pipeline_cmd(ws, extra)
+        .args(["show", stage])
+        .output()
+        .expect("pipeline runs");
     assert!(o.status.success(), "show {stage}: {}", text(&o));
     String::from_utf8_lossy(&o.stdout)
         .lines()
@@ -81,7 +94,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     assert!(first.status.success(), "{}", text(&first));
 
     // The simulation is the public schema, both shards together hold every sample once.
-    let sim = show(ws.path(), "simulate");
+    let sim = show(ws.path(), "simulate", &[]);
     let shards = named(&sim, "simulation.parquet");
     assert_eq!(shards.len(), 2, "two shards: {sim:?}");
     let mut ids = Vec::new();
@@ -100,7 +113,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     assert_eq!(ids, (0..7).collect::<Vec<i64>>());
 
     // phi for the four training samples, positive and finite.
-    let weights = show(ws.path(), "weights");
+    let weights = show(ws.path(), "weights", &[]);
     let w = read_parquet(named(&weights, "weights.parquet")[0], None).unwrap();
     assert_eq!(w.i64(schema::SAMPLE_ID).unwrap(), &[0, 1, 2, 3]);
     for c in schema::phi_columns() {
@@ -111,9 +124,9 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     }
 
     // One model per algorithm of the matrix, and a Table 4 row for each, after the truth row.
-    let models = show(ws.path(), "train");
+    let models = show(ws.path(), "train", &[]);
     assert_eq!(named(&models, "model.safetensors").len(), 5, "{models:?}");
-    let eval = show(ws.path(), "evaluate");
+    let eval = show(ws.path(), "evaluate", &[]);
     let table = read_parquet(named(&eval, "table4.parquet")[0], None).unwrap();
     assert_eq!(table.num_rows(), 6);
     assert_eq!(table.i64("algorithm").unwrap(), &[0, 1, 2, 3, 4, 5]);

@@ -231,6 +231,8 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         }
     }
     pino_data::write_parquet(&broken.join("simulation.parquet"), &cut).unwrap();
+    let prov = pino_data::provenance::PROVENANCE_FILE;
+    std::fs::copy(data.join(prov), broken.join(prov)).unwrap();
     let (ctx, _) = context(
         dir,
         "bad-col",
@@ -267,19 +269,15 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
 #[test]
 fn pipeline_files_parameter_blocks_parse_into_the_learning_types() {
     for file in ["pipeline.yaml", "configs/paper.yaml"] {
-        let path = pino_mbd_tests::workspace_root().join(file);
-        let doc: serde_yaml::Value =
-            serde_yaml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-        let stages = &doc["stages"];
         for alg in 1..=5 {
-            let mut params = stages["train"]["params"].clone();
-            params["algorithm"] = serde_yaml::Value::from(alg);
-            let p: pino_learn::config::TrainParams = serde_yaml::from_value(params).unwrap();
+            let mut params = pino_mbd_tests::stage_params(file, "train");
+            params["algorithm"] = serde_json::Value::from(alg);
+            let p: pino_learn::config::TrainParams = serde_json::from_value(params).unwrap();
             let (m, _, _) = p.configs().unwrap_or_else(|e| panic!("{file}: {e}"));
             assert_eq!(m.depth, if alg == 5 { 5 } else { 3 }, "{file}");
         }
         let _: pino_learn::eval::EvalParams =
-            serde_yaml::from_value(stages["evaluate"]["params"].clone())
+            serde_json::from_value(pino_mbd_tests::stage_params(file, "evaluate"))
                 .unwrap_or_else(|e| panic!("{file}: {e}"));
     }
 }

@@ -272,11 +272,9 @@ fn pipeline_files_configure_the_paper_physics() {
     let root = pino_mbd_tests::workspace_root();
     let mut durations = Vec::new();
     for file in ["pipeline.yaml", "configs/paper.yaml"] {
-        let text = std::fs::read_to_string(root.join(file)).unwrap();
-        let doc: serde_yaml::Value = serde_yaml::from_str(&text).unwrap();
-        let params = doc["stages"]["simulate"]["params"].clone();
+        let params = pino_mbd_tests::stage_params(file, "simulate");
         let c: vtcd::simulation::SimulationConfig =
-            serde_yaml::from_value(params).unwrap_or_else(|e| panic!("{file}: {e}"));
+            serde_json::from_value(params).unwrap_or_else(|e| panic!("{file}: {e}"));
         c.validate().unwrap();
         let paper = vtcd::simulation::SimulationConfig {
             duration: c.duration,

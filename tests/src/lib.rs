@@ -34,3 +34,21 @@ pub fn workspace_root() -> PathBuf {
         .expect("tests/ lives in the workspace root")
         .to_path_buf()
 }
+
+/// The resolved parameters of `stage` (first matrix expansion) in the workspace's pipeline
+/// file `file` (relative to the workspace root), as the orchestrator hands them to the stage:
+/// `${constants.NAME}` references substituted.
+pub fn stage_params(file: &str, stage: &str) -> serde_json::Value {
+    let root = workspace_root();
+    let p = orchestrator::spec::Pipeline::load(
+        &root,
+        &root.join(file),
+        &orchestrator::spec::LoadOptions::default(),
+    )
+    .unwrap_or_else(|e| panic!("{file}: {e}"));
+    p.stage(stage)
+        .unwrap_or_else(|| panic!("{file}: no stage `{stage}`"))
+        .expansions[0]
+        .params
+        .clone()
+}

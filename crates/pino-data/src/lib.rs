@@ -1,6 +1,6 @@
 //! The public data contract of pino-mbd and its Parquet I/O.
 //!
-//! - [`schema`]: the column names every artifact uses (from `vtcd-model.md`); users read them
+//! - [`schema`]: the column names every artifact uses (from `docs/model.md`); users read them
 //!   from pandas, polars or DuckDB, so they are a contract.
 //! - [`Table`]: a small columnar table of named `f64`, `i64` or string columns.
 //! - [`write_parquet`]: writes a table atomically (temporary file, fsync, rename) with fixed
@@ -8,6 +8,8 @@
 //! - [`StreamWriter`]: writes a large table row group by row group (atomic on finish).
 //! - [`read_parquet`]: reads chosen columns, naming the file and the column when one is
 //!   missing or of another type.
+//! - [`provenance`]: the physical constants a dataset was simulated with, checked by the
+//!   stages that learn from it.
 //!
 //! ```no_run
 //! use pino_data::{Table, Column, write_parquet, read_parquet};
@@ -22,6 +24,7 @@
 #![warn(missing_docs)]
 
 mod parquet_io;
+pub mod provenance;
 pub mod schema;
 mod stream;
 mod table;
@@ -88,6 +91,14 @@ pub enum Error {
     /// The same column name twice in one table.
     #[error("duplicate column `{0}`")]
     Duplicate(String),
+    /// A dataset's provenance record is missing or disagrees with a stage's constants.
+    #[error("{path}: {message}")]
+    Provenance {
+        /// The provenance file.
+        path: PathBuf,
+        /// What is wrong (names the constant and both values).
+        message: String,
+    },
 }
 
 /// Result alias of this crate.

@@ -1,7 +1,7 @@
 //! Parquet reading and writing with fixed settings and atomic replacement.
 //!
-//! Writes go to `NAME.tmp-PID` in the target directory, are flushed and fsynced, then renamed
-//! over `NAME`: a crash never leaves a partial file under the final name. Writer settings
+//! Writes go through [`atomic_file::TempFile`] (a temporary sibling, fsynced, renamed over
+//! `NAME`): a crash never leaves a partial file under the final name. Writer settings
 //! (Snappy, row-group size, `created_by`) are fixed, so equal tables give equal bytes.
 
 use crate::{Column, Error, Result, Table};
@@ -12,7 +12,6 @@ use parquet::arrow::{ArrowWriter, ProjectionMask};
 use parquet::basic::Compression;
 use parquet::file::properties::WriterProperties;
 use std::fs::File;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -50,21 +49,12 @@ pub fn write_parquet_with(path: &Path, table: &Table, row_group_rows: usize) -> 
     };
     let props = writer_properties(row_group_rows.max(1));
 
-    let tmp = temp_path(path);
-    let result = (|| {
-        let file = File::create(&tmp).map_err(|e| io(&tmp, e))?;
-        let mut writer =
-            ArrowWriter::try_new(file, schema, Some(props)).map_err(|e| pq(path, e))?;
-        writer.write(&batch).map_err(|e| pq(path, e))?;
-        let mut file = writer.into_inner().map_err(|e| pq(path, e))?;
-        file.flush().map_err(|e| io(&tmp, e))?;
-        file.sync_all().map_err(|e| io(&tmp, e))?;
-        std::fs::rename(&tmp, path).map_err(|e| io(path, e))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let (tmp, file) = atomic_file::TempFile::create(path).map_err(atomic)?;
+    // Any early return drops `tmp`, which removes the temporary file.
+    let mut writer = ArrowWriter::try_new(file, schema, Some(props)).map_err(|e| pq(path, e))?;
+    writer.write(&batch).map_err(|e| pq(path, e))?;
+    let file = writer.into_inner().map_err(|e| pq(path, e))?;
+    tmp.commit(file).map_err(atomic)
 }
 
 /// The Arrow type of a column.
@@ -110,13 +100,12 @@ pub(crate) fn writer_properties(max_row_group_rows: usize) -> WriterProperties {
         .build()
 }
 
-/// `dir/.NAME.tmp-PID`: where a file is written before its rename into place.
-pub(crate) fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+/// The data layer's error for a failed atomic write.
+pub(crate) fn atomic(e: atomic_file::Error) -> Error {
+    Error::Io {
+        path: e.path,
+        source: e.source,
+    }
 }
 
 /// Number of rows in a Parquet file, from its footer alone.

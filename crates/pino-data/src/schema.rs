@@ -1,4 +1,4 @@
-//! Column names of the pino-mbd artifacts (the public schema; see `vtcd-model.md`, Outputs).
+//! Column names of the pino-mbd artifacts (the public schema; see `docs/model.md`, Outputs).
 //!
 //! Simulation output, one row per sample and output time:
 //! `sample_id`, `t`, the ten vehicle DOFs, their `_v` and `_a` derivatives, `z_r1..z_r4`,

@@ -5,21 +5,19 @@
 //! dropping an unfinished writer removes the temporary file. Equal sequences of tables give
 //! equal bytes.
 
-use crate::parquet_io::{
-    arrow_arrays, arrow_schema, data_type, io, pq, temp_path, writer_properties,
-};
+use crate::parquet_io::{arrow_arrays, arrow_schema, atomic, data_type, pq, writer_properties};
 use crate::{Error, Result, Table};
 use arrow_array::RecordBatch;
 use arrow_schema::SchemaRef;
 use parquet::arrow::ArrowWriter;
 use std::fs::File;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Writes a Parquet file row group by row group.
 pub struct StreamWriter {
     path: PathBuf,
-    tmp: PathBuf,
+    /// The temporary file; dropping it uncommitted removes it.
+    tmp: Option<atomic_file::TempFile>,
     schema: SchemaRef,
     writer: Option<ArrowWriter<File>>,
     rows: usize,
@@ -41,13 +39,12 @@ impl StreamWriter {
         let schema = arrow_schema(template);
         // One row group per `write` call: the writer never splits one on its own.
         let props = writer_properties(usize::MAX);
-        let tmp = temp_path(path);
-        let file = File::create(&tmp).map_err(|e| io(&tmp, e))?;
+        let (tmp, file) = atomic_file::TempFile::create(path).map_err(atomic)?;
         let writer =
             ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(|e| pq(path, e))?;
         Ok(Self {
             path: path.to_owned(),
-            tmp,
+            tmp: Some(tmp),
             schema,
             writer: Some(writer),
             rows: 0,
@@ -100,18 +97,12 @@ impl StreamWriter {
     /// Closes the file, fsyncs it and renames it over the final path.
     pub fn finish(mut self) -> Result<()> {
         let writer = self.writer.take().expect("writer present until finish");
-        let mut file = writer.into_inner().map_err(|e| pq(&self.path, e))?;
-        file.flush().map_err(|e| io(&self.tmp, e))?;
-        file.sync_all().map_err(|e| io(&self.tmp, e))?;
-        std::fs::rename(&self.tmp, &self.path).map_err(|e| io(&self.path, e))
-    }
-}
-
-impl Drop for StreamWriter {
-    fn drop(&mut self) {
-        if self.writer.is_some() {
-            let _ = std::fs::remove_file(&self.tmp);
-        }
+        let tmp = self
+            .tmp
+            .take()
+            .expect("temporary file present until finish");
+        let file = writer.into_inner().map_err(|e| pq(&self.path, e))?;
+        tmp.commit(file).map_err(atomic)
     }
 }
 

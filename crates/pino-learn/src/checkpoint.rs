@@ -3,12 +3,16 @@
 //! - `model.safetensors` (the parameters, f32, names of [`crate::model::parameter_shapes`]) +
 //!   `model.json` ([`ModelMeta`]: model and training configuration, window and time grid,
 //!   normalisation statistics) is what `evaluate` and `predict` load.
-//! - `checkpoint.safetensors` (`param.NAME`, `adam_m.NAME`, `adam_v.NAME`) +
-//!   `checkpoint.json` ([`ModelMeta`] plus [`TrainState`]: epochs done, optimizer step, loss
-//!   history) is written after every epoch; training resumes from it bit for bit.
+//! - `checkpoint.safetensors` (`param.NAME`, `adam_m.NAME`, `adam_v.NAME`) is written after
+//!   every epoch; training resumes from it bit for bit. It is self-contained: its safetensors
+//!   header metadata (key [`CHECKPOINT_STATE_KEY`]) holds the [`ModelMeta`] and [`TrainState`]
+//!   (epochs done, optimizer step, loss history) of exactly these tensors, so the weights and
+//!   the state they belong to are replaced together by one atomic rename and can never come
+//!   from different epochs. `checkpoint.json` is a readable copy of that state, written
+//!   *before* the tensor file and never read on resume (after a crash between the two writes it
+//!   may be one epoch ahead of the tensors; resume ignores it).
 //!
-//! Every file is written atomically (temporary file, fsync, rename); the JSON sidecar is
-//! written last, so a JSON file always describes a complete tensor file.
+//! Every file is written atomically ([`atomic_file`]: temporary sibling, fsync, rename).
 
 use crate::config::{ModelConfig, TrainConfig, WindowConfig};
 use crate::model::Fno;
@@ -29,8 +33,11 @@ pub const MODEL_WEIGHTS: &str = "model.safetensors";
 pub const MODEL_META: &str = "model.json";
 /// Checkpoint tensor file name.
 pub const CHECKPOINT_TENSORS: &str = "checkpoint.safetensors";
-/// Checkpoint sidecar file name.
+/// Checkpoint sidecar file name (a readable copy; resume reads the tensor file only).
 pub const CHECKPOINT_META: &str = "checkpoint.json";
+/// Safetensors header metadata key of `checkpoint.safetensors` holding its model metadata and
+/// training state (JSON).
+pub const CHECKPOINT_STATE_KEY: &str = "pino-mbd.checkpoint";
 
 /// The time grid the model was trained on.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -122,29 +129,35 @@ struct CheckpointJson {
     state: TrainState,
 }
 
-fn save_tensors(path: &Path, tensors: &HashMap<String, Tensor>) -> Result<()> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    candle_core::safetensors::save(tensors, &tmp)?;
-    let f = std::fs::File::open(&tmp).map_err(|e| io_err(&tmp, e))?;
-    f.sync_all().map_err(|e| io_err(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| io_err(path, e))
+/// Writes `tensors` (with optional header metadata) to `path` in one atomic replacement.
+fn save_tensors(
+    path: &Path,
+    tensors: &HashMap<String, Tensor>,
+    metadata: Option<HashMap<String, String>>,
+) -> Result<()> {
+    let bytes = safetensors::serialize(tensors, metadata).map_err(|e| Error::Format {
+        path: path.to_owned(),
+        message: format!("cannot serialise tensors: {e}"),
+    })?;
+    write_atomic(path, &bytes)
 }
 
-fn load_tensors(path: &Path, device: &Device) -> Result<HashMap<String, Tensor>> {
-    if !path.is_file() {
-        return Err(io_err(
-            path,
-            std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
-        ));
-    }
-    candle_core::safetensors::load(path, device).map_err(|e| Error::Format {
+/// Reads a safetensors file: its tensors and its header metadata.
+fn load_tensors(
+    path: &Path,
+    device: &Device,
+) -> Result<(HashMap<String, Tensor>, HashMap<String, String>)> {
+    let bytes = std::fs::read(path).map_err(|e| io_err(path, e))?;
+    let unreadable = |e: &dyn std::fmt::Display| Error::Format {
         path: path.to_owned(),
         message: format!("not a readable safetensors file: {e}"),
-    })
+    };
+    let (_, header) =
+        safetensors::SafeTensors::read_metadata(&bytes).map_err(|e| unreadable(&e))?;
+    let metadata = header.metadata().clone().unwrap_or_default();
+    let tensors =
+        candle_core::safetensors::load_buffer(&bytes, device).map_err(|e| unreadable(&e))?;
+    Ok((tensors, metadata))
 }
 
 fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
@@ -165,7 +178,7 @@ fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
 
 /// Writes `model.safetensors` and `model.json` into `dir`.
 pub fn save_model(dir: &Path, model: &Fno, meta: &ModelMeta) -> Result<()> {
-    save_tensors(&dir.join(MODEL_WEIGHTS), &model.tensors())?;
+    save_tensors(&dir.join(MODEL_WEIGHTS), &model.tensors(), None)?;
     write_json(&dir.join(MODEL_META), meta)
 }
 
@@ -180,7 +193,7 @@ pub fn load_model(dir: &Path, transform: Transform, device: &Device) -> Result<(
         });
     }
     let weights = dir.join(MODEL_WEIGHTS);
-    let tensors = load_tensors(&weights, device)?;
+    let (tensors, _) = load_tensors(&weights, device)?;
     let model = Fno::from_tensors(
         meta.model,
         meta.grid.t_points,
@@ -192,7 +205,9 @@ pub fn load_model(dir: &Path, transform: Transform, device: &Device) -> Result<(
     Ok((model, meta))
 }
 
-/// Writes a checkpoint (tensors first, then the sidecar).
+/// Writes a checkpoint: the readable `checkpoint.json` copy, then `checkpoint.safetensors`
+/// (tensors and, in its header, the metadata and state), each atomically. The tensor file is
+/// the checkpoint; a crash between the two writes leaves the previous one intact.
 pub fn save_checkpoint(
     dir: &Path,
     model: &Fno,
@@ -206,30 +221,47 @@ pub fn save_checkpoint(
         tensors.insert(format!("adam_m.{name}"), adam.m[i].clone());
         tensors.insert(format!("adam_v.{name}"), adam.v[i].clone());
     }
-    save_tensors(&dir.join(CHECKPOINT_TENSORS), &tensors)?;
-    write_json(
-        &dir.join(CHECKPOINT_META),
-        &CheckpointJson {
-            meta: meta.clone(),
-            state: state.clone(),
-        },
+    let json = CheckpointJson {
+        meta: meta.clone(),
+        state: state.clone(),
+    };
+    let path = dir.join(CHECKPOINT_TENSORS);
+    let header = serde_json::to_string(&json).map_err(|e| Error::Format {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
+    write_json(&dir.join(CHECKPOINT_META), &json)?;
+    save_tensors(
+        &path,
+        &tensors,
+        Some(HashMap::from([(CHECKPOINT_STATE_KEY.to_owned(), header)])),
     )
 }
 
-/// Whether `dir` holds a checkpoint.
+/// Whether `dir` holds a checkpoint (its tensor file; the JSON copy is not needed).
 pub fn has_checkpoint(dir: &Path) -> bool {
-    dir.join(CHECKPOINT_META).is_file() && dir.join(CHECKPOINT_TENSORS).is_file()
+    dir.join(CHECKPOINT_TENSORS).is_file()
 }
 
-/// Loads a checkpoint: model, optimizer, metadata and state.
+/// Loads a checkpoint: model, optimizer, metadata and state, all from
+/// `checkpoint.safetensors` (a file without the state in its header is refused).
 pub fn load_checkpoint(
     dir: &Path,
     transform: Transform,
     device: &Device,
 ) -> Result<(Fno, Adam, ModelMeta, TrainState)> {
-    let json: CheckpointJson = read_json(&dir.join(CHECKPOINT_META))?;
     let path = dir.join(CHECKPOINT_TENSORS);
-    let all = load_tensors(&path, device)?;
+    let (all, header) = load_tensors(&path, device)?;
+    let text = header.get(CHECKPOINT_STATE_KEY).ok_or_else(|| Error::Format {
+        path: path.clone(),
+        message: format!(
+            "no training state in the header (key `{CHECKPOINT_STATE_KEY}`): a checkpoint of an older version; delete it to train from the start"
+        ),
+    })?;
+    let json: CheckpointJson = serde_json::from_str(text).map_err(|e| Error::Format {
+        path: path.clone(),
+        message: format!("header key `{CHECKPOINT_STATE_KEY}`: {e}"),
+    })?;
     let pick = |prefix: &str| -> HashMap<String, Tensor> {
         all.iter()
             .filter_map(|(k, v)| k.strip_prefix(prefix).map(|n| (n.to_owned(), v.clone())))
@@ -268,4 +300,131 @@ pub fn load_checkpoint(
     }
     adam.step = json.state.step;
     Ok((model, adam, json.meta, json.state))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{TrainParams, WindowConfig};
+    use crate::data::{load_dataset, Dataset};
+    use crate::synthetic::{write_dataset, SyntheticSpec};
+    use crate::train::{train, TrainOptions, TrainOutcome};
+    use std::path::PathBuf;
+
+    const EPOCHS: usize = 3;
+
+    fn setup(dir: &Path) -> (Dataset, ModelConfig, TrainConfig) {
+        let spec = SyntheticSpec {
+            n_train: 4,
+            n_validation: 2,
+            duration: 0.2,
+            ..Default::default()
+        };
+        let f = write_dataset(&spec, dir).unwrap();
+        let ds = load_dataset(
+            &f.params,
+            &[f.simulation],
+            Some(&f.weights),
+            &WindowConfig::default(),
+        )
+        .unwrap();
+        let mut p = TrainParams::with_algorithm(4);
+        (p.width, p.modes, p.projection_width, p.depth) = (8, 6, 16, Some(2));
+        (p.epochs, p.batch_size, p.learning_rate) = (EPOCHS, 2, 3e-3);
+        let (m, t, _) = p.configs().unwrap();
+        (ds, m, t)
+    }
+
+    fn run(
+        ds: &Dataset,
+        m: ModelConfig,
+        t: TrainConfig,
+        ck: &Path,
+        stop: Option<usize>,
+    ) -> TrainOutcome {
+        let opts = TrainOptions {
+            transform: Transform::Matmul,
+            checkpoint_dir: ck.to_owned(),
+            stop_after_epochs: stop,
+        };
+        let dev = Device::Cpu;
+        train(ds, m, t, WindowConfig::default(), &opts, &dev, &mut |_| {}).unwrap()
+    }
+
+    fn params(model: &Fno) -> Vec<Vec<f32>> {
+        model
+            .vars()
+            .iter()
+            .map(|(_, v)| v.as_tensor().flatten_all().unwrap().to_vec1().unwrap())
+            .collect()
+    }
+
+    fn fresh(dir: &Path, name: &str) -> PathBuf {
+        let d = dir.join(name);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    /// Both ways a kill can split the two files of one save: the JSON copy of epoch 2 next to
+    /// the tensors of epoch 1 (a kill inside this version's save), and the tensors of epoch 2
+    /// next to the JSON of epoch 1 (a kill inside the former tensors-then-JSON save, which
+    /// resumed epoch-2 weights with epoch-1 state). Resume must take epoch, state and weights
+    /// from the tensor file alone and end bit for bit where an uninterrupted run ends.
+    #[test]
+    fn a_kill_between_the_two_writes_cannot_mix_epochs() {
+        let dir = tempfile::tempdir().unwrap();
+        let (ds, m, t) = setup(dir.path());
+        let reference = run(&ds, m, t, &fresh(dir.path(), "reference"), None);
+        assert!(reference.finished);
+
+        let ck = fresh(dir.path(), "ck");
+        run(&ds, m, t, &ck, Some(1));
+        let json1 = std::fs::read(ck.join(CHECKPOINT_META)).unwrap();
+        let tensors1 = std::fs::read(ck.join(CHECKPOINT_TENSORS)).unwrap();
+        let after2 = run(&ds, m, t, &ck, Some(2));
+        let json2 = std::fs::read(ck.join(CHECKPOINT_META)).unwrap();
+        let tensors2 = std::fs::read(ck.join(CHECKPOINT_TENSORS)).unwrap();
+        assert_ne!(json1, json2);
+
+        for (case, json, tensors, epoch) in [
+            ("json ahead", &json2, &tensors1, 1),
+            ("tensors ahead", &json1, &tensors2, 2),
+        ] {
+            let mixed = fresh(dir.path(), case);
+            std::fs::write(mixed.join(CHECKPOINT_META), json).unwrap();
+            std::fs::write(mixed.join(CHECKPOINT_TENSORS), tensors).unwrap();
+            let (model, adam, _, state) =
+                load_checkpoint(&mixed, Transform::Matmul, &Device::Cpu).unwrap();
+            assert_eq!(state.epochs_done, epoch, "{case}");
+            assert_eq!(state.history[..], reference.history[..epoch], "{case}");
+            assert_eq!(adam.step, reference.history[epoch - 1].step, "{case}");
+            if epoch == 2 {
+                assert_eq!(params(&model), params(&after2.model), "{case}");
+            }
+            let resumed = run(&ds, m, t, &mixed, None);
+            assert_eq!(resumed.resumed_after, Some(epoch), "{case}");
+            assert_eq!(resumed.history, reference.history, "{case}");
+            assert_eq!(params(&resumed.model), params(&reference.model), "{case}");
+        }
+    }
+
+    #[test]
+    fn a_tensor_file_without_its_state_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let (ds, m, t) = setup(dir.path());
+        let ck = fresh(dir.path(), "ck");
+        let out = run(&ds, m, t, &ck, Some(1));
+        // The former layout: tensors with no state in the header.
+        save_tensors(&ck.join(CHECKPOINT_TENSORS), &out.model.tensors(), None).unwrap();
+        let err = load_checkpoint(&ck, Transform::Matmul, &Device::Cpu)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(CHECKPOINT_TENSORS) && err.contains(CHECKPOINT_STATE_KEY),
+            "{err}"
+        );
+        // A missing tensor file is no checkpoint, whatever the JSON copy says.
+        std::fs::remove_file(ck.join(CHECKPOINT_TENSORS)).unwrap();
+        assert!(ck.join(CHECKPOINT_META).is_file() && !has_checkpoint(&ck));
+    }
 }

@@ -1,7 +1,7 @@
 //! The learning half of pino-mbd: a 1-D Fourier neural operator over time that maps a
 //! vehicle's 14 parameters and the track irregularity under its four wheels to the 14
 //! solution channels of the vehicle-track model, trained as FNO, PINO or PINO-MBD
-//! (`shared/design/learning.md`, the paper's sections 3 and 4.2).
+//! (`docs/learning.md`, the paper's sections 3 and 4.2).
 //!
 //! Tensors (one sample, `T` time points of the training window, spacing `dt`):
 //! - input `a` `[T, 19]`: `t`, `eta_1..eta_4`, the 14 parameters broadcast over time;
@@ -157,24 +157,10 @@ pub(crate) fn io_err(path: &std::path::Path, source: std::io::Error) -> Error {
     }
 }
 
-/// Writes `bytes` to `path` atomically (temporary file in the same directory, fsync, rename).
+/// Writes `bytes` to `path` atomically ([`atomic_file::write_atomic`]: temporary sibling,
+/// fsync, rename, fsync of the directory; the temporary file is removed on every error).
 pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
-    use std::io::Write;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp).map_err(|e| io_err(&tmp, e))?;
-        f.write_all(bytes).map_err(|e| io_err(&tmp, e))?;
-        f.sync_all().map_err(|e| io_err(&tmp, e))?;
-        std::fs::rename(&tmp, path).map_err(|e| io_err(path, e))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    atomic_file::write_atomic(path, bytes).map_err(|e| io_err(&e.path, e.source))
 }
 
 /// Makes candle (and rayon) single-threaded unless `CANDLE_NUM_THREADS` / `RAYON_NUM_THREADS`

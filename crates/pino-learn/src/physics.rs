@@ -1,6 +1,6 @@
 //! Derivatives of predictions and the ten vehicle ODE residuals, as candle tensors (f64).
 //!
-//! Central differences on interior points `n = 1..T-2` (`learning.md`):
+//! Central differences on interior points `n = 1..T-2` (`docs/learning.md`):
 //! ```text
 //! v_n = (u_{n+1} - u_{n-1}) / (2 dt),   a_n = (u_{n+1} - 2 u_n + u_{n-1}) / dt^2
 //! ```

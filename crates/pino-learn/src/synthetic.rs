@@ -12,7 +12,7 @@
 //! `a = M^-1 F(z, v, P)` evaluated there, so the stored triple satisfies the ODEs to rounding.
 //!
 //! Files written (the physics stages' contract): `params.parquet`, `simulation.parquet`,
-//! `weights.parquet` (phi from the definition in `learning.md` with noise ratio `r`).
+//! `weights.parquet` (phi from the definition in `docs/learning.md` with noise ratio `r`).
 
 use crate::Result;
 use pino_data::{schema, write_parquet, Column, StreamWriter, Table};
@@ -251,6 +251,14 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         weights: dir.join("weights.parquet"),
     };
     write_parquet(&files.params, &pt)?;
+    // The constants the records below are consistent with (checked by `weights` and `train`).
+    pino_data::provenance::write_provenance(
+        &dir.join(pino_data::provenance::PROVENANCE_FILE),
+        &[
+            ("gravity", vtcd::weights::DEFAULT_GRAVITY),
+            ("wheel_radius", vtcd::weights::DEFAULT_WHEEL_RADIUS),
+        ],
+    )?;
 
     let table_of = |id: usize, r: &Record| -> Result<Table> {
         let mut st = Table::default();

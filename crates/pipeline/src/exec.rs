@@ -2,8 +2,8 @@
 //!
 //! The process gets the argument list (no shell), the workspace as working directory, stdin
 //! closed, and `PINO_STAGE_CONTEXT` pointing at `context.json` in its working directory under
-//! `tmp/`. Its stdout is parsed line by line: `::progress DONE TOTAL [MSG]` and
-//! `::summary TEXT` are protocol, everything else is log. stdout and stderr both go to
+//! `tmp/`. Its stdout is parsed line by line with [`stage_protocol::parse_line`]:
+//! `::progress DONE TOTAL [MSG]` and `::summary TEXT` are protocol, everything else is log. stdout and stderr both go to
 //! `log.txt`; the last lines of stderr are kept to show when the stage fails.
 //!
 //! On Linux the child is started with `PR_SET_PDEATHSIG = SIGKILL`, so when `pipeline` is
@@ -17,8 +17,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::Mutex;
 
-/// Environment variable carrying the context file's path (the stage-kit contract).
-pub const CONTEXT_ENV: &str = "PINO_STAGE_CONTEXT";
+/// Environment variable carrying the context file's path (from [`stage_protocol`]).
+pub use stage_protocol::CONTEXT_ENV;
 /// Lines of stderr kept for the failure message.
 pub const TAIL_LINES: usize = 20;
 
@@ -48,17 +48,21 @@ pub struct ProgressLine {
     pub message: String,
 }
 
-/// Parses `::progress DONE TOTAL [MSG]`; anything else is `None`.
+/// Parses `::progress DONE TOTAL [MSG]` ([`stage_protocol::parse_line`]); anything else is
+/// `None`.
 pub fn parse_progress(line: &str) -> Option<ProgressLine> {
-    let rest = line.strip_prefix("::progress ")?;
-    let mut it = rest.splitn(3, ' ');
-    let done = it.next()?.parse().ok()?;
-    let total = it.next()?.parse().ok()?;
-    Some(ProgressLine {
-        done,
-        total,
-        message: it.next().unwrap_or("").trim().to_owned(),
-    })
+    match stage_protocol::parse_line(line) {
+        stage_protocol::Line::Progress {
+            done,
+            total,
+            message,
+        } => Some(ProgressLine {
+            done,
+            total,
+            message: message.to_owned(),
+        }),
+        _ => None,
+    }
 }
 
 /// Runs `exe args...` as a stage in `work` (which holds `context.json` and `out/`).
@@ -74,7 +78,7 @@ pub fn run_stage(
     let mut cmd = Command::new(exe);
     cmd.args(args)
         .current_dir(workspace)
-        .env(CONTEXT_ENV, work.join("context.json"))
+        .env(CONTEXT_ENV, work.join(stage_protocol::CONTEXT_FILE))
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
@@ -121,10 +125,18 @@ pub fn run_stage(
         });
         for line in BufReader::new(stdout).split(b'\n').map_while(|l| l.ok()) {
             let line = String::from_utf8_lossy(&line).into_owned();
-            if let Some(p) = parse_progress(&line) {
-                on_progress(&p);
-            } else if let Some(text) = line.strip_prefix("::summary ") {
-                summary = Some(text.trim().to_owned());
+            match stage_protocol::parse_line(&line) {
+                stage_protocol::Line::Progress {
+                    done,
+                    total,
+                    message,
+                } => on_progress(&ProgressLine {
+                    done,
+                    total,
+                    message: message.to_owned(),
+                }),
+                stage_protocol::Line::Summary(text) => summary = Some(text.to_owned()),
+                stage_protocol::Line::Log(_) => {}
             }
             let _ = writeln!(log.lock().unwrap_or_else(|e| e.into_inner()), "{line}");
         }

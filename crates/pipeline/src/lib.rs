@@ -21,6 +21,7 @@
 #![warn(missing_docs)]
 
 pub mod cli;
+pub mod constants;
 mod error;
 pub mod exec;
 pub mod executor;

@@ -193,15 +193,21 @@ fn compute(
     let placed = cx.executor.work_dir(cx.store, &entry.identity, &u.key)?;
     let work = placed.dir.clone();
     let scratch = cx.store.scratch_dir(&entry.identity)?;
-    let context = serde_json::json!({
-        "protocol": PROTOCOL_VERSION,
-        "stage": stage.expansions[u.expansion].name,
-        "params": entry.params,
-        "inputs": dirs,
-        "output": work.join("out"),
-        "scratch": scratch,
-        "shard": {"index": u.shard, "count": stage.shards},
-    });
+    let context = stage_protocol::Context {
+        protocol: PROTOCOL_VERSION,
+        stage: stage.expansions[u.expansion].name.clone(),
+        params: entry.params.clone(),
+        inputs: dirs
+            .into_iter()
+            .map(|(name, ds)| (name, ds.into_iter().map(std::path::PathBuf::from).collect()))
+            .collect(),
+        output: work.join("out"),
+        scratch: Some(scratch),
+        shard: stage_protocol::Shard {
+            index: u.shard,
+            count: stage.shards,
+        },
+    };
     match &placed.attached {
         // An earlier run's job for this very identity: its context is already there.
         Some(job) => cx.ui.line(&format!(
@@ -209,8 +215,8 @@ fn compute(
             u.key
         )),
         None => crate::store::write_atomic(
-            &work.join("context.json"),
-            &serde_json::to_vec_pretty(&context).expect("serialisable"),
+            &work.join(stage_protocol::CONTEXT_FILE),
+            &context.to_json(),
         )?,
     }
     let view = cx.ui.start(&u.key);

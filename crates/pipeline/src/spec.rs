@@ -1,7 +1,8 @@
 //! The pipeline file: parsing, validation, `--set` overrides and matrix expansion.
 //!
-//! A pipeline file is YAML with the top-level keys `bin_dir`, `executor` and `stages` (see the
-//! README); a stage may carry `resources:` for the Slurm executor ([`crate::executor`]).
+//! A pipeline file is YAML with the top-level keys `bin_dir`, `executor`, `constants` (shared
+//! values, [`crate::constants`]) and `stages` (see the README); a stage may carry `resources:`
+//! for the Slurm executor ([`crate::executor`]).
 //! Parsing is strict (`deny_unknown_fields`), so a misspelt key is an error at its line. After
 //! parsing, the semantic checks run: names, dependencies (every input names a stage), cycles,
 //! shard counts, matrix keys, paths (relative, inside the workspace) and `--set` overrides (the
@@ -63,6 +64,9 @@ struct RawPipeline {
     bin_dir: Option<String>,
     #[serde(default)]
     executor: Option<ExecutorKind>,
+    /// Shared values stages reference as `${constants.NAME}` ([`crate::constants`]).
+    #[serde(default)]
+    constants: UniqueMap<Value>,
     stages: UniqueMap<RawStage>,
 }
 
@@ -229,6 +233,21 @@ fn coerce(existing: &Value, raw: &str, parsed: Value) -> std::result::Result<Val
     }
 }
 
+/// The VALUE of `--set set` (YAML) converted to the type of `existing`; `what` names the
+/// target in messages, `at` places a type error at its line.
+fn override_value(
+    set: &str,
+    raw: &str,
+    existing: &Value,
+    what: &str,
+    at: impl FnOnce(String) -> Error,
+) -> Result<Value> {
+    let parsed: Value = serde_yaml::from_str(raw)
+        .map_err(|e| Error::Usage(format!("--set {set}: `{raw}` is not a YAML value: {e}")))?;
+    coerce(existing, raw, parsed)
+        .map_err(|why| at(format!("--set {set}: wrong type for {what}: {why}")))
+}
+
 /// Renders a matrix value inside an expansion name (strings bare, others as JSON).
 fn render(v: &Value) -> String {
     match v {
@@ -298,6 +317,7 @@ impl Pipeline {
             (None, None) => workspace.join("target").join("release"),
         };
 
+        let mut constants: Map<String, Value> = raw.constants.0.into_iter().collect();
         let mut stages = BTreeMap::new();
         for (name, rs) in raw.stages.0 {
             let line = loc.stage_line(&name);
@@ -400,6 +420,27 @@ impl Pipeline {
             let (sname, key) = lhs
                 .split_once('.')
                 .ok_or_else(|| Error::Usage(format!("--set `{set}`: expected STAGE.KEY=VALUE")))?;
+            if sname == crate::constants::SECTION {
+                let Some(existing) = constants.get(key) else {
+                    let known: Vec<&str> = constants.keys().map(String::as_str).collect();
+                    return Err(spec_err(
+                        loc.top_line(crate::constants::SECTION),
+                        format!(
+                            "--set {set}: no constant `{key}` in this pipeline (constants: {})",
+                            known.join(", ")
+                        ),
+                    ));
+                };
+                let value = override_value(
+                    set,
+                    raw_value,
+                    existing,
+                    &format!("constant `{key}`"),
+                    |m| spec_err(loc.top_line(crate::constants::SECTION), m),
+                )?;
+                constants.insert(key.to_owned(), value);
+                continue;
+            }
             if !stages.contains_key(sname) {
                 let known: Vec<&str> = stages.keys().map(String::as_str).collect();
                 return Err(spec_err(
@@ -427,19 +468,35 @@ impl Pipeline {
                     ),
                 ));
             };
-            let parsed: Value = serde_yaml::from_str(raw_value).map_err(|e| {
-                Error::Usage(format!(
-                    "--set {set}: `{raw_value}` is not a YAML value: {e}"
-                ))
-            })?;
-            let value = coerce(existing, raw_value, parsed).map_err(|why| {
-                spec_err(
+            if let Some(name) = crate::constants::reference(existing) {
+                return Err(spec_err(
                     loc.word_line(sname, "params", key),
-                    format!("--set {set}: wrong type for `{sname}.{key}`: {why}"),
-                )
-            })?;
+                    format!("--set {set}: `{sname}.{key}` takes its value from constant `{name}`; set it for every stage with `--set constants.{name}=...`"),
+                ));
+            }
+            let value =
+                override_value(set, raw_value, existing, &format!("`{sname}.{key}`"), |m| {
+                    spec_err(loc.word_line(sname, "params", key), m)
+                })?;
             params.insert(key.to_owned(), value);
             stage.overrides.push(format!("{key}={raw_value}"));
+        }
+
+        // Constants: every `${constants.NAME}` becomes the (possibly overridden) value.
+        for (stage, params, _) in stages.values_mut() {
+            for (key, value) in params.iter_mut() {
+                crate::constants::substitute(value, &constants).map_err(|name| {
+                    let known: Vec<&str> = constants.keys().map(String::as_str).collect();
+                    spec_err(
+                        loc.word_line(&stage.name, "params", key),
+                        format!(
+                            "stage `{}`: parameter `{key}` refers to unknown constant `{name}` (constants: {})",
+                            stage.name,
+                            known.join(", ")
+                        ),
+                    )
+                })?;
+            }
         }
 
         // Matrix expansion: the cartesian product over the keys in sorted order.
@@ -666,6 +723,38 @@ mod tests {
             .to_string();
         assert!(
             e.contains(":1:") && e.contains("inside the workspace"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn constants_reach_every_referencing_stage() {
+        let text = "constants:\n  g: 9.81\nstages:\n  a:\n    cmd: [x]\n    params: {g: \"${constants.g}\", n: 1}\n  b:\n    cmd: [x]\n    inputs: {up: a}\n    params: {w: {g: \"${constants.g}\"}}\n";
+        let g = |p: &Pipeline| {
+            (
+                p.stages[0].expansions[0].params["g"].clone(),
+                p.stages[1].expansions[0].params["w"]["g"].clone(),
+            )
+        };
+        let p = load(text, &[]).unwrap();
+        assert_eq!(g(&p), (9.81.into(), 9.81.into()));
+        // One override changes both stages (an integer stands for the float).
+        let p = load(text, &["constants.g=10"]).unwrap();
+        assert_eq!(g(&p), (10.0.into(), 10.0.into()));
+        let e = load(text, &["a.g=10"]).unwrap_err().to_string();
+        assert!(
+            e.contains("constant `g`") && e.contains("--set constants.g="),
+            "{e}"
+        );
+        let e = load(text, &["constants.h=1"]).unwrap_err().to_string();
+        assert!(e.contains("no constant `h`") && e.contains(":1:"), "{e}");
+        let e = load(text, &["constants.g=fast"]).unwrap_err().to_string();
+        assert!(e.contains("wrong type for constant `g`"), "{e}");
+        let e = load(&text.replace("constants.g}\", n", "constants.q}\", n"), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("unknown constant `q`") && e.contains(":6:"),
             "{e}"
         );
     }

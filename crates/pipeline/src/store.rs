@@ -29,21 +29,19 @@ use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 
-/// Stage protocol version written into every context file and hashed into every identity.
-pub const PROTOCOL_VERSION: u32 = 1;
+/// Stage protocol version written into every context file and hashed into every identity
+/// (defined once, in [`stage_protocol`]).
+pub use stage_protocol::PROTOCOL_VERSION;
+/// Format version of `manifest.json` (independent of the stage protocol: the store's layout
+/// can change without any stage noticing). Version 1 manifests called this field `protocol`.
+pub const MANIFEST_VERSION: u32 = 1;
 
-/// Writes `bytes` to `path` atomically: a temporary sibling, fsync, rename.
+/// Writes `bytes` to `path` atomically ([`atomic_file::write_atomic`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension(format!("{}.tmp", std::process::id()));
-    let mut f = std::fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    f.write_all(bytes)
-        .and_then(|_| f.sync_all())
-        .map_err(|e| Error::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    atomic_file::write_atomic(path, bytes).map_err(|e| Error::io(e.path, e.source))
 }
 
 /// One output file in a manifest.
@@ -60,8 +58,9 @@ pub struct ManifestFile {
 /// What a stored object contains.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Manifest {
-    /// Protocol version of the run that produced it.
-    pub protocol: u32,
+    /// [`MANIFEST_VERSION`] of the run that wrote it.
+    #[serde(alias = "protocol")]
+    pub format: u32,
     /// The unit's identity (the object's directory name).
     pub identity: String,
     /// The unit that produced it (`simulate#1`, `train[algorithm=3]`).
@@ -226,6 +225,13 @@ impl Store {
             Ok(m) => m,
             Err(e) => return Cached::Corrupt(format!("manifest.json is unreadable: {e}")),
         };
+        if manifest.format != MANIFEST_VERSION {
+            // Another store format: recomputed, never trusted.
+            return Cached::Corrupt(format!(
+                "manifest.json has format {}, this pipeline writes {MANIFEST_VERSION}",
+                manifest.format
+            ));
+        }
         let out = dir.join("out");
         let found = match list_files(&out) {
             Ok(f) => f,
@@ -359,7 +365,7 @@ impl Store {
             stamps.push(s);
         }
         let manifest = Manifest {
-            protocol: PROTOCOL_VERSION,
+            format: MANIFEST_VERSION,
             identity: identity.to_owned(),
             unit: unit.to_owned(),
             output_hash: output_hash(&files),
@@ -371,11 +377,11 @@ impl Store {
             &tmp.join("manifest.json"),
             &serde_json::to_vec_pretty(&manifest).expect("serialisable"),
         )?;
-        sync_dir(tmp);
+        sync_dir(tmp)?;
         self.discard(identity)?;
         let dest = self.object_dir(identity);
         std::fs::rename(tmp, &dest).map_err(|e| Error::io(&dest, e))?;
-        sync_dir(&self.root.join("objects"));
+        sync_dir(&self.root.join("objects"))?;
         // The files kept their inodes and stamps through the rename: seed the cache.
         let new_out = dest.join("out");
         for (f, s) in manifest.files.iter().zip(stamps) {
@@ -424,10 +430,8 @@ fn remove_tree(p: &Path) -> Result<()> {
     }
 }
 
-fn sync_dir(p: &Path) {
-    if let Ok(d) = std::fs::File::open(p) {
-        let _ = d.sync_all();
-    }
+fn sync_dir(p: &Path) -> Result<()> {
+    atomic_file::sync_dir(p).map_err(|e| Error::io(e.path, e.source))
 }
 
 #[cfg(test)]
@@ -460,6 +464,33 @@ mod tests {
         assert!(matches!(store.verify("abc"), Cached::Corrupt(_)));
         store.discard("abc").unwrap();
         assert!(matches!(store.verify("abc"), Cached::Missing));
+    }
+
+    #[test]
+    fn manifest_format_is_versioned_apart_from_the_protocol() {
+        let ws = tempfile::tempdir().unwrap();
+        let store = Store::open(ws.path()).unwrap();
+        let tmp = store.tmp_dir("abc").unwrap();
+        std::fs::create_dir_all(tmp.join("out")).unwrap();
+        std::fs::write(tmp.join("out/a.txt"), b"A").unwrap();
+        store.commit(&tmp, "abc", "u", None, 1).unwrap();
+        let mpath = store.object_dir("abc").join("manifest.json");
+        let text = std::fs::read_to_string(&mpath).unwrap();
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(v["format"], MANIFEST_VERSION);
+        // A version-1 manifest of before the split (field `protocol`) still reads.
+        let obj = v.as_object_mut().unwrap();
+        let format = obj.remove("format").unwrap();
+        obj.insert("protocol".into(), format);
+        write_atomic(&mpath, v.to_string().as_bytes()).unwrap();
+        assert!(matches!(store.verify("abc"), Cached::Valid(_)));
+        // Another manifest format is never trusted.
+        v["protocol"] = (MANIFEST_VERSION + 1).into();
+        write_atomic(&mpath, v.to_string().as_bytes()).unwrap();
+        match store.verify("abc") {
+            Cached::Corrupt(why) => assert!(why.contains("format 2"), "{why}"),
+            other => panic!("foreign manifest format trusted: {other:?}"),
+        }
     }
 
     #[test]

@@ -1,54 +1,11 @@
-//! The context file: what the orchestrator tells a stage process.
+//! The context file: what the orchestrator tells a stage process, read with the shared
+//! [`stage_protocol::Context`] and wrapped with typed accessors for stage code.
 
 use crate::{Error, Progress, Result};
-use serde::Deserialize;
+use stage_protocol::{Context, ParseError};
+pub use stage_protocol::{Shard, CONTEXT_ENV, PROTOCOL_VERSION};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-
-/// Environment variable that carries the context file's path.
-pub const CONTEXT_ENV: &str = "PINO_STAGE_CONTEXT";
-/// The protocol version this crate speaks.
-pub const PROTOCOL_VERSION: u32 = 1;
-
-/// Which part of a sharded stage this process computes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
-pub struct Shard {
-    /// Zero-based shard index, `index < count`.
-    pub index: usize,
-    /// Number of shards (1 when the stage is not sharded).
-    pub count: usize,
-}
-
-impl Shard {
-    /// The only shard of an unsharded stage.
-    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
-
-    /// Whether item `i` (for example a sample id) belongs to this shard (round robin, so
-    /// shards get equal work whatever the item order).
-    pub fn owns(&self, i: u64) -> bool {
-        i % self.count as u64 == self.index as u64
-    }
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawContext {
-    protocol: u32,
-    stage: String,
-    #[serde(default)]
-    params: serde_json::Value,
-    #[serde(default)]
-    inputs: BTreeMap<String, Vec<PathBuf>>,
-    output: PathBuf,
-    #[serde(default)]
-    scratch: Option<PathBuf>,
-    #[serde(default = "whole")]
-    shard: Shard,
-}
-
-fn whole() -> Shard {
-    Shard::WHOLE
-}
 
 /// Everything a stage process is told by the orchestrator.
 #[derive(Debug, Clone)]
@@ -90,17 +47,17 @@ impl StageContext {
             path: path.to_owned(),
             source,
         })?;
-        let raw: RawContext = serde_json::from_str(&text).map_err(|source| Error::Malformed {
-            path: path.to_owned(),
-            source,
-        })?;
-        if raw.protocol != PROTOCOL_VERSION {
-            return Err(Error::Protocol {
+        let raw = Context::parse(&text).map_err(|e| match e {
+            ParseError::Malformed(source) => Error::Malformed {
                 path: path.to_owned(),
-                found: raw.protocol,
+                source,
+            },
+            ParseError::Version { found } => Error::Protocol {
+                path: path.to_owned(),
+                found,
                 expected: PROTOCOL_VERSION,
-            });
-        }
+            },
+        })?;
         Ok(Self {
             stage: raw.stage,
             output: raw.output,
@@ -189,6 +146,7 @@ impl StageContext {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serde::Deserialize;
 
     fn write(dir: &Path, text: &str) -> PathBuf {
         let p = dir.join("context.json");

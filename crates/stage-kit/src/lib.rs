@@ -1,4 +1,5 @@
-//! The stage side of the pino-mbd **stage protocol**.
+//! The stage side of the pino-mbd **stage protocol** (the contract itself, shared with the
+//! orchestrator, is the `stage-protocol` crate; this crate gives stage code typed access).
 //!
 //! The orchestrator (`pipeline`) knows nothing about physics or learning: it starts a stage
 //! executable with an argument list (no shell) and one environment variable,

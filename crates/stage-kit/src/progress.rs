@@ -1,6 +1,7 @@
 //! Progress and summary lines: how a stage tells the orchestrator how far it is.
 //!
-//! Lines are `::progress DONE TOTAL [MESSAGE]` and `::summary TEXT` on stdout. Progress is
+//! Lines are `::progress DONE TOTAL [MESSAGE]` and `::summary TEXT` on stdout, formatted by
+//! [`stage_protocol`] (the orchestrator parses them with the same crate). Progress is
 //! thread-safe (rayon workers call [`Progress::inc`]) and rate-limited to about ten lines a
 //! second, plus a final line at completion.
 
@@ -9,10 +10,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-/// Prefix of a progress line.
-pub const PROGRESS_PREFIX: &str = "::progress";
-/// Prefix of a summary line.
-pub const SUMMARY_PREFIX: &str = "::summary";
+use stage_protocol::{progress_line, summary_line};
+pub use stage_protocol::{PROGRESS_PREFIX, SUMMARY_PREFIX};
 
 const MIN_INTERVAL: Duration = Duration::from_millis(100);
 
@@ -65,15 +64,7 @@ impl Progress {
 
     fn emit(&self, done: u64, message: Option<&str>) {
         let mut out = std::io::stdout().lock();
-        let _ = match message {
-            Some(m) => writeln!(
-                out,
-                "{PROGRESS_PREFIX} {done} {} {}",
-                self.total,
-                one_line(m)
-            ),
-            None => writeln!(out, "{PROGRESS_PREFIX} {done} {}", self.total),
-        };
+        let _ = writeln!(out, "{}", progress_line(done, self.total, message));
         let _ = out.flush();
     }
 }
@@ -81,12 +72,8 @@ impl Progress {
 /// Prints the stage's one-line result (shown in the pipeline's final summary).
 pub fn summary(text: &str) {
     let mut out = std::io::stdout().lock();
-    let _ = writeln!(out, "{SUMMARY_PREFIX} {}", one_line(text));
+    let _ = writeln!(out, "{}", summary_line(text));
     let _ = out.flush();
-}
-
-fn one_line(s: &str) -> String {
-    s.replace(['\n', '\r'], " ")
 }
 
 /// Ends a stage process: on success prints the `::summary` line and exits 0; on error prints

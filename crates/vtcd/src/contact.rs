@@ -1,4 +1,4 @@
-//! Hertz wheel-rail contact (`vtcd-model.md`, Wheel-rail contact).
+//! Hertz wheel-rail contact (`docs/model.md`, Wheel-rail contact).
 //!
 //! `delta = Z_w - Z_r(x_w) - eta` (m, compression positive, all displacements downward);
 //! `P = (delta / G)^(3/2)` for `delta > 0`, else 0 (wheel lifted off);
@@ -37,7 +37,7 @@ mod tests {
 
     #[test]
     fn hertz_constant_and_static_compression_match_worked_values() {
-        // verification.md: R = 0.43 m -> G = 5.18e-8, delta = 88 um at 70 kN, k = 1.19e9 N/m.
+        // Check values: R = 0.43 m -> G = 5.18e-8, delta = 88 um at 70 kN, k = 1.19e9 N/m.
         let g = hertz_constant(0.43);
         assert!((g - 5.18e-8).abs() < 0.01e-8, "{g}");
         let d = static_compression(70e3, g);

@@ -1,4 +1,4 @@
-//! Zhai's explicit two-step method (Zhai 1996; `vtcd-model.md`, Time integration).
+//! Zhai's explicit two-step method (Zhai 1996; `docs/model.md`, Time integration).
 //!
 //! ```text
 //! X_{n+1} = X_n + V_n dt + (1/2 + psi) A_n dt^2 - psi A_{n-1} dt^2
@@ -60,7 +60,7 @@ pub fn integrate(
 mod tests {
     use super::*;
 
-    /// Closed form of `u'' + 2 xi w u' + w^2 u = 0` (verification.md).
+    /// Closed form of `u'' + 2 xi w u' + w^2 u = 0`.
     fn exact(t: f64, w: f64, xi: f64, u0: f64, v0: f64) -> f64 {
         let wd = w * (1.0 - xi * xi).sqrt();
         (-xi * w * t).exp() * (u0 * (wd * t).cos() + (v0 + xi * w * u0) / wd * (wd * t).sin())

@@ -1,5 +1,4 @@
-//! Vertical track irregularity (`vtcd-model.md`, Track irregularity; `verification.md`,
-//! Irregularity samples).
+//! Vertical track irregularity (`docs/model.md`, Track irregularity).
 //!
 //! **Spectrum.** The Chinese high-speed ballastless track spectrum TB/T 3352-2014 is a
 //! piecewise power law in the spatial frequency `f` (1/m):

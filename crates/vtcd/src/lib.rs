@@ -1,5 +1,5 @@
 //! Vertical vehicle-track coupled dynamics (VTCD) after Zhai, as specified in
-//! `shared/design/vtcd-model.md`.
+//! `docs/model.md`.
 //!
 //! Conventions (everywhere in this crate): SI units (m, kg, s, N, rad); vertical displacements
 //! `Z` positive **downward**, measured from the static equilibrium on a rigid track; pitch

@@ -1,4 +1,4 @@
-//! The 14 per-sample parameters of the spec (`vtcd-model.md`, Parameters).
+//! The 14 per-sample parameters of the spec (`docs/model.md`, Parameters).
 //!
 //! Masses and inertias are for the **whole vehicle** (the one-rail model halves them, see
 //! [`crate::vehicle::Vehicle`]); suspension stiffness and damping are per axle box (primary)

@@ -1,5 +1,5 @@
 //! The rail: a simply supported Euler-Bernoulli beam by modal superposition
-//! (`vtcd-model.md`, Rail).
+//! (`docs/model.md`, Rail).
 //!
 //! Length `L = N_f s`, fasteners at `x_j = j s` (`j = 0..N_f-1`), modes `k = 1..N_M` with
 //! mass-normalised shapes and circular frequencies

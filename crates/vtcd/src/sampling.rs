@@ -1,4 +1,4 @@
-//! Parameter sampling (`vtcd-model.md`, Parameters): each of the 14 parameters of a sample is
+//! Parameter sampling (`docs/model.md`, Parameters): each of the 14 parameters of a sample is
 //! drawn independently and uniformly on its range, `x = lo + (hi - lo) u`, `u ~ U[0, 1)`.
 //!
 //! Default ranges (the spec's table): the first eleven are `0.8-1.2 x` the CRH380 nominal value

@@ -1,4 +1,4 @@
-//! The coupled vehicle-track model and its time loop (`vtcd-model.md`, all sections).
+//! The coupled vehicle-track model and its time loop (`docs/model.md`, all sections).
 //!
 //! **State.** One vector for displacements `X`, one for velocities `V`, one for accelerations
 //! `A`, each laid out as

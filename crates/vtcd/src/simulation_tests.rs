@@ -1,4 +1,5 @@
-//! Tests of the coupled model against independent truths (`verification.md`). Reduced tracks
+//! Tests of the coupled model against independent truths (closed forms, conserved energy,
+//! static solutions), each written out where it is used. Reduced tracks
 //! (tens to a hundred fasteners) keep them fast in the dev profile; each says why the
 //! property does not depend on the full 900-fastener size.
 #![allow(clippy::needless_range_loop)] // matrix loops read best with indices
@@ -349,7 +350,7 @@ fn static_equilibrium_matches_hertz_and_winkler() {
 }
 
 /// Moving constant load on the simply supported rail alone (Fryba), modal closed form per
-/// mode (verification.md): `q_k(t) = P sqrt(2/(m_r L)) [sin(W t) - (W/w_k) sin(w_k t)] /
+/// mode: `q_k(t) = P sqrt(2/(m_r L)) [sin(W t) - (W/w_k) sin(w_k t)] /
 /// (w_k^2 - W^2)`, `W = k pi c / L`. Integrated with the model's rail modes, shapes and Zhai
 /// steps. 60 m of rail and 50 modes: the closed form holds for any length.
 #[test]

@@ -217,7 +217,7 @@ mod tests {
     use super::*;
     use crate::params::SampleParams;
 
-    /// verification.md's worked limits of the damped oscillator, to the 2 decimals given.
+    /// The worked limits of the damped oscillator, to the 2 decimals given.
     #[test]
     fn oscillator_limits_match_worked_values() {
         for (xi, limit) in [

@@ -1,4 +1,4 @@
-//! The fixed track constants (`vtcd-model.md`, Parameters: fixed track defaults) and the
+//! The fixed track constants (`docs/model.md`, Parameters: fixed track defaults) and the
 //! substructure under each fastener.
 //!
 //! Under fastener `j` (at `x_j = j s`, `j = 0..N_f-1`) sit a sleeper `s_j` and a ballast block

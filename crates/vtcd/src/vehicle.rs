@@ -1,4 +1,4 @@
-//! The 10-DOF half vehicle on one rail (`vtcd-model.md`, Vehicle).
+//! The 10-DOF half vehicle on one rail (`docs/model.md`, Vehicle).
 //!
 //! DOF order (equation order): `z_c, beta_c, z_t1, beta_t1, z_t2, beta_t2, z_w1..z_w4`.
 //! Displacements (m) positive downward, pitch (rad) positive nose-up, both from static

@@ -1,5 +1,5 @@
-//! ODE magnitude weights of PINO-MBD (`vtcd-model.md`, ODE residuals and magnitude weights;
-//! `learning.md`, phi).
+//! ODE magnitude weights of PINO-MBD (`docs/model.md`, ODE residuals and magnitude weights;
+//! `docs/learning.md`, phi).
 //!
 //! For one sample `k` and vehicle equation `i` (DOF order `z_c, beta_c, z_t1, beta_t1, z_t2,
 //! beta_t2, z_w1..z_w4`):

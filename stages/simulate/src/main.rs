@@ -3,7 +3,9 @@
 //! parallel across samples (rayon), and writes
 //! - `simulation.parquet`: every column of `pino_data::schema::simulation_columns()`, rows
 //!   sorted by `sample_id` then `t`, one row group per sample;
-//! - `failures.parquet`: `sample_id`, `reason` of samples whose state became non-finite.
+//! - `failures.parquet`: `sample_id`, `reason` of samples whose state became non-finite;
+//! - `provenance.parquet`: the physical constants used (`pino_data::provenance`), which the
+//!   learning stages check against their own.
 //!
 //! Inputs: `params` (`params.parquet`) and `irregularity` (`irregularity.parquet`: `sample_id`,
 //! `x` m, `eta` m). Params: `vtcd::simulation::SimulationConfig` (every field optional, spec
@@ -86,6 +88,16 @@ fn run() -> Result<String> {
     failed.push(schema::SAMPLE_ID, Column::I64(failures.0))?;
     failed.push("reason", Column::Str(failures.1))?;
     pino_data::write_parquet(&ctx.output_path("failures.parquet"), &failed)?;
+    pino_data::provenance::write_provenance(
+        &ctx.output_path(pino_data::provenance::PROVENANCE_FILE),
+        &[
+            ("gravity", config.gravity),
+            ("wheel_radius", config.wheel_radius),
+            ("dt", config.dt),
+            ("startup_zero_fraction", config.startup_zero_fraction),
+            ("startup_ramp_fraction", config.startup_ramp_fraction),
+        ],
+    )?;
     let s = ctx.shard;
     Ok(format!(
         "{} ok, {n_failed} failed, {rows} rows (shard {}/{})",

@@ -4,7 +4,8 @@
 //! (weights.parquet, used by algorithm 3). Writes `model.safetensors`, `model.json` and
 //! `history.parquet`; checkpoints after every epoch in the unit's scratch directory (kept by
 //! `pipeline` across killed runs of the same configuration; the output directory when run by
-//! hand), from which the next run resumes.
+//! hand), from which the next run resumes. The residual's `gravity` and `wheel_radius` must
+//! equal the dataset's own (`provenance.parquet`), else nothing runs.
 use anyhow::{Context, Result};
 use pino_learn::config::TrainParams;
 use pino_learn::data::load_dataset;
@@ -22,6 +23,11 @@ fn run() -> Result<()> {
     let (_, train, window) = configs;
     let device = p.device.device()?;
     let params = &ctx.single_input_file("params", "params.parquet")?;
+    pino_data::provenance::check_constants(
+        ctx.input_dirs("dataset")?,
+        &[("gravity", p.gravity), ("wheel_radius", p.wheel_radius)],
+    )
+    .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
     let sims = ctx.input_files("dataset", "simulation.parquet")?;
     let weights = if train.algorithm.needs_phi() {
         let w = ctx.input_files("weights", "weights.parquet")?;

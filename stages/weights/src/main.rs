@@ -8,7 +8,8 @@
 //! streamed batch by batch (memory: one group of samples, not one shard's columns); samples
 //! are weighted in parallel, each from its own noise stream, so the result does not depend on
 //! threads, grouping or shard layout. Training samples
-//! absent from the dataset (failed simulations) are counted in the summary.
+//! absent from the dataset (failed simulations) are counted in the summary. `gravity` and
+//! `wheel_radius` must equal the dataset's own (`provenance.parquet`), else nothing runs.
 
 mod dataset;
 
@@ -24,6 +25,11 @@ fn run() -> Result<String> {
     let cfg = raw
         .validate()
         .with_context(|| format!("stage `{}`: bad parameters", ctx.stage))?;
+    pino_data::provenance::check_constants(
+        ctx.input_dirs("dataset")?,
+        &[("gravity", raw.gravity), ("wheel_radius", raw.wheel_radius)],
+    )
+    .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
     let params = dataset::read_params(&ctx.input_files("params", "params.parquet")?)?;
     let files = ctx.input_files("dataset", "simulation.parquet")?;
     if files.is_empty() {
