@@ -332,7 +332,7 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
     // The `params:` blocks of both pipeline files go through YAML -> JSON (as the orchestrator
     // passes them) into the stages' checked types, and hold the spec's values.
     for (file, n_train, n_validation, n_test) in [
-        ("pipeline.yaml", 160, 40, 100),
+        ("pipeline.yaml", 800, 100, 100),
         ("configs/paper.yaml", 20000, 2000, 2000),
     ] {
         let params = |stage: &str| pino_mbd_tests::stage_params(file, stage);

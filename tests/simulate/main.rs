@@ -269,7 +269,6 @@ fn bad_input_is_refused_with_a_clear_message() {
 /// from equilibrium).
 #[test]
 fn pipeline_files_configure_the_paper_physics() {
-    let root = pino_mbd_tests::workspace_root();
     let mut durations = Vec::new();
     for file in ["pipeline.yaml", "configs/paper.yaml"] {
         let params = pino_mbd_tests::stage_params(file, "simulate");
