@@ -245,12 +245,14 @@ struct Record {
     cols: Vec<Vec<f64>>,
 }
 
+/// Receives one whole record: its file, `sample_id` and columns (`t`, then the series).
+type RecordSink<'a> = dyn FnMut(&Path, i64, &[Vec<f64>]) -> Result<()> + 'a;
+/// Receives one windowed sample: the sample, the window's times and its series.
+type WindowSink<'a> = dyn FnMut(&Sample, &[f64], &[Vec<f64>]) -> Result<()> + 'a;
+
 /// Streams every record of `files` in file order, one at a time, to `f(file, id, columns)`
 /// (`t` then the series, full record length, physical f64). Checks contiguity of ids.
-fn for_each_record(
-    files: &[PathBuf],
-    f: &mut dyn FnMut(&Path, i64, &[Vec<f64>]) -> Result<()>,
-) -> Result<()> {
+fn for_each_record(files: &[PathBuf], f: &mut RecordSink<'_>) -> Result<()> {
     let names = needed_simulation_columns();
     let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut seen = BTreeSet::new();
@@ -327,7 +329,7 @@ fn scan(
     weights_file: Option<&Path>,
     window: &WindowConfig,
     want: &dyn Fn(Split) -> bool,
-    on_window: &mut dyn FnMut(&Sample, &[f64], &[Vec<f64>]) -> Result<()>,
+    on_window: &mut WindowSink<'_>,
 ) -> Result<Dataset> {
     window.validate()?;
     let params: BTreeMap<i64, (Split, [f64; 14])> = read_params(params_file)?
