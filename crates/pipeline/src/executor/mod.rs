@@ -3,7 +3,7 @@
 //! The scheduler in [`crate::run`] decides *what* runs (identities, the run-cache, dependency
 //! order); an executor only decides *where*. For each unit it provides a working directory
 //! (holding `context.json` and an empty `out/`), runs the stage there under the unchanged
-//! stage protocol, and reports an [`exec::Outcome`]. Verification and commit (hash, manifest,
+//! stage protocol, and reports an [`crate::exec::Outcome`]. Verification and commit (hash, manifest,
 //! atomic rename into `objects/`) stay in `run`, so both executors share one crash-safety
 //! argument: nothing enters the store unless the stage exited 0 and its files were hashed.
 //!
