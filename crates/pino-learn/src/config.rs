@@ -17,7 +17,7 @@ pub const FORCE_OFFSET: usize = SOLUTION_CHANNELS;
 /// Vehicle DOFs (equations).
 pub const DOFS: usize = 10;
 
-/// The algorithms of Table 3 (`learning.md`, Algorithms).
+/// The algorithms of Table 3 (`docs/learning.md`, Algorithms).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(try_from = "i64", into = "i64")]
 pub enum Algorithm {

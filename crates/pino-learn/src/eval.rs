@@ -2,7 +2,7 @@
 //! paper's Table 4 with a truth row, per-channel errors in physical units, prediction speed,
 //! and PNG plots. Only the scored split is read.
 //!
-//! Table 4 (`learning.md`): per algorithm, the mean over scored samples of the relative L2
+//! Table 4 (`docs/learning.md`): per algorithm, the mean over scored samples of the relative L2
 //! error (%) of the 14 z-scored displacement solutions, of the 10 vehicle velocities and of
 //! the 10 vehicle accelerations (central differences of the prediction at interior points),
 //! plus the 4 predicted contact forces and the peak contact force error (% of the static

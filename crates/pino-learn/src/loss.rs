@@ -1,4 +1,4 @@
-//! Losses of the five algorithms (`learning.md`, Losses):
+//! Losses of the five algorithms (`docs/learning.md`, Losses):
 //! ```text
 //! relL2(p, y)  = mean_k ||p_k - y_k|| / ||y_k||          (per sample over channels and time)
 //! L_data       = relL2(u, u*)                            (18 outputs: 14 displacements and

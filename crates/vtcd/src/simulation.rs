@@ -80,7 +80,7 @@ fn d_output_every() -> usize {
 fn d_fraction() -> f64 {
     0.1
 }
-/// How a run starts (`vtcd-model.md`, Start-up protocol and Equilibrium start).
+/// How a run starts (`docs/model.md`, start protocols).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase", try_from = "String")]
 pub enum StartMode {
@@ -777,7 +777,7 @@ impl Simulation {
 
     /// Displacements at `t = 0` (state layout of the module doc; velocities are zero).
     /// [`StartMode::Rest`]: all zero. [`StartMode::Equilibrium`]: the static solution under the
-    /// four wheel loads `W` (`vtcd-model.md`, Equilibrium start): the track from
+    /// four wheel loads `W` (`docs/model.md`, start protocols): the track from
     /// [`crate::statics::track_deflection`]; wheel `i` at `Z_r(x_i) + eta_i(0) + delta_W`
     /// (`delta_W` the contact compression at load `W`; `eta_i(0)` is zero unless both start-up
     /// fractions are zero); bogies and car body with every suspension deflection zero:

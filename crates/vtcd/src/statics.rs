@@ -1,4 +1,4 @@
-//! Static deflection of the track under point loads (`vtcd-model.md`, Equilibrium start).
+//! Static deflection of the track under point loads (`docs/model.md`, start protocols).
 //!
 //! With every velocity and acceleration zero, the substructure equations of
 //! [`crate::track`] become linear algebra. The sleeper carries the fastener force on to the
