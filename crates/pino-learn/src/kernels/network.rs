@@ -11,6 +11,7 @@
 use super::layer::FusedLayer;
 use super::RealDft;
 use candle_core::{CpuStorage, CustomOp2, Layout, Shape, Tensor};
+use rayon::prelude::*;
 use std::sync::{Arc, Mutex};
 
 /// Sizes of a fused network.
@@ -28,8 +29,8 @@ pub struct NetworkShape {
     pub depth: usize,
 }
 
-/// One forward (and backward) of the network for one batch.
-pub struct FusedNetwork {
+/// The network over one contiguous part of a batch (its own layers and saved state).
+struct NetworkPart {
     shape: NetworkShape,
     batch: usize,
     t: usize,
@@ -38,10 +39,10 @@ pub struct FusedNetwork {
     inputs: Mutex<Vec<Vec<f32>>>,
 }
 
-impl FusedNetwork {
+impl NetworkPart {
     /// The network for `batch` samples of `t` points, Fourier layers on the plan `dft`
     /// (length `T_p >= t`).
-    pub fn new(shape: NetworkShape, dft: &Arc<RealDft>, batch: usize, t: usize) -> Self {
+    fn new(shape: NetworkShape, dft: &Arc<RealDft>, batch: usize, t: usize) -> Self {
         let NetworkShape {
             c_in,
             width,
@@ -66,7 +67,7 @@ impl FusedNetwork {
     }
 
     /// Length of the flat parameter vector.
-    pub fn param_len(&self) -> usize {
+    fn param_len(&self) -> usize {
         self.layers.iter().map(FusedLayer::param_len).sum()
     }
 
@@ -197,6 +198,88 @@ fn host<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> candle_core::Result<&'
         candle_core::Error::Msg(format!("fused network: {what} must be contiguous"))
     })?;
     Ok(&v[a..b])
+}
+
+/// One forward (and backward) of the network for one batch.
+///
+/// The batch is cut into (at most) two halves that run side by side on rayon's pool, each a
+/// whole forward and backward on its own samples; the parameter gradients of the halves are
+/// added in a fixed order. The cut does not depend on the thread count, so neither do the
+/// results (one thread runs the halves one after the other). Two halves rather than one part
+/// per sample: the parameter gradients of every part must be summed, which costs a pass over
+/// all parameters per part.
+pub struct FusedNetwork {
+    shape: NetworkShape,
+    batch: usize,
+    t: usize,
+    parts: Vec<(usize, NetworkPart)>,
+}
+
+impl FusedNetwork {
+    /// The network for `batch` samples of `t` points, Fourier layers on the plan `dft`
+    /// (length `T_p >= t`).
+    pub fn new(shape: NetworkShape, dft: &Arc<RealDft>, batch: usize, t: usize) -> Self {
+        let first = batch.div_ceil(2);
+        let parts = [(0, first), (first, batch - first)]
+            .into_iter()
+            .filter(|&(_, len)| len > 0)
+            .map(|(start, len)| (start, NetworkPart::new(shape, dft, len, t)))
+            .collect();
+        Self {
+            shape,
+            batch,
+            t,
+            parts,
+        }
+    }
+
+    /// Length of the flat parameter vector.
+    pub fn param_len(&self) -> usize {
+        self.parts.first().map_or(0, |(_, p)| p.param_len())
+    }
+
+    fn forward(&self, x: &[f32], p: &[f32]) -> Vec<f32> {
+        let per_in = self.t * self.shape.c_in;
+        let per_out = self.t * self.shape.c_out;
+        let outs: Vec<Vec<f32>> = self
+            .parts
+            .par_iter()
+            .map(|(start, part)| {
+                let x = &x[start * per_in..(start + part.batch) * per_in];
+                part.forward(x, p)
+            })
+            .collect();
+        let mut u = Vec::with_capacity(self.batch * per_out);
+        for o in outs {
+            u.extend(o);
+        }
+        u
+    }
+
+    fn backward(&self, x: &[f32], p: &[f32], grad: &[f32]) -> Vec<f32> {
+        let per_in = self.t * self.shape.c_in;
+        let per_out = self.t * self.shape.c_out;
+        let grads: Vec<Vec<f32>> = self
+            .parts
+            .par_iter()
+            .map(|(start, part)| {
+                let n = part.batch;
+                part.backward(
+                    &x[start * per_in..(start + n) * per_in],
+                    p,
+                    &grad[start * per_out..(start + n) * per_out],
+                )
+            })
+            .collect();
+        let mut grads = grads.into_iter();
+        let mut total = grads.next().unwrap_or_default();
+        for g in grads {
+            for (t, v) in total.iter_mut().zip(g) {
+                *t += v;
+            }
+        }
+        total
+    }
 }
 
 impl CustomOp2 for FusedNetwork {
