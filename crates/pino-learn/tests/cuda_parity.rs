@@ -74,7 +74,7 @@ fn run(ds: &Dataset, algorithm: i64, device: &Device) -> Outcome {
     p.depth = Some(2);
     let (model_cfg, train_cfg, _) = p.configs().expect("configs");
     let norm = ds.normalisation().expect("normalisation");
-    let items = prepare(ds, &norm);
+    let items = prepare(ds, &norm).expect("prepare");
     let ctx = LossContext {
         config: train_cfg,
         norm,
@@ -83,7 +83,9 @@ fn run(ds: &Dataset, algorithm: i64, device: &Device) -> Outcome {
     };
     let idx: Vec<usize> = (0..ds.samples.len()).collect();
     let batch = make_batch(&items, &idx, ds.t_points(), device).expect("batch");
-    let model = Fno::new(model_cfg, ds.t_points(), 7, Transform::Matmul, device).expect("model");
+    // The CPU runs its fused kernels, CUDA the candle composition: the comparison covers both.
+    let transform = Transform::for_device(device);
+    let model = Fno::new(model_cfg, ds.t_points(), 7, transform, device).expect("model");
     let u = model.forward(&batch.x).expect("forward");
     let (total, values) = ctx.loss(&u, &batch).expect("loss");
     let grads = total.backward().expect("backward");
