@@ -106,23 +106,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         bw * 1e3,
         a * 1e3
     );
-    // Inference as `evaluate` runs it: batches one after another, the kernels parallel inside.
+    // Inference as `evaluate` runs it (`eval::predict_samples`: batches side by side).
     // The 40 validation records are cycled up to the requested count (same cost per sample).
     let n_infer: usize = arg(9, "40").parse()?;
     let infer_batch: usize = arg(10, "8").parse()?;
     let val: Vec<usize> = (0..n_infer).map(|k| spec.n_train + k % 40).collect();
     let mut inf = Vec::new();
     for _ in 0..3 {
-        let t0 = Instant::now();
-        for c in val.chunks(infer_batch) {
-            let vb = make_batch(&items, c, ds.t_points(), &dev)?;
-            let _ = model
-                .forward(&vb.x)?
-                .to_dtype(candle_core::DType::F32)?
-                .flatten_all()?
-                .to_vec1::<f32>()?;
-        }
-        inf.push(t0.elapsed().as_secs_f64());
+        let (_, wall) = pino_learn::eval::predict_samples(
+            &model,
+            &items,
+            &val,
+            ds.t_points(),
+            infer_batch,
+            &dev,
+        )?;
+        inf.push(wall);
     }
     inf.sort_by(f64::total_cmp);
     println!(

@@ -250,16 +250,26 @@ pub fn predict_samples(
     batch_size: usize,
     device: &Device,
 ) -> Result<(Vec<Vec<f32>>, f64)> {
-    let mut out = Vec::with_capacity(idx.len());
-    let mut wall = 0.0;
-    for chunk in idx.chunks(batch_size.max(1)) {
+    use rayon::prelude::*;
+    let t0 = Instant::now();
+    // Batches are independent: on the CPU they run side by side (each forward pass is
+    // parallel inside too); results do not depend on the order or the thread count.
+    let chunks: Vec<&[usize]> = idx.chunks(batch_size.max(1)).collect();
+    let run = |chunk: &&[usize]| -> Result<Vec<f32>> {
         let batch = make_batch(items, chunk, t_points, device)?;
-        let t0 = Instant::now();
         let u = model.forward(&batch.x)?.detach().to_dtype(DType::F32)?;
-        let flat: Vec<f32> = u.flatten_all()?.to_vec1()?;
-        wall += t0.elapsed().as_secs_f64();
-        out.extend(flat.chunks(t_points * OUT_CHANNELS).map(<[f32]>::to_vec));
-    }
+        Ok(u.flatten_all()?.to_vec1()?)
+    };
+    let flats: Vec<Vec<f32>> = if device.is_cpu() {
+        chunks.par_iter().map(run).collect::<Result<_>>()?
+    } else {
+        chunks.iter().map(run).collect::<Result<_>>()?
+    };
+    let wall = t0.elapsed().as_secs_f64();
+    let out = flats
+        .iter()
+        .flat_map(|flat| flat.chunks(t_points * OUT_CHANNELS).map(<[f32]>::to_vec))
+        .collect();
     Ok((out, wall))
 }
 
