@@ -90,16 +90,9 @@ impl CustomOp1 for DerivativeLoss {
         layout: &Layout,
     ) -> candle_core::Result<(CpuStorage, Shape)> {
         let (b, t, c) = dims(layout.shape(), self.dofs)?;
-        let CpuStorage::F32(v) = storage else {
-            return Err(candle_core::Error::Msg(
-                "fused derivative loss: prediction must be f32".into(),
-            ));
-        };
-        let (o1, o2) = layout.contiguous_offsets().ok_or_else(|| {
-            candle_core::Error::Msg("fused derivative loss: prediction must be contiguous".into())
-        })?;
+        let u = super::cpu_f32(storage, layout, "fused derivative loss", "prediction")?;
         let loss: f64 = self
-            .sums(&v[o1..o2], b, t, c)
+            .sums(u, b, t, c)
             .iter()
             .map(|s| (s[0] / s[1]).sqrt() + (s[2] / s[3]).sqrt())
             .sum::<f64>()

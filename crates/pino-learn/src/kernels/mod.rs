@@ -44,6 +44,22 @@ pub fn spectral_conv(dft: &Arc<RealDft>, x: &Tensor, wr: &Tensor, wi: &Tensor) -
         .apply_op3(&wr.contiguous()?, &wi.contiguous()?, op)?)
 }
 
+/// The contiguous f32 data of an op's input, or an error naming the op and the input.
+pub(crate) fn cpu_f32<'a>(
+    storage: &'a candle_core::CpuStorage,
+    layout: &candle_core::Layout,
+    op: &str,
+    what: &str,
+) -> candle_core::Result<&'a [f32]> {
+    let candle_core::CpuStorage::F32(v) = storage else {
+        return Err(candle_core::Error::Msg(format!("{op}: {what} must be f32")));
+    };
+    let (a, b) = layout
+        .contiguous_offsets()
+        .ok_or_else(|| candle_core::Error::Msg(format!("{op}: {what} must be contiguous")))?;
+    Ok(&v[a..b])
+}
+
 /// Runs `f` on the host f32 data of `t` without copying when it is contiguous on the CPU
 /// (a copy otherwise).
 pub(crate) fn with_host<R>(t: &Tensor, f: impl FnOnce(&[f32]) -> R) -> candle_core::Result<R> {

@@ -188,18 +188,6 @@ impl NetworkPart {
     }
 }
 
-fn host<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> candle_core::Result<&'a [f32]> {
-    let CpuStorage::F32(v) = s else {
-        return Err(candle_core::Error::Msg(format!(
-            "fused network: {what} must be f32"
-        )));
-    };
-    let (a, b) = l.contiguous_offsets().ok_or_else(|| {
-        candle_core::Error::Msg(format!("fused network: {what} must be contiguous"))
-    })?;
-    Ok(&v[a..b])
-}
-
 /// One forward (and backward) of the network for one batch.
 ///
 /// The batch is cut into (at most) two halves that run side by side on rayon's pool, each a
@@ -303,7 +291,11 @@ impl CustomOp2 for FusedNetwork {
                 self.param_len()
             )));
         }
-        let u = self.forward(host(s1, l1, "input")?, host(s2, l2, "parameters")?);
+        let op = "fused network";
+        let u = self.forward(
+            super::cpu_f32(s1, l1, op, "input")?,
+            super::cpu_f32(s2, l2, op, "parameters")?,
+        );
         Ok((
             CpuStorage::F32(u),
             Shape::from((self.batch, self.t, self.shape.c_out)),

@@ -146,15 +146,7 @@ impl CustomOp1 for OdeLoss {
         layout: &Layout,
     ) -> candle_core::Result<(CpuStorage, Shape)> {
         let (b, t, c) = dims(layout.shape())?;
-        let CpuStorage::F32(v) = storage else {
-            return Err(candle_core::Error::Msg(
-                "fused ODE loss: prediction must be f32".into(),
-            ));
-        };
-        let (o1, o2) = layout.contiguous_offsets().ok_or_else(|| {
-            candle_core::Error::Msg("fused ODE loss: prediction must be contiguous".into())
-        })?;
-        let u = &v[o1..o2];
+        let u = super::cpu_f32(storage, layout, "fused ODE loss", "prediction")?;
         let mut total = 0.0f64;
         for k in 0..b {
             let w: [f64; DOFS] = std::array::from_fn(|i| self.weight(k, i));

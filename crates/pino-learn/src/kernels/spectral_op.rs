@@ -225,20 +225,6 @@ fn mix_backward(
     (dx, dwr, dwi)
 }
 
-fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> candle_core::Result<&'a [f32]> {
-    let CpuStorage::F32(v) = s else {
-        return Err(candle_core::Error::Msg(format!(
-            "fused spectral convolution: {what} must be f32"
-        )));
-    };
-    let (a, b) = l.contiguous_offsets().ok_or_else(|| {
-        candle_core::Error::Msg(format!(
-            "fused spectral convolution: {what} must be contiguous"
-        ))
-    })?;
-    Ok(&v[a..b])
-}
-
 fn host_f32(t: &Tensor) -> candle_core::Result<Vec<f32>> {
     t.flatten_all()?.to_vec1::<f32>()
 }
@@ -329,9 +315,10 @@ impl CustomOp3 for SpectralConvOp {
         l3: &Layout,
     ) -> candle_core::Result<(CpuStorage, Shape)> {
         let (c, o) = self.check(l1.shape(), l2.shape(), l3.shape())?;
-        let x = f32_slice(s1, l1, "x")?;
-        let wr = f32_slice(s2, l2, "wr")?;
-        let wi = f32_slice(s3, l3, "wi")?;
+        let op = "fused spectral convolution";
+        let x = super::cpu_f32(s1, l1, op, "x")?;
+        let wr = super::cpu_f32(s2, l2, op, "wr")?;
+        let wi = super::cpu_f32(s3, l3, op, "wi")?;
         let out = self.forward(x, wr, wi, c, o);
         Ok((
             CpuStorage::F32(out),
