@@ -94,19 +94,7 @@ impl Fno {
             };
             vars.push((name, Var::from_vec(values, shape, device)?));
         }
-        let dft = Dft::new(
-            config.padded_points(t_points),
-            config.modes,
-            transform,
-            DType::F32,
-            device,
-        )?;
-        Ok(Self {
-            config,
-            vars,
-            dft,
-            t_points,
-        })
+        Self::with_vars(config, vars, t_points, transform, device)
     }
 
     /// Rebuilds a model from named tensors, checking every name and shape against `config`.
@@ -153,6 +141,17 @@ impl Fno {
                 config: config.to_string(),
             });
         }
+        Self::with_vars(config, vars, t_points, transform, device)
+    }
+
+    /// The model of `vars` with its spectral transform planned for the padded window.
+    fn with_vars(
+        config: ModelConfig,
+        vars: Vec<(String, Var)>,
+        t_points: usize,
+        transform: Transform,
+        device: &Device,
+    ) -> Result<Self> {
         let dft = Dft::new(
             config.padded_points(t_points),
             config.modes,
