@@ -268,7 +268,7 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
 
 #[test]
 fn pipeline_files_parameter_blocks_parse_into_the_learning_types() {
-    for file in ["pipeline.yaml", "configs/paper.yaml"] {
+    for file in ["pipeline.yaml", "configs/paper.yaml", "configs/long.yaml"] {
         for alg in 1..=5 {
             let mut params = pino_mbd_tests::stage_params(file, "train");
             params["algorithm"] = serde_json::Value::from(alg);

@@ -215,23 +215,36 @@ fn score_split(
     batch_size: usize,
     device: &Device,
 ) -> Result<Scores> {
+    use rayon::prelude::*;
     let t = items.t_points();
+    let batch_size = batch_size.max(1);
+    let (preds, wall) = predict_samples(model, items, idx, t, batch_size, device)?;
+    // Scoring is per sample: batches are scored side by side and concatenated in order.
+    let score = |(chunk, pred): (&[usize], &[Vec<f32>])| -> Result<[[Vec<f64>; 4]; 2]> {
+        let batch = make_batch(items, chunk, t, device)?;
+        let flat: Vec<f32> = pred.concat();
+        let u = Tensor::from_vec(flat, (chunk.len(), t, OUT_CHANNELS), device)?;
+        Ok([
+            table4_per_sample(ctx, &u, &batch)?,
+            table4_per_sample(ctx, &batch.u, &batch)?,
+        ])
+    };
+    let pairs: Vec<(&[usize], &[Vec<f32>])> = idx
+        .chunks(batch_size)
+        .zip(preds.chunks(batch_size))
+        .collect();
+    let scored: Vec<[[Vec<f64>; 4]; 2]> = if device.is_cpu() {
+        pairs.into_par_iter().map(score).collect::<Result<_>>()?
+    } else {
+        pairs.into_iter().map(score).collect::<Result<_>>()?
+    };
     let mut out = Scores {
         model: Default::default(),
         truth: Default::default(),
-        preds: Vec::with_capacity(idx.len()),
-        wall: 0.0,
+        preds,
+        wall,
     };
-    for chunk in idx.chunks(batch_size.max(1)) {
-        let batch = make_batch(items, chunk, t, device)?;
-        let t0 = Instant::now();
-        let u = model.forward(&batch.x)?.detach().to_dtype(DType::F32)?;
-        let flat: Vec<f32> = u.flatten_all()?.to_vec1()?;
-        out.wall += t0.elapsed().as_secs_f64();
-        out.preds
-            .extend(flat.chunks(t * OUT_CHANNELS).map(<[f32]>::to_vec));
-        let m = table4_per_sample(ctx, &u, &batch)?;
-        let o = table4_per_sample(ctx, &batch.u, &batch)?;
+    for [m, o] in &scored {
         for k in 0..4 {
             out.model[k].extend_from_slice(&m[k]);
             out.truth[k].extend_from_slice(&o[k]);
@@ -255,9 +268,10 @@ pub fn predict_samples(
     // Batches are independent: on the CPU they run side by side (each forward pass is
     // parallel inside too); results do not depend on the order or the thread count.
     let chunks: Vec<&[usize]> = idx.chunks(batch_size.max(1)).collect();
+    let predictor = model.predictor()?;
     let run = |chunk: &&[usize]| -> Result<Vec<f32>> {
         let batch = make_batch(items, chunk, t_points, device)?;
-        let u = model.forward(&batch.x)?.detach().to_dtype(DType::F32)?;
+        let u = predictor.predict(&batch.x)?;
         Ok(u.flatten_all()?.to_vec1()?)
     };
     let flats: Vec<Vec<f32>> = if device.is_cpu() {

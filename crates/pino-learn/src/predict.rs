@@ -20,7 +20,7 @@ use crate::data::input_block;
 use crate::eval::to_physical;
 use crate::spectral::Transform;
 use crate::{Error, Result};
-use candle_core::{DType, Device, Tensor};
+use candle_core::{Device, Tensor};
 use pino_data::{schema, Column, Table};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -237,8 +237,8 @@ pub fn predict(
     }
     let xt = Tensor::from_vec(x, (sets.len(), tp, 19), device)?;
     let u = model
-        .forward(&xt)?
-        .to_dtype(DType::F32)?
+        .predictor()?
+        .predict(&xt)?
         .flatten_all()?
         .to_vec1::<f32>()?;
     let mut cols: Vec<(String, Vec<f64>)> = Vec::new();
