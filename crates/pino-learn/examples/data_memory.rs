@@ -4,7 +4,7 @@
 //! cargo run --release -p pino-learn --example data_memory -- gen DIR N_TRAIN N_VAL N_TEST DURATION_S
 //! /usr/bin/time -v target/release/examples/data_memory train DIR
 //! /usr/bin/time -v target/release/examples/data_memory evaluate DIR
-//! /usr/bin/time -v target/release/examples/data_memory model DIR
+//! /usr/bin/time -v target/release/examples/data_memory model DIR [EPOCHS]
 //! ```
 //! `gen` writes a synthetic dataset (1 kHz, one row group per sample) into `DIR`. `train` does
 //! what the `train` stage does with the data: the indexing and statistics pass, the prepared
@@ -13,7 +13,7 @@
 //! alone and builds its batches of 8. `model` is the `train` stage's library path whole
 //! (`train::train`: dataset, store, model, optimizer, losses, validation) at the paper's
 //! sizes (`configs/paper.yaml`: width 72, 320 modes, 25 % padding, batches of 20, algorithm 5,
-//! the deepest) for one epoch. Each prints the samples held, the bytes of the store and
+//! the deepest) for `EPOCHS` epochs (default 1). Each prints the samples held, the bytes of the store and
 //! the process's peak resident set (VmHWM).
 use candle_core::Device;
 use pino_learn::config::{TrainParams, WindowConfig};
@@ -35,6 +35,8 @@ fn peak_rss_mb() -> f64 {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // As the `train` and `evaluate` stages do.
+    pino_learn::tune_allocator();
     let a: Vec<String> = std::env::args().skip(1).collect();
     let mode = a.first().map(String::as_str).unwrap_or("");
     let dir = PathBuf::from(
@@ -112,9 +114,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let ds = load_dataset(&params, &sims, None, &window)?;
             let mut p = TrainParams::with_algorithm(5);
             (p.width, p.modes, p.projection_width, p.padding) = (72, 320, 72, 25);
-            (p.batch_size, p.epochs, p.startup_fraction) = (20, 1, 0.0);
+            (p.batch_size, p.startup_fraction) = (20, 0.0);
+            p.epochs = a.get(2).map_or(Ok(1), |e| e.parse())?;
             let (model_cfg, cfg, window) = p.configs()?;
             let n_train = ds.split_indices(Split::Train).len();
+            // A fresh start every time (a checkpoint left by an earlier run would resume).
+            let _ = std::fs::remove_dir_all(dir.join("checkpoint"));
+            std::fs::create_dir_all(dir.join("checkpoint"))?;
             let opts = pino_learn::train::TrainOptions {
                 transform: pino_learn::spectral::Transform::Fused,
                 checkpoint_dir: dir.join("checkpoint"),
