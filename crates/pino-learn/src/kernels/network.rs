@@ -118,7 +118,7 @@ impl NetworkPart {
     }
 
     /// Channel-major `[C_out, B T]` -> `[B, T, C_out]`.
-    fn from_columns(&self, u: &[f32]) -> Vec<f32> {
+    fn columns_to_rows(&self, u: &[f32]) -> Vec<f32> {
         let (n, c_out) = (self.batch * self.t, self.shape.c_out);
         let mut out = vec![0.0f32; u.len()];
         for (c, row) in u.chunks(n).enumerate() {
@@ -150,7 +150,7 @@ impl NetworkPart {
         let u = self.layers[depth + 2].forward(&h, params[depth + 2], n);
         inputs.push(h);
         *self.inputs.lock().unwrap_or_else(|e| e.into_inner()) = inputs;
-        self.from_columns(&u)
+        self.columns_to_rows(&u)
     }
 
     /// [`Self::forward`] for inference: the same arithmetic (the same values), activations in
@@ -184,7 +184,7 @@ impl NetworkPart {
         }
         self.layers[depth + 1].infer_into(&cur, params[depth + 1], n, &mut next);
         self.layers[depth + 2].infer_into(&next, params[depth + 2], n, &mut cur);
-        self.from_columns(&cur)
+        self.columns_to_rows(&cur)
     }
 
     fn backward(&self, x: &[f32], p: &[f32], grad: &[f32]) -> Vec<f32> {
