@@ -269,7 +269,18 @@ impl FusedNetwork {
     }
 
     fn forward(&self, x: &[f32], p: &[f32]) -> Vec<f32> {
-        self.run_parts(x, |part, x| part.forward(x, p))
+        let per_in = self.t * self.shape.c_in;
+        let per_out = self.t * self.shape.c_out;
+        let outs: Vec<Vec<f32>> = self
+            .parts
+            .par_iter()
+            .map(|(start, part)| part.forward(&x[start * per_in..(start + part.batch) * per_in], p))
+            .collect();
+        let mut u = Vec::with_capacity(self.batch * per_out);
+        for o in outs {
+            u.extend(o);
+        }
+        u
     }
 
     /// The network's output `[B, T, C_out]` for host input `x [B, T, C_in]` and flat
@@ -281,26 +292,6 @@ impl FusedNetwork {
         let sample = NetworkPart::new(self.shape, &self.dft, 1, self.t);
         let outs: Vec<Vec<f32>> = x.par_chunks(per_in).map(|x| sample.infer(x, p)).collect();
         outs.concat()
-    }
-
-    /// Runs `f` on each part's slice of `x` side by side; outputs concatenated in order.
-    fn run_parts(
-        &self,
-        x: &[f32],
-        f: impl Fn(&NetworkPart, &[f32]) -> Vec<f32> + Sync,
-    ) -> Vec<f32> {
-        let per_in = self.t * self.shape.c_in;
-        let per_out = self.t * self.shape.c_out;
-        let outs: Vec<Vec<f32>> = self
-            .parts
-            .par_iter()
-            .map(|(start, part)| f(part, &x[start * per_in..(start + part.batch) * per_in]))
-            .collect();
-        let mut u = Vec::with_capacity(self.batch * per_out);
-        for o in outs {
-            u.extend(o);
-        }
-        u
     }
 
     fn backward(&self, x: &[f32], p: &[f32], grad: &[f32]) -> Vec<f32> {
