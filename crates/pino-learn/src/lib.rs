@@ -52,20 +52,21 @@ pub use config::{Algorithm, DeviceKind, ModelConfig, TrainConfig};
 /// A training step allocates and frees the same few megabytes of activations and gradients
 /// every time; with glibc's defaults each large buffer is a fresh `mmap` whose pages fault in
 /// and are zeroed by the kernel on every step (about a tenth of a CPU step, measured with
-/// `perf`). Raising the mmap and trim thresholds keeps those buffers in the heap. One arena
-/// for all threads: with one per thread, buffers freed by a thread other than the one that
-/// allocated them fragment the arenas and the resident set grew by ~3.6 MB per step at the
-/// paper's sizes (1.26 -> 1.44 GB from the first to the second epoch of 50 steps); with one it
-/// stays flat (1.16 GB after 50, 100 and 150 steps) at the same speed (BENCHMARKS.md,
-/// "Training memory at the paper's sizes"). Call once at the start of a learning process; a
-/// no-op elsewhere than glibc.
+/// `perf`). Raising the mmap and trim thresholds keeps those buffers in the heap. Two arenas:
+/// with glibc's default (up to eight per core), buffers freed by a thread other than the one
+/// that allocated them fragment the arenas and the resident set grew by ~3.6 MB per step at
+/// the paper's sizes (1.26 -> 1.44 GB from the first to the second epoch of 50 steps); with
+/// two it stays flat (1.2-1.3 GB after 50, 100 and 150 steps); with one, the threads of a
+/// parallel prediction queue on its lock (inference 20 % slower). BENCHMARKS.md, "Training
+/// memory at the paper's sizes". Call once at the start of a learning process; a no-op
+/// elsewhere than glibc.
 pub fn tune_allocator() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only sets allocator parameters; it is called with valid option codes.
     unsafe {
         libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 30);
         libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 30);
-        libc::mallopt(libc::M_ARENA_MAX, 1);
+        libc::mallopt(libc::M_ARENA_MAX, 2);
     }
 }
 
