@@ -284,7 +284,13 @@ fn weights_reads_shards_and_names_missing_columns() {
         sp.display(),
         c.display()
     );
-    let (ctx1, out1) = context(dir.path(), "weights1", r#"{"seed": 3}"#, &inputs1);
+    // The same unit (`weights`, written into every file's metadata) in another directory.
+    let (ctx1, out1) = context(
+        &dir.path().join("single-run"),
+        "weights",
+        r#"{"seed": 3, "noise_ratio": 0.02}"#,
+        &inputs1,
+    );
     ok("weights", &ctx1, 1);
     assert_eq!(bytes, std::fs::read(out1.join("weights.parquet")).unwrap());
 

@@ -8,28 +8,9 @@
 //! is a no-op. Accuracy is not asserted here (2 epochs learn little); the learning tests do.
 
 use pino_data::{read_parquet, schema};
+use pino_mbd_tests::TINY;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-/// Overrides that keep the real physics and wiring but cost seconds in the dev profile.
-/// The track is 200 fasteners (120 m): the front wheel starts at most 20 + 2 (1.2 * 9 + 1.2 *
-/// 1.2) = 44.5 m and travels at most 350/3.6 * 0.5 = 48.6 m, so it ends at 93 m, inside both
-/// the rail and the 120 m irregularity profile.
-const TINY: &[&str] = &[
-    "sample-params.n_train=4",
-    "sample-params.n_validation=2",
-    "sample-params.n_test=1",
-    "irregularity.length=120.0",
-    "simulate.duration=0.5",
-    "simulate.n_f=200",
-    "simulate.n_m=100",
-    "train.epochs=2",
-    "train.width=8",
-    "train.modes=8",
-    "train.projection_width=16",
-    "train.batch_size=2",
-    "evaluate.plot_samples=1",
-];
 
 mod kill_resume;
 

@@ -52,3 +52,24 @@ pub fn stage_params(file: &str, stage: &str) -> serde_json::Value {
         .params
         .clone()
 }
+
+/// `--set` overrides of the real `pipeline.yaml` that keep the real physics and wiring but
+/// cost seconds in the dev profile (the end-to-end and interop tests).
+/// The track is 200 fasteners (120 m): the front wheel starts at most 20 + 2 (1.2 * 9 + 1.2 *
+/// 1.2) = 44.5 m and travels at most 350/3.6 * 0.5 = 48.6 m, so it ends at 93 m, inside both
+/// the rail and the 120 m irregularity profile.
+pub const TINY: &[&str] = &[
+    "sample-params.n_train=4",
+    "sample-params.n_validation=2",
+    "sample-params.n_test=1",
+    "irregularity.length=120.0",
+    "simulate.duration=0.5",
+    "simulate.n_f=200",
+    "simulate.n_m=100",
+    "train.epochs=2",
+    "train.width=8",
+    "train.modes=8",
+    "train.projection_width=16",
+    "train.batch_size=2",
+    "evaluate.plot_samples=1",
+];

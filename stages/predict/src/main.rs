@@ -80,6 +80,7 @@ fn run() -> Result<()> {
         x0: args.x0,
         ..Placement::default()
     };
+    pino_data::metadata::set_origin(origin(&args, &sets))?;
     let started = std::time::Instant::now();
     let (table, meta) = predict(&args.model, &sets, &profile, &place, &device)?;
     let wall = started.elapsed().as_secs_f64();
@@ -92,6 +93,35 @@ fn run() -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// The origin written into the output: stage and unit `predict`, and as parameters the
+/// resolved parameter sets and everything else that decides the numbers (the model directory
+/// as given, the profile's source, the placement, the device).
+fn origin(args: &Args, sets: &[pino_learn::predict::NominalParams]) -> pino_data::metadata::Origin {
+    let sets: Vec<serde_json::Value> = sets
+        .iter()
+        .map(|p| {
+            let values = p.to_array();
+            serde_json::Value::Object(
+                pino_data::schema::PARAMETERS
+                    .iter()
+                    .zip(values)
+                    .map(|(name, v)| (name.to_string(), serde_json::Value::from(v)))
+                    .collect(),
+            )
+        })
+        .collect();
+    let params = serde_json::json!({
+        "model": args.model.display().to_string(),
+        "sets": sets,
+        "profile": args.profile.as_ref().map(|p| p.display().to_string()),
+        "seed": args.seed,
+        "profile_id": args.profile_id,
+        "x0": args.x0,
+        "device": args.device,
+    });
+    pino_data::metadata::Origin::stage_unit("predict", 0, 1, &params)
 }
 
 fn vtcd_nominal() -> pino_learn::predict::NominalParams {
