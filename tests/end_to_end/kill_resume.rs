@@ -36,8 +36,8 @@ fn next(state: &mut u64) -> u64 {
     z ^ (z >> 31)
 }
 
-fn workspace() -> tempfile::TempDir {
-    let ws = tempfile::tempdir().unwrap();
+fn workspace() -> pino_mbd_tests::TempWorkspace {
+    let ws = pino_mbd_tests::TempWorkspace::new();
     std::fs::copy(
         pino_mbd_tests::workspace_root().join("pipeline.yaml"),
         ws.path().join("pipeline.yaml"),

@@ -19,7 +19,7 @@ fn pipeline_cmd(ws: &Path, extra: &[&str]) -> Command {
     let mut cmd = Command::new(pino_mbd_tests::bin("pipeline"));
     cmd.current_dir(ws)
         .arg("--bin-dir")
-        .arg(pino_mbd_tests::bin_dir())
+        .arg(pino_mbd_tests::pipeline_bin_dir("pipeline.yaml"))
         .env_remove("PINO_BIN_DIR");
     for s in TINY.iter().chain(extra) {
         cmd.arg("--set").arg(s);
@@ -64,7 +64,7 @@ fn named<'a>(files: &'a [PathBuf], name: &str) -> Vec<&'a PathBuf> {
 
 #[test]
 fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
-    let ws = tempfile::tempdir().unwrap();
+    let ws = pino_mbd_tests::TempWorkspace::new();
     std::fs::copy(
         pino_mbd_tests::workspace_root().join("pipeline.yaml"),
         ws.path().join("pipeline.yaml"),

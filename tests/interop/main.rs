@@ -4,13 +4,14 @@
 //! "Reading the outputs" examples run against the files).
 //!
 //! The run is the real `pipeline.yaml` with the [`TINY`] overrides, plus one `predict` output.
-//! The workspace gets `target/release` pointing at this profile's binaries, so the pipeline
-//! file's `bin_dir` and the README's `target/release/pipeline show` work there unchanged.
+//! The workspace gets a `target/release` of links to this profile's binaries (checked fresh),
+//! so the pipeline file's `bin_dir` (inside the workspace, as the orchestrator requires) and
+//! the README's `target/release/pipeline show` work there unchanged.
 //!
 //! Needs Python 3 with the pinned readers (`pip install -r tests/interop/requirements.txt`;
 //! `PINO_PYTHON` names another interpreter): without them this test fails, it never skips.
 
-use pino_mbd_tests::{bin, bin_dir, workspace_root, TINY};
+use pino_mbd_tests::{bin, pipeline_bin_dir, workspace_root, TempWorkspace, TINY};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -70,16 +71,22 @@ fn output_dir(ws: &Path, target: &str, file: &str) -> PathBuf {
 #[test]
 fn every_artifact_reads_the_same_in_pyarrow_polars_and_duckdb() {
     let python = python();
-    let ws = tempfile::tempdir().unwrap();
+    let ws = TempWorkspace::new();
     let ws = ws.path();
     std::fs::copy(
         workspace_root().join("pipeline.yaml"),
         ws.join("pipeline.yaml"),
     )
     .unwrap();
-    std::fs::create_dir(ws.join("target")).unwrap();
-    std::os::unix::fs::symlink(bin_dir(), ws.join("target/release")).unwrap();
-    bin("pipeline"); // a clear message when the binaries are not built
+    bin("pipeline"); // a clear message when the binaries are not built or stale
+    let release = ws.join("target/release");
+    std::fs::create_dir_all(&release).unwrap();
+    for entry in std::fs::read_dir(pipeline_bin_dir("pipeline.yaml")).unwrap() {
+        let exe = entry.unwrap().path();
+        if exe.is_file() && exe.extension().is_none() {
+            std::os::unix::fs::symlink(&exe, release.join(exe.file_name().unwrap())).unwrap();
+        }
+    }
 
     let run = pipeline(ws, &["run"]);
     assert!(run.status.success(), "{}", text(&run));

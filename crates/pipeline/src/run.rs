@@ -250,7 +250,7 @@ fn compute(
             }
             Err(e) => {
                 view.finish("FAILED");
-                let _ = std::fs::remove_dir_all(&work);
+                let _ = crate::store::remove_tree(&work);
                 Ok(Err(format!("output rejected: {e}")))
             }
         }
@@ -262,7 +262,7 @@ fn compute(
             .join("logs")
             .join(format!("{}.failed.log", safe_name(&u.key)));
         let _ = std::fs::rename(&outcome.log, &kept);
-        let _ = std::fs::remove_dir_all(&work);
+        let _ = crate::store::remove_tree(&work);
         let mut msg = format!(
             "{} ({}); last lines of stderr:\n",
             stage.cmd.join(" "),
