@@ -24,8 +24,9 @@
 //! Modules: [`config`] (algorithms, sizes), [`data`] (Parquet -> samples, streamed),
 //! [`store`] (sample series in memory or spilled), [`norm`],
 //! [`spectral`], [`model`], [`physics`], [`loss`], [`optim`] (Adam, step decay),
-//! [`checkpoint`], [`train`], [`eval`] (Table 4), [`plot`] (PNG), [`predict`], and
-//! [`synthetic`] (small consistent datasets for tests and benchmarks).
+//! [`checkpoint`], [`train`], [`eval`] (Table 4; its files and plots are written by the
+//! `report` crate), [`predict`], and [`synthetic`] (small consistent datasets for tests and
+//! benchmarks).
 #![warn(missing_docs)]
 
 pub mod checkpoint;
@@ -38,7 +39,6 @@ pub mod model;
 pub mod norm;
 pub mod optim;
 pub mod physics;
-pub mod plot;
 pub mod predict;
 pub mod spectral;
 pub mod store;
@@ -78,6 +78,9 @@ pub enum Error {
     /// The data layer failed (missing column, unreadable file, ...).
     #[error(transparent)]
     Data(#[from] pino_data::Error),
+    /// Writing a report file (CSV, Markdown, PNG) failed.
+    #[error(transparent)]
+    Report(#[from] report::Error),
     /// candle failed.
     #[error("tensor: {0}")]
     Tensor(#[from] candle_core::Error),
