@@ -111,7 +111,11 @@ impl Limits {
         if over(ix.wheel_load_reduction_rate, self.wheel_load_reduction_rate) {
             out.push("wheel_load_reduction_rate");
         }
-        let wz = ix.sperling_wz.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let wz = ix
+            .sperling_wz
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
         if over(wz, self.sperling_wz) {
             out.push("sperling_wz");
         }
@@ -185,7 +189,11 @@ impl IndexParams {
             return Err(out_of_range("window_start_fraction", f, "[0, 1)"));
         }
         if !(self.gravity.is_finite() && self.gravity > 0.0) {
-            return Err(out_of_range("gravity", self.gravity, "finite and > 0 (m/s^2)"));
+            return Err(out_of_range(
+                "gravity",
+                self.gravity,
+                "finite and > 0 (m/s^2)",
+            ));
         }
         if let Some(s) = self.sperling.segment_s {
             if !(s.is_finite() && s > 0.0) {
@@ -197,8 +205,14 @@ impl IndexParams {
             return Err(out_of_range("sperling.f_min_hz", fm, "finite and > 0 (Hz)"));
         }
         for (name, v) in [
-            ("limits.peak_wheel_rail_force_kn", self.limits.peak_wheel_rail_force_kn),
-            ("limits.wheel_load_reduction_rate", self.limits.wheel_load_reduction_rate),
+            (
+                "limits.peak_wheel_rail_force_kn",
+                self.limits.peak_wheel_rail_force_kn,
+            ),
+            (
+                "limits.wheel_load_reduction_rate",
+                self.limits.wheel_load_reduction_rate,
+            ),
             ("limits.sperling_wz", self.limits.sperling_wz),
         ] {
             if let Some(v) = v {
@@ -226,7 +240,10 @@ impl IndexConfig {
     pub fn describe(&self) -> Vec<(&'static str, String)> {
         let opt = |v: Option<f64>| v.map_or("null".to_owned(), |v| v.to_string());
         vec![
-            ("window_start_fraction", self.window_start_fraction.to_string()),
+            (
+                "window_start_fraction",
+                self.window_start_fraction.to_string(),
+            ),
             ("gravity", self.gravity.to_string()),
             (
                 "sperling.segment_s",

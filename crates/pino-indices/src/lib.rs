@@ -386,7 +386,12 @@ impl Indices {
             car_body_acc_rms_ms2: agg.car_body_sum_sq.map(|s| (s / n).sqrt()),
             sperling_wz,
             bogie_acc_peak_ms2: agg.bogie_abs_max,
-            rail_deflection_peak_mm: 1e3 * agg.z_r_max.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            rail_deflection_peak_mm: 1e3
+                * agg
+                    .z_r_max
+                    .iter()
+                    .copied()
+                    .fold(f64::NEG_INFINITY, f64::max),
             window_s: agg.n as f64 * dt,
         }
     }

@@ -174,7 +174,10 @@ fn indices_of_a_record_with_known_extremes() {
     let [c, f, r] = ix.car_body_acc_peak_ms2;
     assert_eq!(c, 0.4);
     // Front: |-0.4| at row 100 beats |0.1 - 0.45| at row 200; rear: 0.1 + 0.45 at row 200.
-    assert!((f - 0.4).abs() < 1e-15 && (r - 0.55).abs() < 1e-15, "{f} {r}");
+    assert!(
+        (f - 0.4).abs() < 1e-15 && (r - 0.55).abs() < 1e-15,
+        "{f} {r}"
+    );
     // RMS: 999 points of 0.1 and one of -0.4 at the centre.
     let rms_c = ((999.0 * 0.01 + 0.16) / 1000.0f64).sqrt();
     assert!(rel(ix.car_body_acc_rms_ms2[0], rms_c) < 1e-14);
@@ -235,7 +238,10 @@ fn limits_name_what_fails() {
     let h = Hand::new();
     let ix = compute(&h.record(), L_C, W, &cfg()).unwrap();
     // 4/7 = 0.571 < 0.6 passes; 120 kN < 170 passes.
-    assert!(!cfg().limits.failed(&ix).contains(&"wheel_load_reduction_rate"));
+    assert!(!cfg()
+        .limits
+        .failed(&ix)
+        .contains(&"wheel_load_reduction_rate"));
     let strict = Limits {
         peak_wheel_rail_force_kn: Some(100.0),
         wheel_load_reduction_rate: Some(0.5),
@@ -251,11 +257,15 @@ fn limits_name_what_fails() {
 fn bad_input_is_named() {
     let mut h = Hand::new();
     h.z_t_a[1][7] = f64::NAN;
-    let e = compute(&h.record(), L_C, W, &cfg()).unwrap_err().to_string();
+    let e = compute(&h.record(), L_C, W, &cfg())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("`z_t2_a`") && e.contains("row 7"), "{e}");
     let mut h = Hand::new();
     h.z_r[2].pop();
-    let e = compute(&h.record(), L_C, W, &cfg()).unwrap_err().to_string();
+    let e = compute(&h.record(), L_C, W, &cfg())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("`z_r3` has 999 rows"), "{e}");
     let h = Hand::new();
     let e = compute(&h.record().tail(1000), L_C, W, &cfg())
@@ -270,7 +280,10 @@ fn bad_input_is_named() {
     .validate()
     .unwrap_err()
     .to_string();
-    assert!(e.contains("`window_start_fraction` = 1") && e.contains("[0, 1)"), "{e}");
+    assert!(
+        e.contains("`window_start_fraction` = 1") && e.contains("[0, 1)"),
+        "{e}"
+    );
     let p: IndexParams =
         serde_yaml::from_str("sperling: {segment_s: -1}\nlimits: {sperling_wz: null}\n").unwrap();
     assert_eq!(p.limits.sperling_wz, None);
