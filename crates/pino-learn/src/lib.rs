@@ -24,7 +24,7 @@
 //! Modules: [`config`] (algorithms, sizes), [`data`] (Parquet -> samples, streamed),
 //! [`store`] (sample series in memory or spilled), [`norm`],
 //! [`spectral`], [`model`], [`physics`], [`loss`], [`optim`] (Adam, step decay),
-//! [`checkpoint`], [`train`], [`eval`] (Table 4), [`plot`] (PNG), [`predict`], and
+//! [`checkpoint`], [`train`], [`eval`] (Table 4), [`indices_eval`] (engineering indices), [`plot`] (PNG), [`predict`], and
 //! [`synthetic`] (small consistent datasets for tests and benchmarks).
 #![warn(missing_docs)]
 
@@ -32,6 +32,7 @@ pub mod checkpoint;
 pub mod config;
 pub mod data;
 pub mod eval;
+pub mod indices_eval;
 pub mod kernels;
 pub mod loss;
 pub mod model;
