@@ -136,6 +136,10 @@ EXPECTED = {
         + signals(SOLUTIONS)
         + [(p, F64, "N") for p in FORCES],
     ),
+    "ranges.parquet": (
+        "sample-params",
+        [("name", STR, "-"), ("unit", STR, "-"), ("min", F64, "{unit}"), ("max", F64, "{unit}")],
+    ),
     "failures.parquet": ("simulate", [("sample_id", I64, "-"), ("reason", STR, "-")]),
     "provenance.parquet": (
         "simulate",
@@ -171,7 +175,8 @@ EXPECTED = {
     "indices_samples.parquet": ("evaluate", None),
     "predict": (
         "predict",
-        [("set", I64, "-"), ("t", F64, "s")] + signals(SOLUTIONS + [(p, F64, "N") for p in FORCES]),
+        [("set", I64, "-"), ("t", F64, "s")] + signals(SOLUTIONS + [(p, F64, "N") for p in FORCES])
+        + [("outside_training_range", STR, "-")],
     ),
 }
 # Files whose columns their stage defines: each column must have a unit, and these must be there

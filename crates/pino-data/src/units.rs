@@ -85,6 +85,11 @@ const NAMED: &[(&str, &str)] = &[
     ("peak_error_pct_w", "%"),
     // predict: the parameter set a row belongs to.
     ("set", DIMENSIONLESS),
+    // predict: the parameters of a design outside the model's training ranges (`name=value`).
+    ("outside_training_range", DIMENSIONLESS),
+    // sample-params' ranges.parquet: a parameter's sampling range, in the row's `unit`.
+    ("min", PER_ROW),
+    ("max", PER_ROW),
     // indices: beside the index columns ([`INDICES`]) of indices.parquet and predict
     // --indices; evaluate's indices_errors.parquet (one row per index and algorithm).
     ("window_s", "s"),

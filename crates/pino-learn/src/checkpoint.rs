@@ -82,6 +82,70 @@ pub struct ModelMeta {
     pub f_ref: f64,
     /// Training samples seen per epoch.
     pub train_samples: usize,
+    /// The parameter ranges the model was trained on (absent in models trained before they
+    /// were recorded: `predict` then cannot check designs against them).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub training_ranges: Option<TrainingRanges>,
+}
+
+/// File `sample-params` writes beside `params.parquet`: the configured sampling range of each
+/// parameter (`name`, `min`, `max`).
+pub const RANGES_FILE: &str = "ranges.parquet";
+
+/// The range of each of the 14 parameters a model was trained on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrainingRanges {
+    /// Where they come from: `sample-params` (its configured ranges, `ranges.parquet`) or
+    /// `training samples` (min and max over the training split, when no ranges file exists).
+    pub source: String,
+    /// Parameter names (spec order).
+    pub names: Vec<String>,
+    /// Lower bounds (parameter units).
+    pub min: Vec<f64>,
+    /// Upper bounds.
+    pub max: Vec<f64>,
+}
+
+/// One parameter of a design outside its training range.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutOfRange {
+    /// Parameter name.
+    pub name: String,
+    /// The design's value.
+    pub value: f64,
+    /// The training range.
+    pub range: [f64; 2],
+}
+
+impl std::fmt::Display for OutOfRange {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} = {} (trained on {} .. {})",
+            self.name, self.value, self.range[0], self.range[1]
+        )
+    }
+}
+
+impl TrainingRanges {
+    /// The parameters of `params` (spec order) outside their range; bounds are inclusive,
+    /// with a relative slack of 1e-9 for values written in decimal.
+    pub fn outside(&self, params: &[f64; 14]) -> Vec<OutOfRange> {
+        let mut out = Vec::new();
+        for (k, &v) in params.iter().enumerate() {
+            let (lo, hi) = (self.min[k], self.max[k]);
+            let slack = 1e-9 * lo.abs().max(hi.abs());
+            if !(v >= lo - slack && v <= hi + slack) {
+                out.push(OutOfRange {
+                    name: self.names[k].clone(),
+                    value: v,
+                    range: [lo, hi],
+                });
+            }
+        }
+        out
+    }
 }
 
 /// One epoch of the loss history.

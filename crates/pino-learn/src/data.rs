@@ -520,7 +520,12 @@ impl Dataset {
         })
     }
 
-    /// The simulation files the series are streamed from.
+    /// The `params.parquet` it was indexed from.
+    pub fn params_file(&self) -> &Path {
+        &self.params_file
+    }
+
+    /// The simulation files it streams from.
     pub fn simulation_files(&self) -> &[PathBuf] {
         &self.simulation_files
     }

@@ -661,6 +661,8 @@ pub fn evaluate(
     let split = scored_split(params_file)?;
     let mut results = Vec::new();
     let mut truth: Option<TruthRow> = None;
+    // Engineering indices of every model (and the truth row) against the solver.
+    let mut index_sets: Vec<crate::indices_eval::ModelIndices> = Vec::new();
     // One load per (window, statistics): models trained on the same data share it.
     let mut cache: Vec<(WindowConfig, Normalisation, Dataset, Prepared)> = Vec::new();
     for (m, dir) in model_dirs.iter().enumerate() {
@@ -724,6 +726,12 @@ pub fn evaluate(
         });
         let phys: Vec<Physical> = sc.preds.iter().map(|p| to_physical(p, &meta)).collect();
         let channels = channel_errors(items, &idx, &phys, &meta)?;
+        if index_sets.is_empty() {
+            index_sets.push(crate::indices_eval::truth_indices(items, &idx, &meta)?);
+        }
+        index_sets.push(crate::indices_eval::model_indices(
+            items, &idx, &phys, &meta,
+        )?);
         let alg = meta.train.algorithm.id();
         for (k, &i) in idx.iter().take(opts.plot_samples).enumerate() {
             let id = items.id(i);
@@ -758,6 +766,8 @@ pub fn evaluate(
         );
     }
     results.sort_by_key(|r| r.meta.train.algorithm.id());
+    index_sets.sort_by_key(|m| m.algorithm);
+    crate::indices_eval::write_indices(out, split, &index_sets)?;
     let evaluation = Evaluation {
         split,
         models: results,

@@ -25,14 +25,15 @@
 //! [`store`] (sample series in memory or spilled), [`norm`],
 //! [`spectral`], [`model`], [`physics`], [`loss`], [`optim`] (Adam, step decay),
 //! [`checkpoint`], [`train`], [`eval`] (Table 4; its files and plots are written by the
-//! `report` crate), [`predict`], and [`synthetic`] (small consistent datasets for tests and
-//! benchmarks).
+//! `report` crate), [`indices_eval`] (engineering indices), [`predict`], and [`synthetic`]
+//! (small consistent datasets for tests and benchmarks).
 #![warn(missing_docs)]
 
 pub mod checkpoint;
 pub mod config;
 pub mod data;
 pub mod eval;
+pub mod indices_eval;
 pub mod kernels;
 pub mod loss;
 pub mod model;

@@ -78,6 +78,59 @@ pub fn model_meta(
         norm: ds.normalisation()?,
         f_ref: ds.mean_wheel_load(train.gravity),
         train_samples: ds.split_indices(Split::Train).len(),
+        training_ranges: Some(training_ranges(ds)?),
+    })
+}
+
+/// The parameter ranges of a dataset's training: the configured sampling ranges that
+/// `sample-params` wrote beside `params.parquet` ([`checkpoint::RANGES_FILE`]), else the min
+/// and max of each parameter over the training split.
+pub fn training_ranges(ds: &Dataset) -> Result<checkpoint::TrainingRanges> {
+    let names: Vec<String> = pino_data::schema::PARAMETERS
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let file = ds
+        .params_file()
+        .parent()
+        .map(|d| d.join(checkpoint::RANGES_FILE));
+    if let Some(file) = file.filter(|f| f.is_file()) {
+        let t = pino_data::read_parquet(&file, Some(&["name", "min", "max"]))?;
+        let (n, lo, hi) = (t.str("name")?, t.f64("min")?, t.f64("max")?);
+        let mut min = Vec::with_capacity(14);
+        let mut max = Vec::with_capacity(14);
+        for name in &names {
+            let k = n
+                .iter()
+                .position(|x| x == name)
+                .ok_or_else(|| Error::Dataset {
+                    path: file.clone(),
+                    message: format!("no range for parameter `{name}`"),
+                })?;
+            min.push(lo[k]);
+            max.push(hi[k]);
+        }
+        return Ok(checkpoint::TrainingRanges {
+            source: "sample-params".into(),
+            names,
+            min,
+            max,
+        });
+    }
+    let train = ds.split_indices(Split::Train);
+    let mut min = vec![f64::INFINITY; 14];
+    let mut max = vec![f64::NEG_INFINITY; 14];
+    for &i in &train {
+        for (k, &v) in ds.samples[i].params.iter().enumerate() {
+            min[k] = min[k].min(v);
+            max[k] = max[k].max(v);
+        }
+    }
+    Ok(checkpoint::TrainingRanges {
+        source: "training samples".into(),
+        names,
+        min,
+        max,
     })
 }
 

@@ -1,6 +1,7 @@
 //! Stage `sample-params`: draws every sample's 14 parameters uniformly on their ranges
 //! (`vtcd::sampling`) and writes `params.parquet`: `sample_id` (i64), `split`
-//! ("train"/"validation"/"test"), then the 14 parameters (f64, spec order and units).
+//! ("train"/"validation"/"test"), then the 14 parameters (f64, spec order and units), and
+//! `ranges.parquet`: `name`, `unit`, `min`, `max` of each parameter's sampling range.
 //!
 //! Params: `seed`, `n_train`, `n_validation`, `n_test`, optional `ranges` (see
 //! `vtcd::sampling`). Ids `0..n_train` are training samples, the next `n_validation` ids
@@ -41,6 +42,32 @@ fn run() -> Result<String> {
     }
     let path = ctx.output_path("params.parquet");
     write_parquet(&path, &table).with_context(|| format!("writing {}", path.display()))?;
+    // The configured ranges, stored by `train` with each model so that `predict` can flag
+    // designs outside them.
+    let mut ranges = Table::default();
+    ranges.push(
+        "name",
+        Column::Str(schema::PARAMETERS.iter().map(|s| s.to_string()).collect()),
+    )?;
+    ranges.push(
+        "unit",
+        Column::Str(
+            schema::PARAMETERS
+                .iter()
+                .map(|s| pino_data::units::unit(s).unwrap_or("-").to_string())
+                .collect(),
+        ),
+    )?;
+    ranges.push(
+        "min",
+        Column::F64(plan.ranges().iter().map(|r| r[0]).collect()),
+    )?;
+    ranges.push(
+        "max",
+        Column::F64(plan.ranges().iter().map(|r| r[1]).collect()),
+    )?;
+    let path = ctx.output_path("ranges.parquet");
+    write_parquet(&path, &ranges).with_context(|| format!("writing {}", path.display()))?;
     Ok(format!(
         "{} train + {} validation + {} test samples",
         plan.n_train(),

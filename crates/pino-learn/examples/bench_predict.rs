@@ -1,0 +1,106 @@
+//! Benchmark: the engineering indices of many designs through the surrogate (`predict
+//! --indices`), at the default model size.
+//!
+//! ```text
+//! cargo run --release -p pino-learn --example bench_predict -- [designs] [batch] [model_dir]
+//! ```
+//! Without `model_dir`, builds an untrained model of the laptop default size (width 32, 128
+//! modes, projection 64, depth 3, 25 % padding) on a synthetic 2-s record at 1 kHz (2000
+//! points, as `pipeline.yaml`); the cost of a forward pass does not depend on the weights.
+//! Draws `designs` (default 10 000) random parameter sets inside the training ranges, and
+//! reports the wall time of `Predictor::indices` (forward passes, central differences and
+//! the indices), designs per second, and the solver's time for the same designs from its
+//! measured cost (BENCHMARKS.md: 0.09 s of one core per simulated second).
+use candle_core::Device;
+use pino_learn::checkpoint::save_model;
+use pino_learn::config::{ModelConfig, TrainParams, OUT_CHANNELS};
+use pino_learn::data::load_dataset;
+use pino_learn::model::Fno;
+use pino_learn::predict::{generated_profile, parse_sweep, Placement, Predictor};
+use pino_learn::spectral::Transform;
+use pino_learn::synthetic::{write_dataset, SyntheticSpec};
+use pino_learn::train::model_meta;
+use std::path::PathBuf;
+use std::time::Instant;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    pino_learn::candle_single_threaded_by_default();
+    pino_learn::tune_allocator();
+    let a: Vec<String> = std::env::args().skip(1).collect();
+    let designs: usize = a.first().map_or(Ok(10_000), |s| s.parse())?;
+    let batch: usize = a.get(1).map_or(Ok(16), |s| s.parse())?;
+    let dev = Device::Cpu;
+    let model_dir = match a.get(2) {
+        Some(d) => PathBuf::from(d),
+        None => {
+            let dir = std::env::temp_dir().join("pino-bench-predict");
+            std::fs::create_dir_all(&dir)?;
+            let spec = SyntheticSpec {
+                n_train: 4,
+                n_validation: 1,
+                duration: 2.0,
+                ..Default::default()
+            };
+            let files = write_dataset(&spec, &dir)?;
+            let mut p = TrainParams::with_algorithm(4);
+            p.startup_fraction = 0.0;
+            p.modes = 128;
+            p.padding = 25;
+            let (m, t, w) = p.configs()?;
+            let ds = load_dataset(
+                &files.params,
+                std::slice::from_ref(&files.simulation),
+                None,
+                &w,
+            )?;
+            let cfg = ModelConfig {
+                out_channels: OUT_CHANNELS,
+                ..m
+            };
+            let model = Fno::new(cfg, ds.t_points(), 1, Transform::Fused, &dev)?;
+            let meta = model_meta(&ds, cfg, t, w)?;
+            save_model(&dir, &model, &meta)?;
+            dir
+        }
+    };
+    let predictor = Predictor::load(&model_dir, &dev)?;
+    let meta = &predictor.meta;
+    let ranges = meta
+        .training_ranges
+        .clone()
+        .ok_or("model.json has no training ranges")?;
+    let mut yaml = format!("random:\n  seed: 7\n  count: {designs}\n  ranges:\n");
+    for (k, name) in ranges.names.iter().enumerate() {
+        yaml.push_str(&format!(
+            "    {name}: [{}, {}]\n",
+            ranges.min[k], ranges.max[k]
+        ));
+    }
+    let sets = parse_sweep(&yaml, std::path::Path::new("bench"))?;
+    let profile = generated_profile(1, 0)?;
+    let place = Placement::default();
+    let cfg = predictor.index_config()?;
+    let t0 = Instant::now();
+    let ix = predictor.indices(&sets, &profile, &place, &cfg, batch)?;
+    let wall = t0.elapsed().as_secs_f64();
+    let simulated = meta.grid.t_points as f64 * meta.grid.dt;
+    let worst = ix
+        .iter()
+        .map(|i| i.peak_wheel_rail_force_kn)
+        .fold(f64::NEG_INFINITY, f64::max);
+    println!(
+        "{designs} designs x {simulated:.3} s ({} points, width {}, modes {}, depth {}, batch {batch}, {} rayon threads): {wall:.2} s = {:.0} designs/s (max peak force {worst:.1} kN)",
+        meta.grid.t_points,
+        meta.model.width,
+        meta.model.modes,
+        meta.model.depth,
+        rayon::current_num_threads(),
+        designs as f64 / wall
+    );
+    let solver_core_s = 0.09 * simulated * designs as f64;
+    println!(
+        "solver for the same designs (0.09 core-s per simulated s, BENCHMARKS.md): {solver_core_s:.0} core-s = {:.0} s on 2 cores",
+        solver_core_s / 2.0
+    );
+    Ok(())
+}
