@@ -8,6 +8,7 @@
 //! is a no-op. Accuracy is not asserted here (2 epochs learn little); the learning tests do.
 
 use pino_data::{read_parquet, schema};
+use pino_mbd_tests::output_text;
 use pino_mbd_tests::TINY;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -34,21 +35,12 @@ fn pipeline(ws: &Path, args: &[&str]) -> Output {
         .expect("pipeline runs")
 }
 
-fn text(o: &Output) -> String {
-    format!(
-        "exit {:?}\nstdout:\n{}\nstderr:\n{}",
-        o.status.code(),
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
 fn show(ws: &Path, stage: &str, extra: &[&str]) -> Vec<PathBuf> {
     let o = pipeline_cmd(ws, extra)
         .args(["show", stage])
         .output()
         .expect("pipeline runs");
-    assert!(o.status.success(), "show {stage}: {}", text(&o));
+    assert!(o.status.success(), "show {stage}: {}", output_text(&o));
     String::from_utf8_lossy(&o.stdout)
         .lines()
         .map(PathBuf::from)
@@ -72,7 +64,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     .unwrap();
 
     let first = pipeline(ws.path(), &["run"]);
-    assert!(first.status.success(), "{}", text(&first));
+    assert!(first.status.success(), "{}", output_text(&first));
 
     // The simulation is the public schema, both shards together hold every sample once.
     let sim = show(ws.path(), "simulate", &[]);
@@ -121,10 +113,10 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
 
     // Same inputs: nothing to do.
     let second = pipeline(ws.path(), &["run"]);
-    assert!(second.status.success(), "{}", text(&second));
+    assert!(second.status.success(), "{}", output_text(&second));
     assert!(
-        text(&second).contains("Nothing to do"),
+        output_text(&second).contains("Nothing to do"),
         "second run should do nothing: {}",
-        text(&second)
+        output_text(&second)
     );
 }

@@ -11,20 +11,12 @@
 //! Needs Python 3 with the pinned readers (`pip install -r tests/interop/requirements.txt`;
 //! `PINO_PYTHON` names another interpreter): without them this test fails, it never skips.
 
+use pino_mbd_tests::output_text;
 use pino_mbd_tests::{bin, pipeline_bin_dir, workspace_root, TempWorkspace, TINY};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 const INSTALL: &str = "pip install -r tests/interop/requirements.txt";
-
-fn text(o: &Output) -> String {
-    format!(
-        "exit {:?}\nstdout:\n{}\nstderr:\n{}",
-        o.status.code(),
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 /// The Python interpreter, checked for the readers before any work is done.
 fn python() -> String {
@@ -58,7 +50,7 @@ fn pipeline(ws: &Path, args: &[&str]) -> Output {
 /// The directory of `file` among the outputs of `target`.
 fn output_dir(ws: &Path, target: &str, file: &str) -> PathBuf {
     let o = pipeline(ws, &["show", target]);
-    assert!(o.status.success(), "show {target}: {}", text(&o));
+    assert!(o.status.success(), "show {target}: {}", output_text(&o));
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     let path = out
         .lines()
@@ -89,7 +81,7 @@ fn every_artifact_reads_the_same_in_pyarrow_polars_and_duckdb() {
     }
 
     let run = pipeline(ws, &["run"]);
-    assert!(run.status.success(), "{}", text(&run));
+    assert!(run.status.success(), "{}", output_text(&run));
 
     let model = output_dir(ws, "train[algorithm=1]", "model.safetensors");
     let predictions = ws.join("predictions.parquet");
@@ -100,7 +92,7 @@ fn every_artifact_reads_the_same_in_pyarrow_polars_and_duckdb() {
         .arg(&predictions)
         .output()
         .unwrap();
-    assert!(o.status.success(), "predict: {}", text(&o));
+    assert!(o.status.success(), "predict: {}", output_text(&o));
 
     let check = workspace_root().join("tests/interop/check_parquet.py");
     let o = Command::new(&python)
@@ -112,7 +104,7 @@ fn every_artifact_reads_the_same_in_pyarrow_polars_and_duckdb() {
         .arg("--no-indices")
         .output()
         .unwrap();
-    let report = text(&o);
+    let report = output_text(&o);
     assert!(o.status.success(), "{}", report);
     println!("{report}");
 }

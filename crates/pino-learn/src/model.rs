@@ -335,7 +335,6 @@ impl Predictor<'_> {
                 .to_dtype(candle_core::DType::F32)?);
         };
         let (b, t, _) = x.dims3()?;
-        let net = kernels::FusedNetwork::new(self.model.network_shape(), plan, b, t);
         let expected = [b, t, self.model.config.in_channels];
         if x.dims() != expected {
             return Err(candle_core::Error::Msg(format!(
@@ -344,8 +343,9 @@ impl Predictor<'_> {
             ))
             .into());
         }
+        let shape = self.model.network_shape();
         let u = kernels::with_host(&x.to_dtype(candle_core::DType::F32)?, |x| {
-            net.infer(x, params)
+            kernels::FusedNetwork::infer(shape, plan, t, x, params)
         })?;
         Ok(Tensor::from_vec(
             u,

@@ -202,13 +202,7 @@ pub fn gc(workspace: &Path, opts: &GcOptions, ui: &Ui) -> Result<GcReport> {
     if !store.root.join("objects").is_dir() {
         return Ok(GcReport::default());
     }
-    let lock_path = store.root.join("run.lock");
-    let _lock = RunLock::acquire(&lock_path, opts.wait, |pid| {
-        ui.line(&format!(
-            "waiting for another `pipeline run` (pid {pid}) to finish ({})...",
-            lock_path.display()
-        ))
-    })?;
+    let _lock = RunLock::acquire_for_workspace(&store.root, opts.wait, ui)?;
     let locked: BTreeSet<String> = store
         .read_lock_record()?
         .pipelines

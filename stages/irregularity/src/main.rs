@@ -16,13 +16,7 @@ const SAMPLES_PER_GROUP: usize = 64;
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
-    // Every Parquet file this process writes names this unit and its parameters.
-    pino_data::metadata::set_stage_origin(
-        &ctx.stage,
-        ctx.shard.index,
-        ctx.shard.count,
-        ctx.raw_params(),
-    )?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let raw: IrregularityParams = ctx.params()?;
     let generator = raw
         .validate()

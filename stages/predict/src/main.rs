@@ -157,12 +157,7 @@ fn run() -> Result<()> {
     }
     let flags: Vec<String> = outside
         .iter()
-        .map(|o| {
-            o.iter()
-                .map(|r| format!("{}={}", r.name, r.value))
-                .collect::<Vec<_>>()
-                .join(",")
-        })
+        .map(|o| pino_learn::predict::outside_flag(o))
         .collect();
     pino_data::metadata::set_origin(origin(&args, &sets))?;
     let started = std::time::Instant::now();

@@ -15,13 +15,7 @@ use vtcd::sampling::SamplingParams;
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
-    // Every Parquet file this process writes names this unit and its parameters.
-    pino_data::metadata::set_stage_origin(
-        &ctx.stage,
-        ctx.shard.index,
-        ctx.shard.count,
-        ctx.raw_params(),
-    )?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let raw: SamplingParams = ctx.params()?;
     let plan = raw
         .validate()

@@ -23,13 +23,7 @@ use vtcd::simulation::{self, Profile, SampleInput, SimulationConfig};
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
-    // Every Parquet file this process writes names this unit and its parameters.
-    pino_data::metadata::set_stage_origin(
-        &ctx.stage,
-        ctx.shard.index,
-        ctx.shard.count,
-        ctx.raw_params(),
-    )?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let config: SimulationConfig = ctx.params()?;
     config
         .validate()

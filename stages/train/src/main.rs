@@ -16,13 +16,7 @@ use stage_kit::StageContext;
 fn run() -> Result<()> {
     pino_learn::tune_allocator();
     let ctx = StageContext::load()?;
-    // Every Parquet file this process writes names this unit and its parameters.
-    pino_data::metadata::set_stage_origin(
-        &ctx.stage,
-        ctx.shard.index,
-        ctx.shard.count,
-        ctx.raw_params(),
-    )?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let p: TrainParams = ctx.params()?;
     let configs = p
         .configs()

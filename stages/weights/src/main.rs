@@ -21,13 +21,7 @@ use vtcd::weights::{magnitude_weights, WeightParams};
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
-    // Every Parquet file this process writes names this unit and its parameters.
-    pino_data::metadata::set_stage_origin(
-        &ctx.stage,
-        ctx.shard.index,
-        ctx.shard.count,
-        ctx.raw_params(),
-    )?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let raw: WeightParams = ctx.params()?;
     let cfg = raw
         .validate()

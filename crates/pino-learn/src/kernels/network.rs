@@ -240,7 +240,6 @@ pub struct FusedNetwork {
     shape: NetworkShape,
     batch: usize,
     t: usize,
-    dft: Arc<RealDft>,
     parts: Vec<(usize, NetworkPart)>,
 }
 
@@ -258,7 +257,6 @@ impl FusedNetwork {
             shape,
             batch,
             t,
-            dft: Arc::clone(dft),
             parts,
         }
     }
@@ -283,13 +281,20 @@ impl FusedNetwork {
         u
     }
 
-    /// The network's output `[B, T, C_out]` for host input `x [B, T, C_in]` and flat
-    /// parameters `p`, for inference: the op's forward pass to round-off, nothing kept for a
-    /// backward pass. Samples run one by one, side by side (each sample's activations stay
-    /// in the core's cache, and its output does not depend on the other samples).
-    pub fn infer(&self, x: &[f32], p: &[f32]) -> Vec<f32> {
-        let per_in = self.t * self.shape.c_in;
-        let sample = NetworkPart::new(self.shape, &self.dft, 1, self.t);
+    /// The output `[B, T, C_out]` of the network `shape` (Fourier layers on the plan `dft`)
+    /// for host input `x [B, T, C_in]` of `t` points and flat parameters `p`, for inference:
+    /// the op's forward pass to round-off, nothing kept for a backward pass. Samples run one
+    /// by one, side by side (each sample's activations stay in the core's cache, and its
+    /// output does not depend on the other samples).
+    pub fn infer(
+        shape: NetworkShape,
+        dft: &Arc<RealDft>,
+        t: usize,
+        x: &[f32],
+        p: &[f32],
+    ) -> Vec<f32> {
+        let per_in = t * shape.c_in;
+        let sample = NetworkPart::new(shape, dft, 1, t);
         let outs: Vec<Vec<f32>> = x.par_chunks(per_in).map(|x| sample.infer(x, p)).collect();
         outs.concat()
     }

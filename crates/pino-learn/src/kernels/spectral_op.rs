@@ -265,10 +265,8 @@ impl SpectralConvOp {
         c: usize,
         o: usize,
     ) -> (Vec<f32>, Vec<C32>) {
-        let (b, m) = (self.batch, self.dft.modes());
-        let spectrum = rows_to_modes(&self.analyse_rows(x), c, b, m);
-        let y = mix(&spectrum, wr, wi, b, c, o);
-        let out = self.synthesise_rows(&modes_to_rows(&y, o, b, m), &self.synthesis_weights(false));
+        let mut out = vec![0.0f32; x.len() / c * o];
+        let spectrum = self.convolve_into(x, wr, wi, c, o, &mut out);
         (out, spectrum)
     }
 
@@ -283,6 +281,19 @@ impl SpectralConvOp {
         o: usize,
         out: &mut [f32],
     ) {
+        self.convolve_into(x, wr, wi, c, o, out);
+    }
+
+    /// `K x` into `out [O, B, T]`; returns the spectrum `X [M, B, C]`.
+    fn convolve_into(
+        &self,
+        x: &[f32],
+        wr: &[f32],
+        wi: &[f32],
+        c: usize,
+        o: usize,
+        out: &mut [f32],
+    ) -> Vec<C32> {
         let (b, m) = (self.batch, self.dft.modes());
         let spectrum = rows_to_modes(&self.analyse_rows(x), c, b, m);
         let y = mix(&spectrum, wr, wi, b, c, o);
@@ -291,6 +302,7 @@ impl SpectralConvOp {
             &self.synthesis_weights(false),
             out,
         );
+        spectrum
     }
 
     /// Backward of [`Self::forward_host`] for the upstream gradient `g [O, B, T]`:
