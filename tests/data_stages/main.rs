@@ -340,7 +340,7 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
     for (file, n_train, n_validation, n_test) in [
         ("pipeline.yaml", 800, 100, 100),
         ("configs/paper.yaml", 20000, 2000, 2000),
-        ("configs/long.yaml", 3200, 200, 200),
+        ("configs/long.yaml", 4800, 200, 200),
     ] {
         let params = |stage: &str| pino_mbd_tests::stage_params(file, stage);
         let sampling: vtcd::sampling::SamplingParams =
