@@ -6,6 +6,11 @@ use pino_indices::{IndexParams, Record};
 
 const DT: f64 = 1e-3;
 
+/// Named columns of one synthetic record.
+type Columns = Vec<(String, Vec<f64>)>;
+/// An edit of a sample's columns before writing (to plant NaNs, drop columns, ...).
+type Edit<'a> = &'a dyn Fn(i64, &mut Columns);
+
 /// A deterministic record of `n` rows for sample `id`: sinusoids and a few spikes in every
 /// signal, different per sample.
 fn record_columns(id: i64, n: usize) -> Vec<(String, Vec<f64>)> {
@@ -56,7 +61,7 @@ fn params_of(id: i64) -> [f64; 14] {
 }
 
 /// Writes a simulation file of samples `ids` (`n` rows each) with the indices' columns.
-fn write_sim(path: &Path, ids: &[i64], n: usize, edit: &dyn Fn(i64, &mut Vec<(String, Vec<f64>)>)) {
+fn write_sim(path: &Path, ids: &[i64], n: usize, edit: Edit) {
     let mut t = Table::default();
     let mut sid = Vec::new();
     let mut time = Vec::new();
@@ -115,7 +120,7 @@ struct Fixture {
     files: Vec<PathBuf>,
 }
 
-fn fixture(edit: &dyn Fn(i64, &mut Vec<(String, Vec<f64>)>)) -> Fixture {
+fn fixture(edit: Edit) -> Fixture {
     let dir = tempfile::tempdir().unwrap();
     let params = dir.path().join("params.parquet");
     write_params(&params, &[0, 1, 2, 3, 4, 5]);

@@ -368,9 +368,9 @@ impl Predictor {
         let mut t_col = Vec::new();
         for (s, pred) in preds.iter().enumerate() {
             let ph = &pred.physical;
-            for n in 1..tp - 1 {
+            for (n, &tn) in times.iter().enumerate().take(tp - 1).skip(1) {
                 set_col.push(s as i64);
-                t_col.push(times[n]);
+                t_col.push(tn);
                 for (c, col) in cols.iter_mut().take(OUT_CHANNELS).enumerate() {
                     col.1.push(ph.u[n * OUT_CHANNELS + c]);
                 }
