@@ -284,7 +284,13 @@ fn weights_reads_shards_and_names_missing_columns() {
         sp.display(),
         c.display()
     );
-    let (ctx1, out1) = context(dir.path(), "weights1", r#"{"seed": 3}"#, &inputs1);
+    // The same unit (`weights`, written into every file's metadata) in another directory.
+    let (ctx1, out1) = context(
+        &dir.path().join("single-run"),
+        "weights",
+        r#"{"seed": 3, "noise_ratio": 0.02}"#,
+        &inputs1,
+    );
     ok("weights", &ctx1, 1);
     assert_eq!(bytes, std::fs::read(out1.join("weights.parquet")).unwrap());
 
@@ -334,6 +340,7 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
     for (file, n_train, n_validation, n_test) in [
         ("pipeline.yaml", 800, 100, 100),
         ("configs/paper.yaml", 20000, 2000, 2000),
+        ("configs/long.yaml", 3200, 200, 200),
     ] {
         let params = |stage: &str| pino_mbd_tests::stage_params(file, stage);
         let sampling: vtcd::sampling::SamplingParams =

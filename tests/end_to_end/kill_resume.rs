@@ -8,7 +8,8 @@
 //! each. The kill moments are fractions of the uninterrupted run's wall time, drawn from a
 //! fixed seed; the assertion is on bytes only, never on time.
 
-use super::{pipeline_cmd, show, text};
+use super::{pipeline_cmd, show};
+use pino_mbd_tests::output_text;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -37,8 +38,8 @@ fn next(state: &mut u64) -> u64 {
     z ^ (z >> 31)
 }
 
-fn workspace() -> tempfile::TempDir {
-    let ws = tempfile::tempdir().unwrap();
+fn workspace() -> pino_mbd_tests::TempWorkspace {
+    let ws = pino_mbd_tests::TempWorkspace::new();
     std::fs::copy(
         pino_mbd_tests::workspace_root().join("pipeline.yaml"),
         ws.path().join("pipeline.yaml"),
@@ -72,7 +73,7 @@ fn killed_at_random_moments_the_pipeline_ends_byte_identical() {
         .args(["run", "-j", "2"])
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
+    assert!(o.status.success(), "{}", output_text(&o));
     let wall = t0.elapsed();
     let expected = artifacts(reference.path());
     assert!(expected.keys().any(|k| k.ends_with("model.safetensors")));
@@ -107,7 +108,7 @@ fn killed_at_random_moments_the_pipeline_ends_byte_identical() {
             .args(["run", "-j", "2"])
             .output()
             .unwrap();
-        assert!(o.status.success(), "trial {trial}: {}", text(&o));
+        assert!(o.status.success(), "trial {trial}: {}", output_text(&o));
         let got = artifacts(ws.path());
         assert_eq!(
             got.keys().collect::<Vec<_>>(),

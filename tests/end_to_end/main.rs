@@ -8,28 +8,10 @@
 //! is a no-op. Accuracy is not asserted here (2 epochs learn little); the learning tests do.
 
 use pino_data::{read_parquet, schema};
+use pino_mbd_tests::output_text;
+use pino_mbd_tests::TINY;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-/// Overrides that keep the real physics and wiring but cost seconds in the dev profile.
-/// The track is 200 fasteners (120 m): the front wheel starts at most 20 + 2 (1.2 * 9 + 1.2 *
-/// 1.2) = 44.5 m and travels at most 350/3.6 * 0.5 = 48.6 m, so it ends at 93 m, inside both
-/// the rail and the 120 m irregularity profile.
-const TINY: &[&str] = &[
-    "sample-params.n_train=4",
-    "sample-params.n_validation=2",
-    "sample-params.n_test=1",
-    "irregularity.length=120.0",
-    "simulate.duration=0.5",
-    "simulate.n_f=200",
-    "simulate.n_m=100",
-    "train.epochs=2",
-    "train.width=8",
-    "train.modes=8",
-    "train.projection_width=16",
-    "train.batch_size=2",
-    "evaluate.plot_samples=1",
-];
 
 mod kill_resume;
 
@@ -38,7 +20,7 @@ fn pipeline_cmd(ws: &Path, extra: &[&str]) -> Command {
     let mut cmd = Command::new(pino_mbd_tests::bin("pipeline"));
     cmd.current_dir(ws)
         .arg("--bin-dir")
-        .arg(pino_mbd_tests::bin_dir())
+        .arg(pino_mbd_tests::pipeline_bin_dir("pipeline.yaml"))
         .env_remove("PINO_BIN_DIR");
     for s in TINY.iter().chain(extra) {
         cmd.arg("--set").arg(s);
@@ -53,21 +35,12 @@ fn pipeline(ws: &Path, args: &[&str]) -> Output {
         .expect("pipeline runs")
 }
 
-fn text(o: &Output) -> String {
-    format!(
-        "exit {:?}\nstdout:\n{}\nstderr:\n{}",
-        o.status.code(),
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
 fn show(ws: &Path, stage: &str, extra: &[&str]) -> Vec<PathBuf> {
     let o = pipeline_cmd(ws, extra)
         .args(["show", stage])
         .output()
         .expect("pipeline runs");
-    assert!(o.status.success(), "show {stage}: {}", text(&o));
+    assert!(o.status.success(), "show {stage}: {}", output_text(&o));
     String::from_utf8_lossy(&o.stdout)
         .lines()
         .map(PathBuf::from)
@@ -83,7 +56,7 @@ fn named<'a>(files: &'a [PathBuf], name: &str) -> Vec<&'a PathBuf> {
 
 #[test]
 fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
-    let ws = tempfile::tempdir().unwrap();
+    let ws = pino_mbd_tests::TempWorkspace::new();
     std::fs::copy(
         pino_mbd_tests::workspace_root().join("pipeline.yaml"),
         ws.path().join("pipeline.yaml"),
@@ -91,7 +64,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     .unwrap();
 
     let first = pipeline(ws.path(), &["run"]);
-    assert!(first.status.success(), "{}", text(&first));
+    assert!(first.status.success(), "{}", output_text(&first));
 
     // The simulation is the public schema, both shards together hold every sample once.
     let sim = show(ws.path(), "simulate", &[]);
@@ -167,10 +140,10 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
 
     // Same inputs: nothing to do.
     let second = pipeline(ws.path(), &["run"]);
-    assert!(second.status.success(), "{}", text(&second));
+    assert!(second.status.success(), "{}", output_text(&second));
     assert!(
-        text(&second).contains("Nothing to do"),
+        output_text(&second).contains("Nothing to do"),
         "second run should do nothing: {}",
-        text(&second)
+        output_text(&second)
     );
 }

@@ -89,7 +89,8 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         models.push(out);
     }
     // Same inputs, same bytes: a second run of algorithm 3 reproduces every file.
-    let (ctx, again) = context(dir, "train3-again", small(3), inputs.clone());
+    // The same unit (`train3`, written into every file's metadata) in another directory.
+    let (ctx, again) = context(&dir.join("again"), "train3", small(3), inputs.clone());
     let o = run("train", &["--context", ctx.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
     for f in ["model.safetensors", "model.json", "history.parquet"] {
@@ -340,7 +341,7 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
 
 #[test]
 fn pipeline_files_parameter_blocks_parse_into_the_learning_types() {
-    for file in ["pipeline.yaml", "configs/paper.yaml"] {
+    for file in ["pipeline.yaml", "configs/paper.yaml", "configs/long.yaml"] {
         for alg in 1..=5 {
             let mut params = pino_mbd_tests::stage_params(file, "train");
             params["algorithm"] = serde_json::Value::from(alg);

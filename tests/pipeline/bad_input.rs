@@ -91,3 +91,53 @@ fn bad_overrides_are_refused_with_file_and_line() {
     );
     assert_bad(&ws, &["run", "nope"], &["unknown stage `nope`"]);
 }
+
+/// Paths are checked after following symbolic links: a link in the workspace that points
+/// outside is refused for `cmd[0]` and `bin_dir`; a link that stays inside is fine.
+#[test]
+fn symbolic_links_out_of_the_workspace_are_refused() {
+    let ws = Ws::new("basic.yaml");
+    let outside = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        env!("CARGO_BIN_EXE_test-stage"),
+        outside.path().join("test-stage"),
+    )
+    .unwrap();
+    std::os::unix::fs::symlink(outside.path(), ws.path().join("tools")).unwrap();
+    std::fs::write(
+        ws.path().join("bad.yaml"),
+        "stages:\n  a:\n    cmd: [tools/test-stage]\n",
+    )
+    .unwrap();
+    assert_bad(
+        &ws,
+        &["-f", "bad.yaml", "run"],
+        &["bad.yaml:3:", "symbolic link", "outside the workspace"],
+    );
+    std::fs::write(
+        ws.path().join("bad.yaml"),
+        "bin_dir: tools\nstages:\n  a:\n    cmd: [test-stage]\n",
+    )
+    .unwrap();
+    assert_bad(
+        &ws,
+        &["-f", "bad.yaml", "run"],
+        &["bad.yaml:1:", "bin_dir `tools`", "symbolic link"],
+    );
+    // The same program behind a link that stays inside the workspace runs.
+    std::fs::create_dir(ws.path().join("bin")).unwrap();
+    std::fs::copy(
+        env!("CARGO_BIN_EXE_test-stage"),
+        ws.path().join("bin/test-stage"),
+    )
+    .unwrap();
+    std::os::unix::fs::symlink("bin", ws.path().join("local")).unwrap();
+    std::fs::write(
+        ws.path().join("good.yaml"),
+        "stages:\n  a:\n    cmd: [local/test-stage]\n",
+    )
+    .unwrap();
+    let r = ws.run(&["-f", "good.yaml", "run"]);
+    assert_eq!(r.code, 0, "{r:?}");
+    assert_eq!(ws.ran(), ["a".to_string()]);
+}

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 /// A temporary workspace holding `pipeline.yaml` copied from a fixture.
 pub struct Ws {
-    pub dir: tempfile::TempDir,
+    pub dir: pino_mbd_tests::TempWorkspace,
 }
 
 /// The result of one `pipeline` invocation.
@@ -43,7 +43,7 @@ impl From<Output> for Run {
 impl Ws {
     pub fn new(fixture_name: &str) -> Ws {
         let ws = Ws {
-            dir: tempfile::tempdir().unwrap(),
+            dir: pino_mbd_tests::TempWorkspace::new(),
         };
         std::fs::copy(fixture(fixture_name), ws.path().join("pipeline.yaml")).unwrap();
         ws

@@ -12,4 +12,5 @@ mod concurrency;
 mod failure;
 mod shards_and_matrix;
 mod slurm;
+mod store;
 mod views;

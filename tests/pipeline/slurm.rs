@@ -443,7 +443,7 @@ fn physics_stages_on_slurm_are_byte_identical_to_local() {
         let mut c = Command::new(pino_mbd_tests::bin("pipeline"));
         c.current_dir(ws)
             .arg("--bin-dir")
-            .arg(pino_mbd_tests::bin_dir())
+            .arg(pino_mbd_tests::pipeline_bin_dir("pipeline.yaml"))
             .env_remove("PINO_BIN_DIR");
         for s in TINY {
             c.arg("--set").arg(s);
@@ -460,7 +460,7 @@ fn physics_stages_on_slurm_are_byte_identical_to_local() {
         );
     };
     let mk = || {
-        let ws = tempfile::tempdir().unwrap();
+        let ws = pino_mbd_tests::TempWorkspace::new();
         std::fs::copy(
             pino_mbd_tests::workspace_root().join("pipeline.yaml"),
             ws.path().join("pipeline.yaml"),
@@ -477,7 +477,7 @@ fn physics_stages_on_slurm_are_byte_identical_to_local() {
             let mut c = Command::new(pino_mbd_tests::bin("pipeline"));
             c.current_dir(ws)
                 .arg("--bin-dir")
-                .arg(pino_mbd_tests::bin_dir())
+                .arg(pino_mbd_tests::pipeline_bin_dir("pipeline.yaml"))
                 .env_remove("PINO_BIN_DIR");
             for s in TINY {
                 c.arg("--set").arg(s);

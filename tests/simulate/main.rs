@@ -263,14 +263,15 @@ fn bad_input_is_refused_with_a_clear_message() {
     );
 }
 
-/// The `simulate` blocks of `pipeline.yaml` (laptop: 2 s) and `configs/paper.yaml` (5 s) parse
+/// The `simulate` blocks of `pipeline.yaml` and `configs/long.yaml` (laptop: 2 s) and
+/// `configs/paper.yaml` (5 s) parse
 /// into the stage's parameter type, pass validation, and keep the paper's physics (full
 /// track, dt = 1e-4, 1 kHz); only the duration and the start-up fractions differ (both start
 /// from equilibrium).
 #[test]
 fn pipeline_files_configure_the_paper_physics() {
     let mut durations = Vec::new();
-    for file in ["pipeline.yaml", "configs/paper.yaml"] {
+    for file in ["pipeline.yaml", "configs/paper.yaml", "configs/long.yaml"] {
         let params = pino_mbd_tests::stage_params(file, "simulate");
         let c: vtcd::simulation::SimulationConfig =
             serde_json::from_value(params).unwrap_or_else(|e| panic!("{file}: {e}"));
@@ -288,7 +289,7 @@ fn pipeline_files_configure_the_paper_physics() {
         assert_eq!(c.start, vtcd::simulation::StartMode::Equilibrium, "{file}");
         durations.push(c.duration);
     }
-    assert_eq!(durations, [2.0, 5.0]);
+    assert_eq!(durations, [2.0, 5.0, 2.0]);
 }
 
 /// `start` reaches the solver: from `rest` every sample's first row is the zero state (the

@@ -10,6 +10,9 @@
 //!   missing or of another type.
 //! - [`provenance`]: the physical constants a dataset was simulated with, checked by the
 //!   stages that learn from it.
+//! - [`units`]: the unit of every column of every artifact; [`metadata`]: what each file
+//!   carries about itself (every column's unit, the writing stage, unit and parameters, the
+//!   version), readable from pyarrow, polars and DuckDB.
 //!
 //! ```no_run
 //! use pino_data::{Table, Column, write_parquet, read_parquet};
@@ -23,11 +26,13 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod metadata;
 mod parquet_io;
 pub mod provenance;
 pub mod schema;
 mod stream;
 mod table;
+pub mod units;
 
 pub use parquet_io::{
     for_each_batch, read_parquet, read_parquet_files, row_count, write_parquet, write_parquet_with,
@@ -91,6 +96,17 @@ pub enum Error {
     /// The same column name twice in one table.
     #[error("duplicate column `{0}`")]
     Duplicate(String),
+    /// A column that [`units::unit`] has no unit for (every written column must have one).
+    #[error("{path}: column `{column}` has no unit: state it in crates/pino-data/src/units.rs")]
+    NoUnit {
+        /// The file being written.
+        path: PathBuf,
+        /// The column.
+        column: String,
+    },
+    /// A process declared two different origins ([`metadata::set_origin`]).
+    #[error("origin of the written files: {0}")]
+    Origin(String),
     /// A dataset's provenance record is missing or disagrees with a stage's constants.
     #[error("{path}: {message}")]
     Provenance {

@@ -2,14 +2,17 @@
 //!
 //! Writes go through [`atomic_file::TempFile`] (a temporary sibling, fsynced, renamed over
 //! `NAME`): a crash never leaves a partial file under the final name. Writer settings
-//! (Snappy, row-group size, `created_by`) are fixed, so equal tables give equal bytes.
+//! (Snappy, row-group size, `created_by`) are fixed, so equal tables give equal bytes. Every
+//! write attaches the units and origin of [`crate::metadata`] (the one place they are made).
 
-use crate::{Column, Error, Result, Table};
+use crate::units::UNIT_KEY;
+use crate::{metadata, Column, Error, Result, Table};
 use arrow_array::{Array, ArrayRef, Float64Array, Int64Array, RecordBatch, StringArray};
-use arrow_schema::{DataType, Field, Schema, SchemaRef};
+use arrow_schema::{DataType, Field, Metadata, Schema, SchemaRef};
 use parquet::arrow::arrow_reader::{ParquetRecordBatchReader, ParquetRecordBatchReaderBuilder};
 use parquet::arrow::{ArrowWriter, ProjectionMask};
 use parquet::basic::Compression;
+use parquet::file::metadata::KeyValue;
 use parquet::file::properties::WriterProperties;
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -40,14 +43,14 @@ pub fn write_parquet(path: &Path, table: &Table) -> Result<()> {
 /// Writes `table` to `path` atomically with `row_group_rows` rows per row group (a
 /// per-sample row group, for instance, lets readers skip samples cheaply).
 pub fn write_parquet_with(path: &Path, table: &Table, row_group_rows: usize) -> Result<()> {
-    let schema = arrow_schema(table);
+    let schema = arrow_schema(path, table)?;
     let arrays = arrow_arrays(table);
     let batch = if arrays.is_empty() {
         RecordBatch::new_empty(schema.clone())
     } else {
         RecordBatch::try_new(schema.clone(), arrays).map_err(|e| pq(path, e))?
     };
-    let props = writer_properties(row_group_rows.max(1));
+    let props = writer_properties(row_group_rows.max(1), &schema);
 
     let (tmp, file) = atomic_file::TempFile::create(path).map_err(atomic)?;
     // Any early return drops `tmp`, which removes the temporary file.
@@ -66,14 +69,21 @@ pub(crate) fn data_type(col: &Column) -> DataType {
     }
 }
 
-/// The Arrow schema of a table (every column non-nullable).
-pub(crate) fn arrow_schema(table: &Table) -> SchemaRef {
+/// The Arrow schema of a table written to `path` (every column non-nullable): each field
+/// with its `unit`, the schema with the file's key-value metadata ([`crate::metadata`]).
+pub(crate) fn arrow_schema(path: &Path, table: &Table) -> Result<SchemaRef> {
+    let units = metadata::column_units(path, table)?;
     let fields: Vec<Field> = table
         .columns()
         .iter()
-        .map(|(name, col)| Field::new(name, data_type(col), false))
+        .zip(&units)
+        .map(|((name, col), (_, unit))| {
+            Field::new(name, data_type(col), false)
+                .with_metadata(Metadata::new().with(UNIT_KEY, *unit))
+        })
         .collect();
-    Arc::new(Schema::new(fields))
+    let kv = metadata::file_metadata(&units);
+    Ok(Arc::new(Schema::new_with_metadata(fields, kv)))
 }
 
 /// The table's columns as Arrow arrays.
@@ -91,12 +101,20 @@ pub(crate) fn arrow_arrays(table: &Table) -> Vec<ArrayRef> {
         .collect()
 }
 
-/// The fixed writer settings (Snappy, `created_by`), so equal tables give equal bytes.
-pub(crate) fn writer_properties(max_row_group_rows: usize) -> WriterProperties {
+/// The fixed writer settings (Snappy, `created_by`), so equal tables give equal bytes, and
+/// the schema's metadata as the file's key-value metadata (sorted by key), where readers
+/// that do not decode Arrow's embedded schema (DuckDB, polars) find it.
+pub(crate) fn writer_properties(max_row_group_rows: usize, schema: &Schema) -> WriterProperties {
+    let kv = schema
+        .metadata()
+        .iter()
+        .map(|(k, v)| KeyValue::new(k.clone(), v.clone()))
+        .collect();
     WriterProperties::builder()
         .set_compression(Compression::SNAPPY)
         .set_max_row_group_row_count(Some(max_row_group_rows))
         .set_created_by("pino-mbd".to_owned())
+        .set_key_value_metadata(Some(kv))
         .build()
 }
 
@@ -358,6 +376,53 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names.len(), 2, "{names:?}");
+    }
+
+    /// Each column carries its unit (field metadata), the file its version and the units as
+    /// JSON (key-value metadata), in the same bytes on a rerun; a column without a unit is
+    /// refused and leaves no file.
+    #[test]
+    fn columns_carry_units_and_files_their_metadata() {
+        use crate::metadata::{read_metadata, COLUMN_UNITS_KEY, STAGE_KEY, VERSION, VERSION_KEY};
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.parquet");
+        write_parquet(&a, &sample()).unwrap();
+        let m = read_metadata(&a).unwrap();
+        let units: Vec<(&str, Option<&str>)> = m
+            .column_units
+            .iter()
+            .map(|(n, u)| (n.as_str(), u.as_deref()))
+            .collect();
+        assert_eq!(
+            units,
+            [
+                ("sample_id", Some("-")),
+                ("t", Some("s")),
+                ("split", Some("-"))
+            ]
+        );
+        assert_eq!(m.key_value[VERSION_KEY], VERSION);
+        assert_eq!(
+            m.key_value[COLUMN_UNITS_KEY],
+            r#"{"sample_id":"-","split":"-","t":"s"}"#
+        );
+        // No origin declared in this process: no stage.
+        assert!(!m.key_value.contains_key(STAGE_KEY));
+        assert!(m.key_value.contains_key("ARROW:schema"));
+
+        let mut bad = sample();
+        bad.push("speed", Column::F64(vec![1.0; 3])).unwrap();
+        let b = dir.path().join("b.parquet");
+        let e = write_parquet(&b, &bad).unwrap_err().to_string();
+        assert!(
+            e.contains("b.parquet") && e.contains("`speed` has no unit"),
+            "{e}"
+        );
+        let e = crate::StreamWriter::create(&b, &bad)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`speed` has no unit"), "{e}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 
     #[test]

@@ -1,8 +1,9 @@
 //! The dataset's provenance: the physical constants a simulated dataset was made with,
 //! stored next to it so that the stages that learn from it can check theirs.
 //!
-//! `simulate` writes `provenance.parquet` (columns `name` (string), `value` (f64), one row
-//! per constant, sorted by name) into every shard's output; `weights` and `train` call
+//! `simulate` writes `provenance.parquet` (columns `name` (string), `value` (f64), `unit`
+//! (string, from [`crate::units`]), one row per constant, sorted by name) into every shard's
+//! output; `weights` and `train` call
 //! [`check_constants`] with the values they were configured with, and a difference is an
 //! error naming the constant, both values and the file. (The pipeline file gives all of them
 //! the same `${constants.NAME}`; the check catches a dataset made elsewhere or by hand.)
@@ -14,15 +15,28 @@ use std::path::{Path, PathBuf};
 /// File name of the provenance record in a dataset directory.
 pub const PROVENANCE_FILE: &str = "provenance.parquet";
 
-/// Writes the constants (name, value) to `path`, sorted by name.
+/// Writes the constants (name, value, unit) to `path`, sorted by name; a constant without a
+/// unit in [`crate::units`] is an error.
 pub fn write_provenance(path: &Path, constants: &[(&str, f64)]) -> Result<()> {
     let sorted: BTreeMap<&str, f64> = constants.iter().copied().collect();
+    let units = sorted
+        .keys()
+        .map(|name| {
+            crate::units::unit(name)
+                .map(str::to_owned)
+                .ok_or_else(|| Error::NoUnit {
+                    path: path.to_owned(),
+                    column: format!("{name} (a constant)"),
+                })
+        })
+        .collect::<Result<Vec<_>>>()?;
     let mut t = Table::default();
     t.push(
         "name",
         Column::Str(sorted.keys().map(|k| (*k).to_owned()).collect()),
     )?;
     t.push("value", Column::F64(sorted.values().copied().collect()))?;
+    t.push(crate::units::UNIT_KEY, Column::Str(units))?;
     write_parquet(path, &t)
 }
 
@@ -88,6 +102,15 @@ mod tests {
         let back = read_provenance(&d.join(PROVENANCE_FILE)).unwrap();
         assert_eq!(back.len(), 2);
         assert_eq!(back["gravity"], 9.81);
+        let t = read_parquet(&d.join(PROVENANCE_FILE), Some(&["unit"])).unwrap();
+        assert_eq!(t.str("unit").unwrap(), &["m/s^2", "m"]);
+        let e = write_provenance(&d.join("x.parquet"), &[("speed_of_light", 3e8)])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`speed_of_light (a constant)` has no unit"),
+            "{e}"
+        );
         let dirs = [d.clone()];
         check_constants(&dirs, &[("gravity", 9.81), ("wheel_radius", 0.43)]).unwrap();
         let e = check_constants(&dirs, &[("gravity", 9.8)])

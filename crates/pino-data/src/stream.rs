@@ -3,7 +3,8 @@
 //! memory. Same fixed settings and atomic replacement as [`crate::write_parquet`]: rows go to a
 //! temporary file that is fsynced and renamed over the final name by [`StreamWriter::finish`];
 //! dropping an unfinished writer removes the temporary file. Equal sequences of tables give
-//! equal bytes.
+//! equal bytes. Units and origin are attached as by [`crate::write_parquet`]
+//! ([`crate::metadata`]).
 
 use crate::parquet_io::{arrow_arrays, arrow_schema, atomic, data_type, pq, writer_properties};
 use crate::{Error, Result, Table};
@@ -36,9 +37,9 @@ impl StreamWriter {
     /// Starts `path` with the column names and types of `template` (its rows are not
     /// written; an empty table is the usual template).
     pub fn create(path: &Path, template: &Table) -> Result<Self> {
-        let schema = arrow_schema(template);
+        let schema = arrow_schema(path, template)?;
         // One row group per `write` call: the writer never splits one on its own.
-        let props = writer_properties(usize::MAX);
+        let props = writer_properties(usize::MAX, &schema);
         let (tmp, file) = atomic_file::TempFile::create(path).map_err(atomic)?;
         let writer =
             ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(|e| pq(path, e))?;

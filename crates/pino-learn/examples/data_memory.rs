@@ -4,15 +4,19 @@
 //! cargo run --release -p pino-learn --example data_memory -- gen DIR N_TRAIN N_VAL N_TEST DURATION_S
 //! /usr/bin/time -v target/release/examples/data_memory train DIR
 //! /usr/bin/time -v target/release/examples/data_memory evaluate DIR
+//! /usr/bin/time -v target/release/examples/data_memory model DIR [EPOCHS]
 //! ```
 //! `gen` writes a synthetic dataset (1 kHz, one row group per sample) into `DIR`. `train` does
 //! what the `train` stage does with the data: the indexing and statistics pass, the prepared
 //! f32 store of the training and validation splits, and one epoch of batches of 4 (without a
 //! model, whose memory does not depend on the dataset size). `evaluate` reads the test split
-//! alone and builds its batches of 8. Each prints the samples held, the bytes of the store and
+//! alone and builds its batches of 8. `model` is the `train` stage's library path whole
+//! (`train::train`: dataset, store, model, optimizer, losses, validation) at the paper's
+//! sizes (`configs/paper.yaml`: width 72, 320 modes, 25 % padding, batches of 20, algorithm 5,
+//! the deepest) for `EPOCHS` epochs (default 1). Each prints the samples held, the bytes of the store and
 //! the process's peak resident set (VmHWM).
 use candle_core::Device;
-use pino_learn::config::WindowConfig;
+use pino_learn::config::{TrainParams, WindowConfig};
 use pino_learn::data::{load_dataset, load_split, make_batch, prepare, Split};
 use pino_learn::synthetic::{write_dataset, SyntheticSpec};
 use std::path::{Path, PathBuf};
@@ -31,6 +35,8 @@ fn peak_rss_mb() -> f64 {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // As the `train` and `evaluate` stages do.
+    pino_learn::tune_allocator();
     let a: Vec<String> = std::env::args().skip(1).collect();
     let mode = a.first().map(String::as_str).unwrap_or("");
     let dir = PathBuf::from(
@@ -39,7 +45,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let params = dir.join("params.parquet");
     let sims = vec![dir.join("simulation.parquet")];
-    let window = WindowConfig::default();
+    // The laptop and paper configurations start from equilibrium: no start-up dropped.
+    let window = WindowConfig {
+        startup_fraction: 0.0,
+        ..WindowConfig::default()
+    };
     let dev = Device::Cpu;
     let t0 = Instant::now();
     match mode {
@@ -100,7 +110,37 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 before
             );
         }
-        other => return Err(format!("unknown mode `{other}`: gen, train or evaluate").into()),
+        "model" => {
+            let ds = load_dataset(&params, &sims, None, &window)?;
+            let mut p = TrainParams::with_algorithm(5);
+            (p.width, p.modes, p.projection_width, p.padding) = (72, 320, 72, 25);
+            (p.batch_size, p.startup_fraction) = (20, 0.0);
+            p.epochs = a.get(2).map_or(Ok(1), |e| e.parse())?;
+            let (model_cfg, cfg, window) = p.configs()?;
+            let n_train = ds.split_indices(Split::Train).len();
+            // A fresh start every time (a checkpoint left by an earlier run would resume).
+            let _ = std::fs::remove_dir_all(dir.join("checkpoint"));
+            std::fs::create_dir_all(dir.join("checkpoint"))?;
+            let opts = pino_learn::train::TrainOptions {
+                transform: pino_learn::spectral::Transform::Fused,
+                checkpoint_dir: dir.join("checkpoint"),
+                stop_after_epochs: None,
+            };
+            let outcome =
+                pino_learn::train::train(&ds, model_cfg, cfg, window, &opts, &dev, &mut |_| {})?;
+            println!(
+                "model: {} samples ({n_train} train) x {} points, {} parameters, {:.1} s, loss {:.4}, peak RSS {:.1} MB",
+                ds.samples.len(),
+                ds.t_points(),
+                outcome.model.num_parameters(),
+                t0.elapsed().as_secs_f64(),
+                outcome.history.last().map_or(f64::NAN, |h| h.loss_total),
+                peak_rss_mb()
+            );
+        }
+        other => {
+            return Err(format!("unknown mode `{other}`: gen, train, evaluate or model").into())
+        }
     }
     Ok(())
 }

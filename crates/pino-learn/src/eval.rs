@@ -22,7 +22,6 @@ use crate::data::{
 use crate::loss::{rel_l2_per_sample, LossContext};
 use crate::model::Fno;
 use crate::norm::Normalisation;
-use crate::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
 use crate::spectral::Transform;
 use crate::train::read_history;
 use crate::{write_atomic, Error, Result};
@@ -31,6 +30,8 @@ use candle_core::{DType, Device, Tensor};
 /// Name of Table 4's truth row.
 pub const TRUTH_NAME: &str = "truth (exact solutions, central differences)";
 use pino_data::{schema, write_parquet, Column, Table};
+use report::csv::write_csv;
+use report::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -215,23 +216,36 @@ fn score_split(
     batch_size: usize,
     device: &Device,
 ) -> Result<Scores> {
+    use rayon::prelude::*;
     let t = items.t_points();
+    let batch_size = batch_size.max(1);
+    let (preds, wall) = predict_samples(model, items, idx, t, batch_size, device)?;
+    // Scoring is per sample: batches are scored side by side and concatenated in order.
+    let score = |(chunk, pred): (&[usize], &[Vec<f32>])| -> Result<[[Vec<f64>; 4]; 2]> {
+        let batch = make_batch(items, chunk, t, device)?;
+        let flat: Vec<f32> = pred.concat();
+        let u = Tensor::from_vec(flat, (chunk.len(), t, OUT_CHANNELS), device)?;
+        Ok([
+            table4_per_sample(ctx, &u, &batch)?,
+            table4_per_sample(ctx, &batch.u, &batch)?,
+        ])
+    };
+    let pairs: Vec<(&[usize], &[Vec<f32>])> = idx
+        .chunks(batch_size)
+        .zip(preds.chunks(batch_size))
+        .collect();
+    let scored: Vec<[[Vec<f64>; 4]; 2]> = if device.is_cpu() {
+        pairs.into_par_iter().map(score).collect::<Result<_>>()?
+    } else {
+        pairs.into_iter().map(score).collect::<Result<_>>()?
+    };
     let mut out = Scores {
         model: Default::default(),
         truth: Default::default(),
-        preds: Vec::with_capacity(idx.len()),
-        wall: 0.0,
+        preds,
+        wall,
     };
-    for chunk in idx.chunks(batch_size.max(1)) {
-        let batch = make_batch(items, chunk, t, device)?;
-        let t0 = Instant::now();
-        let u = model.forward(&batch.x)?.detach().to_dtype(DType::F32)?;
-        let flat: Vec<f32> = u.flatten_all()?.to_vec1()?;
-        out.wall += t0.elapsed().as_secs_f64();
-        out.preds
-            .extend(flat.chunks(t * OUT_CHANNELS).map(<[f32]>::to_vec));
-        let m = table4_per_sample(ctx, &u, &batch)?;
-        let o = table4_per_sample(ctx, &batch.u, &batch)?;
+    for [m, o] in &scored {
         for k in 0..4 {
             out.model[k].extend_from_slice(&m[k]);
             out.truth[k].extend_from_slice(&o[k]);
@@ -255,9 +269,10 @@ pub fn predict_samples(
     // Batches are independent: on the CPU they run side by side (each forward pass is
     // parallel inside too); results do not depend on the order or the thread count.
     let chunks: Vec<&[usize]> = idx.chunks(batch_size.max(1)).collect();
+    let predictor = model.predictor()?;
     let run = |chunk: &&[usize]| -> Result<Vec<f32>> {
         let batch = make_batch(items, chunk, t_points, device)?;
-        let u = model.forward(&batch.x)?.detach().to_dtype(DType::F32)?;
+        let u = predictor.predict(&batch.x)?;
         Ok(u.flatten_all()?.to_vec1()?)
     };
     let flats: Vec<Vec<f32>> = if device.is_cpu() {
@@ -489,14 +504,10 @@ fn plot_sample(
                 _ => (&s.a, &pred.a, DOFS, t - 2, 1),
             };
             let x: Vec<f64> = (0..rows).map(|r| ds.t[r + off]).collect();
-            let xlabel = format!(
-                "t (s) {:.2} - {:.2}",
-                x.first().copied().unwrap_or(0.0),
-                x.last().copied().unwrap_or(0.0)
-            );
             panels.push(Panel {
                 title: format!("{body} {name}: {quantity} ({unit})"),
-                xlabel,
+                xlabel: "t (s)".into(),
+                log_y: false,
                 series: vec![
                     Series {
                         x: x.clone(),
@@ -533,26 +544,27 @@ fn plot_sample(
             panel: (420, 260),
             panels,
         },
-    )
+    )?;
+    Ok(())
 }
 
 fn plot_training_curves(path: &Path, results: &[ModelResult]) -> Result<bool> {
     let titles = [
-        "training loss (log10)",
-        "validation rel. L2, solutions (log10)",
-        "validation rel. L2, first derivatives (log10)",
-        "validation rel. L2, second derivatives (log10)",
+        "training loss",
+        "validation rel. L2, solutions",
+        "validation rel. L2, first derivatives",
+        "validation rel. L2, second derivatives",
     ];
     let mut panels: Vec<Panel> = titles
         .iter()
         .map(|t| Panel {
             title: (*t).into(),
-            xlabel: String::new(),
+            xlabel: "epoch".into(),
             series: Vec::new(),
+            log_y: true,
         })
         .collect();
     let mut legend = Vec::new();
-    let mut epochs = (f64::INFINITY, f64::NEG_INFINITY);
     for r in results {
         let hist_path = r.dir.join("history.parquet");
         if !hist_path.is_file() {
@@ -562,10 +574,6 @@ fn plot_training_curves(path: &Path, results: &[ModelResult]) -> Result<bool> {
         let color = PALETTE[(r.meta.train.algorithm.id() as usize - 1) % PALETTE.len()];
         legend.push((color, alg_label(&r.meta)));
         let x: Vec<f64> = h.iter().map(|row| row.epoch as f64).collect();
-        for &e in x.first().into_iter().chain(x.last()) {
-            epochs = (epochs.0.min(e), epochs.1.max(e));
-        }
-        let lg = |v: f64| if v > 0.0 { v.log10() } else { f64::NAN };
         for (k, f) in [
             |r: &crate::checkpoint::HistoryRow| r.loss_total,
             |r: &crate::checkpoint::HistoryRow| r.val_solution,
@@ -577,16 +585,13 @@ fn plot_training_curves(path: &Path, results: &[ModelResult]) -> Result<bool> {
         {
             panels[k].series.push(Series {
                 x: x.clone(),
-                y: h.iter().map(|row| lg(f(row))).collect(),
+                y: h.iter().map(f).collect(),
                 color,
             });
         }
     }
     let any = !legend.is_empty();
     if any {
-        for p in &mut panels {
-            p.xlabel = format!("epoch {} - {}", epochs.0, epochs.1);
-        }
         write_png(
             path,
             &Figure {
@@ -600,27 +605,6 @@ fn plot_training_curves(path: &Path, results: &[ModelResult]) -> Result<bool> {
         )?;
     }
     Ok(any)
-}
-
-/// Writes a table as CSV (header, then rows; strings quoted when they hold a comma).
-pub fn write_csv(path: &Path, t: &Table) -> Result<()> {
-    let mut s = t.names().collect::<Vec<_>>().join(",");
-    s.push('\n');
-    for r in 0..t.num_rows() {
-        let cells: Vec<String> = t
-            .columns()
-            .iter()
-            .map(|(_, c)| match c {
-                Column::F64(v) => format!("{}", v[r]),
-                Column::I64(v) => v[r].to_string(),
-                Column::Str(v) if v[r].contains(',') => format!("\"{}\"", v[r]),
-                Column::Str(v) => v[r].clone(),
-            })
-            .collect();
-        s.push_str(&cells.join(","));
-        s.push('\n');
-    }
-    write_atomic(path, s.as_bytes())
 }
 
 /// Which split `evaluate` scores: `test` when `params.parquet` has one, else `validation`
@@ -874,10 +858,6 @@ fn write_outputs(out: &Path, ev: &Evaluation) -> Result<()> {
              `n_test`) for an honest table.\n\n",
         );
     }
-    md.push_str(
-        "| Algorithm | Name | Depth | Solutions | First derivatives | Second derivatives | Contact forces | Peak force error (% of W) | Paper: solutions | Paper: first | Paper: second |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|\n",
-    );
     let cell = |v: f64| {
         if v.is_nan() {
             "-".to_owned()
@@ -885,30 +865,47 @@ fn write_outputs(out: &Path, ev: &Evaluation) -> Result<()> {
             format!("{v:.2}")
         }
     };
-    for r in &rows {
-        md.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
-            if r.algorithm == 0 {
-                "-".to_owned()
-            } else {
-                r.algorithm.to_string()
-            },
-            r.name,
-            if r.depth == 0 {
-                "-".to_owned()
-            } else {
-                r.depth.to_string()
-            },
-            cell(r.t4[0]),
-            cell(r.t4[1]),
-            cell(r.t4[2]),
-            cell(r.forces),
-            cell(r.peak),
-            cell(r.paper[0]),
-            cell(r.paper[1]),
-            cell(r.paper[2]),
-        ));
-    }
+    let dash_if_zero = |v: i64| {
+        if v == 0 {
+            "-".to_owned()
+        } else {
+            v.to_string()
+        }
+    };
+    let cells: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| {
+            vec![
+                dash_if_zero(r.algorithm),
+                r.name.clone(),
+                dash_if_zero(r.depth),
+                cell(r.t4[0]),
+                cell(r.t4[1]),
+                cell(r.t4[2]),
+                cell(r.forces),
+                cell(r.peak),
+                cell(r.paper[0]),
+                cell(r.paper[1]),
+                cell(r.paper[2]),
+            ]
+        })
+        .collect();
+    md.push_str(&report::markdown::table(
+        &[
+            "Algorithm",
+            "Name",
+            "Depth",
+            "Solutions",
+            "First derivatives",
+            "Second derivatives",
+            "Contact forces",
+            "Peak force error (% of W)",
+            "Paper: solutions",
+            "Paper: first",
+            "Paper: second",
+        ],
+        &cells,
+    ));
     md.push_str(&format!(
         "\nMetric: per sample, relative L2 of z-scored values, then the mean over the samples. \
          *Solutions*: the 14 displacement channels (10 vehicle DOFs, 4 rail), as in the paper, so \
@@ -922,19 +919,38 @@ fn write_outputs(out: &Path, ev: &Evaluation) -> Result<()> {
     ));
     // Wall-clock figures live in their own file so that every other artifact is a pure
     // function of the inputs (byte-identical on a rerun).
-    let mut speed =
-        format!("algorithm,{split}_samples,simulated_s_per_sample,wall_s,simulated_s_per_wall_s\n");
-    for r in results {
-        speed.push_str(&format!(
-            "{},{},{},{},{}\n",
-            r.meta.train.algorithm.id(),
-            r.samples,
-            r.meta.grid.t_points as f64 * r.meta.grid.dt,
-            r.wall_s,
-            r.speed
-        ));
-    }
-    write_atomic(&out.join("speed.csv"), speed.as_bytes())?;
+    let mut speed = Table::default();
+    speed.push(
+        "algorithm",
+        Column::I64(
+            results
+                .iter()
+                .map(|r| r.meta.train.algorithm.id())
+                .collect(),
+        ),
+    )?;
+    speed.push(
+        &format!("{split}_samples"),
+        Column::I64(results.iter().map(|r| r.samples as i64).collect()),
+    )?;
+    speed.push(
+        "simulated_s_per_sample",
+        Column::F64(
+            results
+                .iter()
+                .map(|r| r.meta.grid.t_points as f64 * r.meta.grid.dt)
+                .collect(),
+        ),
+    )?;
+    speed.push(
+        "wall_s",
+        Column::F64(results.iter().map(|r| r.wall_s).collect()),
+    )?;
+    speed.push(
+        "simulated_s_per_wall_s",
+        Column::F64(results.iter().map(|r| r.speed).collect()),
+    )?;
+    write_csv(&out.join("speed.csv"), &speed)?;
     md.push_str(
         "\nPrediction speed (simulated seconds per wall second of forward passes) is in \
          `speed.csv`, the one file of this artifact that depends on the machine.\n",
@@ -997,8 +1013,8 @@ fn write_outputs(out: &Path, ev: &Evaluation) -> Result<()> {
     let mut doc = String::from(
         "# Plots\n\n\
          Each figure has a title and a colour legend at the top; each panel has a title with \
-         quantity and unit, an x-axis label with the time or epoch range, and its y range (min, \
-         max) printed inside the frame.\n\n\
+         quantity and unit, numbered ticks on both axes with light grid lines through them, and \
+         an x-axis label.\n\n\
          `pred_alg{A}_sample{ID}.png`: scored (test, else validation) sample ID predicted by algorithm A. Top row car \
          body `z_c`, bottom row front wheel `z_w1`; columns displacement (mm), velocity (mm/s), \
          acceleration (m/s^2) against time. Black: exact (solver), red: prediction (velocities and \
@@ -1006,7 +1022,7 @@ fn write_outputs(out: &Path, ev: &Evaluation) -> Result<()> {
     );
     if curves {
         doc.push_str(
-            "`training_curves.png`: log10 against epoch of the training loss (top left) and of the \
+            "`training_curves.png`: on a logarithmic axis against epoch, the training loss (top left) and the \
              validation relative L2 of solutions (top right), first derivatives (bottom left) and \
              second derivatives (bottom right). Colours by algorithm: 1 blue, 2 orange, 3 green, \
              4 purple, 5 red.\n",

@@ -16,11 +16,12 @@
 use crate::checkpoint::ModelMeta;
 use crate::config::{DOFS, FORCE_OFFSET, OUT_CHANNELS};
 use crate::data::{static_wheel_load, Prepared, Split};
-use crate::eval::{exact_physical, to_physical, write_csv, Physical};
-use crate::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
+use crate::eval::{exact_physical, to_physical, Physical};
 use crate::{write_atomic, Error, Result};
 use pino_data::{schema, write_parquet, Column, Table};
 use pino_indices::{IndexConfig, IndexParams, Indices, Record, INDEX_COLUMNS};
+use report::csv::write_csv;
+use report::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
 use std::path::Path;
 
 /// The indices of one model's predictions (or of the truth row) on the scored samples.
@@ -396,6 +397,7 @@ fn scatter(
                 },
                 Series { x, y, color },
             ],
+            log_y: false,
         });
     }
     let cols = models.len().clamp(1, 3);
@@ -422,7 +424,8 @@ fn scatter(
             panel: (360, 300),
             panels,
         },
-    )
+    )?;
+    Ok(())
 }
 
 #[cfg(test)]

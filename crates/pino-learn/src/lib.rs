@@ -24,8 +24,9 @@
 //! Modules: [`config`] (algorithms, sizes), [`data`] (Parquet -> samples, streamed),
 //! [`store`] (sample series in memory or spilled), [`norm`],
 //! [`spectral`], [`model`], [`physics`], [`loss`], [`optim`] (Adam, step decay),
-//! [`checkpoint`], [`train`], [`eval`] (Table 4), [`indices_eval`] (engineering indices), [`plot`] (PNG), [`predict`], and
-//! [`synthetic`] (small consistent datasets for tests and benchmarks).
+//! [`checkpoint`], [`train`], [`eval`] (Table 4; its files and plots are written by the
+//! `report` crate), [`indices_eval`] (engineering indices), [`predict`], and [`synthetic`]
+//! (small consistent datasets for tests and benchmarks).
 #![warn(missing_docs)]
 
 pub mod checkpoint;
@@ -39,7 +40,6 @@ pub mod model;
 pub mod norm;
 pub mod optim;
 pub mod physics;
-pub mod plot;
 pub mod predict;
 pub mod spectral;
 pub mod store;
@@ -53,14 +53,21 @@ pub use config::{Algorithm, DeviceKind, ModelConfig, TrainConfig};
 /// A training step allocates and frees the same few megabytes of activations and gradients
 /// every time; with glibc's defaults each large buffer is a fresh `mmap` whose pages fault in
 /// and are zeroed by the kernel on every step (about a tenth of a CPU step, measured with
-/// `perf`). Raising the mmap and trim thresholds keeps those buffers in the heap. Call once at
-/// the start of a learning process; a no-op elsewhere than glibc.
+/// `perf`). Raising the mmap and trim thresholds keeps those buffers in the heap. Two arenas:
+/// with glibc's default (up to eight per core), buffers freed by a thread other than the one
+/// that allocated them fragment the arenas and the resident set grew by ~3.6 MB per step at
+/// the paper's sizes (1.26 -> 1.44 GB from the first to the second epoch of 50 steps); with
+/// two it stays flat (1.2-1.3 GB after 50, 100 and 150 steps); with one, the threads of a
+/// parallel prediction queue on its lock (inference 20 % slower). BENCHMARKS.md, "Training
+/// memory at the paper's sizes". Call once at the start of a learning process; a no-op
+/// elsewhere than glibc.
 pub fn tune_allocator() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only sets allocator parameters; it is called with valid option codes.
     unsafe {
         libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 30);
         libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 30);
+        libc::mallopt(libc::M_ARENA_MAX, 2);
     }
 }
 
@@ -72,6 +79,9 @@ pub enum Error {
     /// The data layer failed (missing column, unreadable file, ...).
     #[error(transparent)]
     Data(#[from] pino_data::Error),
+    /// Writing a report file (CSV, Markdown, PNG) failed.
+    #[error(transparent)]
+    Report(#[from] report::Error),
     /// candle failed.
     #[error("tensor: {0}")]
     Tensor(#[from] candle_core::Error),

@@ -247,14 +247,24 @@ impl Fno {
     /// The forward pass as one fused CPU op ([`kernels::FusedNetwork`]).
     fn forward_fused(&self, x: &Tensor, plan: &std::sync::Arc<kernels::RealDft>) -> Result<Tensor> {
         let (b, t, _) = x.dims3()?;
+        let op = kernels::FusedNetwork::new(self.network_shape(), plan, b, t);
+        Ok(x.contiguous()?.apply_op2(&self.flat_parameters()?, op)?)
+    }
+
+    fn network_shape(&self) -> kernels::NetworkShape {
         let c = &self.config;
-        let shape = kernels::NetworkShape {
+        kernels::NetworkShape {
             c_in: c.in_channels,
             width: c.width,
             projection: c.projection_width,
             c_out: c.out_channels,
             depth: c.depth,
-        };
+        }
+    }
+
+    /// Every parameter in one flat tensor, in the fused network's order.
+    fn flat_parameters(&self) -> Result<Tensor> {
+        let c = &self.config;
         let mut names = vec!["lift.weight".to_owned(), "lift.bias".to_owned()];
         for l in 0..c.depth {
             for part in ["weight", "bias", "wr", "wi"] {
@@ -269,9 +279,19 @@ impl Fno {
             .iter()
             .map(|n| self.var(n).flatten_all())
             .collect::<candle_core::Result<Vec<_>>>()?;
-        let params = Tensor::cat(&parts, 0)?;
-        let op = kernels::FusedNetwork::new(shape, plan, b, t);
-        Ok(x.contiguous()?.apply_op2(&params, op)?)
+        Ok(Tensor::cat(&parts, 0)?)
+    }
+
+    /// The model frozen for forward passes only (evaluation, prediction).
+    pub fn predictor(&self) -> Result<Predictor<'_>> {
+        let fused = match self.dft.plan() {
+            Some(plan) => Some((
+                std::sync::Arc::clone(plan),
+                self.flat_parameters()?.to_vec1::<f32>()?,
+            )),
+            None => None,
+        };
+        Ok(Predictor { model: self, fused })
     }
 
     /// Crop `v [W, B, T_p]` to `T` points and apply the projection MLP: `[B, T, 14]`.
@@ -292,6 +312,46 @@ impl Fno {
     /// Window length `T` the model was built for.
     pub fn t_points(&self) -> usize {
         self.t_points
+    }
+}
+
+/// A model frozen for forward passes only. On the fused CPU path the parameters are gathered
+/// once and each pass runs [`kernels::FusedNetwork::infer`] (one sample at a time, nothing
+/// kept for a backward pass, activations updated in place; equal to [`Fno::forward`] to f32
+/// round-off); elsewhere it is [`Fno::forward`], detached.
+pub struct Predictor<'a> {
+    model: &'a Fno,
+    fused: Option<(std::sync::Arc<kernels::RealDft>, Vec<f32>)>,
+}
+
+impl Predictor<'_> {
+    /// `x [B, T, 19]` (z-scored) -> `u [B, T, 18]` (z-scored), f32, no gradient.
+    pub fn predict(&self, x: &Tensor) -> Result<Tensor> {
+        let Some((plan, params)) = &self.fused else {
+            return Ok(self
+                .model
+                .forward(x)?
+                .detach()
+                .to_dtype(candle_core::DType::F32)?);
+        };
+        let (b, t, _) = x.dims3()?;
+        let expected = [b, t, self.model.config.in_channels];
+        if x.dims() != expected {
+            return Err(candle_core::Error::Msg(format!(
+                "model input {:?}, expected {expected:?}",
+                x.dims()
+            ))
+            .into());
+        }
+        let shape = self.model.network_shape();
+        let u = kernels::with_host(&x.to_dtype(candle_core::DType::F32)?, |x| {
+            kernels::FusedNetwork::infer(shape, plan, t, x, params)
+        })?;
+        Ok(Tensor::from_vec(
+            u,
+            (b, t, self.model.config.out_channels),
+            x.device(),
+        )?)
     }
 }
 
@@ -340,6 +400,64 @@ mod tests {
             err.contains("m.safetensors") && err.contains("lift.weight") && err.contains("width 9"),
             "{err}"
         );
+    }
+
+    /// The predictor's inference pass (one sample at a time, buffers updated in place,
+    /// nothing saved) gives the forward pass's values to f32 round-off, with and without
+    /// padding, for batches split evenly and unevenly by the training op; a sample's output
+    /// does not depend on the other samples of its batch (bit for bit); the composition's
+    /// predictor is its forward pass.
+    #[test]
+    fn predictor_equals_the_forward_pass() {
+        let dev = Device::Cpu;
+        for padding_percent in [0, 25] {
+            let config = ModelConfig {
+                padding_percent,
+                ..cfg()
+            };
+            let t = 24;
+            for transform in [Transform::Fused, Transform::Matmul] {
+                let model = Fno::new(config, t, 11, transform, &dev).unwrap();
+                let predictor = model.predictor().unwrap();
+                for b in [1, 2, 5] {
+                    let mut s = vtcd::rng::SampleStream::new(4, vtcd::rng::Purpose::Training, b);
+                    let x: Vec<f32> = (0..b as usize * t * 19)
+                        .map(|_| s.normal() as f32)
+                        .collect();
+                    let x = Tensor::from_vec(x, (b as usize, t, 19), &dev).unwrap();
+                    let flat = |u: Tensor| u.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+                    let forward = flat(model.forward(&x).unwrap());
+                    let predicted = flat(predictor.predict(&x).unwrap());
+                    assert_eq!(forward.len(), b as usize * t * config.out_channels);
+                    let scale = forward.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+                    for (p, q) in forward.iter().zip(&predicted) {
+                        assert!(
+                            (p - q).abs() <= 1e-5 * scale,
+                            "{transform:?}, padding {padding_percent}, batch {b}: {p} vs {q}"
+                        );
+                    }
+                    let last = x.narrow(0, b as usize - 1, 1).unwrap();
+                    let alone = flat(predictor.predict(&last).unwrap());
+                    assert_eq!(
+                        alone,
+                        predicted[(b as usize - 1) * t * config.out_channels..],
+                        "{transform:?}, padding {padding_percent}, batch {b}"
+                    );
+                }
+            }
+            let wrong = Tensor::zeros((2, t, 7), candle_core::DType::F32, &dev).unwrap();
+            let model = Fno::new(config, t, 11, Transform::Fused, &dev).unwrap();
+            let err = model
+                .predictor()
+                .unwrap()
+                .predict(&wrong)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains("[2, 24, 7]") && err.contains("[2, 24, 19]"),
+                "{err}"
+            );
+        }
     }
 
     /// The fused network (one CPU op) against the candle composition with the same weights:

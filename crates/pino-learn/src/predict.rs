@@ -28,7 +28,7 @@ use crate::indices_eval::indices_of_physical;
 use crate::model::Fno;
 use crate::spectral::Transform;
 use crate::{Error, Result};
-use candle_core::{DType, Device, Tensor};
+use candle_core::{Device, Tensor};
 use pino_data::{schema, Column, Table};
 use pino_indices::{IndexConfig, Indices, INDEX_COLUMNS};
 use std::collections::BTreeMap;
@@ -43,8 +43,10 @@ fn fmt_err(path: &Path, message: String) -> Error {
     }
 }
 
-fn set_param(p: &mut [f64; 14], name: &str, value: f64, origin: &Path) -> Result<()> {
-    let k = PARAMETER_NAMES
+/// Position of parameter `name` in [`PARAMETER_NAMES`], or an error naming `origin` and
+/// the allowed names.
+fn param_index(name: &str, origin: &Path) -> Result<usize> {
+    PARAMETER_NAMES
         .iter()
         .position(|n| *n == name)
         .ok_or_else(|| {
@@ -55,7 +57,11 @@ fn set_param(p: &mut [f64; 14], name: &str, value: f64, origin: &Path) -> Result
                     PARAMETER_NAMES.join(", ")
                 ),
             )
-        })?;
+        })
+}
+
+fn set_param(p: &mut [f64; 14], name: &str, value: f64, origin: &Path) -> Result<()> {
+    let k = param_index(name, origin)?;
     if !(value.is_finite() && value > 0.0) {
         return Err(fmt_err(
             origin,
@@ -287,8 +293,8 @@ impl Predictor {
         let xt = Tensor::from_vec(x, (sets.len(), tp, 19), &self.device)?;
         let u = self
             .model
-            .forward(&xt)?
-            .to_dtype(DType::F32)?
+            .predictor()?
+            .predict(&xt)?
             .flatten_all()?
             .to_vec1::<f32>()?;
         Ok(u.chunks(tp * OUT_CHANNELS)
@@ -368,9 +374,9 @@ impl Predictor {
         let mut t_col = Vec::new();
         for (s, pred) in preds.iter().enumerate() {
             let ph = &pred.physical;
-            for (n, &tn) in times.iter().enumerate().take(tp - 1).skip(1) {
+            for (n, &t) in times.iter().enumerate().take(tp - 1).skip(1) {
                 set_col.push(s as i64);
-                t_col.push(tn);
+                t_col.push(t);
                 for (c, col) in cols.iter_mut().take(OUT_CHANNELS).enumerate() {
                     col.1.push(ph.u[n * OUT_CHANNELS + c]);
                 }
@@ -466,23 +472,23 @@ pub fn indices_table(
     )?;
     t.push(
         OUTSIDE_COLUMN,
-        Column::Str(
-            outside
-                .iter()
-                .map(|o| {
-                    o.iter()
-                        .map(|r| format!("{}={}", r.name, r.value))
-                        .collect::<Vec<_>>()
-                        .join(",")
-                })
-                .collect(),
-        ),
+        Column::Str(outside.iter().map(|o| outside_flag(o)).collect()),
     )?;
     Ok(t)
 }
 
 /// Column of the indices table naming the parameters outside the training ranges.
 pub const OUTSIDE_COLUMN: &str = "outside_training_range";
+
+/// The [`OUTSIDE_COLUMN`] value of one design: its parameters outside the training ranges as
+/// `name=value`, comma-separated (empty inside).
+pub fn outside_flag(outside: &[OutOfRange]) -> String {
+    outside
+        .iter()
+        .map(|r| format!("{}={}", r.name, r.value))
+        .collect::<Vec<_>>()
+        .join(",")
+}
 
 /// Predicts every set; returns the time-history table and the model's metadata.
 pub fn predict(
@@ -544,20 +550,7 @@ pub fn parse_sweep(text: &str, origin: &Path) -> Result<Vec<SampleParams>> {
     for (k, v) in &doc.base {
         set_param(&mut base, k, *v, origin)?;
     }
-    let index_of = |name: &str| -> Result<usize> {
-        PARAMETER_NAMES
-            .iter()
-            .position(|n| *n == name)
-            .ok_or_else(|| {
-                fmt_err(
-                    origin,
-                    format!(
-                        "unknown parameter `{name}`; allowed: {}",
-                        PARAMETER_NAMES.join(", ")
-                    ),
-                )
-            })
-    };
+    let index_of = |name: &str| param_index(name, origin);
     match (doc.grid, doc.random) {
         (Some(grid), None) => {
             let mut axes: Vec<(usize, Vec<f64>)> = Vec::new();
@@ -780,6 +773,8 @@ mod tests {
         // those are the training ranges.
         let mut rt = Table::default();
         rt.push("name", Column::Str(r.names.clone())).unwrap();
+        let units = r.names.iter().map(|_| "-".to_string()).collect();
+        rt.push("unit", Column::Str(units)).unwrap();
         rt.push("min", Column::F64(r.min.clone())).unwrap();
         rt.push("max", Column::F64(r.max.clone())).unwrap();
         let beside = files

@@ -157,9 +157,10 @@ pub fn evaluate_split(
     device: &Device,
 ) -> Result<[Vec<f64>; 3]> {
     let mut out: [Vec<f64>; 3] = Default::default();
+    let predictor = model.predictor()?;
     for chunk in idx.chunks(batch_size.max(1)) {
         let batch = make_batch(items, chunk, t_points, device)?;
-        let u = model.forward(&batch.x)?.detach();
+        let u = predictor.predict(&batch.x)?;
         let m = loss.metrics_per_sample(&u, &batch)?;
         for k in 0..3 {
             out[k].extend_from_slice(&m[k]);

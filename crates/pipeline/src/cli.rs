@@ -1,6 +1,8 @@
 //! The command line: `pipeline [-C DIR] [-f FILE] [--bin-dir DIR] [--set S.K=V]... COMMAND`.
+//! `gc` needs only the workspace (`-C`); the other commands load the pipeline file.
 
 use crate::executor::ExecutorKind;
+use crate::gc::{gc, GcOptions};
 use crate::run::{run, RunOptions};
 use crate::spec::{LoadOptions, Pipeline};
 use crate::status::{dag, show, status};
@@ -70,6 +72,20 @@ pub enum Command {
         /// A stage or one expansion.
         stage: String,
     },
+    /// Remove the stored objects that no lock-record entry (of any pipeline file) points to,
+    /// under the run lock.
+    Gc {
+        /// List what would be removed; remove nothing.
+        #[arg(long)]
+        dry_run: bool,
+        /// Also keep, per unit, the N most recently committed objects the lock record does
+        /// not point to (the run-cache of the last N changes).
+        #[arg(long, value_name = "N", default_value_t = 0)]
+        keep: usize,
+        /// Fail at once (exit 2) instead of waiting when a `pipeline run` holds the workspace.
+        #[arg(long)]
+        no_wait: bool,
+    },
 }
 
 fn execute(cli: Cli) -> Result<()> {
@@ -86,7 +102,7 @@ fn execute(cli: Cli) -> Result<()> {
         }),
         sets: cli.sets.clone(),
     };
-    let p = Pipeline::load(&workspace, &file, &opts)?;
+    let load = || Pipeline::load(&workspace, &file, &opts);
     match cli.command {
         Command::Run {
             targets,
@@ -95,6 +111,7 @@ fn execute(cli: Cli) -> Result<()> {
             no_wait,
             executor,
         } => {
+            let p = load()?;
             let ui = Ui::new();
             run(
                 &p,
@@ -109,15 +126,30 @@ fn execute(cli: Cli) -> Result<()> {
             )
         }
         Command::Status => {
-            print!("{}", status(&p)?);
+            print!("{}", status(&load()?)?);
             Ok(())
         }
         Command::Dag { dot } => {
-            print!("{}", dag(&p, dot));
+            print!("{}", dag(&load()?, dot));
             Ok(())
         }
         Command::Show { stage } => {
-            print!("{}", show(&p, &stage)?);
+            print!("{}", show(&load()?, &stage)?);
+            Ok(())
+        }
+        Command::Gc {
+            dry_run,
+            keep,
+            no_wait,
+        } => {
+            // The store alone decides (the lock record holds every pipeline file's entries):
+            // the pipeline file is not read.
+            let opts = GcOptions {
+                dry_run,
+                keep,
+                wait: !no_wait,
+            };
+            print!("{}", gc(&workspace, &opts, &Ui::new())?.render());
             Ok(())
         }
     }

@@ -16,7 +16,8 @@
 //! of outputs costs one `stat` per file. Stages talk to the orchestrator through the stage
 //! protocol ([`exec`]; the stage side is the `stage-kit` crate). Outputs enter the store only
 //! complete (tmp directory, hash, manifest, rename); one run at a time holds a kernel `flock`
-//! ([`runlock`]), which dies with its holder. Exit status: 0 success, 1 a stage failed,
+//! ([`runlock`]), which dies with its holder; [`gc`] removes, under the same lock, the
+//! objects that no lock-record entry needs. Exit status: 0 success, 1 a stage failed,
 //! 2 bad input (nothing run).
 #![warn(missing_docs)]
 
@@ -25,6 +26,7 @@ pub mod constants;
 mod error;
 pub mod exec;
 pub mod executor;
+pub mod gc;
 pub mod hash;
 pub mod locate;
 pub mod plan;

@@ -250,7 +250,7 @@ fn compute(
             }
             Err(e) => {
                 view.finish("FAILED");
-                let _ = std::fs::remove_dir_all(&work);
+                let _ = crate::store::remove_tree(&work);
                 Ok(Err(format!("output rejected: {e}")))
             }
         }
@@ -262,7 +262,7 @@ fn compute(
             .join("logs")
             .join(format!("{}.failed.log", safe_name(&u.key)));
         let _ = std::fs::rename(&outcome.log, &kept);
-        let _ = std::fs::remove_dir_all(&work);
+        let _ = crate::store::remove_tree(&work);
         let mut msg = format!(
             "{} ({}); last lines of stderr:\n",
             stage.cmd.join(" "),
@@ -300,13 +300,7 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
     }
     let executor = Executor::new(opts.executor.unwrap_or(p.executor), &store, &p.workspace)?;
     store.create_dirs()?;
-    let lock_path = store.root.join("run.lock");
-    let _lock = RunLock::acquire(&lock_path, opts.wait, |pid| {
-        ui.line(&format!(
-            "waiting for another `pipeline run` (pid {pid}) to finish ({})...",
-            lock_path.display()
-        ))
-    })?;
+    let _lock = RunLock::acquire_for_workspace(&store.root, opts.wait, ui)?;
     store.clean_debris()?;
     executor.start();
     let mut rec = store.read_lock_record()?;

@@ -29,6 +29,18 @@ fn holder(file: &mut File) -> String {
 }
 
 impl RunLock {
+    /// The workspace's run lock (`run.lock` under the store root `root`), saying on `ui`
+    /// that it waits for another run while it does: what `run` and `gc` take.
+    pub fn acquire_for_workspace(root: &Path, wait: bool, ui: &crate::ui::Ui) -> Result<Self> {
+        let lock_path = root.join("run.lock");
+        Self::acquire(&lock_path, wait, |pid| {
+            ui.line(&format!(
+                "waiting for another `pipeline run` (pid {pid}) to finish ({})...",
+                lock_path.display()
+            ))
+        })
+    }
+
     /// Takes the lock at `path`. When another run holds it: with `wait`, calls `on_wait` with
     /// the holder's PID once and blocks; without, fails with [`Error::Busy`].
     pub fn acquire(path: &Path, wait: bool, on_wait: impl FnOnce(&str)) -> Result<Self> {

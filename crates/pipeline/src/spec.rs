@@ -5,7 +5,8 @@
 //! for the Slurm executor ([`crate::executor`]).
 //! Parsing is strict (`deny_unknown_fields`), so a misspelt key is an error at its line. After
 //! parsing, the semantic checks run: names, dependencies (every input names a stage), cycles,
-//! shard counts, matrix keys, paths (relative, inside the workspace) and `--set` overrides (the
+//! shard counts, matrix keys, paths (relative, inside the workspace, also after following
+//! symbolic links) and `--set` overrides (the
 //! stage and key must exist, the value must have the parameter's type; an integer may stand
 //! for a float). Every error names the file and the line.
 //!
@@ -189,6 +190,62 @@ fn stays_inside(workspace: &Path, base: &Path, rel: &str) -> bool {
     normalize(&base.join(p)).starts_with(workspace)
 }
 
+/// Where `p` really is: its longest existing prefix as the kernel resolves it (every symbolic
+/// link followed, `..` applied after the link), the rest appended lexically. A dangling link is
+/// followed through its text, so a link to a place that does not exist yet is judged too.
+fn resolve(p: &Path, hops: usize) -> PathBuf {
+    let mut head = p.to_path_buf();
+    let mut tail: Vec<std::ffi::OsString> = Vec::new();
+    let rejoin = |mut r: PathBuf, tail: &[std::ffi::OsString]| {
+        for c in tail.iter().rev() {
+            r.push(c);
+        }
+        normalize(&r)
+    };
+    loop {
+        if let Ok(real) = head.canonicalize() {
+            return rejoin(real, &tail);
+        }
+        if hops < 40 {
+            if let Ok(target) = std::fs::read_link(&head) {
+                let parent = head.parent().map(Path::to_path_buf).unwrap_or_default();
+                return resolve(&rejoin(parent.join(target), &tail), hops + 1);
+            }
+        }
+        match head.file_name() {
+            Some(name) => {
+                tail.push(name.to_owned());
+                head.pop();
+            }
+            None => return normalize(p),
+        }
+    }
+}
+
+/// Why relative path `rel`, taken from `base`, is not inside `workspace`: it leaves it
+/// lexically (absolute, or `..` climbing out), or a symbolic link on its way points outside
+/// (the real path of the existing part is outside the workspace's real path); `None` when it
+/// stays inside.
+fn escape(workspace: &Path, base: &Path, rel: &str) -> Option<String> {
+    if !stays_inside(workspace, base, rel) {
+        return Some(format!(
+            "must be a relative path inside the workspace {}",
+            workspace.display()
+        ));
+    }
+    let root = workspace
+        .canonicalize()
+        .unwrap_or_else(|_| workspace.to_path_buf());
+    let real = resolve(&base.join(rel), 0);
+    (!real.starts_with(&root)).then(|| {
+        format!(
+            "leads through a symbolic link to {}, outside the workspace {}",
+            real.display(),
+            root.display()
+        )
+    })
+}
+
 /// The type name of a parameter value, as messages show it.
 pub fn kind(v: &Value) -> &'static str {
     match v {
@@ -301,13 +358,10 @@ impl Pipeline {
 
         // bin_dir: the command line wins, then the environment, then the file.
         if let Some(d) = &raw.bin_dir {
-            if !stays_inside(&workspace, &base, d) {
+            if let Some(why) = escape(&workspace, &base, d) {
                 return Err(spec_err(
                     loc.top_line("bin_dir"),
-                    format!(
-                        "bin_dir `{d}` must be a relative path inside the workspace {}",
-                        workspace.display()
-                    ),
+                    format!("bin_dir `{d}` {why}"),
                 ));
             }
         }
@@ -334,11 +388,13 @@ impl Pipeline {
                 ));
             }
             let exe = &rs.cmd[0];
-            if exe.contains('/') && !stays_inside(&workspace, &base, exe) {
-                return Err(spec_err(
-                    loc.field_line(&name, "cmd"),
-                    format!("stage `{name}`: command `{exe}` must be a relative path inside the workspace (or a bare name)"),
-                ));
+            if exe.contains('/') {
+                if let Some(why) = escape(&workspace, &base, exe) {
+                    return Err(spec_err(
+                        loc.field_line(&name, "cmd"),
+                        format!("stage `{name}`: command `{exe}` {why} (or use a bare name)"),
+                    ));
+                }
             }
             let shards = rs.shards.unwrap_or(1);
             if shards == 0 {
@@ -757,6 +813,55 @@ mod tests {
             e.contains("unknown constant `q`") && e.contains(":6:"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn symbolic_links_out_of_the_workspace_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let ws = dir.path().join("ws");
+        let outside = dir.path().join("outside");
+        std::fs::create_dir_all(ws.join("real/bin")).unwrap();
+        std::fs::create_dir_all(&outside).unwrap();
+        let link = |target: &Path, name: &str| std::os::unix::fs::symlink(target, ws.join(name));
+        link(&outside, "out").unwrap();
+        link(&ws.join("real"), "in").unwrap();
+        link(&dir.path().join("nowhere"), "dangling").unwrap();
+        link(Path::new("real/.."), "dotdot").unwrap(); // relative, stays inside
+        for inside in ["real/bin", "in/bin", "in/bin/not-built-yet", "dotdot/real"] {
+            assert_eq!(escape(&ws, &ws, inside), None, "{inside}");
+        }
+        for bad in [
+            "out",
+            "out/bin",
+            "out/missing/deeper",
+            "dangling/x",
+            "in/../out/x",
+        ] {
+            let why = escape(&ws, &ws, bad).unwrap_or_else(|| panic!("{bad} accepted"));
+            assert!(
+                why.contains("symbolic link") && why.contains("outside"),
+                "{bad}: {why}"
+            );
+        }
+        // A link that climbs out through `..` after being followed.
+        link(&ws.join("real/bin"), "deep").unwrap();
+        assert_eq!(escape(&ws, &ws, "deep/.."), None);
+        assert!(escape(&ws, &ws, "deep/../../..").is_some());
+        // The lexical check still comes first.
+        let why = escape(&ws, &ws, "../outside").unwrap();
+        assert!(why.contains("inside the workspace"), "{why}");
+        // Through the loader: bin_dir and cmd[0] are both checked.
+        let f = ws.join("p.yaml");
+        std::fs::write(&f, "bin_dir: out\nstages: {}\n").unwrap();
+        let e = Pipeline::load(&ws, &f, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(":1:") && e.contains("symbolic link"), "{e}");
+        std::fs::write(&f, "stages:\n  a:\n    cmd: [out/stage]\n").unwrap();
+        let e = Pipeline::load(&ws, &f, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(":3:") && e.contains("symbolic link"), "{e}");
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! Layout (all under the workspace's `artifacts/`):
 //!
 //! ```text
-//! objects/<identity>/out/...        the unit's output files (read-only)
+//! objects/<identity>/out/...        the unit's output files (the object is read-only)
 //! objects/<identity>/manifest.json  every output file with size and blake3, the output hash
 //! objects/<identity>/context.json   the context the stage was started with
 //! objects/<identity>/log.txt        the stage's stdout and stderr
@@ -23,6 +23,12 @@
 //! with its manifest. A killed run leaves only `tmp/` debris, which the next run deletes.
 //! Before an object is used it is verified against its manifest (file set, sizes, hashes via
 //! the hash cache); a mismatch deletes it and the unit is recomputed.
+//!
+//! Committed objects are sealed: every file mode 0444, every directory (the object's own
+//! included) 0555, so a tool that opens an artifact for writing, replaces it by a rename or
+//! adds a file next to it is refused by the kernel. Root is not stopped by permission bits;
+//! what it changes is still caught by the verification above. The store removes its own
+//! sealed trees with [`remove_tree`], which makes directories writable first.
 
 use crate::hash::{hash_file, HashCache, Stamp};
 use crate::{Error, Result};
@@ -274,6 +280,8 @@ impl Store {
             .root
             .join("trash")
             .join(format!("{identity}-{}", std::process::id()));
+        // A sealed directory cannot be moved to another parent: unseal its top first.
+        set_mode(&dir, 0o755)?;
         std::fs::rename(&dir, &trash).map_err(|e| Error::io(&dir, e))?;
         self.cache.forget_under(&dir);
         remove_tree(&trash)
@@ -342,7 +350,7 @@ impl Store {
                 let p = out.join(rel);
                 let f = std::fs::File::open(&p).map_err(|e| Error::io(&p, e))?;
                 // Read-only: a stage reading it as input cannot modify it by accident.
-                f.set_permissions(std::fs::Permissions::from_mode(0o444))
+                f.set_permissions(std::fs::Permissions::from_mode(FILE_MODE))
                     .map_err(|e| Error::io(&p, e))?;
                 f.sync_all().map_err(|e| Error::io(&p, e))?;
                 let before = Stamp::of(&f.metadata().map_err(|e| Error::io(&p, e))?);
@@ -377,10 +385,14 @@ impl Store {
             &tmp.join("manifest.json"),
             &serde_json::to_vec_pretty(&manifest).expect("serialisable"),
         )?;
+        // Seal everything but the top directory, which must stay writable to be renamed
+        // (moving a directory to another parent rewrites its `..` entry).
+        seal(tmp, false)?;
         sync_dir(tmp)?;
         self.discard(identity)?;
         let dest = self.object_dir(identity);
         std::fs::rename(tmp, &dest).map_err(|e| Error::io(&dest, e))?;
+        set_mode(&dest, DIR_MODE)?;
         sync_dir(&self.root.join("objects"))?;
         // The files kept their inodes and stamps through the rename: seed the cache.
         let new_out = dest.join("out");
@@ -420,9 +432,71 @@ impl Store {
     }
 }
 
-/// Removes a tree, making read-only directories writable first (outputs are 0444 files in
-/// normal directories, so plain remove_dir_all works; this only tolerates absence).
-fn remove_tree(p: &Path) -> Result<()> {
+/// Mode of every file of a committed object.
+pub const FILE_MODE: u32 = 0o444;
+/// Mode of every directory of a committed object.
+pub const DIR_MODE: u32 = 0o555;
+
+fn set_mode(p: &Path, mode: u32) -> Result<()> {
+    std::fs::set_permissions(p, std::fs::Permissions::from_mode(mode)).map_err(|e| Error::io(p, e))
+}
+
+/// Makes the tree under `dir` read-only: files [`FILE_MODE`], directories [`DIR_MODE`]
+/// (`dir` itself too when `top`). Symlinks are never followed (outputs hold none).
+fn seal(dir: &Path, top: bool) -> Result<()> {
+    let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    for entry in rd {
+        let entry = entry.map_err(|e| Error::io(dir, e))?;
+        let p = entry.path();
+        let ft = entry.file_type().map_err(|e| Error::io(&p, e))?;
+        if ft.is_dir() {
+            seal(&p, true)?;
+        } else if ft.is_file() {
+            // Only when needed: a chmod changes the ctime, which the hash cache's stamps of
+            // the outputs (made read-only before hashing) include.
+            let mode = entry
+                .metadata()
+                .map_err(|e| Error::io(&p, e))?
+                .permissions()
+                .mode();
+            if mode & 0o7777 != FILE_MODE {
+                set_mode(&p, FILE_MODE)?;
+            }
+        }
+    }
+    if top {
+        set_mode(dir, DIR_MODE)?;
+    }
+    Ok(())
+}
+
+/// Gives the owner write access to every directory under `p` (and `p`), without following
+/// symlinks, so that their entries can be removed.
+fn unseal_dirs(p: &Path) -> std::io::Result<()> {
+    let meta = std::fs::symlink_metadata(p)?;
+    if !meta.is_dir() {
+        return Ok(());
+    }
+    if meta.permissions().mode() & 0o700 != 0o700 {
+        std::fs::set_permissions(p, std::fs::Permissions::from_mode(0o755))?;
+    }
+    for entry in std::fs::read_dir(p)? {
+        let entry = entry?;
+        if entry.file_type()?.is_dir() {
+            unseal_dirs(&entry.path())?;
+        }
+    }
+    Ok(())
+}
+
+/// Removes the tree `p` (absent is fine), sealed objects included: read-only directories are
+/// made writable first, which a plain `remove_dir_all` would trip over (unless run as root).
+pub fn remove_tree(p: &Path) -> Result<()> {
+    match unseal_dirs(p) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(Error::io(p, e)),
+    }
     match std::fs::remove_dir_all(p) {
         Ok(()) => Ok(()),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
@@ -460,10 +534,82 @@ mod tests {
             Cached::Corrupt(why) => assert!(why.contains("sub/b.txt"), "{why}"),
             other => panic!("corruption not detected: {other:?}"),
         }
-        std::fs::write(store.out_dir("abc").join("extra"), b"x").unwrap();
+        let out = store.out_dir("abc");
+        std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o755)).unwrap();
+        std::fs::write(out.join("extra"), b"x").unwrap();
         assert!(matches!(store.verify("abc"), Cached::Corrupt(_)));
         store.discard("abc").unwrap();
         assert!(matches!(store.verify("abc"), Cached::Missing));
+    }
+
+    /// Every path under `dir` with its permission bits.
+    fn modes(dir: &Path) -> Vec<(PathBuf, bool, u32)> {
+        let mut v = Vec::new();
+        let meta = std::fs::symlink_metadata(dir).unwrap();
+        v.push((
+            dir.to_owned(),
+            meta.is_dir(),
+            meta.permissions().mode() & 0o7777,
+        ));
+        if meta.is_dir() {
+            for e in std::fs::read_dir(dir).unwrap() {
+                v.extend(modes(&e.unwrap().path()));
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn committed_objects_are_read_only_and_writes_are_refused_or_detected() {
+        let ws = tempfile::tempdir().unwrap();
+        let store = Store::open(ws.path()).unwrap();
+        let tmp = store.tmp_dir("abc").unwrap();
+        std::fs::create_dir_all(tmp.join("out/sub")).unwrap();
+        std::fs::write(tmp.join("out/a.txt"), b"A").unwrap();
+        std::fs::write(tmp.join("out/sub/b.txt"), b"B").unwrap();
+        std::fs::write(tmp.join("log.txt"), b"log").unwrap();
+        store.commit(&tmp, "abc", "u", None, 1).unwrap();
+        let all = modes(&store.object_dir("abc"));
+        assert_eq!(all.len(), 7, "{all:?}"); // 3 directories, 2 outputs, manifest, log
+        for (p, is_dir, mode) in &all {
+            let want = if *is_dir { DIR_MODE } else { FILE_MODE };
+            assert_eq!(*mode, want, "{}", p.display());
+        }
+        // A tool opening an artifact for writing: the kernel refuses it; where it cannot
+        // (root ignores permission bits) the change is caught by verification.
+        let f = store.out_dir("abc").join("a.txt");
+        match std::fs::OpenOptions::new().write(true).open(&f) {
+            Err(e) => assert_eq!(e.kind(), std::io::ErrorKind::PermissionDenied),
+            Ok(mut h) => {
+                std::io::Write::write_all(&mut h, b"Z").unwrap();
+                drop(h);
+                assert!(matches!(store.verify("abc"), Cached::Corrupt(_)));
+                store.discard("abc").unwrap();
+                return;
+            }
+        }
+        // Nor can a file be added beside the outputs or replace one by a rename.
+        let extra = store.out_dir("abc").join("extra");
+        let e = std::fs::write(&extra, b"x").unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::PermissionDenied);
+        let e = std::fs::rename(store.object_dir("abc").join("log.txt"), &f).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::PermissionDenied);
+        assert!(matches!(store.verify("abc"), Cached::Valid(_)));
+        // The store itself still removes its sealed objects.
+        store.discard("abc").unwrap();
+        assert!(!store.object_dir("abc").exists());
+    }
+
+    #[test]
+    fn remove_tree_removes_sealed_trees() {
+        let dir = tempfile::tempdir().unwrap();
+        let t = dir.path().join("t");
+        std::fs::create_dir_all(t.join("a/b")).unwrap();
+        std::fs::write(t.join("a/b/f"), b"f").unwrap();
+        seal(&t, true).unwrap();
+        remove_tree(&t).unwrap();
+        assert!(!t.exists());
+        remove_tree(&t).unwrap(); // absent is fine
     }
 
     #[test]
@@ -475,6 +621,12 @@ mod tests {
         std::fs::write(tmp.join("out/a.txt"), b"A").unwrap();
         store.commit(&tmp, "abc", "u", None, 1).unwrap();
         let mpath = store.object_dir("abc").join("manifest.json");
+        // Rewritten by hand below: unseal the object's directory first.
+        std::fs::set_permissions(
+            store.object_dir("abc"),
+            std::fs::Permissions::from_mode(0o755),
+        )
+        .unwrap();
         let text = std::fs::read_to_string(&mpath).unwrap();
         let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
         assert_eq!(v["format"], MANIFEST_VERSION);
@@ -491,6 +643,7 @@ mod tests {
             Cached::Corrupt(why) => assert!(why.contains("format 2"), "{why}"),
             other => panic!("foreign manifest format trusted: {other:?}"),
         }
+        store.discard("abc").unwrap(); // sealed: a plain TempDir drop could not remove it
     }
 
     #[test]

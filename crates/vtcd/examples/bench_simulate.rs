@@ -43,12 +43,15 @@ fn main() {
     let profile = Profile::new(x, eta).expect("valid profile");
     let sim = Simulation::new(&SampleParams::NOMINAL, &config, Some(profile)).expect("valid model");
     let bound = vtcd::stability::spectrum_bound(
-        &sim.vehicle,
-        &sim.track,
-        sim.params.k_f,
-        sim.params.c_f,
-        sim.hertz_g,
-        [config.x0, config.x0 + sim.speed * duration + sim.offsets[0]],
+        sim.vehicle(),
+        sim.track(),
+        sim.params().k_f,
+        sim.params().c_f,
+        sim.hertz_g(),
+        [
+            config.x0,
+            config.x0 + sim.speed() * duration + sim.offsets()[0],
+        ],
     );
     println!(
         "stability: omega_max <= {:.0} rad/s, damping rate <= {:.0} 1/s, dt limit {:.3e} s (dt = {:e})",
@@ -109,7 +112,7 @@ fn main() {
         "physics: P_1 in [{:.1}, {:.1}] kN (W = {:.1} kN), z_r1 in [{:.3}, {:.3}] mm, z_c in [{:.3}, {:.3}] mm",
         p_lo / 1e3,
         p_hi / 1e3,
-        sim.vehicle.w / 1e3,
+        sim.vehicle().w / 1e3,
         zr_lo * 1e3,
         zr_hi * 1e3,
         zc_lo * 1e3,
@@ -136,7 +139,7 @@ fn thread_cpu_seconds() -> Option<f64> {
 /// Times the two sine transforms of a step alone (modal -> fasteners with N_M inputs,
 /// fasteners -> modes with N_M outputs), the floor of this solver's step.
 fn transforms_only(config: &SimulationConfig, runs: usize) {
-    let (nf, nm) = (config.n_f, config.n_m);
+    let (nf, nm) = (config.track.n_f, config.track.n_m);
     let mut dst = vtcd::rail::SineTransform::new(nf);
     let modal: Vec<f64> = (0..nm).map(|k| 1.0 / (1.0 + k as f64)).collect();
     let (mut seat, mut back) = (vec![0.0; nf - 1], vec![0.0; nm]);

@@ -68,18 +68,6 @@ pub mod col {
     pub const P: usize = 38;
 }
 
-fn d_duration() -> f64 {
-    5.0
-}
-fn d_dt() -> f64 {
-    1e-4
-}
-fn d_output_every() -> usize {
-    10
-}
-fn d_fraction() -> f64 {
-    0.1
-}
 /// How a run starts (`docs/model.md`, start protocols).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase", try_from = "String")]
@@ -105,135 +93,52 @@ impl TryFrom<String> for StartMode {
     }
 }
 
-fn d_x0() -> f64 {
-    20.0
-}
-fn d_gravity() -> f64 {
-    9.81
-}
-fn d_wheel_radius() -> f64 {
-    0.43
-}
-fn t_n_f() -> usize {
-    TrackParams::default().n_f
-}
-fn t_n_m() -> usize {
-    TrackParams::default().n_m
-}
-/// Serde defaults of the track fields: the values of [`TrackParams::default`].
-mod td {
-    use super::TrackParams;
-    macro_rules! track_default {
-        ($($f:ident),*) => { $( pub(super) fn $f() -> f64 { TrackParams::default().$f } )* };
-    }
-    track_default!(s, m_r, rail_e, rail_i, m_s, m_b, k_b, c_b, k_w, c_w, k_g, c_g);
-}
-
 /// Everything fixed for a run: time stepping, start-up, vehicle placement and track. These are
-/// the `simulate` stage's parameters (flat, so each can be overridden alone); every field has
-/// the spec's default and unknown names are refused.
+/// the `simulate` stage's parameters, flat (the track's fields sit beside the others, so each
+/// can be overridden alone: `n_f`, `k_b`, ...); every field has the spec's default
+/// ([`Default`]: the values documented on each field and on [`TrackParams`]) and unknown names
+/// are refused.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct SimulationConfig {
     /// Simulated time `T` (s). Default 5 (paper).
-    #[serde(default = "d_duration")]
     pub duration: f64,
     /// Time step (s). Default 1e-4.
-    #[serde(default = "d_dt")]
     pub dt: f64,
     /// Keep every this many steps (10 gives 1 kHz at dt = 1e-4). Default 10.
-    #[serde(default = "d_output_every")]
     pub output_every: usize,
     /// Initial state: `equilibrium` (default) or `rest`.
-    #[serde(default)]
     pub start: StartMode,
     /// Fraction of `T` with the irregularity off. Default 0.1.
-    #[serde(default = "d_fraction")]
     pub startup_zero_fraction: f64,
     /// Fraction of `T` over which the irregularity fades in linearly. Default 0.1.
-    #[serde(default = "d_fraction")]
     pub startup_ramp_fraction: f64,
     /// Rear-wheel position at `t = 0` (m). Default 20.
-    #[serde(default = "d_x0")]
     pub x0: f64,
     /// Gravity `g` (m/s^2), for the static wheel load. Default 9.81.
-    #[serde(default = "d_gravity")]
     pub gravity: f64,
     /// Wheel radius `R` (m) of the Hertz constant `G = 4.57 R^-0.149 1e-8`. Default 0.43.
-    #[serde(default = "d_wheel_radius")]
     pub wheel_radius: f64,
-    /// Number of fasteners `N_f`. Default 900.
-    #[serde(default = "t_n_f")]
-    pub n_f: usize,
-    /// Number of rail modes `N_M` (< `N_f`). Default 450.
-    #[serde(default = "t_n_m")]
-    pub n_m: usize,
-    /// Fastener spacing `s` (m). Default 0.6.
-    #[serde(default = "td::s")]
-    pub s: f64,
-    /// Rail mass per length (kg/m). Default 60.64.
-    #[serde(default = "td::m_r")]
-    pub m_r: f64,
-    /// Rail Young's modulus (Pa). Default 2.059e11.
-    #[serde(default = "td::rail_e")]
-    pub rail_e: f64,
-    /// Rail second moment of area (m^4). Default 3.217e-5.
-    #[serde(default = "td::rail_i")]
-    pub rail_i: f64,
-    /// Sleeper mass (kg). Default 237.
-    #[serde(default = "td::m_s")]
-    pub m_s: f64,
-    /// Ballast block mass (kg). Default 341.3.
-    #[serde(default = "td::m_b")]
-    pub m_b: f64,
-    /// Ballast stiffness (N/m). Default 2.4e8.
-    #[serde(default = "td::k_b")]
-    pub k_b: f64,
-    /// Ballast damping (N s/m). Default 5.88e4.
-    #[serde(default = "td::c_b")]
-    pub c_b: f64,
-    /// Ballast shear stiffness (N/m). Default 7.8e7.
-    #[serde(default = "td::k_w")]
-    pub k_w: f64,
-    /// Ballast shear damping (N s/m). Default 8e4.
-    #[serde(default = "td::c_w")]
-    pub c_w: f64,
-    /// Subgrade stiffness (N/m). Default 6.5e7.
-    #[serde(default = "td::k_g")]
-    pub k_g: f64,
-    /// Subgrade damping (N s/m). Default 3.1e4.
-    #[serde(default = "td::c_g")]
-    pub c_g: f64,
+    /// The track constants (defaults: [`TrackParams::default`]); flattened, so in a parameter
+    /// file they are the keys `n_f`, `n_m`, `s`, `m_r`, ... beside the others.
+    #[serde(flatten)]
+    pub track: TrackParams,
 }
 
 impl Default for SimulationConfig {
     fn default() -> Self {
-        let run = Self {
-            duration: d_duration(),
-            dt: d_dt(),
-            output_every: d_output_every(),
+        Self {
+            duration: 5.0,
+            dt: 1e-4,
+            output_every: 10,
             start: StartMode::default(),
-            startup_zero_fraction: d_fraction(),
-            startup_ramp_fraction: d_fraction(),
-            x0: d_x0(),
-            gravity: d_gravity(),
-            wheel_radius: d_wheel_radius(),
-            n_f: t_n_f(),
-            n_m: t_n_m(),
-            s: td::s(),
-            m_r: td::m_r(),
-            rail_e: td::rail_e(),
-            rail_i: td::rail_i(),
-            m_s: td::m_s(),
-            m_b: td::m_b(),
-            k_b: td::k_b(),
-            c_b: td::c_b(),
-            k_w: td::k_w(),
-            c_w: td::c_w(),
-            k_g: td::k_g(),
-            c_g: td::c_g(),
-        };
-        run.with_track(&TrackParams::default())
+            startup_zero_fraction: 0.1,
+            startup_ramp_fraction: 0.1,
+            x0: 20.0,
+            gravity: 9.81,
+            wheel_radius: 0.43,
+            track: TrackParams::default(),
+        }
     }
 }
 
@@ -246,45 +151,6 @@ fn out_of_range(name: &str, value: f64, allowed: impl Into<String>) -> Error {
 }
 
 impl SimulationConfig {
-    /// The track part.
-    pub fn track(&self) -> TrackParams {
-        TrackParams {
-            n_f: self.n_f,
-            n_m: self.n_m,
-            s: self.s,
-            m_r: self.m_r,
-            rail_e: self.rail_e,
-            rail_i: self.rail_i,
-            m_s: self.m_s,
-            m_b: self.m_b,
-            k_b: self.k_b,
-            c_b: self.c_b,
-            k_w: self.k_w,
-            c_w: self.c_w,
-            k_g: self.k_g,
-            c_g: self.c_g,
-        }
-    }
-
-    /// The same run on another track.
-    pub fn with_track(mut self, tp: &TrackParams) -> Self {
-        self.n_f = tp.n_f;
-        self.n_m = tp.n_m;
-        self.s = tp.s;
-        self.m_r = tp.m_r;
-        self.rail_e = tp.rail_e;
-        self.rail_i = tp.rail_i;
-        self.m_s = tp.m_s;
-        self.m_b = tp.m_b;
-        self.k_b = tp.k_b;
-        self.c_b = tp.c_b;
-        self.k_w = tp.k_w;
-        self.c_w = tp.c_w;
-        self.k_g = tp.k_g;
-        self.c_g = tp.c_g;
-        self
-    }
-
     /// Number of time steps `round(T / dt)`.
     pub fn steps(&self) -> usize {
         (self.duration / self.dt).round() as usize
@@ -348,7 +214,7 @@ impl SimulationConfig {
                 "finite and > 0 (inside the rail)",
             ));
         }
-        self.track().validate()
+        self.track.validate()
     }
 
     /// Irregularity factor `r(t)` of the start-up protocol.
@@ -478,27 +344,28 @@ pub struct Wheels {
     pub p: [f64; 4],
 }
 
-/// One sample's coupled model, ready to run.
+/// One sample's coupled model, ready to run. Built and checked by [`Simulation::new`]
+/// (configuration, parameters, rail and profile coverage, the time step against the stability
+/// bound); its parts are read through accessors and cannot be changed afterwards, so a
+/// `Simulation` always satisfies the checks it was built with.
 #[derive(Debug, Clone)]
 pub struct Simulation {
-    /// Run configuration.
-    pub config: SimulationConfig,
-    /// Track constants.
-    pub track: TrackParams,
+    /// Run configuration (its `track` is the track of this model).
+    config: SimulationConfig,
     /// The sample's parameters.
-    pub params: SampleParams,
+    params: SampleParams,
     /// The half vehicle.
-    pub vehicle: Vehicle,
+    vehicle: Vehicle,
     /// The modal rail.
-    pub rail: Rail,
-    /// Contact law (Hertz unless a test changes it).
-    pub contact: ContactLaw,
+    rail: Rail,
+    /// Contact law (Hertz unless a test of this module changes it).
+    contact: ContactLaw,
     /// Hertz constant `G` (m/N^(2/3)).
-    pub hertz_g: f64,
+    hertz_g: f64,
     /// Running speed (m/s).
-    pub speed: f64,
+    speed: f64,
     /// Wheel offsets from the rear wheel (m), wheels 1..4.
-    pub offsets: [f64; 4],
+    offsets: [f64; 4],
     profile: Option<Profile>,
 }
 
@@ -548,7 +415,7 @@ impl Simulation {
             let allowed = format!("< l_c = {} (the bogies must not overlap)", params.l_c);
             return Err(out_of_range("l_t", params.l_t, allowed));
         }
-        let track = config.track();
+        let track = config.track;
         let vehicle = Vehicle::new(params, config.gravity);
         let hertz_g = contact::hertz_constant(config.wheel_radius);
 
@@ -556,7 +423,6 @@ impl Simulation {
         let offsets = [2.0 * (lc + lt), 2.0 * lc, 2.0 * lt, 0.0];
         let sim = Self {
             config: *config,
-            track,
             params: *params,
             vehicle,
             rail: Rail::new(&track),
@@ -607,14 +473,59 @@ impl Simulation {
         Ok(sim)
     }
 
+    /// The run configuration.
+    pub fn config(&self) -> &SimulationConfig {
+        &self.config
+    }
+
+    /// The track constants (`config().track`).
+    pub fn track(&self) -> &TrackParams {
+        &self.config.track
+    }
+
+    /// The sample's parameters.
+    pub fn params(&self) -> &SampleParams {
+        &self.params
+    }
+
+    /// The half vehicle.
+    pub fn vehicle(&self) -> &Vehicle {
+        &self.vehicle
+    }
+
+    /// The modal rail.
+    pub fn rail(&self) -> &Rail {
+        &self.rail
+    }
+
+    /// The contact law (Hertz).
+    pub fn contact(&self) -> ContactLaw {
+        self.contact
+    }
+
+    /// Hertz constant `G` (m/N^(2/3)).
+    pub fn hertz_g(&self) -> f64 {
+        self.hertz_g
+    }
+
+    /// Running speed (m/s).
+    pub fn speed(&self) -> f64 {
+        self.speed
+    }
+
+    /// Wheel offsets from the rear wheel (m), wheels 1..4.
+    pub fn offsets(&self) -> [f64; 4] {
+        self.offsets
+    }
+
     /// Length of the state vectors: `10 + N_M + 2 N_f`.
     pub fn state_len(&self) -> usize {
-        NUM_DOFS + self.track.n_m + 2 * self.track.n_f
+        NUM_DOFS + self.config.track.n_m + 2 * self.config.track.n_f
     }
 
     /// Ranges of the vehicle, rail-mode, sleeper and ballast parts of the state.
     pub fn layout(&self) -> [std::ops::Range<usize>; 4] {
-        let (nm, nf) = (self.track.n_m, self.track.n_f);
+        let (nm, nf) = (self.config.track.n_m, self.config.track.n_f);
         let q = NUM_DOFS..NUM_DOFS + nm;
         let s = q.end..q.end + nf;
         let b = s.end..s.end + nf;
@@ -622,7 +533,7 @@ impl Simulation {
     }
 
     fn workspace(&self) -> Workspace {
-        let (nm, nf) = (self.track.n_m, self.track.n_f);
+        let (nm, nf) = (self.config.track.n_m, self.config.track.n_f);
         Workspace {
             dst: SineTransform::new(nf),
             shapes: vec![[0.0; 4]; nm],
@@ -684,7 +595,7 @@ impl Simulation {
         ws.dst.apply(&ws.seat_in, &mut ws.seat[1..]);
         let (a_s, a_b) = a[rs.start..].split_at_mut(rs.len());
         track::substructure(
-            &self.track,
+            &self.config.track,
             k_f,
             c_f,
             &ws.seat,
@@ -794,7 +705,7 @@ impl Simulation {
         let xw = self.wheel_positions(0.0);
         let track = crate::statics::track_deflection(
             &self.rail,
-            &self.track,
+            &self.config.track,
             self.params.k_f,
             &xw,
             &[w; 4],
@@ -805,7 +716,7 @@ impl Simulation {
         x[rb].copy_from_slice(&track.ballast);
         let eta = self.wheel_irregularity(0.0, &xw);
         let delta = self.static_compression(w);
-        let mut y = vec![0.0; self.track.n_m];
+        let mut y = vec![0.0; self.config.track.n_m];
         let mut zw = [0.0; 4];
         for i in 0..4 {
             self.rail.shapes_at(xw[i], &mut y);
@@ -856,7 +767,7 @@ impl Simulation {
     /// conserved when every damper is off, the wheels stand still and the irregularity is off.
     pub fn energy(&self, x: &[f64], v: &[f64], wheel_x: &[f64; 4]) -> f64 {
         let [_, rq, rs, rb] = self.layout();
-        let tp = &self.track;
+        let tp = &self.config.track;
         let veh = &self.vehicle;
         let m = veh.masses();
         let mut kinetic: f64 = (0..NUM_DOFS).map(|i| 0.5 * m[i] * v[i] * v[i]).sum();

@@ -21,9 +21,9 @@ fn config(tp: &TrackParams, duration: f64, x0: f64) -> SimulationConfig {
     SimulationConfig {
         duration,
         x0,
+        track: *tp,
         ..Default::default()
     }
-    .with_track(tp)
 }
 
 /// A vehicle standing still (v = 0) with all dampers off.
@@ -54,8 +54,8 @@ fn probed_matrices(sim: &Simulation) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>)
     let [_, rq, rs, rb] = sim.layout();
     let mut mass = vec![1.0; n];
     mass[..NUM_DOFS].copy_from_slice(&sim.vehicle.masses());
-    mass[rs].iter_mut().for_each(|m| *m = sim.track.m_s);
-    mass[rb].iter_mut().for_each(|m| *m = sim.track.m_b);
+    mass[rs].iter_mut().for_each(|m| *m = sim.config.track.m_s);
+    mass[rb].iter_mut().for_each(|m| *m = sim.config.track.m_b);
     let _ = rq;
     let zero = vec![0.0; n];
     let mut a0 = vec![0.0; n];
@@ -495,9 +495,16 @@ fn bad_configurations_are_refused_with_the_field_named() {
         ..base
     });
     assert!(e.contains("output_every"), "{e}");
-    let e = msg(SimulationConfig { n_m: 900, ..base });
+    let track = |tp: TrackParams| SimulationConfig { track: tp, ..base };
+    let e = msg(track(TrackParams {
+        n_m: 900,
+        ..base.track
+    }));
     assert!(e.contains("n_m") && e.contains("899"), "{e}");
-    let e = msg(SimulationConfig { m_b: -1.0, ..base });
+    let e = msg(track(TrackParams {
+        m_b: -1.0,
+        ..base.track
+    }));
     assert!(e.contains("m_b") && e.contains("> 0"), "{e}");
     let e = msg(SimulationConfig { dt: -1e-4, ..base });
     assert!(e.contains("`dt`"), "{e}");
@@ -551,13 +558,43 @@ fn config_defaults_and_unknown_fields() {
     let c: SimulationConfig = serde_json::from_str("{}").unwrap();
     assert_eq!(c, SimulationConfig::default());
     assert_eq!(
-        (c.n_f, c.n_m, c.output_every, c.n_outputs()),
+        (c.track.n_f, c.track.n_m, c.output_every, c.n_outputs()),
         (900, 450, 10, 5000)
     );
     let e = serde_json::from_str::<SimulationConfig>(r#"{"n_ff": 3}"#)
         .unwrap_err()
         .to_string();
     assert!(e.contains("unknown field `n_ff`"), "{e}");
+    // The track's fields are flat keys beside the run's; each alone overrides its default.
+    let c: SimulationConfig =
+        serde_json::from_str(r#"{"duration": 2, "n_f": 300, "k_b": 1.5e8}"#).unwrap();
+    let expect = SimulationConfig {
+        duration: 2.0,
+        track: TrackParams {
+            n_f: 300,
+            k_b: 1.5e8,
+            ..TrackParams::default()
+        },
+        ..SimulationConfig::default()
+    };
+    assert_eq!(c, expect);
+    // Serialised flat, in declaration order, and read back equal.
+    let text = serde_json::to_string(&expect).unwrap();
+    assert!(
+        text.starts_with(r#"{"duration":2.0,"dt":0.0001,"#) && text.contains(r#""n_f":300,"#),
+        "{text}"
+    );
+    assert!(!text.contains("track"), "{text}");
+    assert_eq!(
+        serde_json::from_str::<SimulationConfig>(&text).unwrap(),
+        expect
+    );
+    // The nesting is not a key, and a wrong type in the track part is refused.
+    let e = serde_json::from_str::<SimulationConfig>(r#"{"track": {"n_f": 3}}"#)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("unknown field `track`"), "{e}");
+    assert!(serde_json::from_str::<SimulationConfig>(r#"{"k_b": "stiff"}"#).is_err());
 }
 
 /// Largest |force| of every part of the state at `(x, 0, t = 0)`, as `m_i |a_i|`: vehicle
@@ -574,8 +611,8 @@ fn static_imbalance(sim: &Simulation, x: &[f64]) -> [f64; 4] {
     [
         max(rv, &|i| m[i]),
         max(rq, &|_| 1.0),
-        max(rs, &|_| sim.track.m_s),
-        max(rb, &|_| sim.track.m_b),
+        max(rs, &|_| sim.config.track.m_s),
+        max(rb, &|_| sim.config.track.m_b),
     ]
 }
 

@@ -18,8 +18,10 @@
 use serde::{Deserialize, Serialize};
 
 /// Fixed track constants, SI units. [`Default`] gives the spec's values (CHN60 rail on a
-/// ballasted substructure, 900 fasteners at 0.6 m, 450 rail modes).
+/// ballasted substructure, 900 fasteners at 0.6 m, 450 rail modes); a missing field takes its
+/// default when deserialized.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct TrackParams {
     /// Number of fasteners `N_f` (rail length `L = N_f s`). Default 900.
     pub n_f: usize,

@@ -12,6 +12,7 @@ use stage_kit::StageContext;
 fn run() -> Result<()> {
     pino_learn::tune_allocator();
     let ctx = StageContext::load()?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let p: EvalParams = ctx.params()?;
     let device = p.device.device()?;
     let params = &ctx.single_input_file("params", "params.parquet")?;

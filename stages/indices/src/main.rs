@@ -14,6 +14,7 @@ use pino_indices as indices;
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let raw: indices::IndexParams = ctx.params()?;
     let cfg = raw
         .validate()
@@ -25,19 +26,19 @@ fn run() -> Result<String> {
     let out = indices_scan::compute_all(&params, &files, &cfg, &|n| progress.inc(n))?;
     indices_scan::write_outputs(&ctx.output, &out.rows, &cfg)?;
     let failing = out.rows.iter().filter(|r| !r.failed.is_empty()).count();
-    let worst = |k: usize| {
+    let worst = |index: &dyn Fn(&indices::Indices) -> f64| {
         out.rows
             .iter()
-            .map(|r| r.indices.values()[k])
+            .map(|r| index(&r.indices))
             .fold(f64::NEG_INFINITY, f64::max)
     };
     Ok(format!(
         "indices of {} samples ({} absent from the dataset); {failing} exceed a limit; worst: peak force {:.1} kN, wheel load reduction {:.3}, W_z {:.2}",
         out.rows.len(),
         out.absent,
-        worst(0),
-        worst(1),
-        worst(8).max(worst(9)).max(worst(10)),
+        worst(&|i| i.peak_wheel_rail_force_kn),
+        worst(&|i| i.wheel_load_reduction_rate),
+        worst(&|i| i.sperling_wz.into_iter().fold(f64::NEG_INFINITY, f64::max)),
     ))
 }
 

@@ -16,6 +16,7 @@ const SAMPLES_PER_GROUP: usize = 64;
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let raw: IrregularityParams = ctx.params()?;
     let generator = raw
         .validate()

@@ -157,13 +157,9 @@ fn run() -> Result<()> {
     }
     let flags: Vec<String> = outside
         .iter()
-        .map(|o| {
-            o.iter()
-                .map(|r| format!("{}={}", r.name, r.value))
-                .collect::<Vec<_>>()
-                .join(",")
-        })
+        .map(|o| pino_learn::predict::outside_flag(o))
         .collect();
+    pino_data::metadata::set_origin(origin(&args, &sets))?;
     let started = std::time::Instant::now();
     let mut wrote = Vec::new();
     if let (Some(out), false) = (&args.out, args.indices_only) {
@@ -211,4 +207,33 @@ fn main() {
         };
         std::process::exit(code);
     }
+}
+
+/// The origin written into the output: stage and unit `predict`, and as parameters the
+/// resolved parameter sets and everything else that decides the numbers (the model directory
+/// as given, the profile's source, the placement, the device).
+fn origin(args: &Args, sets: &[pino_learn::predict::NominalParams]) -> pino_data::metadata::Origin {
+    let sets: Vec<serde_json::Value> = sets
+        .iter()
+        .map(|p| {
+            let values = p.to_array();
+            serde_json::Value::Object(
+                pino_data::schema::PARAMETERS
+                    .iter()
+                    .zip(values)
+                    .map(|(name, v)| (name.to_string(), serde_json::Value::from(v)))
+                    .collect(),
+            )
+        })
+        .collect();
+    let params = serde_json::json!({
+        "model": args.model.display().to_string(),
+        "sets": sets,
+        "profile": args.profile.as_ref().map(|p| p.display().to_string()),
+        "seed": args.seed,
+        "profile_id": args.profile_id,
+        "x0": args.x0,
+        "device": args.device,
+    });
+    pino_data::metadata::Origin::stage_unit("predict", 0, 1, &params)
 }

@@ -1,7 +1,7 @@
 //! Stage `sample-params`: draws every sample's 14 parameters uniformly on their ranges
 //! (`vtcd::sampling`) and writes `params.parquet`: `sample_id` (i64), `split`
 //! ("train"/"validation"/"test"), then the 14 parameters (f64, spec order and units), and
-//! `ranges.parquet`: `name`, `min`, `max` of each parameter's sampling range.
+//! `ranges.parquet`: `name`, `unit`, `min`, `max` of each parameter's sampling range.
 //!
 //! Params: `seed`, `n_train`, `n_validation`, `n_test`, optional `ranges` (see
 //! `vtcd::sampling`). Ids `0..n_train` are training samples, the next `n_validation` ids
@@ -15,6 +15,7 @@ use vtcd::sampling::SamplingParams;
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let raw: SamplingParams = ctx.params()?;
     let plan = raw
         .validate()
@@ -41,6 +42,15 @@ fn run() -> Result<String> {
     ranges.push(
         "name",
         Column::Str(schema::PARAMETERS.iter().map(|s| s.to_string()).collect()),
+    )?;
+    ranges.push(
+        "unit",
+        Column::Str(
+            schema::PARAMETERS
+                .iter()
+                .map(|s| pino_data::units::unit(s).unwrap_or("-").to_string())
+                .collect(),
+        ),
     )?;
     ranges.push(
         "min",

@@ -23,6 +23,7 @@ use vtcd::simulation::{self, Profile, SampleInput, SimulationConfig};
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let config: SimulationConfig = ctx.params()?;
     config
         .validate()

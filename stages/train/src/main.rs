@@ -16,6 +16,7 @@ use stage_kit::StageContext;
 fn run() -> Result<()> {
     pino_learn::tune_allocator();
     let ctx = StageContext::load()?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let p: TrainParams = ctx.params()?;
     let configs = p
         .configs()

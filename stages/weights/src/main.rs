@@ -21,6 +21,7 @@ use vtcd::weights::{magnitude_weights, WeightParams};
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
     let raw: WeightParams = ctx.params()?;
     let cfg = raw
         .validate()

@@ -173,6 +173,36 @@ impl FusedLayer {
         y
     }
 
+    /// Host forward for inference over `n` columns into `out` (its old contents are
+    /// overwritten; it is resized to `[C', n]`): the arithmetic of [`Self::forward`], so the
+    /// same values, with the bias and activation applied in place and nothing kept.
+    pub(crate) fn infer_into(&self, x: &[f32], p: &[f32], n: usize, out: &mut Vec<f32>) {
+        let (w, b, wr, wi) = self.split(p);
+        out.resize(self.c_out * n, 0.0);
+        let accumulate = match &self.spectral {
+            Some(s) => {
+                s.infer_into(x, wr, wi, self.c_in, self.c_out, out);
+                true
+            }
+            None => false,
+        };
+        // out [C', N] (+)= W^T [C', C] x [C, N]
+        gemm(
+            self.c_out,
+            n,
+            self.c_in,
+            out,
+            accumulate,
+            w,
+            (1, self.c_out),
+            x,
+            (n, 1),
+        );
+        out.par_chunks_mut(n)
+            .enumerate()
+            .for_each(|(o, zo)| simd::bias_act_in_place(zo, b[o], self.gelu));
+    }
+
     /// Host backward: (`dx`, `dparams`); `grad` is overwritten with the pre-activation
     /// gradient.
     pub(crate) fn backward(

@@ -104,24 +104,37 @@ impl NetworkPart {
             .collect()
     }
 
-    fn forward(&self, x: &[f32], p: &[f32]) -> Vec<f32> {
-        let (b, t) = (self.batch, self.t);
-        let NetworkShape {
-            c_in,
-            width,
-            c_out,
-            depth,
-            ..
-        } = self.shape;
-        let params = self.param_slices(p);
-        let n = b * t;
-        // [B, T, C] -> [C, B T]
+    /// `[B, T, C_in]` -> channel-major `[C_in, B T]`.
+    fn to_columns(&self, x: &[f32]) -> Vec<f32> {
+        let c_in = self.shape.c_in;
+        let n = self.batch * self.t;
         let mut columns = vec![0.0f32; x.len()];
         for (k, row) in x.chunks(c_in).enumerate() {
             for (c, &v) in row.iter().enumerate() {
                 columns[c * n + k] = v;
             }
         }
+        columns
+    }
+
+    /// Channel-major `[C_out, B T]` -> `[B, T, C_out]`.
+    fn columns_to_rows(&self, u: &[f32]) -> Vec<f32> {
+        let (n, c_out) = (self.batch * self.t, self.shape.c_out);
+        let mut out = vec![0.0f32; u.len()];
+        for (c, row) in u.chunks(n).enumerate() {
+            for (k, &v) in row.iter().enumerate() {
+                out[k * c_out + c] = v;
+            }
+        }
+        out
+    }
+
+    fn forward(&self, x: &[f32], p: &[f32]) -> Vec<f32> {
+        let (b, t) = (self.batch, self.t);
+        let NetworkShape { width, depth, .. } = self.shape;
+        let params = self.param_slices(p);
+        let n = b * t;
+        let columns = self.to_columns(x);
         let mut inputs = Vec::with_capacity(self.layers.len());
         let lifted = self.layers[0].forward(&columns, params[0], n);
         inputs.push(columns);
@@ -137,14 +150,41 @@ impl NetworkPart {
         let u = self.layers[depth + 2].forward(&h, params[depth + 2], n);
         inputs.push(h);
         *self.inputs.lock().unwrap_or_else(|e| e.into_inner()) = inputs;
-        // [C_out, B T] -> [B, T, C_out]
-        let mut out = vec![0.0f32; u.len()];
-        for (c, row) in u.chunks(n).enumerate() {
-            for (k, &v) in row.iter().enumerate() {
-                out[k * c_out + c] = v;
+        self.columns_to_rows(&u)
+    }
+
+    /// [`Self::forward`] for inference: the same arithmetic (the same values), activations in
+    /// two buffers updated in place, nothing kept for a backward pass.
+    fn infer(&self, x: &[f32], p: &[f32]) -> Vec<f32> {
+        let (b, t, t_pad) = (self.batch, self.t, self.t_pad);
+        let NetworkShape { width, depth, .. } = self.shape;
+        let params = self.param_slices(p);
+        let n = b * t;
+        let (mut cur, mut next) = (Vec::new(), Vec::new());
+        self.layers[0].infer_into(&self.to_columns(x), params[0], n, &mut next);
+        if t_pad > t {
+            cur.resize(width * b * t_pad, 0.0);
+            for (dst, src) in cur.chunks_mut(t_pad).zip(next.chunks(t)) {
+                dst[..t].copy_from_slice(src);
+                dst[t..].fill(0.0);
             }
+        } else {
+            std::mem::swap(&mut cur, &mut next);
         }
-        out
+        for l in 0..depth {
+            self.layers[1 + l].infer_into(&cur, params[1 + l], b * t_pad, &mut next);
+            std::mem::swap(&mut cur, &mut next);
+        }
+        if t_pad > t {
+            next.clear();
+            for row in cur.chunks(t_pad) {
+                next.extend_from_slice(&row[..t]);
+            }
+            std::mem::swap(&mut cur, &mut next);
+        }
+        self.layers[depth + 1].infer_into(&cur, params[depth + 1], n, &mut next);
+        self.layers[depth + 2].infer_into(&next, params[depth + 2], n, &mut cur);
+        self.columns_to_rows(&cur)
     }
 
     fn backward(&self, x: &[f32], p: &[f32], grad: &[f32]) -> Vec<f32> {
@@ -232,16 +272,31 @@ impl FusedNetwork {
         let outs: Vec<Vec<f32>> = self
             .parts
             .par_iter()
-            .map(|(start, part)| {
-                let x = &x[start * per_in..(start + part.batch) * per_in];
-                part.forward(x, p)
-            })
+            .map(|(start, part)| part.forward(&x[start * per_in..(start + part.batch) * per_in], p))
             .collect();
         let mut u = Vec::with_capacity(self.batch * per_out);
         for o in outs {
             u.extend(o);
         }
         u
+    }
+
+    /// The output `[B, T, C_out]` of the network `shape` (Fourier layers on the plan `dft`)
+    /// for host input `x [B, T, C_in]` of `t` points and flat parameters `p`, for inference:
+    /// the op's forward pass to round-off, nothing kept for a backward pass. Samples run one
+    /// by one, side by side (each sample's activations stay in the core's cache, and its
+    /// output does not depend on the other samples).
+    pub fn infer(
+        shape: NetworkShape,
+        dft: &Arc<RealDft>,
+        t: usize,
+        x: &[f32],
+        p: &[f32],
+    ) -> Vec<f32> {
+        let per_in = t * shape.c_in;
+        let sample = NetworkPart::new(shape, dft, 1, t);
+        let outs: Vec<Vec<f32>> = x.par_chunks(per_in).map(|x| sample.infer(x, p)).collect();
+        outs.concat()
     }
 
     fn backward(&self, x: &[f32], p: &[f32], grad: &[f32]) -> Vec<f32> {

@@ -121,6 +121,22 @@ dispatch! {
 }
 
 dispatch! {
+    /// In place `z = act(z + bias)` over one channel's block: the inference form of
+    /// [`bias_act_forward`] with `b` absent (the same arithmetic, so the same values).
+    fn bias_act_in_place(z: &mut [f32], bias: f32, gelu: bool) {
+        if gelu {
+            for v in z.iter_mut() {
+                *v = gelu_and_slope(*v + bias).0;
+            }
+        } else {
+            for v in z.iter_mut() {
+                *v += bias;
+            }
+        }
+    }
+}
+
+dispatch! {
     /// `out = act(a + b + bias)` over one channel's block, `b` optional (empty slice = absent),
     /// `act` GELU when `gelu`, identity otherwise.
     fn bias_act_forward(a: &[f32], b: &[f32], bias: f32, gelu: bool, out: &mut [f32]) {

@@ -92,9 +92,15 @@ impl SpectralConvOp {
 
     /// Modes `[R, M]` -> rows `[R, T]` with synthesis weights `w`.
     fn synthesise_rows(&self, modes: &[C32], w: &[f32]) -> Vec<f32> {
+        let mut out = vec![0.0f32; modes.len() / self.dft.modes() * self.dft.len()];
+        self.synthesise_rows_into(modes, w, &mut out);
+        out
+    }
+
+    /// [`Self::synthesise_rows`] into `out [R, T]` (every element written).
+    fn synthesise_rows_into(&self, modes: &[C32], w: &[f32], out: &mut [f32]) {
         let (t, m) = (self.dft.len(), self.dft.modes());
-        let n_rows = modes.len() / m;
-        let mut out = vec![0.0f32; n_rows * t];
+        debug_assert_eq!(out.len(), modes.len() / m * t);
         out.par_chunks_mut(2 * t)
             .zip(modes.par_chunks(2 * m))
             .for_each_init(
@@ -106,7 +112,6 @@ impl SpectralConvOp {
                     self.dft.synthesise_pair(ya, yb, w, oa, ob, ws);
                 },
             );
-        out
     }
 }
 
@@ -260,11 +265,44 @@ impl SpectralConvOp {
         c: usize,
         o: usize,
     ) -> (Vec<f32>, Vec<C32>) {
+        let mut out = vec![0.0f32; x.len() / c * o];
+        let spectrum = self.convolve_into(x, wr, wi, c, o, &mut out);
+        (out, spectrum)
+    }
+
+    /// `K x` of host `x [C, B, T]` written into `out [O, B, T]` (every element), nothing
+    /// kept: the inference form of [`Self::forward_host`].
+    pub(crate) fn infer_into(
+        &self,
+        x: &[f32],
+        wr: &[f32],
+        wi: &[f32],
+        c: usize,
+        o: usize,
+        out: &mut [f32],
+    ) {
+        self.convolve_into(x, wr, wi, c, o, out);
+    }
+
+    /// `K x` into `out [O, B, T]`; returns the spectrum `X [M, B, C]`.
+    fn convolve_into(
+        &self,
+        x: &[f32],
+        wr: &[f32],
+        wi: &[f32],
+        c: usize,
+        o: usize,
+        out: &mut [f32],
+    ) -> Vec<C32> {
         let (b, m) = (self.batch, self.dft.modes());
         let spectrum = rows_to_modes(&self.analyse_rows(x), c, b, m);
         let y = mix(&spectrum, wr, wi, b, c, o);
-        let out = self.synthesise_rows(&modes_to_rows(&y, o, b, m), &self.synthesis_weights(false));
-        (out, spectrum)
+        self.synthesise_rows_into(
+            &modes_to_rows(&y, o, b, m),
+            &self.synthesis_weights(false),
+            out,
+        );
+        spectrum
     }
 
     /// Backward of [`Self::forward_host`] for the upstream gradient `g [O, B, T]`:

@@ -25,7 +25,7 @@
 
 use super::{Job, Resources, Ticket, Work};
 use crate::exec::{parse_progress, Outcome, ProgressLine, CONTEXT_ENV, TAIL_LINES};
-use crate::store::write_atomic;
+use crate::store::{remove_tree, write_atomic};
 use crate::{Error, Result};
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::io::{Read, Seek, SeekFrom};
@@ -208,14 +208,6 @@ pub fn recover(
     Ok(kept)
 }
 
-fn remove_tree(p: &Path) -> Result<()> {
-    match std::fs::remove_dir_all(p) {
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
-        Err(e) => Err(Error::io(p, e)),
-    }
-}
-
 /// `pipeline status`: the Slurm job of `identity` that is queued or running, as
 /// `job 123_4 (RUNNING)`; `None` when there is none. Asks `squeue` when it can.
 pub fn describe(store_root: &Path, identity: &str) -> Option<String> {
@@ -367,7 +359,7 @@ impl Shared {
         );
         let _ = Command::new("scancel").args(&ids).status();
         for d in active.values() {
-            let _ = std::fs::remove_dir_all(d);
+            let _ = remove_tree(d);
         }
     }
 }
