@@ -370,6 +370,15 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
 
         let w: vtcd::weights::WeightParams = serde_json::from_value(params("weights")).unwrap();
         w.validate().unwrap();
+        let ix: pino_indices::IndexParams = serde_json::from_value(params("indices")).unwrap();
+        let ix = ix.validate().unwrap();
+        assert_eq!(ix.gravity, 9.81, "{file}");
+        assert_eq!(
+            ix.sperling,
+            pino_indices::SperlingParams::default(),
+            "{file}"
+        );
+        assert_eq!(ix.limits, pino_indices::Limits::default(), "{file}");
         assert_eq!(
             (w.noise_ratio, w.gravity, w.wheel_radius),
             (0.02, 9.81, 0.43),

@@ -111,6 +111,33 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         "plots: {eval:?}"
     );
 
+    // Engineering indices: one row per simulated sample, every index finite; the evaluation
+    // scores them for the truth row and each algorithm.
+    let ix = show(ws.path(), "indices", &[]);
+    let t = read_parquet(named(&ix, "indices.parquet")[0], None).unwrap();
+    assert_eq!(
+        t.i64(schema::SAMPLE_ID).unwrap(),
+        (0..7).collect::<Vec<i64>>().as_slice()
+    );
+    for c in pino_indices::INDEX_COLUMNS {
+        assert!(
+            t.f64(c.name).unwrap().iter().all(|x| x.is_finite()),
+            "{}",
+            c.name
+        );
+    }
+    assert!(t
+        .f64("peak_wheel_rail_force_kn")
+        .unwrap()
+        .iter()
+        .all(|&p| p > 30.0 && p < 300.0));
+    let errors = read_parquet(named(&eval, "indices_errors.parquet")[0], None).unwrap();
+    assert_eq!(errors.num_rows(), 6 * pino_indices::INDEX_COLUMNS.len());
+    assert_eq!(
+        named(&eval, "indices_scatter_peak_wheel_rail_force_kn.png").len(),
+        1
+    );
+
     // Same inputs: nothing to do.
     let second = pipeline(ws.path(), &["run"]);
     assert!(second.status.success(), "{}", output_text(&second));

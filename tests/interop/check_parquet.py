@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Reads every Parquet artifact of a pino-mbd pipeline run with pyarrow, polars and DuckDB.
 
-    python3 tests/interop/check_parquet.py WORKSPACE [--file PREDICTIONS.parquet ...] [--no-indices]
+    python3 tests/interop/check_parquet.py WORKSPACE [--file PREDICTIONS.parquet ...]
 
 WORKSPACE is a directory where `pipeline run` ran (its store, `artifacts/objects/*/out`, holds
 the files; every object in it is checked, so use a fresh workspace). `--file` adds files written
@@ -21,8 +21,7 @@ time grids and parameter ranges with polars, ...), and the README's "Reading the
 examples (the ```python blocks after a `<!-- checked by tests/interop -->` line) are run in the
 workspace, in order, in one session, so they cannot rot.
 
-`--no-indices`: the pipeline has no `indices` stage yet; without the flag a missing
-indices.parquet is a failure. Exit 0 when everything holds, 1 with the first failure otherwise.
+Exit 0 when everything holds, 1 with the first failure otherwise.
 Needs `pip install -r tests/interop/requirements.txt`.
 """
 
@@ -295,7 +294,7 @@ def window_filter(start_fraction):
     )
 
 
-def recompute(arts, no_indices, say):
+def recompute(arts, say):
     params = one(arts, "params.parquet")
     sims = [a.path for a in arts["simulation.parquet"]]
     sim_params = arts["simulation.parquet"][0].params
@@ -429,22 +428,18 @@ def recompute(arts, no_indices, say):
     say(f"evaluate: {scored} {split} samples, peak force error = mean over wheels, RMS contact force")
 
     # indices: the peak wheel-rail force per sample, a DuckDB query over simulation.parquet.
-    if no_indices:
-        check(not arts["indices.parquet"], "indices.parquet exists: drop --no-indices")
-        say("indices: skipped (--no-indices: the pipeline has no indices stage)")
-    else:
-        ix = one(arts, "indices.parquet")
-        start = ix.params.get("window_start_fraction", 0.0)
-        peaks = dict(duckdb.sql(
-            f"SELECT sample_id, max(greatest(p_1, p_2, p_3, p_4)) / 1000 FROM "
-            f"(SELECT * FROM read_parquet({lits(sims)}) {window_filter(start)}) GROUP BY sample_id"
-        ).fetchall())
-        got = duckdb.sql(f"SELECT sample_id, peak_wheel_rail_force_kn FROM read_parquet({lit(ix.path)})").fetchall()
-        check(got, f"{ix.path}: no rows")
-        for sid, value in got:
-            check(sid in peaks, f"{ix.path}: sample {sid} is not in the simulation")
-            close(value, peaks[sid], 1e-12, f"{ix.path}: peak_wheel_rail_force_kn of sample {sid}")
-        say(f"indices: peak wheel-rail force of {len(got)} samples (window from {start} of each record)")
+    ix = one(arts, "indices.parquet")
+    start = ix.params.get("window_start_fraction", 0.0)
+    peaks = dict(duckdb.sql(
+        f"SELECT sample_id, max(greatest(p_1, p_2, p_3, p_4)) / 1000 FROM "
+        f"(SELECT * FROM read_parquet({lits(sims)}) {window_filter(start)}) GROUP BY sample_id"
+    ).fetchall())
+    got = duckdb.sql(f"SELECT sample_id, peak_wheel_rail_force_kn FROM read_parquet({lit(ix.path)})").fetchall()
+    check(got, f"{ix.path}: no rows")
+    for sid, value in got:
+        check(sid in peaks, f"{ix.path}: sample {sid} is not in the simulation")
+        close(value, peaks[sid], 1e-12, f"{ix.path}: peak_wheel_rail_force_kn of sample {sid}")
+    say(f"indices: peak wheel-rail force of {len(got)} samples (window from {start} of each record)")
 
     # predict: one block of rows per parameter set, on a uniform time grid (polars).
     for a in arts["predict"]:
@@ -488,7 +483,6 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("workspace", type=Path)
     ap.add_argument("--file", action="append", default=[], type=Path, help="a `predict` output")
-    ap.add_argument("--no-indices", action="store_true", help="the pipeline has no indices stage yet")
     args = ap.parse_args()
     ws = args.workspace.resolve()
     print(f"pyarrow {pyarrow.__version__}, polars {pl.__version__}, duckdb {duckdb.__version__}, pandas {pd.__version__}")
@@ -513,12 +507,12 @@ def main():
             arts[kind].append(check_file(path, kind, context, version))
         say(f"{len(files)} files: names, types, units and provenance agree in pyarrow, polars and DuckDB")
         for kind in EXPECTED:
-            if kind in OPTIONAL or (kind == "indices.parquet" and args.no_indices):
+            if kind in OPTIONAL:
                 continue
             if kind == "failures.parquet" or kind == "provenance.parquet":
                 check(len(arts[kind]) == len(arts["simulation.parquet"]), f"one {kind} per simulate shard")
             check(arts[kind], f"no {kind} in {ws}/artifacts (is the `{EXPECTED[kind][0]}` stage in the pipeline?)")
-        recompute(arts, args.no_indices, say)
+        recompute(arts, say)
         run_readme(ws, say)
     except Failure as e:
         print(f"FAILED: {e}", file=sys.stderr)

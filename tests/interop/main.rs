@@ -100,8 +100,6 @@ fn every_artifact_reads_the_same_in_pyarrow_polars_and_duckdb() {
         .arg(ws)
         .arg("--file")
         .arg(&predictions)
-        // The pipeline has no `indices` stage yet; remove this flag when it has one.
-        .arg("--no-indices")
         .output()
         .unwrap();
     let report = output_text(&o);

@@ -146,9 +146,13 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         "pred_alg3_sample6.png",
         "plots.md",
         "speed.csv",
+        "indices_errors.csv",
+        "indices_errors.md",
+        "indices_samples.parquet",
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
+    let out_eval = out.clone();
 
     // Without a test split: scored on validation, and the table says so loudly.
     let (ctx, out) = context(
@@ -207,6 +211,74 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         assert!(p.column(c).is_ok(), "column {c}");
     }
     assert!(p.f64("z_w1_a").unwrap().iter().all(|v| v.is_finite()));
+
+    // Engineering indices: evaluate scores them (truth row + 2 models); predict sweeps a grid
+    // and writes them only; a design 25x above the trained k_f is flagged, and refused with
+    // --strict (exit 2).
+    let ie = pino_data::read_parquet(&out_eval.join("indices_errors.parquet"), None).unwrap();
+    assert_eq!(ie.num_rows(), 3 * 14);
+    assert!(out_eval
+        .join("indices_scatter_sperling_wz_front.png")
+        .is_file());
+    let sweep = dir.join("sweep.yaml");
+    std::fs::write(
+        &sweep,
+        "grid:\n  k_s: {from: 4.0e+5, to: 5.0e+5, steps: 2}\n  v_kmh: [310, 330]\n",
+    )
+    .unwrap();
+    let ixp = dir.join("indices.parquet");
+    let sweep_args = |extra: &[&str]| -> Vec<String> {
+        let mut a: Vec<String> = [
+            "--model",
+            models[1].to_str().unwrap(),
+            "--sweep",
+            sweep.to_str().unwrap(),
+            "--profile",
+            profile.to_str().unwrap(),
+            "--indices",
+            ixp.to_str().unwrap(),
+            "--indices-only",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    fn strs(v: &[String]) -> Vec<&str> {
+        v.iter().map(String::as_str).collect()
+    }
+    let o = run("predict", &strs(&sweep_args(&["--set", "k_f=4.0e7"])));
+    assert!(o.status.success(), "{}", text(&o));
+    let ix = pino_data::read_parquet(&ixp, None).unwrap();
+    assert_eq!(ix.i64("set").unwrap(), &[0, 1, 2, 3]);
+    assert_eq!(ix.f64("k_s").unwrap(), &[4.0e5, 4.0e5, 5.0e5, 5.0e5]);
+    assert_eq!(ix.f64("v_kmh").unwrap(), &[310.0, 330.0, 310.0, 330.0]);
+    assert!(ix
+        .f64("peak_wheel_rail_force_kn")
+        .unwrap()
+        .iter()
+        .all(|v| v.is_finite()));
+    let o = run("predict", &strs(&sweep_args(&["--set", "k_f=1e9"])));
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("4 of 4 set(s) outside the model's training ranges")
+            && text(&o).contains("k_f = 1000000000"),
+        "{}",
+        text(&o)
+    );
+    let ix = pino_data::read_parquet(&ixp, None).unwrap();
+    assert!(ix
+        .str("outside_training_range")
+        .unwrap()
+        .iter()
+        .all(|s| s.contains("k_f=1000000000")));
+    let o = run(
+        "predict",
+        &strs(&sweep_args(&["--set", "k_f=1e9", "--strict"])),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("--strict: refused"), "{}", text(&o));
 
     // Bad input: unknown algorithm, missing column, model of another configuration.
     let (ctx, _) = context(

@@ -243,19 +243,32 @@ impl Aggregates {
         }
         let max = |s: &[f64]| s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let min = |s: &[f64]| s.iter().copied().fold(f64::INFINITY, f64::min);
-        let abs_max = |s: &[f64]| s.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let sum_sq = |s: &[f64]| s.iter().map(|v| v * v).sum::<f64>();
-        let car = rec.car_body(l_c);
+        let (car_body_abs_max, car_body_sum_sq) = car_body_folds(&rec.car_body(l_c));
         Ok(Self {
             n,
             p_max: rec.p.map(max),
             p_min: rec.p.map(min),
-            car_body_abs_max: std::array::from_fn(|k| abs_max(&car[k])),
-            car_body_sum_sq: std::array::from_fn(|k| sum_sq(&car[k])),
+            car_body_abs_max,
+            car_body_sum_sq,
             bogie_abs_max: rec.z_t_a.map(abs_max),
             z_r_max: rec.z_r.map(max),
         })
     }
+}
+
+/// `max_t |x|` of a signal (0 for an empty one).
+pub fn abs_max(s: &[f64]) -> f64 {
+    s.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+}
+
+/// `(max_t |a|, sum_t a^2)` of each of the three [`car_body_signals`], summed in time order
+/// (so the result does not depend on how the work is split).
+pub fn car_body_folds(car: &[Vec<f64>; 3]) -> ([f64; 3], [f64; 3]) {
+    let sum_sq = |s: &[f64]| s.iter().map(|v| v * v).sum::<f64>();
+    (
+        std::array::from_fn(|k| abs_max(&car[k])),
+        std::array::from_fn(|k| sum_sq(&car[k])),
+    )
 }
 
 /// Description of one index column: name (snake_case, unit suffix), unit, meaning.

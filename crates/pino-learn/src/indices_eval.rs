@@ -144,7 +144,7 @@ pub fn truth_indices(items: &Prepared, idx: &[usize], meta: &ModelMeta) -> Resul
     }
     let mut m = model_indices(items, idx, &preds, meta)?;
     m.algorithm = 0;
-    m.label = "truth (exact displacements, central differences)".into();
+    m.label = "truth: exact, central differences".into();
     Ok(m)
 }
 
@@ -383,8 +383,12 @@ fn scatter(
             PALETTE[(mi.algorithm as usize - 1) % PALETTE.len()]
         };
         panels.push(Panel {
-            title: format!("alg {}: predicted (y) vs exact (x)", mi.label),
-            xlabel: format!("exact {} ({})", c.name, c.unit),
+            title: if mi.algorithm == 0 {
+                mi.label.clone()
+            } else {
+                format!("alg {}", mi.label)
+            },
+            xlabel: format!("exact {} ({}) {:.3} - {:.3}", c.name, c.unit, lo, hi),
             series: vec![
                 Series {
                     x: vec![lo, hi],
@@ -404,7 +408,10 @@ fn scatter(
     write_png(
         path,
         &Figure {
-            title: format!("{} ({}): {}", c.name, c.unit, c.definition),
+            title: format!(
+                "{} ({}): {}; predicted (y) against exact (x)",
+                c.name, c.unit, c.definition
+            ),
             legend: vec![
                 (BLACK, "black: predicted = exact".into()),
                 (
