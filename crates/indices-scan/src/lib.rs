@@ -296,7 +296,8 @@ pub fn spectral_pass(
                             ),
                         )
                     })?;
-                    let s = spectral_of(r, info.params[9], cfg, path, fi)?;
+                    let l_c = vtcd::params::SampleParams::from_array(info.params).l_c;
+                    let s = spectral_of(r, l_c, cfg, path, fi)?;
                     progress(1);
                     Ok((r.id, s))
                 })

@@ -88,7 +88,8 @@ pub fn indices_of_physical(
         z_r: std::array::from_fn(|i| z_r[i].as_slice()),
     };
     let w = static_wheel_load(params, cfg.gravity);
-    pino_indices::compute(&rec, params[9], w, cfg)
+    let l_c = vtcd::params::SampleParams::from_array(*params).l_c;
+    pino_indices::compute(&rec, l_c, w, cfg)
 }
 
 fn index_err(items: &Prepared, i: usize, e: pino_indices::Error) -> Error {
