@@ -2,6 +2,7 @@
 //! file, sample and column.
 
 use super::*;
+use pino_data::{Column, Table};
 use pino_indices::{IndexParams, Record};
 
 const DT: f64 = 1e-3;
@@ -221,17 +222,21 @@ fn a_missing_column_names_file_and_column() {
 
 #[test]
 fn nan_names_file_sample_and_column() {
-    // In a signal of the polars pass ...
+    // In a signal of the polars pass (the row counted from the window's first, row 150) ...
     let fx = fixture(&|id, c| {
         if id == 4 {
             c.iter_mut().find(|(n, _)| n == "z_r2").unwrap().1[900] = f64::NAN;
         }
     });
-    let e = compute_all(&fx.params, &fx.files, &cfg(0.0), &|_| {})
+    let e = compute_all(&fx.params, &fx.files, &cfg(0.1), &|_| {})
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("b.parquet") && e.contains("sample 4") && e.contains("`z_r2`"),
+        e.contains("b.parquet")
+            && e.contains("sample 4")
+            && e.contains("`z_r2`")
+            && e.contains("row 750 of the window")
+            && e.contains("NaN"),
         "{e}"
     );
     // ... and in one of the spectral pass (with the row).

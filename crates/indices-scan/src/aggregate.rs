@@ -1,0 +1,204 @@
+//! Pass 2 of the scan: the extremes of every sample's forces, bogie accelerations and rail
+//! displacements, by one lazy polars query on the streaming engine.
+//!
+//! The query scans every shard, joins each sample's window start, keeps the window's rows and
+//! groups by `sample_id`. Maxima and minima are exact whatever the order in which the engine
+//! meets the rows, so the result is deterministic on every core count; a sum per signal checks
+//! finiteness (NaN or infinite exactly when one value is), and a non-finite signal is then
+//! located to its row by a plain read of the one file that holds it.
+
+use crate::{needed_columns, pl_path, polars_err, Error, Result};
+use pino_data::schema;
+use polars::prelude::{
+    col, len, DataFrame, DataType, Engine, Expr, IntoLazy, LazyFrame, NamedFrom, ScanArgsParquet,
+    Series,
+};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Name of the aggregate column of signal `c` and statistic `stat`.
+fn agg_name(c: &str, stat: &str) -> String {
+    format!("{c}__{stat}")
+}
+
+/// What the polars pass computes per sample: the extremes of the forces, bogie accelerations
+/// and rail displacements over the window (order-independent, so the parallel streaming
+/// engine gives the same bits on every run).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Extremes {
+    /// Rows in the window.
+    pub n: usize,
+    /// `max_t P_i` (N).
+    pub p_max: [f64; 4],
+    /// `min_t P_i` (N).
+    pub p_min: [f64; 4],
+    /// `max_t |Z_t1''|`, `max_t |Z_t2''|` (m/s^2).
+    pub bogie_abs_max: [f64; 2],
+    /// `max_t Z_ri` (m).
+    pub z_r_max: [f64; 4],
+}
+
+/// Pass 2: the [`Extremes`] of every sample in `windows` (`(sample_id, t_start)`) over its
+/// rows with `t >= t_start`, by one lazy polars query over all `files` (joined with the
+/// windows, filtered, grouped by `sample_id`) on the streaming engine. A non-finite signal is
+/// reported by column and sample (`file_of` names its file). The car-body aggregates come
+/// from pass 1, where the time series are at hand and sums run in time order.
+pub fn aggregate(
+    files: &[PathBuf],
+    windows: &[(i64, f64)],
+    file_of: &dyn Fn(i64) -> PathBuf,
+) -> Result<BTreeMap<i64, Extremes>> {
+    let first = files.first().cloned().unwrap_or_default();
+    let pe = |e: polars::prelude::PolarsError| polars_err(&first, e);
+    let paths = files
+        .iter()
+        .map(|f| pl_path(f))
+        .collect::<Result<Vec<_>>>()?;
+    let keys = DataFrame::new_infer_height(vec![
+        Series::new(
+            schema::SAMPLE_ID.into(),
+            windows.iter().map(|w| w.0).collect::<Vec<i64>>(),
+        )
+        .into(),
+        Series::new(
+            "t_start".into(),
+            windows.iter().map(|w| w.1).collect::<Vec<f64>>(),
+        )
+        .into(),
+    ])
+    .map_err(pe)?;
+    let scan =
+        LazyFrame::scan_parquet_files(paths.into_iter().collect(), ScanArgsParquet::default())
+            .map_err(pe)?;
+    let signals: Vec<&str> = needed_columns()[2..].to_vec();
+    let mut aggs: Vec<Expr> = vec![len().cast(DataType::Int64).alias("n")];
+    for c in &signals {
+        // The sum of every input signal: NaN or infinite exactly when one value is.
+        aggs.push(col(*c).sum().alias(agg_name(c, "sum")));
+    }
+    for c in pino_indices::columns::P
+        .iter()
+        .chain(&pino_indices::columns::Z_R)
+        .chain(&pino_indices::columns::Z_T_A)
+    {
+        aggs.push(col(*c).max().alias(agg_name(c, "max")));
+    }
+    // max |x| = max(max x, -min x): no `abs` kernel needed.
+    for c in pino_indices::columns::P
+        .iter()
+        .chain(&pino_indices::columns::Z_T_A)
+    {
+        aggs.push(col(*c).min().alias(agg_name(c, "min")));
+    }
+    let mut select: Vec<Expr> = vec![col(schema::SAMPLE_ID), col(schema::TIME)];
+    select.extend(signals.iter().map(|c| col(*c)));
+    let df = scan
+        .select(select)
+        .inner_join(keys.lazy(), col(schema::SAMPLE_ID), col(schema::SAMPLE_ID))
+        .filter(col(schema::TIME).gt_eq(col("t_start")))
+        .group_by([col(schema::SAMPLE_ID)])
+        .agg(aggs)
+        .collect_with_engine(Engine::Streaming)
+        .map_err(pe)?
+        // A plain query has one result (several only with several sinks).
+        .unwrap_single();
+    let f64s = |name: &str| -> Result<Vec<f64>> {
+        let c = df.column(name).map_err(pe)?;
+        let ca = c.as_materialized_series().f64().map_err(pe)?;
+        Ok(ca.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+    };
+    let ids: Vec<i64> = {
+        let c = df.column(schema::SAMPLE_ID).map_err(pe)?;
+        let ca = c.as_materialized_series().i64().map_err(pe)?;
+        ca.iter().map(|v| v.unwrap_or(-1)).collect()
+    };
+    let ns: Vec<i64> = {
+        let c = df.column("n").map_err(pe)?;
+        let ca = c.as_materialized_series().i64().map_err(pe)?;
+        ca.iter().map(|v| v.unwrap_or(0)).collect()
+    };
+    for c in &signals {
+        let sums = f64s(&agg_name(c, "sum"))?;
+        if let Some(k) = sums.iter().position(|s| !s.is_finite()) {
+            let (id, path) = (ids[k], file_of(ids[k]));
+            let t_start = windows
+                .iter()
+                .find(|w| w.0 == id)
+                .map_or(f64::NEG_INFINITY, |w| w.1);
+            return Err(match first_non_finite(&path, id, t_start, c)? {
+                Some((row, value)) => Error::Index {
+                    path,
+                    sample: id,
+                    source: pino_indices::Error::NotFinite {
+                        column: (*c).to_owned(),
+                        row,
+                        value,
+                    },
+                },
+                None => crate::dataset(
+                    &path,
+                    format!(
+                        "sample {id}: column `{c}` sums to {} over the window, yet a second read \
+                         finds no value that is not finite (did the file change during the run?)",
+                        sums[k]
+                    ),
+                ),
+            });
+        }
+    }
+    let get = |c: &str, stat: &str| f64s(&agg_name(c, stat));
+    let all = |cols: &[&str], stat: &str| -> Result<Vec<Vec<f64>>> {
+        cols.iter().map(|c| get(c, stat)).collect()
+    };
+    let p_max = all(&pino_indices::columns::P, "max")?;
+    let p_min = all(&pino_indices::columns::P, "min")?;
+    let zr_max = all(&pino_indices::columns::Z_R, "max")?;
+    let t_max = all(&pino_indices::columns::Z_T_A, "max")?;
+    let t_min = all(&pino_indices::columns::Z_T_A, "min")?;
+    let mut out = BTreeMap::new();
+    for (k, &id) in ids.iter().enumerate() {
+        out.insert(
+            id,
+            Extremes {
+                n: ns[k] as usize,
+                p_max: std::array::from_fn(|i| p_max[i][k]),
+                p_min: std::array::from_fn(|i| p_min[i][k]),
+                bogie_abs_max: std::array::from_fn(|i| t_max[i][k].max(-t_min[i][k])),
+                z_r_max: std::array::from_fn(|i| zr_max[i][k]),
+            },
+        );
+    }
+    Ok(out)
+}
+
+/// The first value of `column` that is not finite in sample `id`'s window (its rows with
+/// `t >= t_start`) of `path`: its row within the window and the value. A plain streaming
+/// read of one file, on the error path only: the query's sums tell that a signal is not
+/// finite, not where.
+fn first_non_finite(
+    path: &Path,
+    id: i64,
+    t_start: f64,
+    column: &str,
+) -> Result<Option<(usize, f64)>> {
+    let mut row = 0;
+    let mut found = None;
+    let cols = [schema::SAMPLE_ID, schema::TIME, column];
+    pino_data::for_each_batch(path, Some(&cols[..]), |t| {
+        let (ids, times, values) = (
+            t.i64(schema::SAMPLE_ID)?,
+            t.f64(schema::TIME)?,
+            t.f64(column)?,
+        );
+        for k in 0..ids.len() {
+            if found.is_none() && ids[k] == id && times[k] >= t_start {
+                if !values[k].is_finite() {
+                    found = Some((row, values[k]));
+                }
+                row += 1;
+            }
+        }
+        Ok(())
+    })?;
+    Ok(found)
+}
