@@ -125,25 +125,20 @@ pub fn aggregate(
                 .iter()
                 .find(|w| w.0 == id)
                 .map_or(f64::NEG_INFINITY, |w| w.1);
-            return Err(match first_non_finite(&path, id, t_start, c)? {
-                Some((row, value)) => Error::Index {
-                    path,
-                    sample: id,
-                    source: pino_indices::Error::NotFinite {
-                        column: (*c).to_owned(),
-                        row,
-                        value,
-                    },
-                },
-                None => crate::dataset(
-                    &path,
-                    format!(
-                        "sample {id}: column `{c}` sums to {} over the window, yet a second read \
-                         finds no value that is not finite (did the file change during the run?)",
-                        sums[k]
-                    ),
+            let values = window_values(&path, id, t_start, c)?;
+            pino_indices::check_finite_signal(c, &values).map_err(|source| Error::Index {
+                path: path.clone(),
+                sample: id,
+                source,
+            })?;
+            return Err(crate::dataset(
+                &path,
+                format!(
+                    "sample {id}: column `{c}` sums to {} over the window, yet a second read \
+                     finds no value that is not finite (did the file change during the run?)",
+                    sums[k]
                 ),
-            });
+            ));
         }
     }
     let get = |c: &str, stat: &str| f64s(&agg_name(c, stat));
@@ -171,18 +166,11 @@ pub fn aggregate(
     Ok(out)
 }
 
-/// The first value of `column` that is not finite in sample `id`'s window (its rows with
-/// `t >= t_start`) of `path`: its row within the window and the value. A plain streaming
-/// read of one file, on the error path only: the query's sums tell that a signal is not
-/// finite, not where.
-fn first_non_finite(
-    path: &Path,
-    id: i64,
-    t_start: f64,
-    column: &str,
-) -> Result<Option<(usize, f64)>> {
-    let mut row = 0;
-    let mut found = None;
+/// The values of `column` in sample `id`'s window (its rows with `t >= t_start`) of `path`,
+/// in file order. A plain streaming read of one file, on the error path only: the query's
+/// sums tell that a signal is not finite, not where.
+fn window_values(path: &Path, id: i64, t_start: f64, column: &str) -> Result<Vec<f64>> {
+    let mut out = Vec::new();
     let cols = [schema::SAMPLE_ID, schema::TIME, column];
     pino_data::for_each_batch(path, Some(&cols[..]), |t| {
         let (ids, times, values) = (
@@ -190,15 +178,12 @@ fn first_non_finite(
             t.f64(schema::TIME)?,
             t.f64(column)?,
         );
-        for k in 0..ids.len() {
-            if found.is_none() && ids[k] == id && times[k] >= t_start {
-                if !values[k].is_finite() {
-                    found = Some((row, values[k]));
-                }
-                row += 1;
-            }
-        }
+        out.extend(
+            (0..ids.len())
+                .filter(|&k| ids[k] == id && times[k] >= t_start)
+                .map(|k| values[k]),
+        );
         Ok(())
     })?;
-    Ok(found)
+    Ok(out)
 }

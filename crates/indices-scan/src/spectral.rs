@@ -78,13 +78,7 @@ fn spectral_of(
         (pino_indices::columns::Z_C_A, &r.z),
         (pino_indices::columns::BETA_C_A, &r.b),
     ] {
-        if let Some((row, &value)) = s[first..].iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(wrap(pino_indices::Error::NotFinite {
-                column: name.to_owned(),
-                row,
-                value,
-            }));
-        }
+        pino_indices::check_finite_signal(name, &s[first..]).map_err(wrap)?;
     }
     let car = pino_indices::car_body_signals(&r.z[first..], &r.b[first..], l_c);
     let (car_abs_max, car_sum_sq) = pino_indices::car_body_folds(&car);

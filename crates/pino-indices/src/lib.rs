@@ -179,16 +179,9 @@ impl<'a> Record<'a> {
 
     /// Checks that every value is finite; the error names the column and the row.
     pub fn check_finite(&self) -> Result<()> {
-        for (name, s) in self.signals() {
-            if let Some((row, &value)) = s.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-                return Err(Error::NotFinite {
-                    column: name.to_owned(),
-                    row,
-                    value,
-                });
-            }
-        }
-        Ok(())
+        self.signals()
+            .into_iter()
+            .try_for_each(|(name, s)| check_finite_signal(name, s))
     }
 
     /// The three car-body signals of this record ([`car_body_signals`]).
@@ -207,6 +200,19 @@ pub fn car_body_signals(z_c_a: &[f64], beta_c_a: &[f64], l_c: f64) -> [Vec<f64>;
         zb.clone().map(|(z, b)| z - l_c * b).collect(),
         zb.map(|(z, b)| z + l_c * b).collect(),
     ]
+}
+
+/// Checks that every value of the signal `column` is finite; the error names the column, the
+/// first offending row (counted from the slice's start) and its value.
+pub fn check_finite_signal(column: &str, values: &[f64]) -> Result<()> {
+    match values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        Some((row, &value)) => Err(Error::NotFinite {
+            column: column.to_owned(),
+            row,
+            value,
+        }),
+        None => Ok(()),
+    }
 }
 
 /// Per-sample aggregates of a record: everything the indices need except the spectra.
