@@ -1,0 +1,971 @@
+//! One sample's described system, assembled and ready to integrate.
+//!
+//! **State.** Displacements `X`, velocities `V`, accelerations `A`, each laid out as
+//! ```text
+//! [ rigid DOFs (System::dofs order) | beam 0: modes q_1..q_N | beam 0 supports: level 0 (N_s),
+//!   level 1 (N_s), ... | beam 1 ... ]
+//! ```
+//! (m, rad; sqrt(kg) m for mass-normalised modal coordinates). The mass matrix is diagonal
+//! (lumped bodies, unit modal masses), so `A = M^-1 F(X, V, t)` is explicit.
+//!
+//! **Forces at time t.** Moving point `i` is at `x_i(t) = (x0 + v t) + offset_i`; on a beam the
+//! deflection under it is `w(x_i) = sum_k Y_k(x_i) q_k` (and, when a damper needs it, its total
+//! rate `w_t + v w_x`); on the ground it is 0. An element reads the profile under its lower end,
+//! `eta = r(t) profile(x)`, has the deflection `d = (u_from - u_to) - eta` (compression
+//! positive) and the force of its law; it pushes its upper end up and its lower end down. The
+//! rigid DOFs receive their generalised forces group by group ([`mbd_system::system::Group`]);
+//! each moving point's net force loads its beam, `sum_i F_i Y_k(x_i)`; the supports couple
+//! through [`crate::supports`], by sine transforms on the fast path.
+//!
+//! **Routes.** Uniform supports starting at `x = 0` and filling the beam (`N_s s = L`, fewer
+//! modes than supports) take the fast path: the seat terms and modal loads are two sine
+//! transforms ([`crate::dst`]). Anything else, or [`Route::General`] on request, takes the
+//! general route: dense products with the mode shapes at the supports. Both are tested equal.
+//!
+//! **Outputs.** Every `output_every` steps (including `t = 0`) one row of the stored channels
+//! ([`mbd_system::system::System::channels`]); accelerations are evaluated at the stored state,
+//! so stored rows satisfy the equations of motion to round-off.
+//!
+//! **Failure.** A non-finite element force or rigid acceleration (checked every step) or state
+//! (every output step) ends the sample with a [`Failure`] naming what and when.
+
+use crate::beam::{ModalBeam, LANES};
+use crate::config::{RunConfig, StartMode};
+use crate::dst::SineTransform;
+use crate::integrator;
+use crate::profile::{Profile, ProfileSource};
+use crate::{Error, Result};
+use mbd_system::model::{Model, ModelEnd, ModelProfile, ModelSupports};
+use mbd_system::schema::Outside;
+use mbd_system::system::{Quantity, Source};
+use mbd_system::System;
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// How the beam-support coupling is computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Route {
+    /// Sine transforms where the structure allows, dense products elsewhere (the default).
+    Fast,
+    /// Dense products everywhere (the reference the fast path is tested against).
+    General,
+}
+
+/// Where each part of the state lives.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Layout {
+    /// Rigid DOFs `0..rigid`.
+    pub rigid: usize,
+    /// Per beam: its modes and its support levels.
+    pub beams: Vec<BeamLayout>,
+    /// Length of the state vectors.
+    pub len: usize,
+}
+
+/// State ranges of one beam.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BeamLayout {
+    /// Modal coordinates.
+    pub modes: Range<usize>,
+    /// All support levels (level-major), empty without supports.
+    pub supports: Range<usize>,
+}
+
+/// How one beam couples to its supports.
+#[derive(Debug, Clone)]
+pub(crate) enum Coupling {
+    /// No supports.
+    None,
+    /// Sine transforms of size `count`.
+    Fast(ModelSupports),
+    /// Dense: mode shapes at the supports, `shapes[j * modes + k] = Y_k(x_j)`.
+    Dense(ModelSupports, Vec<f64>),
+}
+
+/// A beam at run time.
+#[derive(Debug, Clone)]
+pub(crate) struct BeamRuntime {
+    pub(crate) modal: ModalBeam,
+    /// Moving points on this beam, in declaration order.
+    pub(crate) points: Vec<usize>,
+    pub(crate) coupling: Coupling,
+    pub(crate) outside: Outside,
+    /// Whether some element needs the rate of the deflection under a point.
+    pub(crate) rates: bool,
+}
+
+/// Why a sample failed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Failure {
+    /// Time of detection (s).
+    pub t: f64,
+    /// What was not finite.
+    pub reason: String,
+}
+
+/// Stored rows of one sample: `t` and one column per stored channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    /// Output times (s).
+    pub t: Vec<f64>,
+    /// Channel columns in [`System::channels`] order, each `t.len()` long.
+    pub columns: Vec<Vec<f64>>,
+}
+
+/// Quantities of one force evaluation besides the accelerations.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Quantities {
+    /// Moving point positions (m).
+    pub point_x: Vec<f64>,
+    /// Deflection of the beam under each moving point (m; 0 on the ground).
+    pub point_w: Vec<f64>,
+    /// Its rate along the path (m/s), where needed.
+    pub point_rate: Vec<f64>,
+    /// Profile under each element (m; 0 without one).
+    pub eta: Vec<f64>,
+    /// Its rate (m/s).
+    pub eta_rate: Vec<f64>,
+    /// Element deflections (m).
+    pub deflection: Vec<f64>,
+    /// Element forces (N).
+    pub force: Vec<f64>,
+    /// Net downward force at each moving point (N).
+    pub point_force: Vec<f64>,
+}
+
+/// What an observer sees at each step.
+#[derive(Debug)]
+pub struct StepView<'a> {
+    /// Step index.
+    pub step: usize,
+    /// Time (s).
+    pub t: f64,
+    /// Displacements.
+    pub x: &'a [f64],
+    /// Velocities.
+    pub v: &'a [f64],
+    /// Accelerations at `(x, v, t)`.
+    pub a: &'a [f64],
+    /// The quantities of that evaluation.
+    pub q: &'a Quantities,
+}
+
+/// Scratch space of the force evaluation.
+pub(crate) struct Workspace {
+    pub(crate) q: Quantities,
+    /// Per beam, per chunk of four points, the shapes `[mode][lane]`.
+    shapes: Vec<Vec<Vec<[f64; LANES]>>>,
+    dst: Vec<Option<SineTransform>>,
+    /// Per beam, per chunk of four points, the points' net forces.
+    lanes: Vec<Vec<[f64; LANES]>>,
+    seat_in: Vec<f64>,
+    seat: Vec<f64>,
+    link: Vec<f64>,
+    modal: Vec<f64>,
+}
+
+/// One sample's assembled system, ready to run. Built and checked by [`Engine::new`] (run
+/// controls, coverage of beams and profiles, the time step against the stability bound).
+#[derive(Debug, Clone)]
+pub struct Engine {
+    pub(crate) system: Arc<System>,
+    pub(crate) model: Model,
+    pub(crate) config: RunConfig,
+    pub(crate) layout: Layout,
+    pub(crate) beams: Vec<BeamRuntime>,
+    pub(crate) profiles: Vec<ProfileSource>,
+    /// Per moving point, the terms of its net force, in accumulation order.
+    point_terms: Vec<Vec<(Source, f64)>>,
+    /// Per element, whether its rates are needed (a damper).
+    needs_rate: Vec<bool>,
+    /// Sensor shapes.
+    sensor_shapes: Vec<Vec<f64>>,
+    pub(crate) route: Route,
+}
+
+fn fast_structure(beam: &mbd_system::model::ModelBeam, s: &ModelSupports) -> bool {
+    s.first == 0.0
+        && s.count as f64 * s.spacing == beam.length
+        && beam.modes < s.count
+        && s.count >= 2
+}
+
+impl Engine {
+    /// Assembles one sample's model on the fast path; see [`Engine::with_route`].
+    pub fn new(
+        system: Arc<System>,
+        model: Model,
+        config: &RunConfig,
+        profiles: Vec<Option<Profile>>,
+    ) -> Result<Self> {
+        Self::with_route(system, model, config, profiles, Route::Fast)
+    }
+
+    /// Assembles one sample's model. `profiles[p]` supplies the points of generated profile
+    /// `p` (`None`: a level profile). Checks the run controls, that the moving points stay on
+    /// the beams that refuse leavers and, while the profiles are on, on their profiles, and the
+    /// time step against the stability bound ([`crate::stability`]).
+    pub fn with_route(
+        system: Arc<System>,
+        model: Model,
+        config: &RunConfig,
+        mut profiles: Vec<Option<Profile>>,
+        route: Route,
+    ) -> Result<Self> {
+        config.validate()?;
+        profiles.resize(model.profiles.len(), None);
+        let sources: Vec<ProfileSource> = model
+            .profiles
+            .iter()
+            .zip(profiles)
+            .map(|(m, p)| match (m, p) {
+                (
+                    ModelProfile::Harmonic {
+                        amplitude,
+                        wavelength,
+                        phase,
+                    },
+                    _,
+                ) => ProfileSource::Harmonic {
+                    amplitude: *amplitude,
+                    wavelength: *wavelength,
+                    phase: *phase,
+                },
+                (ModelProfile::Generated, Some(p)) => ProfileSource::Points(p),
+                (ModelProfile::Generated, None) => ProfileSource::Level,
+            })
+            .collect();
+        // Layout and beams.
+        let rigid = model.dof_mass.len();
+        let mut at = rigid;
+        let mut layout_beams = Vec::new();
+        let mut beams = Vec::new();
+        let needs_rate: Vec<bool> = model
+            .elements
+            .iter()
+            .map(|e| e.law.damping() != 0.0)
+            .collect();
+        for (b, mb) in model.beams.iter().enumerate() {
+            let modes = at..at + mb.modes;
+            at = modes.end;
+            let n_sup = mb.supports.as_ref().map_or(0, |s| s.count * s.levels.len());
+            let supports = at..at + n_sup;
+            at = supports.end;
+            layout_beams.push(BeamLayout { modes, supports });
+            let modal = ModalBeam::new(
+                mb.length,
+                mb.mass_per_length,
+                mb.bending_stiffness,
+                mb.modes,
+                mb.damping_ratio,
+            );
+            let coupling = match &mb.supports {
+                None => Coupling::None,
+                Some(s) if route == Route::Fast && fast_structure(mb, s) => {
+                    Coupling::Fast(s.clone())
+                }
+                Some(s) => {
+                    let mut shapes = vec![0.0; s.count * mb.modes];
+                    for (j, x) in crate::supports::positions(s).into_iter().enumerate() {
+                        modal.shapes_at(x, &mut shapes[j * mb.modes..(j + 1) * mb.modes]);
+                    }
+                    Coupling::Dense(s.clone(), shapes)
+                }
+            };
+            let points: Vec<usize> = model
+                .points
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| p.0 == Some(b))
+                .map(|(i, _)| i)
+                .collect();
+            let rates = model.elements.iter().zip(&needs_rate).any(|(e, &r)| {
+                r && matches!(e.to, ModelEnd::Moving(p) if model.points[p].0 == Some(b))
+            });
+            beams.push(BeamRuntime {
+                modal,
+                points,
+                coupling,
+                outside: mb.outside,
+                rates,
+            });
+        }
+        let layout = Layout {
+            rigid,
+            beams: layout_beams,
+            len: at,
+        };
+        // Net force terms of each moving point, in the accumulation order of the assembly.
+        let mut point_terms = vec![Vec::new(); model.points.len()];
+        let kinds = [false, true];
+        for contact in kinds {
+            if contact {
+                for (i, l) in model.loads.iter().enumerate() {
+                    if let ModelEnd::Moving(p) = l.at {
+                        point_terms[p].push((Source::Load(i), 1.0));
+                    }
+                }
+            }
+            for (i, e) in model.elements.iter().enumerate() {
+                if e.law.is_contact() == contact {
+                    if let ModelEnd::Moving(p) = e.to {
+                        point_terms[p].push((Source::Element(i), 1.0));
+                    }
+                }
+            }
+        }
+        let sensor_shapes = model
+            .sensors
+            .iter()
+            .map(|&(b, x)| {
+                let mut y = vec![0.0; model.beams[b].modes];
+                beams[b].modal.shapes_at(x, &mut y);
+                y
+            })
+            .collect();
+        let engine = Self {
+            system,
+            model,
+            config: *config,
+            layout,
+            beams,
+            profiles: sources,
+            point_terms,
+            needs_rate,
+            sensor_shapes,
+            route,
+        };
+        engine.check_coverage()?;
+        crate::stability::Bound::of(&engine).check(config.dt)?;
+        Ok(engine)
+    }
+
+    fn check_coverage(&self) -> Result<()> {
+        let c = &self.config;
+        let (t_end, speed) = (c.t_end(), self.model.speed);
+        let span =
+            |offset: f64, t0: f64| [c.x0 + speed * t0 + offset, c.x0 + speed * t_end + offset];
+        for (b, beam) in self.beams.iter().enumerate() {
+            if beam.outside != Outside::Refuse || beam.points.is_empty() {
+                continue;
+            }
+            let lo = beam
+                .points
+                .iter()
+                .map(|&p| span(self.model.points[p].1, 0.0)[0])
+                .fold(f64::INFINITY, f64::min);
+            let hi = beam
+                .points
+                .iter()
+                .map(|&p| span(self.model.points[p].1, 0.0)[1])
+                .fold(f64::NEG_INFINITY, f64::max);
+            let length = beam.modal.length;
+            if !(lo > 0.0 && hi < length) {
+                return Err(Error::TooShort {
+                    what: format!("beam `{}` (length {length} m)", self.system.beams[b].name),
+                    have_lo: 0.0,
+                    have_hi: length,
+                    need_lo: lo,
+                    need_hi: hi,
+                    hint: "lengthen the beam, shorten the run (duration) or move x0; or let points leave it (`outside: rigid`)".to_owned(),
+                });
+            }
+        }
+        let t_on = c.profile_on();
+        if t_on > t_end {
+            return Ok(());
+        }
+        for (e, el) in self.model.elements.iter().enumerate() {
+            let (Some(p), ModelEnd::Moving(pt)) = (el.profile, el.to) else {
+                continue;
+            };
+            let ProfileSource::Points(prof) = &self.profiles[p] else {
+                continue;
+            };
+            let need = span(self.model.points[pt].1, t_on);
+            let have = prof.range();
+            if need[0] < have[0] || need[1] > have[1] {
+                return Err(Error::TooShort {
+                    what: format!(
+                        "profile `{}` under element `{}`",
+                        self.system.profiles[p].name(),
+                        self.system.elements[e].name
+                    ),
+                    have_lo: have[0],
+                    have_hi: have[1],
+                    need_lo: need[0],
+                    need_hi: need[1],
+                    hint: "generate profiles that cover the whole run plus the vehicle length"
+                        .to_owned(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The compiled system.
+    pub fn system(&self) -> &System {
+        &self.system
+    }
+
+    /// The sample's model.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The run controls.
+    pub fn config(&self) -> &RunConfig {
+        &self.config
+    }
+
+    /// The state layout.
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// The route in use.
+    pub fn route(&self) -> Route {
+        self.route
+    }
+
+    /// Whether beam `b` couples to its supports by sine transforms.
+    pub fn uses_fast_path(&self, b: usize) -> bool {
+        matches!(self.beams[b].coupling, Coupling::Fast(_))
+    }
+
+    /// Modal data of beam `b`.
+    pub fn beam(&self, b: usize) -> &ModalBeam {
+        &self.beams[b].modal
+    }
+
+    /// The profile of index `p`.
+    pub fn profile(&self, p: usize) -> &ProfileSource {
+        &self.profiles[p]
+    }
+
+    pub(crate) fn workspace(&self) -> Workspace {
+        let m = &self.model;
+        let n_e = m.elements.len();
+        let n_p = m.points.len();
+        let max_count = m
+            .beams
+            .iter()
+            .filter_map(|b| b.supports.as_ref())
+            .map(|s| s.count * s.levels.len())
+            .max()
+            .unwrap_or(0);
+        let max_modes = m.beams.iter().map(|b| b.modes).max().unwrap_or(0);
+        Workspace {
+            q: Quantities {
+                point_x: vec![0.0; n_p],
+                point_w: vec![0.0; n_p],
+                point_rate: vec![0.0; n_p],
+                eta: vec![0.0; n_e],
+                eta_rate: vec![0.0; n_e],
+                deflection: vec![0.0; n_e],
+                force: vec![0.0; n_e],
+                point_force: vec![0.0; n_p],
+            },
+            shapes: self
+                .beams
+                .iter()
+                .map(|b| vec![vec![[0.0; LANES]; b.modal.modes()]; b.points.len().div_ceil(LANES)])
+                .collect(),
+            lanes: self
+                .beams
+                .iter()
+                .map(|b| vec![[0.0; LANES]; b.points.len().div_ceil(LANES)])
+                .collect(),
+            dst: self
+                .beams
+                .iter()
+                .map(|b| match &b.coupling {
+                    Coupling::Fast(s) => Some(SineTransform::new(s.count)),
+                    _ => None,
+                })
+                .collect(),
+            seat_in: vec![0.0; max_modes],
+            seat: vec![0.0; max_count],
+            link: vec![0.0; max_count],
+            modal: vec![0.0; max_modes],
+        }
+    }
+
+    /// Displacement of an end given the state and the point quantities.
+    #[inline]
+    fn end_u(&self, end: &ModelEnd, x: &[f64], q: &Quantities) -> f64 {
+        match end {
+            ModelEnd::Ground => 0.0,
+            ModelEnd::Body(t) => t.displacement(x),
+            ModelEnd::Moving(p) => q.point_w[*p],
+        }
+    }
+
+    #[inline]
+    fn end_rate(&self, end: &ModelEnd, v: &[f64], q: &Quantities) -> f64 {
+        match end {
+            ModelEnd::Ground => 0.0,
+            ModelEnd::Body(t) => t.displacement(v),
+            ModelEnd::Moving(p) => q.point_rate[*p],
+        }
+    }
+
+    /// `A = M^-1 F(X, V, t)`; the point and element quantities go to `ws.q`.
+    pub(crate) fn accelerations(
+        &self,
+        ws: &mut Workspace,
+        t: f64,
+        x: &[f64],
+        v: &[f64],
+        a: &mut [f64],
+    ) {
+        let m = &self.model;
+        let q = &mut ws.q;
+        let origin = self.config.x0 + m.speed * t;
+        for (px, (_, offset)) in q.point_x.iter_mut().zip(&m.points) {
+            *px = origin + offset;
+        }
+        // Deflection under the moving points.
+        for (b, beam) in self.beams.iter().enumerate() {
+            let modes = self.layout.beams[b].modes.clone();
+            let (qs, qd) = (&x[modes.clone()], &v[modes]);
+            for (c, chunk) in beam.points.chunks(LANES).enumerate() {
+                let xs: [f64; LANES] =
+                    std::array::from_fn(|i| chunk.get(i).map_or(0.0, |&p| q.point_x[p]));
+                let shapes = &mut ws.shapes[b][c];
+                if beam.rates {
+                    let (w, rate) =
+                        beam.modal
+                            .lane_shapes_moving(&xs, chunk.len(), m.speed, qs, qd, shapes);
+                    for (i, &p) in chunk.iter().enumerate() {
+                        q.point_w[p] = w[i];
+                        q.point_rate[p] = rate[i];
+                    }
+                } else {
+                    let w = beam.modal.lane_shapes(&xs, chunk.len(), qs, shapes);
+                    for (i, &p) in chunk.iter().enumerate() {
+                        q.point_w[p] = w[i];
+                    }
+                }
+            }
+        }
+        // Profiles under the elements.
+        let ramp = self.config.ramp(t);
+        let ramp_rate = self.config.ramp_rate(t);
+        for (e, el) in m.elements.iter().enumerate() {
+            let (Some(p), ModelEnd::Moving(pt)) = (el.profile, el.to) else {
+                continue;
+            };
+            let src = &self.profiles[p];
+            let xp = q.point_x[pt];
+            q.eta[e] = if ramp > 0.0 { ramp * src.at(xp) } else { 0.0 };
+            if self.needs_rate[e] {
+                q.eta_rate[e] = ramp * m.speed * src.slope(xp) + ramp_rate * src.at(xp);
+            }
+        }
+        // Element forces.
+        for (e, el) in m.elements.iter().enumerate() {
+            let mut d = self.end_u(&el.from, x, q) - self.end_u(&el.to, x, q);
+            if el.profile.is_some() {
+                d -= q.eta[e];
+            }
+            let rate = if self.needs_rate[e] {
+                let mut r = self.end_rate(&el.from, v, q) - self.end_rate(&el.to, v, q);
+                if el.profile.is_some() {
+                    r -= q.eta_rate[e];
+                }
+                r
+            } else {
+                0.0
+            };
+            q.deflection[e] = d;
+            q.force[e] = el.law.force(d, rate);
+        }
+        let value = |s: &Source, q: &Quantities| match *s {
+            Source::Element(i) => q.force[i],
+            Source::Load(i) => m.loads[i].force,
+        };
+        // Rigid DOFs, group by group.
+        for (i, groups) in m.assembly.iter().enumerate() {
+            let mut total = 0.0;
+            for (gi, g) in groups.iter().enumerate() {
+                let mut terms = g.terms.iter();
+                let Some((s0, sign0)) = terms.next() else {
+                    continue;
+                };
+                let first = value(s0, q);
+                let mut sum = if *sign0 < 0.0 { -first } else { first };
+                for (s, sign) in terms {
+                    let f = value(s, q);
+                    if *sign < 0.0 {
+                        sum -= f;
+                    } else {
+                        sum += f;
+                    }
+                }
+                let g_value = match g.coefficient {
+                    Some(c) => c * sum,
+                    None => sum,
+                };
+                total = if gi == 0 { g_value } else { total + g_value };
+            }
+            a[i] = total / m.dof_mass[i];
+        }
+        // Net point forces.
+        for (p, terms) in self.point_terms.iter().enumerate() {
+            let mut it = terms.iter();
+            q.point_force[p] = match it.next() {
+                None => 0.0,
+                Some((s0, _)) => it.fold(value(s0, q), |acc, (s, _)| acc + value(s, q)),
+            };
+        }
+        // Beams.
+        for (b, beam) in self.beams.iter().enumerate() {
+            let lay = &self.layout.beams[b];
+            let modes = lay.modes.clone();
+            let scale = beam.modal.shape_scale;
+            let nm = beam.modal.modes();
+            let modal = &mut ws.modal[..nm];
+            let mut has_modal = true;
+            match &beam.coupling {
+                Coupling::None => has_modal = false,
+                Coupling::Fast(s) => {
+                    let top = &s.levels[0];
+                    let (k0, c0) = (top.k, top.c);
+                    let seat_in = &mut ws.seat_in[..nm];
+                    for ((si, qk), qdk) in seat_in
+                        .iter_mut()
+                        .zip(&x[modes.clone()])
+                        .zip(&v[modes.clone()])
+                    {
+                        *si = scale * (k0 * qk + c0 * qdk);
+                    }
+                    let n = s.count;
+                    let seat = &mut ws.seat[..n];
+                    seat[0] = 0.0;
+                    let dst = ws.dst[b].as_mut().expect("a transform per fast beam");
+                    dst.apply(seat_in, &mut seat[1..]);
+                    let sup = lay.supports.clone();
+                    let link = &mut ws.link[..sup.len()];
+                    crate::supports::chain(
+                        s,
+                        seat,
+                        &x[sup.clone()],
+                        &v[sup.clone()],
+                        &mut a[sup],
+                        link,
+                    );
+                    dst.apply(&link[1..n], modal);
+                }
+                Coupling::Dense(s, shapes) => {
+                    let top = &s.levels[0];
+                    let (k0, c0) = (top.k, top.c);
+                    let n = s.count;
+                    let seat = &mut ws.seat[..n];
+                    let (qs, qd) = (&x[modes.clone()], &v[modes.clone()]);
+                    for (j, st) in seat.iter_mut().enumerate() {
+                        let y = &shapes[j * nm..(j + 1) * nm];
+                        let (w, wd) = y
+                            .iter()
+                            .zip(qs.iter().zip(qd))
+                            .fold((0.0, 0.0), |(w, wd), (y, (q, qd))| (w + y * q, wd + y * qd));
+                        *st = k0 * w + c0 * wd;
+                    }
+                    let sup = lay.supports.clone();
+                    let link = &mut ws.link[..sup.len()];
+                    crate::supports::chain(
+                        s,
+                        seat,
+                        &x[sup.clone()],
+                        &v[sup.clone()],
+                        &mut a[sup],
+                        link,
+                    );
+                    modal.fill(0.0);
+                    for (j, &f) in link[..n].iter().enumerate() {
+                        let y = &shapes[j * nm..(j + 1) * nm];
+                        for (mk, yk) in modal.iter_mut().zip(y) {
+                            *mk += f * yk;
+                        }
+                    }
+                }
+            }
+            // Modal loads of the points (fast path: `scale` applied to the transform's sines).
+            let modal_scale = if matches!(beam.coupling, Coupling::Fast(_)) {
+                scale
+            } else {
+                1.0
+            };
+            let lanes = &mut ws.lanes[b];
+            for (l, chunk) in lanes.iter_mut().zip(beam.points.chunks(LANES)) {
+                *l = std::array::from_fn(|i| chunk.get(i).map_or(0.0, |&p| q.point_force[p]));
+            }
+            let shapes = &ws.shapes[b];
+            let qs = &x[modes.clone()];
+            let qd = &v[modes.clone()];
+            let aq = &mut a[modes];
+            let last = beam.points.len() % LANES;
+            if lanes.len() == 1 && last == 0 && has_modal && beam.modal.damping.is_empty() {
+                // One full lane of points on a supported, undamped beam (a vehicle on a track):
+                // one zipped pass, vectorised.
+                let p = lanes[0];
+                let rows = aq
+                    .iter_mut()
+                    .zip(&shapes[0])
+                    .zip(qs.iter().zip(&beam.modal.omega2))
+                    .zip(modal.iter());
+                for (((ak, y), (&qk, &w2)), &mk) in rows {
+                    *ak = -w2 * qk - modal_scale * mk
+                        + (p[0] * y[0] + p[1] * y[1] + p[2] * y[2] + p[3] * y[3]);
+                }
+                continue;
+            }
+            for k in 0..nm {
+                // Each point's force times its shape, summed in point order.
+                let mut load = 0.0;
+                for (c, p) in lanes.iter().enumerate() {
+                    let y = &shapes[c][k];
+                    let n = if c + 1 == lanes.len() && last != 0 {
+                        last
+                    } else {
+                        LANES
+                    };
+                    let part = if n == LANES {
+                        p[0] * y[0] + p[1] * y[1] + p[2] * y[2] + p[3] * y[3]
+                    } else {
+                        (1..n).fold(p[0] * y[0], |s, i| s + p[i] * y[i])
+                    };
+                    load = if c == 0 { part } else { load + part };
+                }
+                let mut ak = -beam.modal.omega2[k] * qs[k];
+                if !beam.modal.damping.is_empty() {
+                    ak -= beam.modal.damping[k] * qd[k];
+                }
+                if has_modal {
+                    ak -= modal_scale * modal[k];
+                }
+                aq[k] = ak + load;
+            }
+        }
+    }
+
+    /// Runs from [`Engine::initial_state`] for `steps` steps, calling `observe` at every step
+    /// (including step 0). Stops with a [`Failure`] on a non-finite element force or rigid
+    /// acceleration (every step) or state (every output step), or when `cancel` is set (checked
+    /// every output step; the failure then says so).
+    pub fn run_observed(
+        &self,
+        steps: usize,
+        cancel: Option<&AtomicBool>,
+        mut observe: impl FnMut(&StepView),
+    ) -> std::result::Result<(), Failure> {
+        let n = self.layout.len;
+        let mut ws = self.workspace();
+        let mut x = self.initial_state().map_err(|e| Failure {
+            t: 0.0,
+            reason: format!("initial state: {e}"),
+        })?;
+        let mut v = vec![0.0; n];
+        let (mut a, mut a_prev) = (vec![0.0; n], vec![0.0; n]);
+        let dt = self.config.dt;
+        let every = self.config.output_every;
+        self.accelerations(&mut ws, 0.0, &x, &v, &mut a);
+        for step in 0..=steps {
+            let t = step as f64 * dt;
+            if step > 0 {
+                integrator::predict(&mut x, &mut v, &a, &a_prev, dt, step == 1);
+                std::mem::swap(&mut a, &mut a_prev);
+                self.accelerations(&mut ws, t, &x, &v, &mut a);
+            }
+            self.check_step(t, &ws.q, &a)?;
+            if step % every == 0 {
+                check_state(t, &x, &v, &a)?;
+                if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                    return Err(Failure {
+                        t,
+                        reason: format!("cancelled at t = {t:.4} s"),
+                    });
+                }
+            }
+            observe(&StepView {
+                step,
+                t,
+                x: &x,
+                v: &v,
+                a: &a,
+                q: &ws.q,
+            });
+        }
+        Ok(())
+    }
+
+    fn check_step(&self, t: f64, q: &Quantities, a: &[f64]) -> std::result::Result<(), Failure> {
+        if let Some(e) = q.force.iter().position(|f| !f.is_finite()) {
+            let el = &self.system.elements[e];
+            let sym = if el.law.is_contact() { "p" } else { "f" };
+            return Err(Failure {
+                t,
+                reason: format!(
+                    "non-finite force {sym}_{} = {} at t = {t:.4} s",
+                    el.name, q.force[e]
+                ),
+            });
+        }
+        if let Some(i) = a[..self.layout.rigid].iter().position(|x| !x.is_finite()) {
+            return Err(Failure {
+                t,
+                reason: format!(
+                    "non-finite acceleration of {} = {} at t = {t:.4} s",
+                    self.system.dofs[i].name, a[i]
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// Runs the configured duration and returns the stored rows.
+    pub fn run(&self) -> std::result::Result<Trajectory, Failure> {
+        self.run_cancellable(None)
+    }
+
+    /// As [`Engine::run`], stopping early when `cancel` is set.
+    pub fn run_cancellable(
+        &self,
+        cancel: Option<&AtomicBool>,
+    ) -> std::result::Result<Trajectory, Failure> {
+        let n_out = self.config.n_outputs();
+        let every = self.config.output_every;
+        let channels = &self.system.channels;
+        let mut t_col = Vec::with_capacity(n_out);
+        let mut columns: Vec<Vec<f64>> = (0..channels.len())
+            .map(|_| Vec::with_capacity(n_out))
+            .collect();
+        self.run_observed((n_out - 1) * every, cancel, |s| {
+            if s.step % every != 0 {
+                return;
+            }
+            t_col.push(s.t);
+            for (col, ch) in columns.iter_mut().zip(channels) {
+                col.push(self.channel_value(ch.quantity, s));
+            }
+        })?;
+        Ok(Trajectory { t: t_col, columns })
+    }
+
+    /// The value of a stored quantity at a step.
+    pub fn channel_value(&self, quantity: Quantity, s: &StepView) -> f64 {
+        match quantity {
+            Quantity::Dof(i, 0) => s.x[i],
+            Quantity::Dof(i, 1) => s.v[i],
+            Quantity::Dof(i, _) => s.a[i],
+            Quantity::Point(p) => s.q.point_w[p],
+            Quantity::Sensor(i, d) => {
+                let (b, _) = self.model.sensors[i];
+                let modes = self.layout.beams[b].modes.clone();
+                let src = match d {
+                    0 => &s.x[modes],
+                    1 => &s.v[modes],
+                    _ => &s.a[modes],
+                };
+                ModalBeam::deflection(&self.sensor_shapes[i], src)
+            }
+            Quantity::Excitation(e) => s.q.eta[e],
+            Quantity::Force(e) => s.q.force[e],
+            Quantity::Deflection(e) => s.q.deflection[e],
+        }
+    }
+
+    /// Displacements at `t = 0`: zero for [`StartMode::Rest`], the static equilibrium
+    /// ([`crate::statics`]) for [`StartMode::Equilibrium`].
+    pub fn initial_state(&self) -> Result<Vec<f64>> {
+        match self.config.start {
+            StartMode::Rest => Ok(vec![0.0; self.layout.len]),
+            StartMode::Equilibrium => crate::statics::equilibrium(self),
+        }
+    }
+
+    /// One force evaluation at `(t, x, v)`: the accelerations and the quantities.
+    pub fn evaluate(&self, t: f64, x: &[f64], v: &[f64]) -> (Vec<f64>, Quantities) {
+        let mut ws = self.workspace();
+        let mut a = vec![0.0; self.layout.len];
+        self.accelerations(&mut ws, t, x, v, &mut a);
+        (a, ws.q)
+    }
+}
+
+fn check_state(t: f64, x: &[f64], v: &[f64], a: &[f64]) -> std::result::Result<(), Failure> {
+    // Any NaN or infinity makes the sum non-finite (an overflow of finite values too, which is
+    // just as much a blow-up at these magnitudes).
+    for (name, s) in [("displacement", x), ("velocity", v), ("acceleration", a)] {
+        if !s.iter().sum::<f64>().is_finite() {
+            let i = s.iter().position(|x| !x.is_finite()).unwrap_or(0);
+            return Err(Failure {
+                t,
+                reason: format!("non-finite {name} (state index {i}) at t = {t:.4} s"),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// One sample to simulate.
+#[derive(Debug, Clone)]
+pub struct SampleInput {
+    /// Sample id.
+    pub id: u64,
+    /// The sampled parameters, in [`System::sampled`] order.
+    pub params: Vec<f64>,
+    /// Points of each generated profile (`None`: level).
+    pub profiles: Vec<Option<Profile>>,
+}
+
+/// Builds every sample's engine in parallel, checking each before anything runs; the error of
+/// the first bad sample (in input order) is returned with its id.
+pub fn prepare(
+    system: &Arc<System>,
+    config: &RunConfig,
+    inputs: Vec<SampleInput>,
+) -> std::result::Result<Vec<(u64, Engine)>, (u64, Error)> {
+    use rayon::prelude::*;
+    config
+        .validate()
+        .map_err(|e| (inputs.first().map_or(0, |s| s.id), e))?;
+    inputs
+        .into_par_iter()
+        .map(|s| {
+            let model = system
+                .instantiate(&s.params)
+                .map_err(|e| (s.id, Error::Field(e)))?;
+            Engine::new(system.clone(), model, config, s.profiles)
+                .map(|e| (s.id, e))
+                .map_err(|e| (s.id, e))
+        })
+        .collect()
+}
+
+/// Runs prepared samples in parallel (rayon), `chunk` at a time, handing each outcome to
+/// `sink` in input order (the output never depends on the thread count); `done` is called once
+/// per finished sample from the worker threads. Memory holds at most `chunk` trajectories.
+pub fn run_all<E>(
+    engines: &[(u64, Engine)],
+    chunk: usize,
+    done: &(dyn Fn() + Sync),
+    mut sink: impl FnMut(u64, std::result::Result<Trajectory, Failure>) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
+    use rayon::prelude::*;
+    for block in engines.chunks(chunk.max(1)) {
+        let outcomes: Vec<_> = block
+            .par_iter()
+            .map(|(id, engine)| {
+                let out = engine.run();
+                done();
+                (*id, out)
+            })
+            .collect();
+        for (id, out) in outcomes {
+            sink(id, out)?;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,380 @@
+//! The pre-run time-step check of Zhai's explicit method for a described system.
+//!
+//! For one oscillator `u'' + 2 xi w u' + w^2 u = 0` the method maps `(x_n, dt v_n, dt^2
+//! A_(n-1))` linearly; with `W = w dt` and `g = 2 xi w dt` its amplification matrix is
+//! ```text
+//! [ 1 - W^2     1 - g      -1/2 ]
+//! [ -3/2 W^2    1 - 3/2 g  -1/2 ]
+//! [ -W^2        -g          0   ]
+//! ```
+//! and the step is stable when its spectral radius is <= 1 (undamped: `W < 2`).
+//!
+//! The system's highest frequency is bounded, in mass-normalised coordinates, by splitting the
+//! stiffness `K` (and damping `C`) into positive semi-definite parts and adding their largest
+//! eigenvalues (Weyl's inequality):
+//! ```text
+//! w_max^2 <= sum over beams   w_(N_M)^2                               bending, highest mode
+//!          + sum over supports k_0 (1/(mu s) + 1/m_0)                 beam to level 0 (sine
+//!                              + k_l (1/m_(l-1) + 1/m_l)              orthogonality), links,
+//!                              + (k_g + 4 k_w) / m_L                  ground and shear
+//!          + k_P (B_P + lambda_max(G))      elements to points moving on a beam
+//!          + Gershgorin(rigid)              elements among bodies and to the ground
+//! ```
+//! `G_ih = sum_k Y_k(x_i) Y_k(x_h)` is the Gram matrix of a beam's moving points, bounded with
+//! the Dirichlet kernel `|sum_(k=1)^N cos k theta| <= D(theta) = min(N, 1/(2 |sin(theta/2)|) +
+//! 1/2)`: with every point at least `e` from the beam's ends and points at least `d` apart,
+//! `G_ii <= (N + D_e) / (mu L)` and `|G_ih| <= (D_d + D_e) / (mu L)`. `B_P` is the Gershgorin
+//! bound of the body side of those elements, `k_P` their largest tangent stiffness, a contact
+//! linearised at [`CONTACT_LOAD_FACTOR`] times its static force. Supports not on a uniform grid
+//! use the Gram matrix of the support shapes, its largest eigenvalue by power iteration with a
+//! [`POWER_MARGIN`]. The same split bounds the damping rate. A `dt` is accepted when every
+//! oscillator with `w <= w_max` and `2 xi w <= c_max` is stable.
+
+use crate::engine::{Coupling, Engine};
+use mbd_system::model::{ModelEnd, ModelLaw};
+use std::f64::consts::PI;
+
+/// Static force multiple at which contacts are linearised: dynamic loads stay well below 3x
+/// the static ones, and the bound grows only as the cube root of this factor.
+pub const CONTACT_LOAD_FACTOR: f64 = 3.0;
+/// Safety factor on a power-iteration estimate of a largest eigenvalue.
+pub const POWER_MARGIN: f64 = 1.05;
+
+/// Spectral radius of the amplification matrix for `W = w dt` and `g = 2 xi w dt`, by repeated
+/// squaring (`rho = lim ||A^(2^k)||^(1/2^k)`), accurate to ~1e-10 here.
+pub fn spectral_radius(w_dt: f64, g: f64) -> f64 {
+    let w2 = w_dt * w_dt;
+    let mut a = [
+        [1.0 - w2, 1.0 - g, -0.5],
+        [-1.5 * w2, 1.0 - 1.5 * g, -0.5],
+        [-w2, -g, 0.0],
+    ];
+    let mut log_norm = 0.0;
+    let mut power = 1.0;
+    for _ in 0..40 {
+        let mut sq = [[0.0; 3]; 3];
+        for (i, row) in sq.iter_mut().enumerate() {
+            for (j, x) in row.iter_mut().enumerate() {
+                *x = (0..3).map(|k| a[i][k] * a[k][j]).sum();
+            }
+        }
+        let norm = sq.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+        if norm == 0.0 {
+            return 0.0;
+        }
+        log_norm = 2.0 * log_norm + norm.ln();
+        power *= 2.0;
+        for row in &mut sq {
+            for x in row.iter_mut() {
+                *x /= norm;
+            }
+        }
+        a = sq;
+    }
+    (log_norm / power).exp()
+}
+
+fn stable(w_dt: f64, g: f64) -> bool {
+    // Marginal (undamped) eigenvalues sit on the unit circle; round-off and the finite number
+    // of squarings put them within 1e-9 of it.
+    spectral_radius(w_dt, g) <= 1.0 + 1e-9
+}
+
+/// Largest `w dt` for which the oscillator with damping ratio `xi` is stable (bisection).
+pub fn oscillator_limit(xi: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, 2.5);
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if stable(mid, 2.0 * xi * mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// Upper bounds of the highest circular frequency (rad/s) and damping rate (1/s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bound {
+    /// Highest circular frequency bound (rad/s).
+    pub omega_max: f64,
+    /// Damping-rate bound (1/s).
+    pub damping_max: f64,
+}
+
+fn dirichlet(n: f64, half_angle: f64) -> f64 {
+    let s = half_angle.sin().abs();
+    if s > 0.0 {
+        (0.5 / s + 0.5).min(n)
+    } else {
+        n
+    }
+}
+
+/// Gershgorin bound of the largest eigenvalue of `M^-1/2 (sum_e w_e b_e b_e^T) M^-1/2`, `b_e`
+/// the rigid-DOF participation of element `e`'s deflection.
+fn rigid_gershgorin(engine: &Engine, elements: &[(usize, f64)]) -> f64 {
+    let m = &engine.model;
+    let n = m.dof_mass.len();
+    if n == 0 || elements.is_empty() {
+        return 0.0;
+    }
+    let mut k = vec![vec![0.0; n]; n];
+    for &(e, w) in elements {
+        let el = &m.elements[e];
+        let mut b = vec![0.0; n];
+        for (end, sign) in [(&el.from, 1.0), (&el.to, -1.0)] {
+            if let ModelEnd::Body(t) = end {
+                if let Some(z) = t.z {
+                    b[z] += sign;
+                }
+                if let Some((p, c)) = t.pitch {
+                    b[p] += sign * c;
+                }
+            }
+        }
+        for i in 0..n {
+            for j in 0..n {
+                k[i][j] += w * b[i] * b[j];
+            }
+        }
+    }
+    (0..n)
+        .map(|i| {
+            (0..n)
+                .map(|j| k[i][j].abs() / (m.dof_mass[i] * m.dof_mass[j]).sqrt())
+                .sum::<f64>()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Largest eigenvalue of `Y^T Y` (`y[j * nm + k] = Y_k(x_j)`) by power iteration, times
+/// [`POWER_MARGIN`].
+fn support_gram(y: &[f64], nm: usize) -> f64 {
+    let ns = y.len() / nm;
+    let mut v = vec![1.0 / (nm as f64).sqrt(); nm];
+    let mut lambda = 0.0;
+    let mut t = vec![0.0; ns];
+    for _ in 0..200 {
+        for (j, tj) in t.iter_mut().enumerate() {
+            *tj = y[j * nm..(j + 1) * nm]
+                .iter()
+                .zip(&v)
+                .map(|(a, b)| a * b)
+                .sum();
+        }
+        let mut w = vec![0.0; nm];
+        for (j, tj) in t.iter().enumerate() {
+            for (wk, yk) in w.iter_mut().zip(&y[j * nm..(j + 1) * nm]) {
+                *wk += tj * yk;
+            }
+        }
+        let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm == 0.0 {
+            return 0.0;
+        }
+        lambda = norm;
+        v = w.into_iter().map(|x| x / norm).collect();
+    }
+    lambda * POWER_MARGIN
+}
+
+impl Bound {
+    /// The bound of one assembled sample.
+    pub fn of(engine: &Engine) -> Self {
+        let m = &engine.model;
+        let c = &engine.config;
+        let statics = crate::statics::static_forces(&engine.system, m);
+        let total_load: f64 = m.loads.iter().map(|l| l.force.abs()).sum();
+        let (mut omega2, mut damping) = (0.0, 0.0);
+        // Beams and supports.
+        for (b, beam) in engine.beams.iter().enumerate() {
+            omega2 += beam.modal.omega2.last().copied().unwrap_or(0.0);
+            damping += beam.modal.damping.last().copied().unwrap_or(0.0);
+            let mb = &m.beams[b];
+            let (s, seat) = match &beam.coupling {
+                Coupling::None => continue,
+                Coupling::Fast(s) => (s, 1.0 / (mb.mass_per_length * s.spacing)),
+                Coupling::Dense(s, y) => (s, support_gram(y, beam.modal.modes())),
+            };
+            let top = &s.levels[0];
+            omega2 += top.k * (seat + 1.0 / top.mass);
+            damping += top.c * (seat + 1.0 / top.mass);
+            for pair in s.levels.windows(2) {
+                let coupling = 1.0 / pair[0].mass + 1.0 / pair[1].mass;
+                omega2 += pair[1].k * coupling;
+                damping += pair[1].c * coupling;
+            }
+            let last = s.levels.last().expect("at least one level");
+            let (kw, cw) = last.shear.unwrap_or((0.0, 0.0));
+            omega2 += (s.ground.0 + 4.0 * kw) / last.mass;
+            damping += (s.ground.1 + 4.0 * cw) / last.mass;
+        }
+        // Elements: to points moving on a beam (per beam), or among bodies and the ground.
+        let tangent = |e: usize| -> f64 {
+            let law = &m.elements[e].law;
+            match law {
+                ModelLaw::Hertz { .. } => {
+                    let f = statics
+                        .as_ref()
+                        .map_or(total_load, |s| s.force[e])
+                        .abs()
+                        .max(1e-9);
+                    let d = law
+                        .static_deflection(CONTACT_LOAD_FACTOR * f)
+                        .unwrap_or(0.0);
+                    law.stiffness(d)
+                }
+                ModelLaw::Table {
+                    deflection, force, ..
+                } => deflection
+                    .windows(2)
+                    .zip(force.windows(2))
+                    .map(|(d, f)| ((f[1] - f[0]) / (d[1] - d[0])).abs())
+                    .fold(0.0, f64::max),
+                ModelLaw::SpringDamper { k, .. } => *k,
+            }
+        };
+        let on_beam = |e: usize| match m.elements[e].to {
+            ModelEnd::Moving(p) => m.points[p].0,
+            _ => None,
+        };
+        let rigid: Vec<usize> = (0..m.elements.len())
+            .filter(|&e| on_beam(e).is_none())
+            .collect();
+        omega2 += rigid_gershgorin(
+            engine,
+            &rigid.iter().map(|&e| (e, tangent(e))).collect::<Vec<_>>(),
+        );
+        damping += rigid_gershgorin(
+            engine,
+            &rigid
+                .iter()
+                .map(|&e| (e, m.elements[e].law.damping()))
+                .collect::<Vec<_>>(),
+        );
+        let t_end = c.t_end();
+        for (b, beam) in engine.beams.iter().enumerate() {
+            let elements: Vec<usize> = (0..m.elements.len())
+                .filter(|&e| on_beam(e) == Some(b))
+                .collect();
+            if elements.is_empty() {
+                continue;
+            }
+            let n_modes = beam.modal.modes() as f64;
+            let l = beam.modal.length;
+            let offsets: Vec<f64> = beam.points.iter().map(|&p| m.points[p].1).collect();
+            let lo = offsets.iter().fold(f64::INFINITY, |a, o| a.min(c.x0 + o));
+            let hi = offsets
+                .iter()
+                .fold(f64::NEG_INFINITY, |a, o| a.max(c.x0 + m.speed * t_end + o));
+            let edge = lo.min(l - hi).max(0.0);
+            let mut spacing = f64::INFINITY;
+            for (i, a) in offsets.iter().enumerate() {
+                for b in &offsets[i + 1..] {
+                    spacing = spacing.min((a - b).abs());
+                }
+            }
+            let n_p = offsets.len() as f64;
+            let d_e = dirichlet(n_modes, PI * edge / l);
+            let d_d = if spacing.is_finite() {
+                dirichlet(n_modes, PI * spacing / (2.0 * l))
+            } else {
+                0.0
+            };
+            let row = (n_modes + d_e) + (n_p - 1.0) * (d_d + d_e);
+            let gram = row.min(2.0 * n_p * n_modes) / (mb_mu(engine, b) * l);
+            let body_side = rigid_gershgorin(
+                engine,
+                &elements.iter().map(|&e| (e, 1.0)).collect::<Vec<_>>(),
+            );
+            let k_max = elements.iter().map(|&e| tangent(e)).fold(0.0, f64::max);
+            let c_max = elements
+                .iter()
+                .map(|&e| m.elements[e].law.damping())
+                .fold(0.0, f64::max);
+            omega2 += k_max * (body_side + gram);
+            damping += c_max * (body_side + gram);
+        }
+        Bound {
+            omega_max: omega2.sqrt(),
+            damping_max: damping,
+        }
+    }
+
+    /// Whether every oscillator with `w <= omega_max` and damping rate `<= damping_max` is
+    /// stable at `dt` (checked on a grid that includes the corners).
+    pub fn stable_at(&self, dt: f64) -> bool {
+        const NW: usize = 32;
+        const NG: usize = 8;
+        (1..=NW).all(|i| {
+            let w_dt = self.omega_max * dt * i as f64 / NW as f64;
+            (0..=NG).all(|j| stable(w_dt, self.damping_max * dt * j as f64 / NG as f64))
+        })
+    }
+
+    /// The largest stable `dt` (s), by bisection to 0.1%.
+    pub fn dt_limit(&self) -> f64 {
+        if self.omega_max == 0.0 && self.damping_max == 0.0 {
+            return f64::INFINITY;
+        }
+        let mut lo = 0.0;
+        let mut hi = 2.5 / self.omega_max.max(self.damping_max / 2.0);
+        while hi - lo > 1e-3 * hi {
+            let mid = 0.5 * (lo + hi);
+            if self.stable_at(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
+    }
+
+    /// `Ok` when `dt` is within the limit, else [`crate::Error::StepTooLarge`].
+    pub fn check(&self, dt: f64) -> crate::Result<()> {
+        if dt > 0.0 && self.stable_at(dt) {
+            Ok(())
+        } else {
+            Err(crate::Error::StepTooLarge {
+                dt,
+                limit: self.dt_limit(),
+                omega_max: self.omega_max,
+            })
+        }
+    }
+
+    /// The larger of two bounds, component by component.
+    pub fn max(self, other: Bound) -> Bound {
+        Bound {
+            omega_max: self.omega_max.max(other.omega_max),
+            damping_max: self.damping_max.max(other.damping_max),
+        }
+    }
+}
+
+fn mb_mu(engine: &Engine, b: usize) -> f64 {
+    engine.model.beams[b].mass_per_length
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The worked limits of the damped oscillator, to the 2 decimals given.
+    #[test]
+    fn oscillator_limits_match_worked_values() {
+        for (xi, limit) in [
+            (0.0, 2.0),
+            (0.01, 1.96),
+            (0.05, 1.81),
+            (0.1, 1.64),
+            (0.2, 1.35),
+            (0.5, 0.83),
+        ] {
+            let got = oscillator_limit(xi);
+            assert!((got - limit).abs() < 0.006, "xi {xi}: {got} vs {limit}");
+        }
+    }
+}

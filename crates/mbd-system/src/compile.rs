@@ -1,0 +1,1138 @@
+//! Validation and compilation: names resolved once (parameters, bodies, points, beams,
+//! profiles, elements), every problem reported with its line, then the flat [`System`].
+//!
+//! Checks, beyond the shapes checked by [`crate::schema`]:
+//! - every name an expression uses is a parameter; every parameter is used; derived
+//!   parameters form no cycle (the cycle is named);
+//! - counts (`modes`, `supports.count`) are integers fixed for every sample;
+//! - element ends and load points name a body, one of its points, a moving point or `ground`;
+//!   an element's upper end is a body; a profile sits under a moving point;
+//! - every body DOF is restrained: the stiffness the elements give the rigid DOFs, with the
+//!   beams and the ground held, is positive definite at the nominal values (else the DOF
+//!   whose pivot vanishes is named);
+//! - every field is in its domain at the nominal values (a mass > 0, a damping >= 0, ...);
+//!   [`System::instantiate`] checks each sample again;
+//! - every column name (the naming rule of `docs/systems.md`) is unique, and `outputs` and
+//!   `indices` name columns that exist.
+
+use crate::diag::Diagnostics;
+use crate::expr::Expr;
+use crate::reader::Field;
+use crate::schema::{self, DofKind, ParamKind, RawDescription, RawLaw, RawLink, RawProfileKind};
+use crate::system::*;
+use crate::yaml::Pos;
+use std::collections::{BTreeMap, HashMap};
+
+/// A value overriding a parameter of the description for one run (`system_values`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(untagged)]
+pub enum Override {
+    /// A fixed parameter's value, or a sampled parameter's nominal value.
+    Value(f64),
+    /// A sampled parameter's range `[min, max]`.
+    Range([f64; 2]),
+}
+
+struct Scope<'a> {
+    names: HashMap<&'a str, usize>,
+    used: Vec<bool>,
+}
+
+impl<'a> Scope<'a> {
+    fn resolve(&mut self, f: &Field, what: &str, diag: &mut Diagnostics) -> Option<Expr> {
+        let mut e = f.expr.clone();
+        let names = &self.names;
+        match e.resolve(&|n| names.get(n).copied()) {
+            Ok(()) => {
+                for n in f.expr.names() {
+                    self.used[self.names[n]] = true;
+                }
+                Some(e)
+            }
+            Err(name) => {
+                let mut known: Vec<&&str> = self.names.keys().collect();
+                known.sort();
+                let known: Vec<&str> = known.into_iter().copied().collect();
+                diag.push(
+                    f.pos,
+                    format!(
+                        "{what}: unknown parameter `{name}`; parameters: {}",
+                        known.join(", ")
+                    ),
+                );
+                None
+            }
+        }
+    }
+
+    fn opt(
+        &mut self,
+        f: &Option<Field>,
+        default: f64,
+        what: &str,
+        diag: &mut Diagnostics,
+    ) -> Option<Expr> {
+        match f {
+            Some(f) => self.resolve(f, what, diag),
+            None => Some(Expr::Num(default)),
+        }
+    }
+
+    fn req(&mut self, f: &Option<Field>, what: &str, diag: &mut Diagnostics) -> Option<Expr> {
+        f.as_ref().and_then(|f| self.resolve(f, what, diag))
+    }
+}
+
+/// Applies `overrides` to the parameter table (unknown names and derived parameters are
+/// refused; the message names the allowed parameters).
+pub fn apply_overrides(
+    raw: &mut RawDescription,
+    overrides: &BTreeMap<String, Override>,
+) -> Result<(), String> {
+    for (name, o) in overrides {
+        let Some(p) = raw.parameters.iter_mut().find(|p| &p.name == name) else {
+            let known: Vec<&str> = raw.parameters.iter().map(|p| p.name.as_str()).collect();
+            return Err(format!(
+                "system_values: `{name}` is not a parameter of the description; parameters: {}",
+                known.join(", ")
+            ));
+        };
+        match (&mut p.kind, o) {
+            (ParamKind::Fixed { value }, Override::Value(v)) if v.is_finite() => *value = *v,
+            (ParamKind::Sampled { nominal, range }, Override::Value(v))
+                if v.is_finite() && range[0] <= *v && *v <= range[1] =>
+            {
+                *nominal = *v
+            }
+            (ParamKind::Sampled { nominal, range }, Override::Range([lo, hi]))
+                if lo.is_finite() && hi.is_finite() && lo < hi && *lo <= *nominal && *nominal <= *hi =>
+            {
+                *range = [*lo, *hi]
+            }
+            (ParamKind::Derived { .. }, _) => {
+                return Err(format!(
+                    "system_values.{name}: `{name}` is derived from other parameters; override those"
+                ))
+            }
+            (ParamKind::Fixed { .. }, _) => {
+                return Err(format!("system_values.{name}: a fixed parameter takes a finite number"))
+            }
+            (ParamKind::Sampled { nominal, range }, _) => {
+                return Err(format!(
+                    "system_values.{name}: a sampled parameter takes a nominal value inside its range {range:?} or a range `[min, max]` containing the nominal {nominal}"
+                ))
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Validates and compiles a parsed description; every problem found goes to `diag`.
+pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
+    let n_params = raw.parameters.len();
+    let mut scope = Scope {
+        names: HashMap::new(),
+        used: vec![false; n_params],
+    };
+    for (i, p) in raw.parameters.iter().enumerate() {
+        if crate::expr::is_reserved(&p.name) {
+            diag.push(
+                p.pos,
+                format!(
+                    "parameters.{}: `{}` is reserved (a constant or function of expressions)",
+                    p.name, p.name
+                ),
+            );
+        }
+        if p.name.starts_with(|c: char| c.is_ascii_digit()) {
+            diag.push(
+                p.pos,
+                format!(
+                    "parameters.{}: a parameter name starts with a letter or `_`",
+                    p.name
+                ),
+            );
+        }
+        scope.names.insert(&p.name, i);
+    }
+    // Parameters.
+    let mut parameters = Vec::with_capacity(n_params);
+    for p in &raw.parameters {
+        let source = match &p.kind {
+            ParamKind::Sampled { nominal, range } => ParamSource::Sampled {
+                nominal: *nominal,
+                range: *range,
+            },
+            ParamKind::Fixed { value } => ParamSource::Fixed(*value),
+            ParamKind::Derived { expr } => {
+                let mut e = expr.expr.clone();
+                let names = &scope.names;
+                match e.resolve(&|n| names.get(n).copied()) {
+                    Ok(()) => ParamSource::Derived(e),
+                    Err(name) => {
+                        diag.push(
+                            expr.pos,
+                            format!("parameters.{}.expr: unknown parameter `{name}`", p.name),
+                        );
+                        ParamSource::Fixed(f64::NAN)
+                    }
+                }
+            }
+        };
+        parameters.push(Parameter {
+            name: p.name.clone(),
+            unit: p.unit.clone(),
+            doc: p.doc.clone(),
+            source,
+        });
+    }
+    let derived_order = derived_order(raw, &parameters, diag);
+
+    // Bodies and DOFs.
+    let mut bodies = Vec::new();
+    let mut dofs = Vec::new();
+    for b in &raw.bodies {
+        let what = format!("bodies.{}", b.name);
+        let mass = scope.req(&b.mass, &format!("{what}.mass"), diag);
+        let pitches = b.dofs.iter().any(|d| d.0 == DofKind::Pitch);
+        let inertia = match (&b.inertia, pitches) {
+            (Some(f), true) => scope.resolve(f, &format!("{what}.inertia"), diag),
+            (None, true) => {
+                diag.push(
+                    b.pos,
+                    format!("{what}: a body with a pitch DOF needs `inertia` (kg m^2)"),
+                );
+                None
+            }
+            (Some(f), false) => {
+                diag.push(
+                    f.pos,
+                    format!(
+                        "{what}.inertia: the body has no pitch DOF (dofs: [z, pitch] to add one)"
+                    ),
+                );
+                None
+            }
+            (None, false) => None,
+        };
+        let mut body = Body {
+            name: b.name.clone(),
+            doc: b.doc.clone(),
+            mass: mass.unwrap_or(Expr::Num(f64::NAN)),
+            inertia,
+            z: None,
+            pitch: None,
+            points: Vec::new(),
+        };
+        for (kind, _) in &b.dofs {
+            let i = dofs.len();
+            dofs.push(Dof {
+                name: format!("{}_{}", kind.symbol(), b.name),
+                body: bodies.len(),
+                kind: *kind,
+            });
+            match kind {
+                DofKind::Z => body.z = Some(i),
+                DofKind::Pitch => body.pitch = Some(i),
+            }
+        }
+        for (name, _, x) in &b.points {
+            if let Some(e) = scope.resolve(x, &format!("{what}.points.{name}"), diag) {
+                body.points.push((name.clone(), e));
+            }
+        }
+        bodies.push(body);
+    }
+
+    // Beams.
+    let structural = structural_values(&parameters, &derived_order);
+    let mut beams = Vec::new();
+    for b in &raw.beams {
+        let what = format!("beams.{}", b.name);
+        let count_of =
+            |scope: &mut Scope, f: &Option<Field>, field: &str, diag: &mut Diagnostics| -> usize {
+                let Some(f) = f else { return 0 };
+                let Some(e) = scope.resolve(f, &format!("{what}.{field}"), diag) else {
+                    return 0;
+                };
+                match structural_count(&e, &parameters, &structural) {
+                    Ok(n) => n,
+                    Err(why) => {
+                        diag.push(f.pos, format!("{what}.{field}: {why}"));
+                        0
+                    }
+                }
+            };
+        let modes = count_of(&mut scope, &b.modes, "modes", diag);
+        let supports = b.supports.as_ref().map(|s| {
+            let w = format!("{what}.supports");
+            let count = count_of(&mut scope, &s.count, "supports.count", diag);
+            if s.levels.is_empty() {
+                diag.push(s.pos, format!("{w}.levels: at least one level (a mass under each support)"));
+            }
+            let n_levels = s.levels.len();
+            let levels = s
+                .levels
+                .iter()
+                .enumerate()
+                .map(|(i, l)| {
+                    let lw = format!("{w}.levels[{i}]");
+                    if l.shear.is_some() && i + 1 != n_levels {
+                        diag.push(l.pos, format!("{lw}.shear: shear coupling is supported on the last level (the one on the ground) only"));
+                    }
+                    Level {
+                        name: l.name.clone(),
+                        mass: scope.req(&l.mass, &format!("{lw}.mass"), diag).unwrap_or(Expr::Num(f64::NAN)),
+                        link: link(&mut scope, l.link.as_ref(), &format!("{lw}.link"), diag),
+                        shear: l.shear.as_ref().map(|s| link(&mut scope, Some(s), &format!("{lw}.shear"), diag)),
+                    }
+                })
+                .collect();
+            Supports {
+                spacing: scope.req(&s.spacing, &format!("{w}.spacing"), diag).unwrap_or(Expr::Num(f64::NAN)),
+                count,
+                first: scope.opt(&s.first, 0.0, &format!("{w}.first"), diag).unwrap_or(Expr::Num(0.0)),
+                levels,
+                ground: link(&mut scope, s.ground.as_ref(), &format!("{w}.ground"), diag),
+            }
+        });
+        if let Some(s) = &supports {
+            if s.count >= 2 && modes >= s.count {
+                diag.push(b.pos, format!("{what}.modes: {modes} modes need fewer than supports.count = {} supports (discrete sine orthogonality)", s.count));
+            }
+        }
+        beams.push(Beam {
+            name: b.name.clone(),
+            doc: b.doc.clone(),
+            length: scope
+                .req(&b.length, &format!("{what}.length"), diag)
+                .unwrap_or(Expr::Num(f64::NAN)),
+            modes,
+            mass_per_length: scope
+                .req(&b.mass_per_length, &format!("{what}.mass_per_length"), diag)
+                .unwrap_or(Expr::Num(f64::NAN)),
+            bending_stiffness: scope
+                .req(
+                    &b.bending_stiffness,
+                    &format!("{what}.bending_stiffness"),
+                    diag,
+                )
+                .unwrap_or(Expr::Num(f64::NAN)),
+            damping_ratio: scope
+                .opt(
+                    &b.damping_ratio,
+                    0.0,
+                    &format!("{what}.damping_ratio"),
+                    diag,
+                )
+                .unwrap_or(Expr::Num(0.0)),
+            outside: b.outside,
+            supports,
+        });
+    }
+    let beam_index = |name: &str| beams.iter().position(|b| b.name == name);
+
+    // The moving frame.
+    let mut points = Vec::new();
+    let speed = match &raw.moving {
+        Some(m) => {
+            for p in &m.points {
+                let what = format!("moving.points.{}", p.name);
+                let beam = match &p.on {
+                    Some((on, _)) if on == "ground" => None,
+                    Some((on, pos)) => match beam_index(on) {
+                        Some(b) => Some(b),
+                        None => {
+                            diag.push(
+                                *pos,
+                                format!(
+                                    "{what}.on: unknown beam `{on}`; beams: {}; or `ground`",
+                                    names(raw.beams.iter().map(|b| &b.name))
+                                ),
+                            );
+                            None
+                        }
+                    },
+                    None => None,
+                };
+                points.push(MovingPoint {
+                    name: p.name.clone(),
+                    beam,
+                    offset: scope
+                        .req(&p.offset, &format!("{what}.offset"), diag)
+                        .unwrap_or(Expr::Num(0.0)),
+                });
+            }
+            scope
+                .req(&m.speed, "moving.speed", diag)
+                .unwrap_or(Expr::Num(0.0))
+        }
+        None => Expr::Num(0.0),
+    };
+
+    // Sensors.
+    let mut sensors = Vec::new();
+    for s in &raw.sensors {
+        let what = format!("sensors.{}", s.name);
+        let beam = match &s.on {
+            Some((on, pos)) => match beam_index(on) {
+                Some(b) => b,
+                None => {
+                    diag.push(
+                        *pos,
+                        format!(
+                            "{what}.on: unknown beam `{on}`; beams: {}",
+                            names(raw.beams.iter().map(|b| &b.name))
+                        ),
+                    );
+                    continue;
+                }
+            },
+            None => continue,
+        };
+        if let Some(x) = scope.req(&s.x, &format!("{what}.x"), diag) {
+            sensors.push(Sensor {
+                name: s.name.clone(),
+                beam,
+                x,
+            });
+        }
+    }
+
+    // Profiles.
+    let mut profiles = Vec::new();
+    for p in &raw.profiles {
+        let what = format!("profiles.{}", p.name);
+        profiles.push(match &p.kind {
+            RawProfileKind::Generated {
+                segments,
+                wavelengths,
+            } => Profile::Generated {
+                name: p.name.clone(),
+                segments: segments.clone(),
+                wavelengths: *wavelengths,
+            },
+            RawProfileKind::Harmonic {
+                amplitude,
+                wavelength,
+                phase,
+            } => Profile::Harmonic {
+                name: p.name.clone(),
+                amplitude: scope
+                    .req(amplitude, &format!("{what}.amplitude"), diag)
+                    .unwrap_or(Expr::Num(0.0)),
+                wavelength: scope
+                    .req(wavelength, &format!("{what}.wavelength"), diag)
+                    .unwrap_or(Expr::Num(1.0)),
+                phase: scope
+                    .opt(phase, 0.0, &format!("{what}.phase"), diag)
+                    .unwrap_or(Expr::Num(0.0)),
+            },
+        });
+    }
+
+    // Ends: `ground`, `body`, `body.point`, a moving point.
+    let resolve_end = |name: &str, pos: Pos, what: &str, diag: &mut Diagnostics| -> Option<End> {
+        if name == "ground" {
+            return Some(End::Ground);
+        }
+        let (body_name, point) = match name.split_once('.') {
+            Some((b, p)) => (b, Some(p)),
+            None => (name, None),
+        };
+        if let Some(bi) = bodies.iter().position(|b| b.name == body_name) {
+            let x = match point {
+                None => None,
+                Some(p) => match bodies[bi].points.iter().find(|(n, _)| n == p) {
+                    Some((_, x)) => Some(x.clone()),
+                    None => {
+                        diag.push(
+                            pos,
+                            format!(
+                                "{what}: body `{body_name}` has no point `{p}`; its points: {}",
+                                names(bodies[bi].points.iter().map(|p| &p.0))
+                            ),
+                        );
+                        return None;
+                    }
+                },
+            };
+            return Some(End::Body { body: bi, x });
+        }
+        if point.is_none() {
+            if let Some(pi) = points.iter().position(|p| p.name == name) {
+                return Some(End::Moving(pi));
+            }
+        }
+        diag.push(
+            pos,
+            format!(
+                "{what}: unknown point `{name}`; expected `ground`, a body ({}), `body.point`, or a moving point ({})",
+                names(bodies.iter().map(|b| &b.name)),
+                names(points.iter().map(|p| &p.name))
+            ),
+        );
+        None
+    };
+
+    // Elements.
+    let mut elements = Vec::new();
+    for e in &raw.elements {
+        let what = format!("elements.{}", e.name);
+        let from = e
+            .from
+            .as_ref()
+            .and_then(|(n, p)| resolve_end(n, *p, &format!("{what}.from"), diag));
+        let to =
+            e.to.as_ref()
+                .and_then(|(n, p)| resolve_end(n, *p, &format!("{what}.to"), diag));
+        if let (Some(f), Some(t)) = (&from, &to) {
+            if !matches!(f, End::Body { .. }) {
+                diag.push(
+                    e.pos,
+                    format!("{what}.from: the upper end of an element is a body or body point"),
+                );
+            }
+            if f == t {
+                diag.push(e.pos, format!("{what}: `from` and `to` are the same point"));
+            }
+        }
+        let profile = match &e.profile {
+            None => None,
+            Some((name, pos)) => {
+                if !matches!(to, Some(End::Moving(_))) {
+                    diag.push(*pos, format!("{what}.profile: a profile lies under a moving point; `to` must be one ({})", names(points.iter().map(|p| &p.name))));
+                }
+                match profiles.iter().position(|p| p.name() == name) {
+                    Some(i) => Some(i),
+                    None => {
+                        diag.push(
+                            *pos,
+                            format!(
+                                "{what}.profile: unknown profile `{name}`; profiles: {}",
+                                names(profiles.iter().map(|p| p.name()))
+                            ),
+                        );
+                        None
+                    }
+                }
+            }
+        };
+        let law = match &e.law {
+            RawLaw::SpringDamper { k, c, preload } => Law::SpringDamper {
+                k: scope
+                    .req(k, &format!("{what}.k"), diag)
+                    .unwrap_or(Expr::Num(f64::NAN)),
+                c: scope
+                    .opt(c, 0.0, &format!("{what}.c"), diag)
+                    .unwrap_or(Expr::Num(0.0)),
+                preload: scope
+                    .opt(preload, 0.0, &format!("{what}.preload"), diag)
+                    .unwrap_or(Expr::Num(0.0)),
+            },
+            RawLaw::Hertz { g, exponent } => Law::Hertz {
+                g: scope
+                    .req(g, &format!("{what}.g"), diag)
+                    .unwrap_or(Expr::Num(f64::NAN)),
+                exponent: scope
+                    .opt(exponent, 1.5, &format!("{what}.exponent"), diag)
+                    .unwrap_or(Expr::Num(1.5)),
+            },
+            RawLaw::Table {
+                deflection,
+                force,
+                c,
+            } => Law::Table {
+                deflection: deflection
+                    .iter()
+                    .filter_map(|f| scope.resolve(f, &format!("{what}.deflection"), diag))
+                    .collect(),
+                force: force
+                    .iter()
+                    .filter_map(|f| scope.resolve(f, &format!("{what}.force"), diag))
+                    .collect(),
+                c: scope
+                    .opt(c, 0.0, &format!("{what}.c"), diag)
+                    .unwrap_or(Expr::Num(0.0)),
+            },
+        };
+        if let (Some(from), Some(to)) = (from, to) {
+            elements.push(Element {
+                name: e.name.clone(),
+                law,
+                from,
+                to,
+                profile,
+            });
+        }
+    }
+
+    // Loads.
+    let mut loads = Vec::new();
+    for l in &raw.loads {
+        let what = format!("loads.{}", l.name);
+        let at =
+            l.at.as_ref()
+                .and_then(|(n, p)| resolve_end(n, *p, &format!("{what}.at"), diag));
+        if let Some(End::Moving(pi)) = &at {
+            if points[*pi].beam.is_none() {
+                diag.push(
+                    l.pos,
+                    format!("{what}.at: a load on a point on the ground acts on nothing"),
+                );
+            }
+        }
+        if matches!(at, Some(End::Ground)) {
+            diag.push(
+                l.pos,
+                format!("{what}.at: a load on the ground acts on nothing"),
+            );
+        }
+        let force = scope.req(&l.force, &format!("{what}.force"), diag);
+        if let (Some(at), Some(force)) = (at, force) {
+            loads.push(Load {
+                name: l.name.clone(),
+                at,
+                force,
+            });
+        }
+    }
+
+    for p in &parameters {
+        if let ParamSource::Derived(e) = &p.source {
+            let mut ids = Vec::new();
+            collect_ids(e, &mut ids);
+            for j in ids {
+                scope.used[j] = true;
+            }
+        }
+    }
+    let channel_table = channel_table(&dofs, &points, &sensors, &elements, raw, diag);
+    let channels = stored_channels(&dofs, &channel_table, raw, diag);
+    let mut indices = Vec::new();
+    for ix in &raw.indices {
+        let what = format!("indices.{}", ix.name);
+        let channel = ix.channel.as_ref().and_then(|(name, pos)| {
+            match channels.iter().position(|c| &c.name == name) {
+                Some(i) => Some(i),
+                None => {
+                    diag.push(
+                        *pos,
+                        format!(
+                            "{what}.channel: `{name}` is not a stored column; stored: {}",
+                            names(channels.iter().map(|c| &c.name))
+                        ),
+                    );
+                    None
+                }
+            }
+        });
+        let subtract = scope.opt(&ix.subtract, 0.0, &format!("{what}.subtract"), diag);
+        let divide = scope.opt(&ix.divide, 1.0, &format!("{what}.divide"), diag);
+        if let (Some(channel), Some((stat, _)), Some(subtract), Some(divide)) =
+            (channel, ix.stat, subtract, divide)
+        {
+            let unit = ix.unit.clone().unwrap_or_else(|| {
+                if matches!(divide, Expr::Num(v) if v == 1.0) {
+                    channels[channel].unit.clone()
+                } else {
+                    "1".to_owned()
+                }
+            });
+            indices.push(Index {
+                name: ix.name.clone(),
+                doc: ix.doc.clone(),
+                stat,
+                channel,
+                subtract,
+                divide,
+                unit,
+                limit: ix.limit,
+            });
+        }
+    }
+    for (i, p) in raw.parameters.iter().enumerate() {
+        if !scope.used[i] {
+            diag.push(
+                p.pos,
+                format!(
+                    "parameters.{}: declared but never used (remove it, or use it in a field)",
+                    p.name
+                ),
+            );
+        }
+    }
+    let assembly = assemble(&bodies, &dofs, &elements, &loads);
+    let system = System {
+        name: raw.name.clone(),
+        doc: raw.doc.clone(),
+        parameters,
+        derived_order,
+        bodies,
+        dofs,
+        beams,
+        speed,
+        points,
+        sensors,
+        profiles,
+        elements,
+        loads,
+        assembly,
+        channels,
+        indices,
+    };
+    if !diag.is_empty() {
+        return None;
+    }
+    crate::checks::nominal_checks(&system, raw, diag);
+    diag.is_empty().then_some(system)
+}
+
+fn names<S: AsRef<str>>(it: impl Iterator<Item = S>) -> String {
+    let v: Vec<String> = it.map(|s| s.as_ref().to_owned()).collect();
+    if v.is_empty() {
+        "none".to_owned()
+    } else {
+        v.join(", ")
+    }
+}
+
+fn link(scope: &mut Scope, l: Option<&RawLink>, what: &str, diag: &mut Diagnostics) -> Link {
+    match l {
+        Some(l) => Link {
+            k: scope
+                .req(&l.k, &format!("{what}.k"), diag)
+                .unwrap_or(Expr::Num(f64::NAN)),
+            c: scope
+                .opt(&l.c, 0.0, &format!("{what}.c"), diag)
+                .unwrap_or(Expr::Num(0.0)),
+        },
+        None => Link {
+            k: Expr::Num(f64::NAN),
+            c: Expr::Num(0.0),
+        },
+    }
+}
+
+/// Topological order of the derived parameters; a cycle is reported with its path.
+fn derived_order(raw: &RawDescription, params: &[Parameter], diag: &mut Diagnostics) -> Vec<usize> {
+    let n = params.len();
+    let mut state = vec![0u8; n]; // 0 new, 1 on the path, 2 done
+    let mut order = Vec::new();
+    fn visit(
+        i: usize,
+        params: &[Parameter],
+        state: &mut [u8],
+        path: &mut Vec<usize>,
+        order: &mut Vec<usize>,
+    ) -> Result<(), Vec<usize>> {
+        if state[i] == 2 {
+            return Ok(());
+        }
+        if state[i] == 1 {
+            let start = path.iter().position(|&j| j == i).unwrap_or(0);
+            let mut cycle = path[start..].to_vec();
+            cycle.push(i);
+            return Err(cycle);
+        }
+        state[i] = 1;
+        path.push(i);
+        if let ParamSource::Derived(e) = &params[i].source {
+            let mut deps = Vec::new();
+            collect_ids(e, &mut deps);
+            for d in deps {
+                visit(d, params, state, path, order)?;
+            }
+            order.push(i);
+        }
+        path.pop();
+        state[i] = 2;
+        Ok(())
+    }
+    for i in 0..n {
+        let mut path = Vec::new();
+        if let Err(cycle) = visit(i, params, &mut state, &mut path, &mut order) {
+            let names: Vec<&str> = cycle.iter().map(|&j| params[j].name.as_str()).collect();
+            diag.push(
+                raw.parameters[cycle[0]].pos,
+                format!(
+                    "parameters: derived parameters form a cycle: {}",
+                    names.join(" -> ")
+                ),
+            );
+            for &j in &cycle {
+                state[j] = 2;
+            }
+        }
+    }
+    order
+}
+
+pub(crate) fn collect_ids(e: &Expr, out: &mut Vec<usize>) {
+    match e {
+        Expr::Num(_) => {}
+        Expr::Var(_, id) => out.extend(*id),
+        Expr::Neg(a) => collect_ids(a, out),
+        Expr::Bin(_, a, b) => {
+            collect_ids(a, out);
+            collect_ids(b, out);
+        }
+        Expr::Call(_, args) => args.iter().for_each(|a| collect_ids(a, out)),
+    }
+}
+
+/// Values of the parameters that are the same for every sample (fixed, or derived only from
+/// fixed ones); `None` for those that vary.
+fn structural_values(params: &[Parameter], order: &[usize]) -> Vec<Option<f64>> {
+    let mut v: Vec<Option<f64>> = params
+        .iter()
+        .map(|p| match p.source {
+            ParamSource::Fixed(x) => Some(x),
+            _ => None,
+        })
+        .collect();
+    for &i in order {
+        if let ParamSource::Derived(e) = &params[i].source {
+            let mut ids = Vec::new();
+            collect_ids(e, &mut ids);
+            if ids.iter().all(|&j| v[j].is_some()) {
+                let vals: Vec<f64> = v.iter().map(|x| x.unwrap_or(f64::NAN)).collect();
+                v[i] = Some(e.eval(&vals));
+            }
+        }
+    }
+    v
+}
+
+fn structural_count(
+    e: &Expr,
+    params: &[Parameter],
+    fixed: &[Option<f64>],
+) -> Result<usize, String> {
+    let mut ids = Vec::new();
+    collect_ids(e, &mut ids);
+    if let Some(&j) = ids.iter().find(|&&j| fixed[j].is_none()) {
+        return Err(format!(
+            "a count must be the same for every sample, but `{}` varies (sampled, or derived from a sampled parameter)",
+            params[j].name
+        ));
+    }
+    let vals: Vec<f64> = fixed.iter().map(|x| x.unwrap_or(f64::NAN)).collect();
+    let v = e.eval(&vals);
+    if !(v.is_finite() && v >= 1.0 && v.fract() == 0.0 && v <= 1e7) {
+        return Err(format!("a count must be an integer in [1, 1e7], found {v}"));
+    }
+    Ok(v as usize)
+}
+
+/// Every column the naming rule gives (stored or not): name, unit, quantity, role.
+fn channel_table(
+    dofs: &[Dof],
+    points: &[MovingPoint],
+    sensors: &[Sensor],
+    elements: &[Element],
+    raw: &RawDescription,
+    diag: &mut Diagnostics,
+) -> Vec<Channel> {
+    let mut out = Vec::new();
+    let mut push = |name: String, unit: &str, quantity: Quantity, role: Role| {
+        out.push(Channel {
+            name,
+            unit: unit.to_owned(),
+            quantity,
+            role,
+        })
+    };
+    for (i, d) in dofs.iter().enumerate() {
+        let (u, v, a) = match d.kind {
+            DofKind::Z => ("m", "m/s", "m/s^2"),
+            DofKind::Pitch => ("rad", "rad/s", "rad/s^2"),
+        };
+        push(d.name.clone(), u, Quantity::Dof(i, 0), Role::Solution);
+        push(
+            format!("{}_v", d.name),
+            v,
+            Quantity::Dof(i, 1),
+            Role::Velocity,
+        );
+        push(
+            format!("{}_a", d.name),
+            a,
+            Quantity::Dof(i, 2),
+            Role::Acceleration,
+        );
+    }
+    for (i, p) in points.iter().enumerate() {
+        if p.beam.is_some() {
+            push(
+                format!("z_{}", p.name),
+                "m",
+                Quantity::Point(i),
+                Role::Solution,
+            );
+        }
+    }
+    for (i, s) in sensors.iter().enumerate() {
+        push(
+            format!("z_{}", s.name),
+            "m",
+            Quantity::Sensor(i, 0),
+            Role::Solution,
+        );
+        push(
+            format!("z_{}_v", s.name),
+            "m/s",
+            Quantity::Sensor(i, 1),
+            Role::Other,
+        );
+        push(
+            format!("z_{}_a", s.name),
+            "m/s^2",
+            Quantity::Sensor(i, 2),
+            Role::Other,
+        );
+    }
+    for (i, e) in elements.iter().enumerate() {
+        if e.profile.is_some() {
+            push(
+                format!("eta_{}", e.name),
+                "m",
+                Quantity::Excitation(i),
+                Role::Excitation,
+            );
+        }
+        let sym = if e.law.is_contact() { "p" } else { "f" };
+        push(
+            format!("{sym}_{}", e.name),
+            "N",
+            Quantity::Force(i),
+            Role::Force,
+        );
+        push(
+            format!("d_{}", e.name),
+            "m",
+            Quantity::Deflection(i),
+            Role::Other,
+        );
+    }
+    // Unique names: a collision (a body `c_v` beside a body `c`, a sensor named like a body)
+    // is reported at the later declaration.
+    let mut seen: HashMap<&str, usize> = HashMap::new();
+    for (i, c) in out.iter().enumerate() {
+        if let Some(&j) = seen.get(c.name.as_str()) {
+            let pos = declaration_pos(raw, &c.name).unwrap_or_default();
+            diag.push(
+                pos,
+                format!(
+                    "column `{}` is produced twice (by {} and by {}); rename one of them",
+                    c.name,
+                    describe(&out[j].quantity),
+                    describe(&c.quantity)
+                ),
+            );
+        } else {
+            seen.insert(&c.name, i);
+        }
+    }
+    out
+}
+
+fn describe(q: &Quantity) -> &'static str {
+    match q {
+        Quantity::Dof(..) => "a body DOF",
+        Quantity::Point(_) => "a moving point",
+        Quantity::Sensor(..) => "a sensor",
+        Quantity::Excitation(_) => "an element's profile",
+        Quantity::Force(_) => "an element's force",
+        Quantity::Deflection(_) => "an element's deflection",
+    }
+}
+
+fn declaration_pos(raw: &RawDescription, column: &str) -> Option<Pos> {
+    let tail = column.split_once('_').map(|(_, t)| t)?;
+    let tail = tail
+        .strip_suffix("_v")
+        .or_else(|| tail.strip_suffix("_a"))
+        .unwrap_or(tail);
+    raw.sensors
+        .iter()
+        .find(|s| s.name == tail)
+        .map(|s| s.pos)
+        .or_else(|| {
+            raw.moving
+                .as_ref()
+                .and_then(|m| m.points.iter().find(|p| p.name == tail).map(|p| p.pos))
+        })
+        .or_else(|| raw.bodies.iter().find(|b| b.name == tail).map(|b| b.pos))
+        .or_else(|| raw.elements.iter().find(|e| e.name == tail).map(|e| e.pos))
+}
+
+/// The stored columns: DOF displacements, the listed displacement columns, DOF velocities,
+/// DOF accelerations, then the other listed columns in their listed order.
+fn stored_channels(
+    dofs: &[Dof],
+    table: &[Channel],
+    raw: &RawDescription,
+    diag: &mut Diagnostics,
+) -> Vec<Channel> {
+    let find = |name: &str| table.iter().find(|c| c.name == name);
+    let mut listed: Vec<&Channel> = Vec::new();
+    for (name, pos) in &raw.outputs {
+        match find(name) {
+            Some(c) if matches!(c.quantity, Quantity::Dof(..)) => {
+                diag.push(
+                    *pos,
+                    format!("outputs: `{name}` is a body DOF column, always stored"),
+                );
+            }
+            Some(c) => {
+                if listed.iter().any(|l| l.name == c.name) {
+                    diag.push(*pos, format!("outputs: `{name}` listed twice"));
+                } else {
+                    listed.push(c);
+                }
+            }
+            None => {
+                let available: Vec<&str> = table
+                    .iter()
+                    .filter(|c| !matches!(c.quantity, Quantity::Dof(..)))
+                    .map(|c| c.name.as_str())
+                    .collect();
+                diag.push(
+                    *pos,
+                    format!(
+                        "outputs: no column `{name}`; available: {}",
+                        available.join(", ")
+                    ),
+                );
+            }
+        }
+    }
+    let mut out = Vec::new();
+    let dof_col = |i: usize, d: u8| {
+        table
+            .iter()
+            .find(|c| c.quantity == Quantity::Dof(i, d))
+            .cloned()
+    };
+    out.extend((0..dofs.len()).filter_map(|i| dof_col(i, 0)));
+    out.extend(
+        listed
+            .iter()
+            .filter(|c| c.role == Role::Solution)
+            .map(|c| (*c).clone()),
+    );
+    out.extend((0..dofs.len()).filter_map(|i| dof_col(i, 1)));
+    out.extend((0..dofs.len()).filter_map(|i| dof_col(i, 2)));
+    out.extend(
+        listed
+            .iter()
+            .filter(|c| c.role != Role::Solution)
+            .map(|c| (*c).clone()),
+    );
+    out
+}
+
+/// Per DOF, the generalised force as coefficient groups, accumulated in a fixed order by kind:
+/// spring-dampers and tables, then loads, then contacts, each in declaration order.
+fn assemble(
+    bodies: &[Body],
+    dofs: &[Dof],
+    elements: &[Element],
+    loads: &[Load],
+) -> Vec<Vec<Group>> {
+    let mut out: Vec<Vec<Group>> = vec![Vec::new(); dofs.len()];
+    // A force `F` (downward) applied at a point `x` of a body: `F` on z, `-x F` on pitch.
+    let mut add = |end: &End, applied_sign: f64, source: Source| {
+        let End::Body { body, x } = end else { return };
+        let b = &bodies[*body];
+        if let Some(z) = b.z {
+            push_term(&mut out[z], None, applied_sign, source);
+        }
+        if let (Some(p), Some(x)) = (b.pitch, x) {
+            if !x.is_zero() {
+                let (s, magnitude) = x.split_sign();
+                push_term(
+                    &mut out[p],
+                    Some(magnitude.clone()),
+                    -applied_sign * s,
+                    source,
+                );
+            }
+        }
+    };
+    let order = elements
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| !e.law.is_contact())
+        .map(|(i, _)| Some(i))
+        .chain(std::iter::once(None))
+        .chain(
+            elements
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| e.law.is_contact())
+                .map(|(i, _)| Some(i)),
+        );
+    for item in order {
+        match item {
+            Some(i) => {
+                // The element pushes its upper end up (-f) and its lower end down (+f).
+                add(&elements[i].from, -1.0, Source::Element(i));
+                add(&elements[i].to, 1.0, Source::Element(i));
+            }
+            None => {
+                for (i, l) in loads.iter().enumerate() {
+                    add(&l.at, 1.0, Source::Load(i));
+                }
+            }
+        }
+    }
+    out
+}
+
+fn push_term(groups: &mut Vec<Group>, coefficient: Option<Expr>, sign: f64, source: Source) {
+    let key = coefficient.as_ref().map(|e| e.to_string());
+    match groups
+        .iter_mut()
+        .find(|g| g.coefficient.as_ref().map(|e| e.to_string()) == key)
+    {
+        Some(g) => g.terms.push((source, sign)),
+        None => groups.push(Group {
+            coefficient,
+            terms: vec![(source, sign)],
+        }),
+    }
+}
+
+/// Parses, validates and compiles a description text (`file` names it in messages), with
+/// `overrides` applied to its parameter table.
+pub fn load_str(
+    text: &str,
+    file: &str,
+    overrides: &BTreeMap<String, Override>,
+) -> Result<System, Diagnostics> {
+    let mut diag = Diagnostics {
+        file: file.to_owned(),
+        items: Vec::new(),
+    };
+    let root = match crate::yaml::parse(text) {
+        Ok(r) => r,
+        Err(e) => {
+            diag.push(e.pos, format!("not valid YAML: {}", e.message));
+            return Err(diag);
+        }
+    };
+    let mut raw = schema::read(&root, &mut diag);
+    if !diag.is_empty() {
+        return Err(diag);
+    }
+    if let Err(message) = apply_overrides(&mut raw, overrides) {
+        diag.push(Pos { line: 1, col: 1 }, message);
+        return Err(diag);
+    }
+    match compile(&raw, &mut diag) {
+        Some(s) if diag.is_empty() => Ok(s),
+        _ => Err(diag),
+    }
+}

@@ -1,0 +1,643 @@
+//! One sample's model in numbers: the [`System`] with every expression evaluated for one set of
+//! parameter values, each field checked against its domain. This is what the engine runs.
+//!
+//! Units are SI; displacements positive downward, pitch positive nose-up, `x` forward. A body
+//! point at `x` moves down by `u = z + c beta` with `c = -x` (a nose-up pitch lifts the front).
+
+use crate::schema::Outside;
+use crate::system::{End, Law, ParamSource, Profile, Source, System};
+
+/// A field out of its domain: which, its value and what is allowed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("`{path}` = {value} is out of range: {allowed}")]
+pub struct FieldError {
+    /// Dotted path of the field (`bodies.c.mass`).
+    pub path: String,
+    /// Its value.
+    pub value: f64,
+    /// What is allowed.
+    pub allowed: String,
+}
+
+/// The rigid-DOF participation of a body point: `u = z + c beta`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointTerms {
+    /// The body's vertical DOF.
+    pub z: Option<usize>,
+    /// The body's pitch DOF and the coefficient `c = -x`.
+    pub pitch: Option<(usize, f64)>,
+}
+
+impl PointTerms {
+    /// `u = z + c beta` of the rigid state `q` (left to right, as written).
+    #[inline]
+    pub fn displacement(&self, q: &[f64]) -> f64 {
+        match (self.z, self.pitch) {
+            (Some(z), Some((p, c))) => q[z] + c * q[p],
+            (Some(z), None) => q[z],
+            (None, Some((p, c))) => c * q[p],
+            (None, None) => 0.0,
+        }
+    }
+}
+
+/// An end of an element or the point of a load.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ModelEnd {
+    /// Fixed ground.
+    Ground,
+    /// A body point.
+    Body(PointTerms),
+    /// Moving point `i`.
+    Moving(usize),
+}
+
+/// A force law in numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModelLaw {
+    /// `f = preload + k d + c d'` (N).
+    SpringDamper {
+        /// N/m.
+        k: f64,
+        /// N s/m.
+        c: f64,
+        /// N.
+        preload: f64,
+    },
+    /// `f = (d / g)^exponent` for `d > 0`, else 0 (N).
+    Hertz {
+        /// m/N^(1/exponent).
+        g: f64,
+        /// Exponent.
+        exponent: f64,
+    },
+    /// `f = table(d) + c d'` (N), linear between points, end slopes beyond.
+    Table {
+        /// Deflections (m), strictly increasing.
+        deflection: Vec<f64>,
+        /// Forces (N).
+        force: Vec<f64>,
+        /// N s/m.
+        c: f64,
+    },
+}
+
+impl ModelLaw {
+    /// The force (N) at deflection `d` (m) and rate `dv` (m/s).
+    #[inline]
+    pub fn force(&self, d: f64, dv: f64) -> f64 {
+        match self {
+            ModelLaw::SpringDamper { k, c, preload } => {
+                if *preload == 0.0 {
+                    k * d + c * dv
+                } else {
+                    preload + k * d + c * dv
+                }
+            }
+            ModelLaw::Hertz { g, exponent } => hertz(d, *g, *exponent),
+            ModelLaw::Table {
+                deflection,
+                force,
+                c,
+            } => table(deflection, force, d) + c * dv,
+        }
+    }
+
+    /// `df/dd` at `d` (N/m): the tangent stiffness.
+    pub fn stiffness(&self, d: f64) -> f64 {
+        match self {
+            ModelLaw::SpringDamper { k, .. } => *k,
+            ModelLaw::Hertz { g, exponent } => {
+                if d > 0.0 {
+                    exponent / g * (d / g).powf(exponent - 1.0)
+                } else {
+                    0.0
+                }
+            }
+            ModelLaw::Table {
+                deflection, force, ..
+            } => {
+                let i = segment(deflection, d);
+                (force[i + 1] - force[i]) / (deflection[i + 1] - deflection[i])
+            }
+        }
+    }
+
+    /// `df/dd'` (N s/m).
+    pub fn damping(&self) -> f64 {
+        match self {
+            ModelLaw::SpringDamper { c, .. } | ModelLaw::Table { c, .. } => *c,
+            ModelLaw::Hertz { .. } => 0.0,
+        }
+    }
+
+    /// The deflection (m) at which the static force is `f` (N), for a law that can carry it.
+    pub fn static_deflection(&self, f: f64) -> Option<f64> {
+        match self {
+            ModelLaw::SpringDamper { k, preload, .. } => {
+                if *k > 0.0 {
+                    Some((f - preload) / k)
+                } else {
+                    (f == *preload).then_some(0.0)
+                }
+            }
+            ModelLaw::Hertz { g, exponent } => {
+                if f > 0.0 {
+                    Some(if *exponent == 1.5 {
+                        g * f.powf(2.0 / 3.0)
+                    } else {
+                        g * f.powf(1.0 / exponent)
+                    })
+                } else if f == 0.0 {
+                    Some(0.0)
+                } else {
+                    None
+                }
+            }
+            ModelLaw::Table {
+                deflection, force, ..
+            } => {
+                // Monotone tables only: the segment whose force range holds f.
+                let n = force.len();
+                (0..n - 1).find_map(|i| {
+                    let (f0, f1) = (force[i], force[i + 1]);
+                    let inside = (f0..=f1).contains(&f) || (f1..=f0).contains(&f);
+                    let ends = (i == 0 && (f < f0.min(f1))) || (i == n - 2 && f > f0.max(f1));
+                    (inside || ends).then(|| {
+                        deflection[i] + (f - f0) * (deflection[i + 1] - deflection[i]) / (f1 - f0)
+                    })
+                })
+            }
+        }
+    }
+
+    /// Whether this is a contact law.
+    pub fn is_contact(&self) -> bool {
+        matches!(self, ModelLaw::Hertz { .. })
+    }
+}
+
+/// Hertz force `(d / g)^e` for `d > 0`, else 0; for `e = 3/2` computed as `x sqrt(x)`.
+#[inline]
+pub fn hertz(d: f64, g: f64, exponent: f64) -> f64 {
+    if d > 0.0 {
+        let x = d / g;
+        if exponent == 1.5 {
+            x * x.sqrt()
+        } else {
+            x.powf(exponent)
+        }
+    } else {
+        0.0
+    }
+}
+
+fn segment(xs: &[f64], d: f64) -> usize {
+    xs.partition_point(|&x| x <= d).clamp(1, xs.len() - 1) - 1
+}
+
+fn table(xs: &[f64], fs: &[f64], d: f64) -> f64 {
+    let i = segment(xs, d);
+    fs[i] + (d - xs[i]) * (fs[i + 1] - fs[i]) / (xs[i + 1] - xs[i])
+}
+
+/// A force element in numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelElement {
+    /// Its law.
+    pub law: ModelLaw,
+    /// Upper end.
+    pub from: ModelEnd,
+    /// Lower end.
+    pub to: ModelEnd,
+    /// Profile under the lower end.
+    pub profile: Option<usize>,
+}
+
+/// A constant load in numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelLoad {
+    /// Where.
+    pub at: ModelEnd,
+    /// Force (N, downward).
+    pub force: f64,
+}
+
+/// A coefficient group in numbers (see [`crate::system::Group`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelGroup {
+    /// Common coefficient (`None`: 1).
+    pub coefficient: Option<f64>,
+    /// Sources and signs.
+    pub terms: Vec<(Source, f64)>,
+}
+
+/// A support-chain level in numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelLevel {
+    /// Mass per support (kg).
+    pub mass: f64,
+    /// Link to the level above: stiffness (N/m), damping (N s/m).
+    pub k: f64,
+    /// See `k`.
+    pub c: f64,
+    /// Shear to the neighbours: stiffness and damping.
+    pub shear: Option<(f64, f64)>,
+}
+
+/// Periodic supports in numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelSupports {
+    /// Spacing (m).
+    pub spacing: f64,
+    /// Count.
+    pub count: usize,
+    /// First support (m).
+    pub first: f64,
+    /// Levels from the beam down.
+    pub levels: Vec<ModelLevel>,
+    /// Last level to ground: stiffness, damping.
+    pub ground: (f64, f64),
+}
+
+/// A modal beam in numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelBeam {
+    /// Length (m).
+    pub length: f64,
+    /// Modes.
+    pub modes: usize,
+    /// kg/m.
+    pub mass_per_length: f64,
+    /// N m^2.
+    pub bending_stiffness: f64,
+    /// Modal damping ratio.
+    pub damping_ratio: f64,
+    /// Points off the beam.
+    pub outside: Outside,
+    /// Supports.
+    pub supports: Option<ModelSupports>,
+}
+
+/// A profile in numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ModelProfile {
+    /// Supplied per sample (the `irregularity` stage's profile).
+    Generated,
+    /// `amplitude sin(2 pi x / wavelength + phase)`.
+    Harmonic {
+        /// m.
+        amplitude: f64,
+        /// m.
+        wavelength: f64,
+        /// rad.
+        phase: f64,
+    },
+}
+
+/// One sample's model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Model {
+    /// Every parameter's value, in table order.
+    pub values: Vec<f64>,
+    /// Mass or inertia of each DOF.
+    pub dof_mass: Vec<f64>,
+    /// Elements.
+    pub elements: Vec<ModelElement>,
+    /// Loads.
+    pub loads: Vec<ModelLoad>,
+    /// Per DOF, its generalised force groups.
+    pub assembly: Vec<Vec<ModelGroup>>,
+    /// Beams.
+    pub beams: Vec<ModelBeam>,
+    /// Frame speed (m/s).
+    pub speed: f64,
+    /// Moving points: beam and offset (m).
+    pub points: Vec<(Option<usize>, f64)>,
+    /// Sensors: beam and position (m).
+    pub sensors: Vec<(usize, f64)>,
+    /// Profiles.
+    pub profiles: Vec<ModelProfile>,
+}
+
+impl System {
+    /// Every parameter's value from the sampled ones (`sampled[j]` for the `j`-th sampled
+    /// parameter), the fixed values and the derived expressions.
+    pub fn values(&self, sampled: &[f64]) -> Vec<f64> {
+        let mut it = sampled.iter();
+        let mut v: Vec<f64> = self
+            .parameters
+            .iter()
+            .map(|p| match p.source {
+                ParamSource::Sampled { .. } => *it.next().unwrap_or(&f64::NAN),
+                ParamSource::Fixed(x) => x,
+                ParamSource::Derived(_) => f64::NAN,
+            })
+            .collect();
+        for &i in &self.derived_order {
+            if let ParamSource::Derived(e) = &self.parameters[i].source {
+                v[i] = e.eval(&v);
+            }
+        }
+        v
+    }
+
+    /// The nominal values of the sampled parameters.
+    pub fn nominal(&self) -> Vec<f64> {
+        self.parameters
+            .iter()
+            .filter_map(|p| match p.source {
+                ParamSource::Sampled { nominal, .. } => Some(nominal),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The sampling ranges of the sampled parameters.
+    pub fn ranges(&self) -> Vec<[f64; 2]> {
+        self.parameters
+            .iter()
+            .filter_map(|p| match p.source {
+                ParamSource::Sampled { range, .. } => Some(range),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The model of one sample (`sampled` in [`System::sampled`] order), every field checked.
+    pub fn instantiate(&self, sampled: &[f64]) -> Result<Model, FieldError> {
+        let v = self.values(sampled);
+        for (p, x) in self.parameters.iter().zip(&v) {
+            if !x.is_finite() {
+                return Err(FieldError {
+                    path: format!("parameters.{}", p.name),
+                    value: *x,
+                    allowed: "finite".to_owned(),
+                });
+            }
+        }
+        let ev = |e: &crate::expr::Expr| e.eval(&v);
+        let check = |path: String, x: f64, ok: bool, allowed: &str| -> Result<f64, FieldError> {
+            if x.is_finite() && ok {
+                Ok(x)
+            } else {
+                Err(FieldError {
+                    path,
+                    value: x,
+                    allowed: allowed.to_owned(),
+                })
+            }
+        };
+        let positive = |path: String, x: f64| check(path, x, x > 0.0, "finite and > 0");
+        let non_negative = |path: String, x: f64| check(path, x, x >= 0.0, "finite and >= 0");
+        let finite = |path: String, x: f64| check(path, x, true, "finite");
+
+        let mut dof_mass = vec![0.0; self.dofs.len()];
+        for b in &self.bodies {
+            let m = positive(format!("bodies.{}.mass", b.name), ev(&b.mass))?;
+            if let Some(z) = b.z {
+                dof_mass[z] = m;
+            }
+            if let (Some(p), Some(j)) = (b.pitch, &b.inertia) {
+                dof_mass[p] = positive(format!("bodies.{}.inertia", b.name), ev(j))?;
+            }
+            for (name, x) in &b.points {
+                finite(format!("bodies.{}.points.{name}", b.name), ev(x))?;
+            }
+        }
+        let end = |e: &End| -> ModelEnd {
+            match e {
+                End::Ground => ModelEnd::Ground,
+                End::Moving(i) => ModelEnd::Moving(*i),
+                End::Body { body, x } => {
+                    let b = &self.bodies[*body];
+                    let c = x.as_ref().map_or(0.0, |x| -ev(x));
+                    ModelEnd::Body(PointTerms {
+                        z: b.z,
+                        pitch: b
+                            .pitch
+                            .filter(|_| x.as_ref().is_some_and(|x| !x.is_zero()))
+                            .map(|p| (p, c)),
+                    })
+                }
+            }
+        };
+        let mut elements = Vec::with_capacity(self.elements.len());
+        for e in &self.elements {
+            let w = format!("elements.{}", e.name);
+            let law = match &e.law {
+                Law::SpringDamper { k, c, preload } => ModelLaw::SpringDamper {
+                    k: non_negative(format!("{w}.k"), ev(k))?,
+                    c: non_negative(format!("{w}.c"), ev(c))?,
+                    preload: finite(format!("{w}.preload"), ev(preload))?,
+                },
+                Law::Hertz { g, exponent } => ModelLaw::Hertz {
+                    g: positive(format!("{w}.g"), ev(g))?,
+                    exponent: positive(format!("{w}.exponent"), ev(exponent))?,
+                },
+                Law::Table {
+                    deflection,
+                    force,
+                    c,
+                } => {
+                    let d: Vec<f64> = deflection.iter().map(ev).collect();
+                    let f: Vec<f64> = force.iter().map(ev).collect();
+                    if d.len() < 2 || d.len() != f.len() {
+                        return Err(FieldError {
+                            path: format!("{w}.deflection"),
+                            value: d.len() as f64,
+                            allowed: "as many points as `force`, at least 2".to_owned(),
+                        });
+                    }
+                    for (i, pair) in d.windows(2).enumerate() {
+                        check(
+                            format!("{w}.deflection[{}]", i + 1),
+                            pair[1],
+                            pair[1] > pair[0],
+                            "finite and above the previous point",
+                        )?;
+                    }
+                    for (i, x) in f.iter().enumerate() {
+                        finite(format!("{w}.force[{i}]"), *x)?;
+                    }
+                    ModelLaw::Table {
+                        deflection: d,
+                        force: f,
+                        c: non_negative(format!("{w}.c"), ev(c))?,
+                    }
+                }
+            };
+            elements.push(ModelElement {
+                law,
+                from: end(&e.from),
+                to: end(&e.to),
+                profile: e.profile,
+            });
+        }
+        let mut loads = Vec::with_capacity(self.loads.len());
+        for l in &self.loads {
+            loads.push(ModelLoad {
+                at: end(&l.at),
+                force: finite(format!("loads.{}.force", l.name), ev(&l.force))?,
+            });
+        }
+        let assembly = self
+            .assembly
+            .iter()
+            .map(|groups| {
+                groups
+                    .iter()
+                    .map(|g| crate::model::ModelGroup {
+                        coefficient: g.coefficient.as_ref().map(ev),
+                        terms: g.terms.clone(),
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut beams = Vec::with_capacity(self.beams.len());
+        for b in &self.beams {
+            let w = format!("beams.{}", b.name);
+            let length = positive(format!("{w}.length"), ev(&b.length))?;
+            let supports = match &b.supports {
+                None => None,
+                Some(s) => {
+                    let spacing = positive(format!("{w}.supports.spacing"), ev(&s.spacing))?;
+                    let first = non_negative(format!("{w}.supports.first"), ev(&s.first))?;
+                    let last = first + (s.count.max(1) - 1) as f64 * spacing;
+                    check(format!("{w}.supports.count"), s.count as f64, last < length, &format!("supports from {first} m every {spacing} m must end inside the beam (length {length} m)"))?;
+                    let mut levels = Vec::new();
+                    for (i, l) in s.levels.iter().enumerate() {
+                        let lw = format!("{w}.supports.levels[{i}]");
+                        levels.push(ModelLevel {
+                            mass: positive(format!("{lw}.mass"), ev(&l.mass))?,
+                            k: positive(format!("{lw}.link.k"), ev(&l.link.k))?,
+                            c: non_negative(format!("{lw}.link.c"), ev(&l.link.c))?,
+                            shear: match &l.shear {
+                                None => None,
+                                Some(sh) => Some((
+                                    non_negative(format!("{lw}.shear.k"), ev(&sh.k))?,
+                                    non_negative(format!("{lw}.shear.c"), ev(&sh.c))?,
+                                )),
+                            },
+                        });
+                    }
+                    Some(ModelSupports {
+                        spacing,
+                        count: s.count,
+                        first,
+                        levels,
+                        ground: (
+                            positive(format!("{w}.supports.ground.k"), ev(&s.ground.k))?,
+                            non_negative(format!("{w}.supports.ground.c"), ev(&s.ground.c))?,
+                        ),
+                    })
+                }
+            };
+            let zeta = ev(&b.damping_ratio);
+            beams.push(ModelBeam {
+                length,
+                modes: b.modes,
+                mass_per_length: positive(format!("{w}.mass_per_length"), ev(&b.mass_per_length))?,
+                bending_stiffness: positive(
+                    format!("{w}.bending_stiffness"),
+                    ev(&b.bending_stiffness),
+                )?,
+                damping_ratio: check(
+                    format!("{w}.damping_ratio"),
+                    zeta,
+                    (0.0..1.0).contains(&zeta),
+                    "in [0, 1)",
+                )?,
+                outside: b.outside,
+                supports,
+            });
+        }
+        let speed = non_negative("moving.speed".to_owned(), ev(&self.speed))?;
+        let mut points = Vec::with_capacity(self.points.len());
+        for p in &self.points {
+            points.push((
+                p.beam,
+                finite(format!("moving.points.{}.offset", p.name), ev(&p.offset))?,
+            ));
+        }
+        let mut sensors = Vec::with_capacity(self.sensors.len());
+        for s in &self.sensors {
+            let length = beams[s.beam].length;
+            let x = ev(&s.x);
+            sensors.push((
+                s.beam,
+                check(
+                    format!("sensors.{}.x", s.name),
+                    x,
+                    (0.0..=length).contains(&x),
+                    &format!("on the beam: in [0, {length}] m"),
+                )?,
+            ));
+        }
+        let mut profiles = Vec::with_capacity(self.profiles.len());
+        for p in &self.profiles {
+            profiles.push(match p {
+                Profile::Generated { .. } => ModelProfile::Generated,
+                Profile::Harmonic {
+                    name,
+                    amplitude,
+                    wavelength,
+                    phase,
+                } => ModelProfile::Harmonic {
+                    amplitude: finite(format!("profiles.{name}.amplitude"), ev(amplitude))?,
+                    wavelength: positive(format!("profiles.{name}.wavelength"), ev(wavelength))?,
+                    phase: finite(format!("profiles.{name}.phase"), ev(phase))?,
+                },
+            });
+        }
+        Ok(Model {
+            values: v,
+            dof_mass,
+            elements,
+            loads,
+            assembly,
+            beams,
+            speed,
+            points,
+            sensors,
+            profiles,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn laws_forces_stiffness_and_static_deflection_agree() {
+        let sd = ModelLaw::SpringDamper {
+            k: 2e5,
+            c: 1e3,
+            preload: 500.0,
+        };
+        assert_eq!(sd.force(1e-3, 0.1), 500.0 + 200.0 + 100.0);
+        assert_eq!(sd.static_deflection(700.0), Some(1e-3));
+        let h = ModelLaw::Hertz {
+            g: 5.18e-8,
+            exponent: 1.5,
+        };
+        let d = h.static_deflection(7e4).unwrap();
+        assert!((h.force(d, 0.0) - 7e4).abs() < 1e-6);
+        assert_eq!(h.force(-1e-6, 0.0), 0.0);
+        // Tangent stiffness equals the difference quotient.
+        let eps = 1e-10;
+        let fd = (h.force(d + eps, 0.0) - h.force(d - eps, 0.0)) / (2.0 * eps);
+        assert!((h.stiffness(d) - fd).abs() < 1e-4 * fd);
+        let t = ModelLaw::Table {
+            deflection: vec![0.0, 1e-3, 2e-3],
+            force: vec![0.0, 100.0, 400.0],
+            c: 0.0,
+        };
+        assert_eq!(t.force(1.5e-3, 0.0), 250.0);
+        assert_eq!(t.force(3e-3, 0.0), 700.0); // end slope extended
+        assert_eq!(t.force(-1e-3, 0.0), -100.0);
+        assert_eq!(t.stiffness(1.5e-3), 3e5);
+        assert!((t.static_deflection(250.0).unwrap() - 1.5e-3).abs() < 1e-15);
+    }
+}

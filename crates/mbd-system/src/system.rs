@@ -1,0 +1,423 @@
+//! The compiled system: every name resolved to an index, every field an expression over the
+//! parameter table (the output of [`crate::compile`]). A [`System`] is turned into numbers for
+//! one sample by [`System::instantiate`], giving a [`crate::model::Model`].
+
+use crate::expr::Expr;
+use crate::schema::{DofKind, IndexStat, Outside, RawPsdSegment};
+
+/// How a compiled parameter gets its value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamSource {
+    /// Drawn per sample, uniform on `range`.
+    Sampled {
+        /// Default of a design (nominal).
+        nominal: f64,
+        /// `[min, max]`.
+        range: [f64; 2],
+    },
+    /// The same for every sample.
+    Fixed(f64),
+    /// From other parameters.
+    Derived(Expr),
+}
+
+/// A parameter of the table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parameter {
+    /// Name (a column of `params.parquet` when sampled).
+    pub name: String,
+    /// Unit, as written.
+    pub unit: String,
+    /// What it is.
+    pub doc: Option<String>,
+    /// Its source.
+    pub source: ParamSource,
+}
+
+/// A rigid-body degree of freedom.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dof {
+    /// Column name (`z_c`, `beta_c`).
+    pub name: String,
+    /// The body.
+    pub body: usize,
+    /// Kind.
+    pub kind: DofKind,
+}
+
+/// A rigid body.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Body {
+    /// Name.
+    pub name: String,
+    /// What it is.
+    pub doc: Option<String>,
+    /// Mass (kg).
+    pub mass: Expr,
+    /// Pitch inertia (kg m^2), when it pitches.
+    pub inertia: Option<Expr>,
+    /// Index of its vertical DOF.
+    pub z: Option<usize>,
+    /// Index of its pitch DOF.
+    pub pitch: Option<usize>,
+    /// Named attachment points: name and `x` (m, forward).
+    pub points: Vec<(String, Expr)>,
+}
+
+/// One end of an element or the point of a load.
+#[derive(Debug, Clone, PartialEq)]
+pub enum End {
+    /// Fixed ground.
+    Ground,
+    /// A point of a body: its `x` (m, forward; `None` for the centre).
+    Body {
+        /// The body.
+        body: usize,
+        /// Longitudinal position of the point (m); `None` at the centre.
+        x: Option<Expr>,
+    },
+    /// A point of the moving frame.
+    Moving(usize),
+}
+
+/// A link of a support chain: stiffness and damping expressions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Link {
+    /// Stiffness (N/m).
+    pub k: Expr,
+    /// Damping (N s/m).
+    pub c: Expr,
+}
+
+/// A level of a support chain.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Level {
+    /// Name.
+    pub name: String,
+    /// Mass per support (kg).
+    pub mass: Expr,
+    /// Link to the level above.
+    pub link: Link,
+    /// Shear link to the neighbouring supports of this level.
+    pub shear: Option<Link>,
+}
+
+/// Periodic supports.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Supports {
+    /// Spacing (m).
+    pub spacing: Expr,
+    /// Number of supports (a fixed integer).
+    pub count: usize,
+    /// First support position (m).
+    pub first: Expr,
+    /// Levels from the beam down.
+    pub levels: Vec<Level>,
+    /// Last level to ground.
+    pub ground: Link,
+}
+
+/// A modal beam.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Beam {
+    /// Name.
+    pub name: String,
+    /// What it is.
+    pub doc: Option<String>,
+    /// Length (m).
+    pub length: Expr,
+    /// Number of modes (a fixed integer).
+    pub modes: usize,
+    /// Mass per length (kg/m).
+    pub mass_per_length: Expr,
+    /// Bending stiffness (N m^2).
+    pub bending_stiffness: Expr,
+    /// Modal damping ratio.
+    pub damping_ratio: Expr,
+    /// Points off the beam.
+    pub outside: Outside,
+    /// Supports.
+    pub supports: Option<Supports>,
+}
+
+/// A point of the moving frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MovingPoint {
+    /// Name.
+    pub name: String,
+    /// The beam it runs on (`None`: rigid ground).
+    pub beam: Option<usize>,
+    /// Offset from the frame origin (m, forward).
+    pub offset: Expr,
+}
+
+/// A fixed point of a beam where the deflection is measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sensor {
+    /// Name.
+    pub name: String,
+    /// The beam.
+    pub beam: usize,
+    /// Position (m).
+    pub x: Expr,
+}
+
+/// A compiled profile.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Profile {
+    /// Random-phase per sample (the `irregularity` stage makes it).
+    Generated {
+        /// Name.
+        name: String,
+        /// Spectrum segments, `a` in mm^2 m.
+        segments: Vec<RawPsdSegment>,
+        /// Wavelength band (m).
+        wavelengths: [f64; 2],
+    },
+    /// Analytic harmonic.
+    Harmonic {
+        /// Name.
+        name: String,
+        /// Amplitude (m).
+        amplitude: Expr,
+        /// Wavelength (m).
+        wavelength: Expr,
+        /// Phase (rad).
+        phase: Expr,
+    },
+}
+
+impl Profile {
+    /// The profile's name.
+    pub fn name(&self) -> &str {
+        match self {
+            Profile::Generated { name, .. } | Profile::Harmonic { name, .. } => name,
+        }
+    }
+}
+
+/// A compiled force law.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Law {
+    /// `f = preload + k d + c d'`.
+    SpringDamper {
+        /// N/m.
+        k: Expr,
+        /// N s/m.
+        c: Expr,
+        /// N.
+        preload: Expr,
+    },
+    /// `f = (max(d, 0) / g)^exponent`.
+    Hertz {
+        /// m/N^(1/exponent).
+        g: Expr,
+        /// Exponent.
+        exponent: Expr,
+    },
+    /// `f = table(d) + c d'`.
+    Table {
+        /// Deflections (m).
+        deflection: Vec<Expr>,
+        /// Forces (N).
+        force: Vec<Expr>,
+        /// Damping (N s/m).
+        c: Expr,
+    },
+}
+
+impl Law {
+    /// Whether this is a contact law (its force column is `p_<name>`).
+    pub fn is_contact(&self) -> bool {
+        matches!(self, Law::Hertz { .. })
+    }
+}
+
+/// A force element.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Element {
+    /// Name.
+    pub name: String,
+    /// Force law.
+    pub law: Law,
+    /// Upper end.
+    pub from: End,
+    /// Lower end.
+    pub to: End,
+    /// Profile under the lower end.
+    pub profile: Option<usize>,
+}
+
+/// A constant load.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Load {
+    /// Name.
+    pub name: String,
+    /// Where it acts.
+    pub at: End,
+    /// Force (N, downward).
+    pub force: Expr,
+}
+
+/// What produces a generalised force term.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Source {
+    /// The force of element `i`.
+    Element(usize),
+    /// The load `i`.
+    Load(usize),
+}
+
+/// Terms of one DOF's generalised force that share a coefficient magnitude: the DOF receives
+/// `coefficient * sum_j sign_j source_j`, one multiplication per group (so `l_c (F_s1 - F_s2)`
+/// is computed as written by hand).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Group {
+    /// The common coefficient; `None` for 1.
+    pub coefficient: Option<Expr>,
+    /// Sources with their signs (+1 or -1).
+    pub terms: Vec<(Source, f64)>,
+}
+
+/// What a stored channel holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Quantity {
+    /// DOF `i`: displacement (0), velocity (1) or acceleration (2).
+    Dof(usize, u8),
+    /// Deflection of the beam under moving point `i` (m).
+    Point(usize),
+    /// Sensor `i`: deflection (0), velocity (1) or acceleration (2).
+    Sensor(usize, u8),
+    /// The profile under element `i` (m).
+    Excitation(usize),
+    /// The force of element `i` (N).
+    Force(usize),
+    /// The deflection of element `i` (m).
+    Deflection(usize),
+}
+
+/// Learning role of a channel (the tensors of `docs/learning.md`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// A displacement the operator predicts (a "solution" of Table 4).
+    Solution,
+    /// Exact first derivative of a DOF.
+    Velocity,
+    /// Exact second derivative of a DOF.
+    Acceleration,
+    /// An excitation (an operator input).
+    Excitation,
+    /// An element force the operator predicts.
+    Force,
+    /// Stored for reading only.
+    Other,
+}
+
+/// A stored column of the simulation output.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Channel {
+    /// Column name.
+    pub name: String,
+    /// Unit.
+    pub unit: String,
+    /// What it holds.
+    pub quantity: Quantity,
+    /// Its learning role.
+    pub role: Role,
+}
+
+/// A simple index of a channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Index {
+    /// Name.
+    pub name: String,
+    /// What it is.
+    pub doc: Option<String>,
+    /// Statistic.
+    pub stat: IndexStat,
+    /// The stored channel (index into [`System::channels`]).
+    pub channel: usize,
+    /// Subtracted first.
+    pub subtract: Expr,
+    /// Divisor.
+    pub divide: Expr,
+    /// Unit.
+    pub unit: String,
+    /// Pass when at most this.
+    pub limit: Option<f64>,
+}
+
+/// A validated, compiled description.
+#[derive(Debug, Clone, PartialEq)]
+pub struct System {
+    /// The system's name.
+    pub name: String,
+    /// What it is.
+    pub doc: Option<String>,
+    /// The parameter table in declaration order.
+    pub parameters: Vec<Parameter>,
+    /// Derived parameters in evaluation order.
+    pub derived_order: Vec<usize>,
+    /// Rigid bodies.
+    pub bodies: Vec<Body>,
+    /// Their DOFs (bodies in order, each body's DOFs as written).
+    pub dofs: Vec<Dof>,
+    /// Beams.
+    pub beams: Vec<Beam>,
+    /// Speed of the moving frame (m/s).
+    pub speed: Expr,
+    /// Points of the moving frame.
+    pub points: Vec<MovingPoint>,
+    /// Sensors.
+    pub sensors: Vec<Sensor>,
+    /// Profiles.
+    pub profiles: Vec<Profile>,
+    /// Elements.
+    pub elements: Vec<Element>,
+    /// Loads.
+    pub loads: Vec<Load>,
+    /// Per DOF, its generalised force as coefficient groups.
+    pub assembly: Vec<Vec<Group>>,
+    /// The stored channels in column order.
+    pub channels: Vec<Channel>,
+    /// Indices.
+    pub indices: Vec<Index>,
+}
+
+impl System {
+    /// Index of parameter `name`.
+    pub fn parameter(&self, name: &str) -> Option<usize> {
+        self.parameters.iter().position(|p| p.name == name)
+    }
+
+    /// Indices of the sampled parameters, in declaration order (the columns of
+    /// `params.parquet` and the order of each sample's draws).
+    pub fn sampled(&self) -> Vec<usize> {
+        self.parameters
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| matches!(p.source, ParamSource::Sampled { .. }))
+            .map(|(i, _)| i)
+            .collect()
+    }
+
+    /// Names of the sampled parameters.
+    pub fn sampled_names(&self) -> Vec<&str> {
+        self.sampled()
+            .into_iter()
+            .map(|i| self.parameters[i].name.as_str())
+            .collect()
+    }
+
+    /// The stored channel called `name`.
+    pub fn channel(&self, name: &str) -> Option<usize> {
+        self.channels.iter().position(|c| c.name == name)
+    }
+
+    /// The channels of a role, in column order.
+    pub fn channels_of(&self, role: Role) -> Vec<usize> {
+        (0..self.channels.len())
+            .filter(|&i| self.channels[i].role == role)
+            .collect()
+    }
+}
