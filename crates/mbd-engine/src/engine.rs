@@ -210,6 +210,19 @@ impl Engine {
         system: Arc<System>,
         model: Model,
         config: &RunConfig,
+        profiles: Vec<Option<Profile>>,
+        route: Route,
+    ) -> Result<Self> {
+        let engine = Self::assemble(system, model, config, profiles, route)?;
+        crate::stability::Bound::of(&engine).check(config.dt)?;
+        Ok(engine)
+    }
+
+    /// As [`Engine::with_route`] without the time-step check (for bounds over many models).
+    pub fn assemble(
+        system: Arc<System>,
+        model: Model,
+        config: &RunConfig,
         mut profiles: Vec<Option<Profile>>,
         route: Route,
     ) -> Result<Self> {
@@ -337,7 +350,6 @@ impl Engine {
             route,
         };
         engine.check_coverage()?;
-        crate::stability::Bound::of(&engine).check(config.dt)?;
         Ok(engine)
     }
 

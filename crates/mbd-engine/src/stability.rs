@@ -354,6 +354,81 @@ impl Bound {
     }
 }
 
+/// Most corners of the parameter box [`parameter_box`] visits (`2^16`); beyond, it visits
+/// that many corners drawn from a fixed sequence.
+pub const MAX_CORNERS: usize = 1 << 16;
+
+/// The bound over the whole box of sampling ranges: the largest frequency and damping bounds
+/// over its corners (each bound term grows or falls monotonically with each parameter of the
+/// simple models, so the corners hold the extremes), with every corner's model assembled
+/// (coverage of the beams checked). Returns the bound and the corner that set the frequency
+/// bound, as `(name, value)` pairs.
+pub fn parameter_box(
+    system: &std::sync::Arc<mbd_system::System>,
+    config: &crate::RunConfig,
+) -> crate::Result<(Bound, Vec<(String, f64)>)> {
+    let ranges = system.ranges();
+    let names = system.sampled_names();
+    let n = ranges.len();
+    let corners: Vec<u64> = if n <= 16 {
+        (0..1u64 << n).collect()
+    } else {
+        // A fixed odd-multiplier sequence of corner masks (splitmix64): deterministic.
+        let mut z = 0x9e37_79b9_7f4a_7c15u64;
+        (0..MAX_CORNERS)
+            .map(|_| {
+                z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+                let mut x = z;
+                x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+                x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+                x ^ (x >> 31)
+            })
+            .collect()
+    };
+    use rayon::prelude::*;
+    let bounds: Vec<(Bound, u64)> = corners
+        .into_par_iter()
+        .map(|mask| {
+            let values: Vec<f64> = (0..n)
+                .map(|j| ranges[j][((mask >> (j % 64)) & 1) as usize])
+                .collect();
+            let model = system.instantiate(&values)?;
+            let engine = Engine::assemble(
+                system.clone(),
+                model,
+                config,
+                Vec::new(),
+                crate::Route::Fast,
+            )?;
+            Ok((Bound::of(&engine), mask))
+        })
+        .collect::<crate::Result<_>>()?;
+    let damping = bounds.iter().map(|b| b.0.damping_max).fold(0.0, f64::max);
+    // The first corner (in mask order) with the largest frequency bound: deterministic.
+    let worst = bounds
+        .iter()
+        .fold(None, |w: Option<&(Bound, u64)>, b| match w {
+            Some(w) if w.0.omega_max >= b.0.omega_max => Some(w),
+            _ => Some(b),
+        });
+    let &(b, mask) = worst.expect("at least one corner");
+    let corner = (0..n)
+        .map(|j| {
+            (
+                names[j].to_owned(),
+                ranges[j][((mask >> (j % 64)) & 1) as usize],
+            )
+        })
+        .collect();
+    Ok((
+        Bound {
+            omega_max: b.omega_max,
+            damping_max: damping,
+        },
+        corner,
+    ))
+}
+
 fn mb_mu(engine: &Engine, b: usize) -> f64 {
     engine.model.beams[b].mass_per_length
 }

@@ -32,9 +32,11 @@ pub mod expr;
 pub mod model;
 pub mod reader;
 pub mod schema;
+pub mod source;
 pub mod system;
 pub mod yaml;
 
 pub use compile::{load_str, Override};
 pub use diag::Diagnostics;
+pub use source::{SourceError, SystemSource, SYSTEM_FILE};
 pub use system::System;

@@ -10,6 +10,8 @@
 //!   missing or of another type.
 //! - [`provenance`]: the physical constants a dataset was simulated with, checked by the
 //!   stages that learn from it.
+//! - [`system`]: the system description a stage's command names, its record beside the
+//!   artifacts (`system.json`) and the units of its columns.
 //! - [`units`]: the unit of every column of every artifact; [`metadata`]: what each file
 //!   carries about itself (every column's unit, the writing stage, unit and parameters, the
 //!   version), readable from pyarrow, polars and DuckDB.
@@ -31,6 +33,7 @@ mod parquet_io;
 pub mod provenance;
 pub mod schema;
 mod stream;
+pub mod system;
 mod table;
 pub mod units;
 
@@ -107,6 +110,9 @@ pub enum Error {
     /// A process declared two different origins ([`metadata::set_origin`]).
     #[error("origin of the written files: {0}")]
     Origin(String),
+    /// The system description could not be read, compiled or matched.
+    #[error("{0}")]
+    System(String),
     /// A dataset's provenance record is missing or disagrees with a stage's constants.
     #[error("{path}: {message}")]
     Provenance {

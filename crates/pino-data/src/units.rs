@@ -12,6 +12,8 @@
 //! and is the value of the row's `unit` column (`channel_errors.parquet`,
 //! `provenance.parquet`).
 
+use std::collections::BTreeMap;
+
 use crate::schema::{
     self, ACCELERATION_SUFFIX, CONTACT_FORCES, ETA_UNDER_WHEEL, PARAMETERS, RAIL_UNDER_WHEEL,
     VEHICLE_DOFS, VELOCITY_SUFFIX,
@@ -51,6 +53,9 @@ const NAMED: &[(&str, &str)] = &[
     ("gravity", "m/s^2"),
     ("wheel_radius", "m"),
     ("dt", "s"),
+    ("duration", "s"),
+    ("output_every", DIMENSIONLESS),
+    ("x0", "m"),
     ("startup_zero_fraction", DIMENSIONLESS),
     ("startup_ramp_fraction", DIMENSIONLESS),
     // train: history.parquet (losses and validation errors are relative: fractions).
@@ -127,6 +132,37 @@ const INDICES: &[(&str, &str)] = &[
 /// Suffix of the exact (solver) value of an index beside the predicted one.
 const EXACT_SUFFIX: &str = "_exact";
 
+/// Units declared by this process for the columns of its system description (parameters,
+/// channels, magnitude weights): `name -> unit`, consulted before the fixed tables.
+static DECLARED: std::sync::RwLock<BTreeMap<String, &'static str>> =
+    std::sync::RwLock::new(BTreeMap::new());
+
+/// Declares the units of columns a system description defines (its parameters and stored
+/// channels, see [`crate::system::declare_units`]). A name already declared or in the fixed
+/// tables with another unit is an error naming both.
+pub fn declare<'a>(pairs: impl IntoIterator<Item = (&'a str, &'a str)>) -> crate::Result<()> {
+    let mut map = DECLARED.write().unwrap_or_else(|e| e.into_inner());
+    for (name, u) in pairs {
+        let fixed = NAMED
+            .iter()
+            .chain(INDICES)
+            .find(|(n, _)| *n == name)
+            .map(|(_, u)| *u);
+        match map.get(name).copied().or(fixed) {
+            Some(old) if old != u => {
+                return Err(crate::Error::Origin(format!(
+                    "column `{name}` is declared with unit `{u}` but already has unit `{old}`"
+                )))
+            }
+            Some(_) => {}
+            None => {
+                map.insert(name.to_owned(), Box::leak(u.to_owned().into_boxed_str()));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The unit of column `name` of any pino-mbd artifact, `None` for a column no artifact has.
 ///
 /// ```
@@ -137,6 +173,9 @@ const EXACT_SUFFIX: &str = "_exact";
 /// assert_eq!(unit("no_such_column"), None);
 /// ```
 pub fn unit(name: &str) -> Option<&'static str> {
+    if let Some(&u) = DECLARED.read().unwrap_or_else(|e| e.into_inner()).get(name) {
+        return Some(u);
+    }
     if let Some(&(_, u)) = NAMED.iter().find(|(n, _)| *n == name) {
         return Some(u);
     }

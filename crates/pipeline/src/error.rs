@@ -44,6 +44,14 @@ pub enum Error {
         /// The lock file.
         lock: PathBuf,
     },
+    /// A stage's check refused a unit before anything ran ([`crate::check`]).
+    #[error("check of `{unit}` failed, nothing was run:\n{message}")]
+    Check {
+        /// The unit (expansion) checked.
+        unit: String,
+        /// What the stage said.
+        message: String,
+    },
     /// One or more stages failed (their messages were already printed).
     #[error("{count} stage(s) failed: {names}")]
     StageFailed {
@@ -77,7 +85,11 @@ impl Error {
     /// The process exit status for this error.
     pub fn exit_code(&self) -> u8 {
         match self {
-            Error::Yaml { .. } | Error::Spec { .. } | Error::Usage(_) | Error::Busy { .. } => 2,
+            Error::Yaml { .. }
+            | Error::Spec { .. }
+            | Error::Usage(_)
+            | Error::Busy { .. }
+            | Error::Check { .. } => 2,
             Error::StageFailed { .. }
             | Error::NoOutputs(_)
             | Error::Io { .. }

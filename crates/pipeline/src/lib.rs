@@ -21,6 +21,7 @@
 //! 2 bad input (nothing run).
 #![warn(missing_docs)]
 
+pub mod check;
 pub mod cli;
 pub mod constants;
 mod error;

@@ -207,6 +207,7 @@ fn compute(
             index: u.shard,
             count: stage.shards,
         },
+        check: false,
     };
     match &placed.attached {
         // An earlier run's job for this very identity: its context is already there.
@@ -298,6 +299,7 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
             v.insert(code_of(p, &p.stages[u.stage], &store.cache)?);
         }
     }
+    crate::check::run_checks(p, &units)?;
     let executor = Executor::new(opts.executor.unwrap_or(p.executor), &store, &p.workspace)?;
     store.create_dirs()?;
     let _lock = RunLock::acquire_for_workspace(&store.root, opts.wait, ui)?;

@@ -85,6 +85,8 @@ struct RawStage {
     matrix: Option<UniqueMap<Vec<Value>>>,
     #[serde(default)]
     resources: Option<Resources>,
+    #[serde(default)]
+    check: Option<bool>,
 }
 
 /// One matrix expansion of a stage (the stage itself when it has no matrix).
@@ -115,6 +117,9 @@ pub struct Stage {
     pub overrides: Vec<String>,
     /// What its Slurm jobs ask for (`resources:`; not part of the identity).
     pub resources: Resources,
+    /// Whether the stage has a check mode the orchestrator runs before anything runs
+    /// (`check: true`; [`crate::check`]).
+    pub check: bool,
 }
 
 /// A loaded, validated pipeline with its stages in dependency order.
@@ -448,6 +453,7 @@ impl Pipeline {
                         expansions: Vec::new(),
                         overrides: Vec::new(),
                         resources,
+                        check: rs.check.unwrap_or(false),
                     },
                     params,
                     matrix,
@@ -477,6 +483,26 @@ impl Pipeline {
                 .split_once('.')
                 .ok_or_else(|| Error::Usage(format!("--set `{set}`: expected STAGE.KEY=VALUE")))?;
             if sname == crate::constants::SECTION {
+                // `constants.NAME.KEY=VALUE` sets one entry of a mapping constant (its consumer
+                // checks the names: a system description's parameter overrides, for one).
+                if let Some((name, sub)) = key.split_once('.') {
+                    let Some(Value::Object(map)) = constants.get_mut(name) else {
+                        return Err(spec_err(
+                            loc.top_line(crate::constants::SECTION),
+                            format!("--set {set}: `constants.{name}` is not a mapping constant, so `{sub}` cannot be set inside it"),
+                        ));
+                    };
+                    let existing = map.get(sub).cloned().unwrap_or(Value::Null);
+                    let value = override_value(
+                        set,
+                        raw_value,
+                        &existing,
+                        &format!("constant `{key}`"),
+                        |m| spec_err(loc.top_line(crate::constants::SECTION), m),
+                    )?;
+                    map.insert(sub.to_owned(), value);
+                    continue;
+                }
                 let Some(existing) = constants.get(key) else {
                     let known: Vec<&str> = constants.keys().map(String::as_str).collect();
                     return Err(spec_err(
@@ -552,6 +578,30 @@ impl Pipeline {
                         ),
                     )
                 })?;
+            }
+        }
+
+        // Constants in command arguments (a system description's path, say): a whole-argument
+        // reference takes the constant's text, so the file it names is hashed as any argument.
+        for (stage, _, _) in stages.values_mut() {
+            for arg in stage.cmd.iter_mut().skip(1) {
+                let Some(name) =
+                    crate::constants::reference(&Value::String(arg.clone())).map(str::to_owned)
+                else {
+                    continue;
+                };
+                let line = loc.field_line(&stage.name, "cmd");
+                *arg = match constants.get(&name) {
+                    Some(Value::String(text)) => text.clone(),
+                    Some(v @ (Value::Number(_) | Value::Bool(_))) => v.to_string(),
+                    Some(_) => {
+                        return Err(spec_err(line, format!("stage `{}`: command argument `${{constants.{name}}}` must name a string or number constant, not a list or mapping", stage.name)))
+                    }
+                    None => {
+                        let known: Vec<&str> = constants.keys().map(String::as_str).collect();
+                        return Err(spec_err(line, format!("stage `{}`: command argument refers to unknown constant `{name}` (constants: {})", stage.name, known.join(", "))));
+                    }
+                };
             }
         }
 
@@ -813,6 +863,51 @@ mod tests {
             e.contains("unknown constant `q`") && e.contains(":6:"),
             "{e}"
         );
+    }
+
+    /// A command argument can name a constant (a description's path), and `--set` reaches
+    /// inside a mapping constant, adding keys the consumer then checks.
+    #[test]
+    fn constants_reach_command_arguments_and_mapping_entries() {
+        let text = "constants:\n  system: systems/a.yaml\n  values: {}\nstages:\n  a:\n    cmd: [x, \"${constants.system}\", -v]\n    check: true\n    params: {values: \"${constants.values}\"}\n";
+        let p = load(text, &[]).unwrap();
+        assert_eq!(p.stages[0].cmd, ["x", "systems/a.yaml", "-v"]);
+        assert!(p.stages[0].check);
+        let p = load(
+            text,
+            &[
+                "constants.system=systems/b.yaml",
+                "constants.values.k_b=2.5e8",
+                "constants.values.n=3",
+            ],
+        )
+        .unwrap();
+        assert_eq!(p.stages[0].cmd[1], "systems/b.yaml");
+        assert_eq!(
+            p.stages[0].expansions[0].params["values"],
+            serde_json::json!({"k_b": 2.5e8, "n": 3})
+        );
+        let e = load(text, &["constants.system.x=1"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not a mapping constant"), "{e}");
+        let e = load(
+            &text.replace("${constants.system}", "${constants.nope}"),
+            &[],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("unknown constant `nope`") && e.contains(":6:"),
+            "{e}"
+        );
+        let e = load(
+            &text.replace("${constants.system}", "${constants.values}"),
+            &[],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("string or number constant"), "{e}");
     }
 
     #[test]

@@ -61,8 +61,40 @@ fn reasons(old: &LockEntry, new: &LockEntry) -> String {
     r.join("; ")
 }
 
+/// One unit's state as `pipeline status` reports it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UnitState {
+    /// The unit's key.
+    pub key: String,
+    /// Index of its stage.
+    pub stage: usize,
+    /// Index of its matrix expansion.
+    pub expansion: usize,
+    /// `fresh`, `stale`, `never run` or `submitted`.
+    pub state: &'static str,
+    /// Why (for stale units), the job (submitted), or empty.
+    pub detail: String,
+}
+
 /// The status table of every unit, plus a count line.
 pub fn status(p: &Pipeline) -> Result<String> {
+    let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
+    let rows: Vec<Vec<String>> = unit_states(p)?
+        .into_iter()
+        .map(|u| {
+            *counts.entry(u.state).or_default() += 1;
+            vec![u.key, u.state.to_owned(), u.detail]
+        })
+        .collect();
+    let mut out = table(&["UNIT", "STATE", "REASON"], &rows);
+    let summary: Vec<String> = counts.iter().map(|(k, v)| format!("{v} {k}")).collect();
+    let _ = writeln!(out, "{}", summary.join(", "));
+    Ok(out)
+}
+
+/// Every unit's state, in pipeline order: its identity recomputed from the current file, code
+/// and known upstream outputs, against the lock record.
+pub fn unit_states(p: &Pipeline) -> Result<Vec<UnitState>> {
     let store = Store::open_read(&p.workspace);
     let rec = store.read_lock_record()?;
     let empty = BTreeMap::new();
@@ -70,7 +102,6 @@ pub fn status(p: &Pipeline) -> Result<String> {
     // Unit key -> output hash, for units whose current output is known.
     let mut known: BTreeMap<String, String> = BTreeMap::new();
     let mut rows = Vec::new();
-    let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
     for (si, stage) in p.stages.iter().enumerate() {
         let code = code_of(p, stage, &store.cache);
         for u in units_of(p, si) {
@@ -133,18 +164,20 @@ pub fn status(p: &Pipeline) -> Result<String> {
                     }
                 }
             };
-            *counts.entry(state).or_default() += 1;
-            rows.push(vec![u.key, state.to_owned(), detail]);
+            rows.push(UnitState {
+                key: u.key,
+                stage: si,
+                expansion: u.expansion,
+                state,
+                detail,
+            });
         }
     }
     if store.root.is_dir() {
         // Best effort: a read-only view must not fail because the cache cannot be written.
         let _ = store.cache.save();
     }
-    let mut out = table(&["UNIT", "STATE", "REASON"], &rows);
-    let summary: Vec<String> = counts.iter().map(|(k, v)| format!("{v} {k}")).collect();
-    let _ = writeln!(out, "{}", summary.join(", "));
-    Ok(out)
+    Ok(rows)
 }
 
 /// Paths of the current output files of `target` (a stage or one expansion), one per line.

@@ -23,6 +23,7 @@ pub struct StageContext {
     params: serde_json::Value,
     inputs: BTreeMap<String, Vec<PathBuf>>,
     path: PathBuf,
+    check: bool,
 }
 
 impl StageContext {
@@ -66,7 +67,16 @@ impl StageContext {
             params: raw.params,
             inputs: raw.inputs,
             path: path.to_owned(),
+            check: raw.check,
         })
+    }
+
+    /// Whether this process runs in check mode (`check: true` in the pipeline file): validate
+    /// the parameters and any file the command names, then return without reading inputs or
+    /// writing outputs; an error is the unit's refusal, shown by `pipeline run` before anything
+    /// runs.
+    pub fn is_check(&self) -> bool {
+        self.check
     }
 
     /// The path of the context file this was read from.

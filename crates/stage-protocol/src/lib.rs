@@ -83,6 +83,12 @@ pub struct Context {
     /// This process's shard (0 of 1 when unsharded).
     #[serde(default)]
     pub shard: Shard,
+    /// Check mode: validate the parameters (and any file the command names) and exit, 0 when
+    /// the unit could run, nonzero with the reason on stderr otherwise; read no input and write
+    /// no output. The orchestrator runs it for the units of a stage with `check: true` before
+    /// anything runs (absent: a normal run).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub check: bool,
 }
 
 /// Why a context file was refused.
@@ -215,6 +221,7 @@ mod tests {
             output: "/ws/tmp/x/out".into(),
             scratch: Some("/ws/scratch/x".into()),
             shard: Shard { index: 1, count: 4 },
+            check: false,
         }
     }
 
@@ -229,9 +236,19 @@ mod tests {
     fn optional_fields_default_and_unknown_fields_are_refused() {
         let c = Context::parse(r#"{"protocol":1,"stage":"s","output":"/o"}"#).unwrap();
         assert_eq!(
-            (c.shard, c.scratch, c.inputs.len()),
-            (Shard::WHOLE, None, 0)
+            (c.shard, c.scratch, c.inputs.len(), c.check),
+            (Shard::WHOLE, None, 0, false)
         );
+        // Check mode is written only when set, so normal contexts keep their text.
+        assert!(!String::from_utf8(sample().to_json())
+            .unwrap()
+            .contains("check"));
+        let checked = Context {
+            check: true,
+            ..sample()
+        };
+        let text = String::from_utf8(checked.to_json()).unwrap();
+        assert!(Context::parse(&text).unwrap().check);
         let e = Context::parse(r#"{"protocol":1,"stage":"s","output":"/o","extra":1}"#)
             .unwrap_err()
             .to_string();

@@ -1,57 +1,81 @@
-//! Stage `sample-params`: draws every sample's 14 parameters uniformly on their ranges
-//! (`vtcd::sampling`) and writes `params.parquet`: `sample_id` (i64), `split`
-//! ("train"/"validation"/"test"), then the 14 parameters (f64, spec order and units), and
-//! `ranges.parquet`: `name`, `unit`, `min`, `max` of each parameter's sampling range.
+//! Stage `sample-params`: draws every sample's sampled parameters of the system description
+//! uniformly on their ranges (`mbd_dataset::sampling`) and writes
+//! - `params.parquet`: `sample_id` (i64), `split` ("train"/"validation"/"test"), then the
+//!   sampled parameters (f64, the description's order and units);
+//! - `ranges.parquet`: `name`, `unit`, `min`, `max` of each sampled parameter's range;
+//! - `system.json`: the description sampled from, with the run's overrides (every later stage
+//!   reads it from here or from the dataset).
 //!
-//! Params: `seed`, `n_train`, `n_validation`, `n_test`, optional `ranges` (see
-//! `vtcd::sampling`). Ids `0..n_train` are training samples, the next `n_validation` ids
-//! validation samples and the `n_test` ids after those test samples (held out from every
-//! choice of settings), so the test split leaves the other two unchanged.
+//! Command: `sample-params DESCRIPTION.yaml`. Params: `seed`, `n_train`, `n_validation`,
+//! `n_test`, `system_values` (parameter overrides of the description). Ids `0..n_train` are
+//! training samples, the next `n_validation` ids validation samples and the `n_test` ids after
+//! those test samples, so the test split leaves the other two unchanged. In check mode it
+//! compiles the description and checks the counts.
 
 use anyhow::{Context, Result};
+use mbd_dataset::{SamplingPlan, SplitSizes};
 use pino_data::{schema, write_parquet, Column, Table};
-use vtcd::params::NUM_PARAMETERS;
-use vtcd::sampling::SamplingParams;
+use std::collections::BTreeMap;
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    seed: u64,
+    n_train: u64,
+    n_validation: u64,
+    n_test: u64,
+    #[serde(default)]
+    system_values: BTreeMap<String, mbd_system::Override>,
+}
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
     pino_data::metadata::set_stage_origin(&ctx)?;
-    let raw: SamplingParams = ctx.params()?;
-    let plan = raw
-        .validate()
+    let p: Params = ctx.params()?;
+    let (source, system) = pino_data::system::load(&p.system_values)?;
+    let sizes = SplitSizes {
+        seed: p.seed,
+        n_train: p.n_train,
+        n_validation: p.n_validation,
+        n_test: p.n_test,
+    };
+    let plan = SamplingPlan::new(sizes, &system)
         .with_context(|| format!("stage `{}`: bad sampling parameters", ctx.stage))?;
-    let samples = plan.samples();
-
+    if ctx.is_check() {
+        return Ok(format!(
+            "{}: {} sampled parameters",
+            source.file,
+            system.sampled().len()
+        ));
+    }
+    pino_data::system::declare_units(&system)?;
+    let names = system.sampled_names();
+    let n = plan.num_samples();
+    let draws: Vec<Vec<f64>> = (0..n).map(|id| plan.draw(id)).collect();
     let mut table = Table::default();
-    let ids = samples.iter().map(|(id, _, _)| *id as i64).collect();
-    table.push(schema::SAMPLE_ID, Column::I64(ids))?;
-    let splits = samples
-        .iter()
-        .map(|(_, s, _)| s.as_str().to_owned())
+    table.push(schema::SAMPLE_ID, Column::I64((0..n as i64).collect()))?;
+    let splits = (0..n)
+        .map(|id| plan.split(id).as_str().to_owned())
         .collect();
     table.push(schema::SPLIT, Column::Str(splits))?;
-    for j in 0..NUM_PARAMETERS {
-        let values = samples.iter().map(|(_, _, p)| p.to_array()[j]).collect();
-        table.push(schema::PARAMETERS[j], Column::F64(values))?;
+    for (j, name) in names.iter().enumerate() {
+        table.push(name, Column::F64(draws.iter().map(|d| d[j]).collect()))?;
     }
     let path = ctx.output_path("params.parquet");
     write_parquet(&path, &table).with_context(|| format!("writing {}", path.display()))?;
-    // The configured ranges, stored by `train` with each model so that `predict` can flag
-    // designs outside them.
+    // The ranges, stored by `train` with each model so that `predict` can flag designs
+    // outside them.
     let mut ranges = Table::default();
     ranges.push(
         "name",
-        Column::Str(schema::PARAMETERS.iter().map(|s| s.to_string()).collect()),
+        Column::Str(names.iter().map(|s| s.to_string()).collect()),
     )?;
-    ranges.push(
-        "unit",
-        Column::Str(
-            schema::PARAMETERS
-                .iter()
-                .map(|s| pino_data::units::unit(s).unwrap_or("-").to_string())
-                .collect(),
-        ),
-    )?;
+    let units = system
+        .sampled()
+        .into_iter()
+        .map(|i| system.parameters[i].unit.clone())
+        .collect();
+    ranges.push("unit", Column::Str(units))?;
     ranges.push(
         "min",
         Column::F64(plan.ranges().iter().map(|r| r[0]).collect()),
@@ -62,11 +86,14 @@ fn run() -> Result<String> {
     )?;
     let path = ctx.output_path("ranges.parquet");
     write_parquet(&path, &ranges).with_context(|| format!("writing {}", path.display()))?;
+    pino_data::system::write_record(&ctx.output, &source)?;
     Ok(format!(
-        "{} train + {} validation + {} test samples",
-        plan.n_train(),
-        plan.n_validation(),
-        plan.n_test()
+        "{}: {} train + {} validation + {} test samples of {} parameters",
+        system.name,
+        sizes.n_train,
+        sizes.n_validation,
+        sizes.n_test,
+        names.len()
     ))
 }
 

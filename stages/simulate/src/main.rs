@@ -1,44 +1,107 @@
-//! Stage `simulate`: runs `vtcd::simulation` (Zhai's explicit method on the coupled
-//! vehicle-track model) for every sample this shard owns (`shard.owns(sample_id)`), in
-//! parallel across samples (rayon), and writes
-//! - `simulation.parquet`: every column of `pino_data::schema::simulation_columns()`, rows
-//!   sorted by `sample_id` then `t`, one row group per sample;
+//! Stage `simulate`: runs the generic engine (`mbd_engine`, Zhai's explicit method on the
+//! assembled system description) for every sample this shard owns (`shard.owns(sample_id)`),
+//! in parallel across samples (rayon), and writes
+//! - `simulation.parquet`: `sample_id`, `t` and every stored channel of the description
+//!   (`docs/systems.md`, naming rule and column order), rows sorted by `sample_id` then `t`, one
+//!   row group per sample;
 //! - `failures.parquet`: `sample_id`, `reason` of samples whose state became non-finite;
-//! - `provenance.parquet`: the physical constants used (`pino_data::provenance`), which the
-//!   learning stages check against their own.
+//! - `provenance.parquet`: the run controls used (`pino_data::provenance`);
+//! - `system.json`: the description simulated (the learning stages read it from here).
 //!
-//! Inputs: `params` (`params.parquet`) and `irregularity` (`irregularity.parquet`: `sample_id`,
-//! `x` m, `eta` m). Params: `vtcd::simulation::SimulationConfig` (every field optional, spec
-//! defaults, unknown names refused), among them `start`: `equilibrium` (default: each run
-//! begins at the static solution of vehicle and track under the wheel loads) or `rest` (the
-//! paper's zero state, the vehicle dropping onto the track), and the irregularity start-up
-//! fractions. Everything is checked (time-step limit included) before the first sample runs.
+//! Command: `simulate DESCRIPTION.yaml`. Inputs: `params` (`params.parquet`, whose
+//! `system.json` must be this description) and `irregularity` (`irregularity.parquet`: the
+//! profile of every sample, for descriptions with a generated profile). Params: the run
+//! controls of `mbd_engine::RunConfig` (`duration`, `dt`, `output_every`, `start`:
+//! `equilibrium` or `rest`, `startup_zero_fraction`, `startup_ramp_fraction`, `x0`), all
+//! required, and `system_values`. Everything is checked (the time step against each sample's
+//! stability bound included) before the first sample runs. In check mode: the description,
+//! the run controls, and the time step against the bound over the whole box of sampling ranges.
 
 use anyhow::{bail, Context, Result};
+use mbd_engine::{Profile, RunConfig, SampleInput, StartMode};
+use mbd_system::system::Profile as DescribedProfile;
 use pino_data::{for_each_batch, read_parquet_files, schema, Column, StreamWriter, Table};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use vtcd::params::SampleParams;
-use vtcd::simulation::{self, Profile, SampleInput, SimulationConfig};
+use std::sync::Arc;
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    duration: f64,
+    dt: f64,
+    output_every: usize,
+    start: StartMode,
+    startup_zero_fraction: f64,
+    startup_ramp_fraction: f64,
+    x0: f64,
+    #[serde(default)]
+    system_values: BTreeMap<String, mbd_system::Override>,
+}
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
     pino_data::metadata::set_stage_origin(&ctx)?;
-    let config: SimulationConfig = ctx.params()?;
+    let p: Params = ctx.params()?;
+    let config = RunConfig {
+        duration: p.duration,
+        dt: p.dt,
+        output_every: p.output_every,
+        start: p.start,
+        startup_zero_fraction: p.startup_zero_fraction,
+        startup_ramp_fraction: p.startup_ramp_fraction,
+        x0: p.x0,
+    };
     config
         .validate()
         .with_context(|| format!("stage `{}`: bad parameters", ctx.stage))?;
+    let (source, system) = pino_data::system::load(&p.system_values)?;
+    let system = Arc::new(system);
+    if ctx.is_check() {
+        let (bound, corner) = mbd_engine::stability::parameter_box(&system, &config)
+            .with_context(|| format!("stage `{}`: {}", ctx.stage, source.file))?;
+        if let Err(e) = bound.check(config.dt) {
+            let at: Vec<String> = corner.iter().map(|(n, v)| format!("{n} = {v}")).collect();
+            bail!("stage `{}` ({}): {e}; the bound is taken over the box of sampling ranges, largest at {}", ctx.stage, source.file, at.join(", "));
+        }
+        return Ok(format!(
+            "dt {} s within the bound {:.3e} s over the parameter box",
+            config.dt,
+            bound.dt_limit()
+        ));
+    }
+    pino_data::system::declare_units(&system)?;
+    let dirs = ctx.input_dirs("params")?.to_vec();
+    let (record, _) = pino_data::system::read_record(&dirs)?;
+    pino_data::system::same(
+        &dirs[0].join(mbd_system::SYSTEM_FILE),
+        &record,
+        std::path::Path::new(&source.file),
+        &source,
+    )?;
 
+    let names = system.sampled_names();
     let mut cols = vec![schema::SAMPLE_ID];
-    cols.extend(schema::PARAMETERS);
+    cols.extend(names.iter().copied());
     let params = read_parquet_files(&ctx.input_files("params", "params.parquet")?, Some(&cols))?;
-    let irr_files = ctx.input_files("irregularity", "irregularity.parquet")?;
-    let mut profiles = owned_profiles(&irr_files, ctx.shard)?;
-    let mut inputs = Vec::new();
-    let values: Vec<&[f64]> = schema::PARAMETERS
+    let values: Vec<&[f64]> = names
         .iter()
         .map(|n| params.f64(n))
         .collect::<Result<_, _>>()?;
+    let generated: Vec<usize> = (0..system.profiles.len())
+        .filter(|&i| matches!(system.profiles[i], DescribedProfile::Generated { .. }))
+        .collect();
+    let mut profiles = if generated.is_empty() {
+        BTreeMap::new()
+    } else {
+        let files = ctx.input_files("irregularity", "irregularity.parquet")?;
+        let labels: Vec<&str> = generated
+            .iter()
+            .map(|&i| system.profiles[i].name())
+            .collect();
+        owned_profiles(&files, ctx.shard, &labels)?
+    };
+    let mut inputs = Vec::new();
     for (row, &id) in params.i64(schema::SAMPLE_ID)?.iter().enumerate() {
         if id < 0 {
             bail!("params.parquet: sample_id {id} is negative");
@@ -46,33 +109,36 @@ fn run() -> Result<String> {
         if !ctx.shard.owns(id as u64) {
             continue;
         }
-        let p = SampleParams::from_array(std::array::from_fn(|j| values[j][row]));
-        p.validate()
-            .with_context(|| format!("params.parquet: sample {id}"))?;
-        let Some((x, eta)) = profiles.remove(&id) else {
-            bail!(
-                "irregularity.parquet ({} files) has no profile for sample_id {id}",
-                irr_files.len()
+        let mut sample_profiles = vec![None; system.profiles.len()];
+        for (k, &pi) in generated.iter().enumerate() {
+            let Some((x, eta)) = profiles.remove(&(k, id)) else {
+                bail!(
+                    "irregularity.parquet has no profile `{}` for sample_id {id}",
+                    system.profiles[pi].name()
+                );
+            };
+            sample_profiles[pi] = Some(
+                Profile::new(x, eta)
+                    .with_context(|| format!("irregularity.parquet: sample {id}"))?,
             );
-        };
-        let profile =
-            Profile::new(x, eta).with_context(|| format!("irregularity.parquet: sample {id}"))?;
+        }
         inputs.push(SampleInput {
             id: id as u64,
-            params: p,
-            profile: Some(profile),
+            params: values.iter().map(|v| v[row]).collect(),
+            profiles: sample_profiles,
         });
     }
     inputs.sort_by_key(|s| s.id);
-    let sims = simulation::prepare(&config, inputs)
+    let engines = mbd_engine::prepare(&system, &config, inputs)
         .map_err(|(id, e)| anyhow::anyhow!("sample {id}: {e}"))?;
 
-    let progress = ctx.progress(sims.len() as u64);
+    let progress = ctx.progress(engines.len() as u64);
     let path = ctx.output_path("simulation.parquet");
-    let names = schema::simulation_columns();
+    let mut names = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
+    names.extend(system.channels.iter().map(|c| c.name.clone()));
     let mut writer = StreamWriter::create(&path, &table(&names, 0, &[], &[]))?;
     let mut failures: (Vec<i64>, Vec<String>) = (Vec::new(), Vec::new());
-    simulation::run_all(&sims, 64, &|| progress.inc(1), |id, out| -> Result<()> {
+    mbd_engine::run_all(&engines, 64, &|| progress.inc(1), |id, out| -> Result<()> {
         match out {
             Ok(tr) => writer.write(&table(&names, id as i64, &tr.t, &tr.columns))?,
             Err(f) => {
@@ -92,17 +158,19 @@ fn run() -> Result<String> {
     pino_data::provenance::write_provenance(
         &ctx.output_path(pino_data::provenance::PROVENANCE_FILE),
         &[
-            ("gravity", config.gravity),
-            ("wheel_radius", config.wheel_radius),
             ("dt", config.dt),
+            ("duration", config.duration),
+            ("output_every", config.output_every as f64),
             ("startup_zero_fraction", config.startup_zero_fraction),
             ("startup_ramp_fraction", config.startup_ramp_fraction),
+            ("x0", config.x0),
         ],
     )?;
+    pino_data::system::write_record(&ctx.output, &source)?;
     let s = ctx.shard;
     Ok(format!(
         "{} ok, {n_failed} failed, {rows} rows (shard {}/{})",
-        sims.len() - n_failed,
+        engines.len() - n_failed,
         s.index + 1,
         s.count
     ))
@@ -111,21 +179,48 @@ fn run() -> Result<String> {
 /// One profile's positions (m) and values (m).
 type XEta = (Vec<f64>, Vec<f64>);
 
-/// The profiles of the samples this shard owns, grouped by sample id. The files are streamed
-/// batch by batch (at paper scale they hold 119 M rows), keeping only this shard's rows; the
-/// rows of one sample are consecutive and sorted by x (checked by `Profile::new`).
-fn owned_profiles(files: &[PathBuf], shard: stage_kit::Shard) -> Result<BTreeMap<i64, XEta>> {
-    let mut profiles: BTreeMap<i64, XEta> = BTreeMap::new();
-    let cols = [schema::SAMPLE_ID, schema::TRACK_X, schema::TRACK_ETA];
+/// The profiles of the samples this shard owns, by (generated-profile index, sample id). The
+/// files are streamed batch by batch (at paper scale they hold 119 M rows), keeping only this
+/// shard's rows; the rows of one sample are consecutive and sorted by x (checked by
+/// `Profile::new`). With several profiles the `profile` column names each row's.
+fn owned_profiles(
+    files: &[PathBuf],
+    shard: stage_kit::Shard,
+    labels: &[&str],
+) -> Result<BTreeMap<(usize, i64), XEta>> {
+    let mut profiles: BTreeMap<(usize, i64), XEta> = BTreeMap::new();
+    let mut cols = vec![schema::SAMPLE_ID, schema::TRACK_X, schema::TRACK_ETA];
+    if labels.len() > 1 {
+        cols.push("profile");
+    }
     for file in files {
         for_each_batch(file, Some(&cols), |t| {
             let (ids, xs, etas) = (t.i64(cols[0])?, t.f64(cols[1])?, t.f64(cols[2])?);
+            let which = if labels.len() > 1 {
+                Some(t.str("profile")?)
+            } else {
+                None
+            };
             let mut start = 0;
             while start < ids.len() {
                 let id = ids[start];
-                let end = start + ids[start..].iter().take_while(|&&i| i == id).count();
+                let label = which.map(|w| w[start].as_str());
+                let same = |r: usize| ids[r] == id && which.is_none_or(|w| w[r] == w[start]);
+                let end = (start + 1..ids.len())
+                    .find(|&r| !same(r))
+                    .unwrap_or(ids.len());
+                let k = match label {
+                    None => 0,
+                    Some(l) => labels.iter().position(|x| *x == l).ok_or_else(|| {
+                        pino_data::Error::System(format!(
+                            "{}: unknown profile `{l}` (the description's: {})",
+                            file.display(),
+                            labels.join(", ")
+                        ))
+                    })?,
+                };
                 if id >= 0 && shard.owns(id as u64) {
-                    let p = profiles.entry(id).or_default();
+                    let p = profiles.entry((k, id)).or_default();
                     p.0.extend_from_slice(&xs[start..end]);
                     p.1.extend_from_slice(&etas[start..end]);
                 }
@@ -137,7 +232,7 @@ fn owned_profiles(files: &[PathBuf], shard: stage_kit::Shard) -> Result<BTreeMap
     Ok(profiles)
 }
 
-/// One sample's rows in schema order: `sample_id`, `t`, then the 42 signals.
+/// One sample's rows in schema order: `sample_id`, `t`, then the channels.
 fn table(names: &[String], id: i64, t: &[f64], signals: &[Vec<f64>]) -> Table {
     let mut table = Table::default();
     let mut push = |name: &str, col| table.push(name, col).expect("equal lengths, unique names");
