@@ -582,7 +582,7 @@ fn general(engine: &Engine) -> Result<Vec<f64>> {
         .map(|l| l.force.abs())
         .sum::<f64>()
         .max(1.0);
-    let mut x = vec![0.0; n];
+    let mut x = closed_contacts(engine);
     let mut r = residual(&x);
     for _ in 0..NEWTON_ITERATIONS {
         if norm(&r) <= 1e-12 * scale {
@@ -629,6 +629,37 @@ fn general(engine: &Engine) -> Result<Vec<f64>> {
         iterations: NEWTON_ITERATIONS,
         residual: norm(&r) / scale,
     })
+}
+
+/// Newton's starting point: zero, except that the upper body of every contact sits on the
+/// profile under it, pressed by the deflection of a 1 N contact force. An open contact has no
+/// stiffness (from the zero state a dip in the profile lifts its wheel), which makes the
+/// Jacobian singular; a contact law is convex, so from the closed side the iterates stay
+/// closed.
+fn closed_contacts(engine: &Engine) -> Vec<f64> {
+    let m = &engine.model;
+    let c = &engine.config;
+    let mut x = vec![0.0; engine.layout.len];
+    let ramp = c.ramp(0.0);
+    for el in &m.elements {
+        let (true, ModelEnd::Body(t)) = (el.law.is_contact(), el.from) else {
+            continue;
+        };
+        let Some(z) = t.z else { continue };
+        let eta = match (el.profile, el.to) {
+            (Some(p), ModelEnd::Moving(pt)) if ramp > 0.0 => {
+                ramp * engine.profiles[p].at(c.x0 + m.points[pt].1)
+            }
+            _ => 0.0,
+        };
+        let closed = eta + el.law.static_deflection(1.0).unwrap_or(0.0);
+        x[z] = if x[z] == 0.0 {
+            closed
+        } else {
+            x[z].max(closed)
+        };
+    }
+    x
 }
 
 /// The diagonal of the mass matrix in state order.
