@@ -178,7 +178,7 @@ pub struct Engine {
     /// Per moving point, the terms of its net force, in accumulation order.
     point_terms: Vec<Vec<(Source, f64)>>,
     /// Per element, whether its rates are needed (a damper).
-    needs_rate: Vec<bool>,
+    pub(crate) needs_rate: Vec<bool>,
     /// Sensor shapes.
     sensor_shapes: Vec<Vec<f64>>,
     pub(crate) route: Route,
@@ -504,25 +504,6 @@ impl Engine {
         }
     }
 
-    /// Displacement of an end given the state and the point quantities.
-    #[inline]
-    fn end_u(&self, end: &ModelEnd, x: &[f64], q: &Quantities) -> f64 {
-        match end {
-            ModelEnd::Ground => 0.0,
-            ModelEnd::Body(t) => t.displacement(x),
-            ModelEnd::Moving(p) => q.point_w[*p],
-        }
-    }
-
-    #[inline]
-    fn end_rate(&self, end: &ModelEnd, v: &[f64], q: &Quantities) -> f64 {
-        match end {
-            ModelEnd::Ground => 0.0,
-            ModelEnd::Body(t) => t.displacement(v),
-            ModelEnd::Moving(p) => q.point_rate[*p],
-        }
-    }
-
     /// `A = M^-1 F(X, V, t)`; the point and element quantities go to `ws.q`.
     pub(crate) fn accelerations(
         &self,
@@ -576,54 +557,15 @@ impl Engine {
                 q.eta_rate[e] = ramp * m.speed * src.slope(xp) + ramp_rate * src.at(xp);
             }
         }
-        // Element forces.
-        for (e, el) in m.elements.iter().enumerate() {
-            let mut d = self.end_u(&el.from, x, q) - self.end_u(&el.to, x, q);
-            if el.profile.is_some() {
-                d -= q.eta[e];
-            }
-            let rate = if self.needs_rate[e] {
-                let mut r = self.end_rate(&el.from, v, q) - self.end_rate(&el.to, v, q);
-                if el.profile.is_some() {
-                    r -= q.eta_rate[e];
-                }
-                r
-            } else {
-                0.0
-            };
-            q.deflection[e] = d;
-            q.force[e] = el.law.force(d, rate);
+        element_forces(m, &self.needs_rate, x, v, q);
+        rigid_forces(m, &q.force, a);
+        for (ai, mass) in a[..m.dof_mass.len()].iter_mut().zip(&m.dof_mass) {
+            *ai /= mass;
         }
         let value = |s: &Source, q: &Quantities| match *s {
             Source::Element(i) => q.force[i],
             Source::Load(i) => m.loads[i].force,
         };
-        // Rigid DOFs, group by group.
-        for (i, groups) in m.assembly.iter().enumerate() {
-            let mut total = 0.0;
-            for (gi, g) in groups.iter().enumerate() {
-                let mut terms = g.terms.iter();
-                let Some((s0, sign0)) = terms.next() else {
-                    continue;
-                };
-                let first = value(s0, q);
-                let mut sum = if *sign0 < 0.0 { -first } else { first };
-                for (s, sign) in terms {
-                    let f = value(s, q);
-                    if *sign < 0.0 {
-                        sum -= f;
-                    } else {
-                        sum += f;
-                    }
-                }
-                let g_value = match g.coefficient {
-                    Some(c) => c * sum,
-                    None => sum,
-                };
-                total = if gi == 0 { g_value } else { total + g_value };
-            }
-            a[i] = total / m.dof_mass[i];
-        }
         // Net point forces.
         for (p, terms) in self.point_terms.iter().enumerate() {
             let mut it = terms.iter();
@@ -903,6 +845,89 @@ impl Engine {
         let mut a = vec![0.0; self.layout.len];
         self.accelerations(&mut ws, t, x, v, &mut a);
         (a, ws.q)
+    }
+}
+
+/// Displacement of an end given the rigid state and the point quantities.
+#[inline]
+fn end_u(end: &ModelEnd, x: &[f64], q: &Quantities) -> f64 {
+    match end {
+        ModelEnd::Ground => 0.0,
+        ModelEnd::Body(t) => t.displacement(x),
+        ModelEnd::Moving(p) => q.point_w[*p],
+    }
+}
+
+#[inline]
+fn end_rate(end: &ModelEnd, v: &[f64], q: &Quantities) -> f64 {
+    match end {
+        ModelEnd::Ground => 0.0,
+        ModelEnd::Body(t) => t.displacement(v),
+        ModelEnd::Moving(p) => q.point_rate[*p],
+    }
+}
+
+/// Every element's deflection and force, from the rigid state `(x, v)` (the rigid DOFs lead
+/// the state) and the point and profile quantities already in `q`: `d = (u_from - u_to) -
+/// eta`, its rate where `needs_rate` says so, and the law's force. The one element code of the
+/// engine: the time loop and the residuals of [`crate::residual`] both call it.
+pub(crate) fn element_forces(
+    m: &Model,
+    needs_rate: &[bool],
+    x: &[f64],
+    v: &[f64],
+    q: &mut Quantities,
+) {
+    for (e, el) in m.elements.iter().enumerate() {
+        let mut d = end_u(&el.from, x, q) - end_u(&el.to, x, q);
+        if el.profile.is_some() {
+            d -= q.eta[e];
+        }
+        let rate = if needs_rate[e] {
+            let mut r = end_rate(&el.from, v, q) - end_rate(&el.to, v, q);
+            if el.profile.is_some() {
+                r -= q.eta_rate[e];
+            }
+            r
+        } else {
+            0.0
+        };
+        q.deflection[e] = d;
+        q.force[e] = el.law.force(d, rate);
+    }
+}
+
+/// The generalised force of every rigid DOF (N or N m) from the element forces, group by
+/// group ([`mbd_system::system::Group`]), into `out[..dofs]`.
+pub(crate) fn rigid_forces(m: &Model, force: &[f64], out: &mut [f64]) {
+    let value = |s: &Source| match *s {
+        Source::Element(i) => force[i],
+        Source::Load(i) => m.loads[i].force,
+    };
+    for (i, groups) in m.assembly.iter().enumerate() {
+        let mut total = 0.0;
+        for (gi, g) in groups.iter().enumerate() {
+            let mut terms = g.terms.iter();
+            let Some((s0, sign0)) = terms.next() else {
+                continue;
+            };
+            let first = value(s0);
+            let mut sum = if *sign0 < 0.0 { -first } else { first };
+            for (s, sign) in terms {
+                let f = value(s);
+                if *sign < 0.0 {
+                    sum -= f;
+                } else {
+                    sum += f;
+                }
+            }
+            let g_value = match g.coefficient {
+                Some(c) => c * sum,
+                None => sum,
+            };
+            total = if gi == 0 { g_value } else { total + g_value };
+        }
+        out[i] = total;
     }
 }
 

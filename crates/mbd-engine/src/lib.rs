@@ -10,6 +10,7 @@
 //! - [`beam`]: modal simply supported beams; [`dst`]: the sine transform of uniform supports;
 //!   [`supports`]: the support chains.
 //! - [`statics`]: the static-equilibrium start; [`stability`]: the time-step bound.
+//! - [`residual`]: the ODE residuals of the rigid DOFs for learning, by the same element code;
 //! - [`integrator`]: Zhai's two-step method; [`profile`]: profiles under moving points;
 //!   [`config`]: run controls.
 //!
@@ -24,6 +25,7 @@ pub mod dst;
 pub mod engine;
 pub mod integrator;
 pub mod profile;
+pub mod residual;
 pub mod stability;
 pub mod statics;
 pub mod supports;

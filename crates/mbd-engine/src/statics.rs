@@ -677,3 +677,34 @@ pub fn state_masses(engine: &Engine) -> Vec<f64> {
     }
     m
 }
+
+/// The force scale of a sample for learning (N): the mean static force of the elements that
+/// rest on moving points (contacts with the track, road or deck: the wheel load `W` of every
+/// wheel of the vehicle-track model), summed with compensation so that equal forces give
+/// exactly their value. `None` when the rigid part is not statically determinate or no element
+/// rests on a moving point.
+pub fn contact_scale(system: &System, model: &Model) -> Option<f64> {
+    let sf = static_forces(system, model)?;
+    let forces: Vec<f64> = model
+        .elements
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| matches!(e.to, ModelEnd::Moving(_)))
+        .map(|(i, _)| sf.force[i])
+        .collect();
+    if forces.is_empty() {
+        return None;
+    }
+    // Neumaier's compensated sum.
+    let (mut sum, mut c) = (0.0f64, 0.0f64);
+    for &f in &forces {
+        let t = sum + f;
+        c += if sum.abs() >= f.abs() {
+            (sum - t) + f
+        } else {
+            (f - t) + sum
+        };
+        sum = t;
+    }
+    Some((sum + c) / forces.len() as f64)
+}

@@ -414,6 +414,37 @@ impl System {
         self.channels.iter().position(|c| c.name == name)
     }
 
+    /// The DOFs that have an equation when a learner predicts the columns `outputs` and is
+    /// given `inputs`: every element acting on the DOF has both ends among the rigid DOFs (all
+    /// predicted), the ground, points on the ground, or moving points whose deflection column
+    /// `z_<point>` is predicted, and its profile column `eta_<element>`, if any, is an input.
+    pub fn equation_dofs(&self, outputs: &[&str], inputs: &[&str]) -> Vec<usize> {
+        let point_known = |p: usize| {
+            self.points[p].beam.is_none()
+                || outputs.contains(&format!("z_{}", self.points[p].name).as_str())
+        };
+        let closes = |e: &Element| {
+            let end_known = |end: &End| match end {
+                End::Ground | End::Body { .. } => true,
+                End::Moving(p) => point_known(*p),
+            };
+            end_known(&e.from)
+                && end_known(&e.to)
+                && (e.profile.is_none() || inputs.contains(&format!("eta_{}", e.name).as_str()))
+        };
+        (0..self.dofs.len())
+            .filter(|&i| {
+                self.assembly[i]
+                    .iter()
+                    .flat_map(|g| &g.terms)
+                    .all(|(s, _)| match s {
+                        Source::Element(e) => closes(&self.elements[*e]),
+                        Source::Load(_) => true,
+                    })
+            })
+            .collect()
+    }
+
     /// The channels of a role, in column order.
     pub fn channels_of(&self, role: Role) -> Vec<usize> {
         (0..self.channels.len())

@@ -8,6 +8,8 @@
 //! - [`StreamWriter`]: writes a large table row group by row group (atomic on finish).
 //! - [`read_parquet`]: reads chosen columns, naming the file and the column when one is
 //!   missing or of another type.
+//! - [`records`]: the per-sample record reader of files sorted by sample, and the reader of
+//!   `params.parquet`.
 //! - [`provenance`]: the physical constants a dataset was simulated with, checked by the
 //!   stages that learn from it.
 //! - [`system`]: the system description a stage's command names, its record beside the
@@ -31,6 +33,7 @@
 pub mod metadata;
 mod parquet_io;
 pub mod provenance;
+pub mod records;
 pub mod schema;
 mod stream;
 pub mod system;
@@ -110,6 +113,14 @@ pub enum Error {
     /// A process declared two different origins ([`metadata::set_origin`]).
     #[error("origin of the written files: {0}")]
     Origin(String),
+    /// Records of a file are not grouped by sample, or a sample id repeats.
+    #[error("{path}: {message}")]
+    Records {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// The system description could not be read, compiled or matched.
     #[error("{0}")]
     System(String),

@@ -15,6 +15,31 @@ use mbd_system::{Override, System, SystemSource, SYSTEM_FILE};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// File `irregularity` writes beside its profiles: the generator's controls (seed, dx, length).
+pub const PROFILES_FILE: &str = "profiles.json";
+/// File `simulate` writes beside every dataset shard: `{"run": <the run controls>,
+/// "profiles": <the irregularity stage's profiles.json, or null>}`, how the data were made.
+pub const RUN_FILE: &str = "run.json";
+
+/// Writes a JSON value atomically.
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(value).expect("serialisable");
+    atomic_file::write_atomic(path, text.as_bytes()).map_err(|e| Error::Io {
+        path: path.to_owned(),
+        source: std::io::Error::other(e.to_string()),
+    })
+}
+
+/// Reads a JSON file.
+pub fn read_json(path: &Path) -> Result<serde_json::Value> {
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    serde_json::from_str(&text)
+        .map_err(|e| Error::System(format!("{}: malformed JSON: {e}", path.display())))
+}
+
 /// The description's path: the first argument of the stage's command that is not
 /// `--context FILE`.
 pub fn description_path() -> Result<PathBuf> {

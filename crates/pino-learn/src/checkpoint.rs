@@ -2,7 +2,9 @@
 //!
 //! - `model.safetensors` (the parameters, f32, names of [`crate::model::parameter_shapes`]) +
 //!   `model.json` ([`ModelMeta`]: model and training configuration, window and time grid,
-//!   normalisation statistics) is what `evaluate` and `predict` load.
+//!   normalisation statistics, the channel layout, the system description it was trained on
+//!   and how its data were simulated) is what `evaluate`, `predict` and `explore` load: a model
+//!   directory is self-contained.
 //! - `checkpoint.safetensors` (`param.NAME`, `adam_m.NAME`, `adam_v.NAME`) is written after
 //!   every epoch; training resumes from it bit for bit. It is self-contained: its safetensors
 //!   header metadata (key [`CHECKPOINT_STATE_KEY`]) holds the [`ModelMeta`] and [`TrainState`]
@@ -25,8 +27,8 @@ use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::path::Path;
 
-/// Format tag of `model.json`.
-pub const MODEL_FORMAT: &str = "pino-mbd-fno";
+/// Format tag of `model.json` (version 2: a model of a described system).
+pub const MODEL_FORMAT: &str = "pino-mbd-fno-2";
 /// Model weights file name.
 pub const MODEL_WEIGHTS: &str = "model.safetensors";
 /// Model sidecar file name.
@@ -62,6 +64,18 @@ impl TimeGrid {
     }
 }
 
+/// How the training data were simulated: the run controls of `simulate` and the profile
+/// controls of `irregularity` (what `predict` and `explore` need to make a design's excitation
+/// and to solve it exactly).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DataSettings {
+    /// The simulation's run controls.
+    pub run: mbd_engine::RunConfig,
+    /// The profile generator's controls, when the description has a generated profile.
+    pub profiles: Option<mbd_dataset::ProfileParams>,
+}
+
 /// Everything about a model except its tensors.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -78,28 +92,39 @@ pub struct ModelMeta {
     pub grid: TimeGrid,
     /// Z-score statistics (training split).
     pub norm: Normalisation,
-    /// Force scale of the global ODE loss (N).
-    pub f_ref: f64,
+    /// Force scale of the global ODE loss (N), when the description has one.
+    pub f_ref: Option<f64>,
     /// Training samples seen per epoch.
     pub train_samples: usize,
-    /// The parameter ranges the model was trained on (absent in models trained before they
-    /// were recorded: `predict` then cannot check designs against them).
+    /// The parameter ranges the model was trained on.
+    pub training_ranges: TrainingRanges,
+    /// The tensors' channels.
+    pub layout: crate::layout::Layout,
+    /// The system description (text and overrides) the data were simulated from.
+    pub system: mbd_system::SystemSource,
+    /// How the data were simulated (absent when the dataset did not say).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub training_ranges: Option<TrainingRanges>,
+    pub data: Option<DataSettings>,
 }
 
-/// File `sample-params` writes beside `params.parquet`: the configured sampling range of each
-/// parameter (`name`, `min`, `max`).
-pub const RANGES_FILE: &str = "ranges.parquet";
+impl ModelMeta {
+    /// The compiled system description.
+    pub fn compile_system(&self, path: &Path) -> Result<mbd_system::System> {
+        self.system.compile().map_err(|e| Error::Format {
+            path: path.to_owned(),
+            message: format!("the model's system description: {e}"),
+        })
+    }
+}
 
-/// The range of each of the 14 parameters a model was trained on.
+/// The sampling range of each sampled parameter a model was trained on.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrainingRanges {
-    /// Where they come from: `sample-params` (its configured ranges, `ranges.parquet`) or
-    /// `training samples` (min and max over the training split, when no ranges file exists).
+    /// Where they come from (`system description`: its sampling ranges with the run's
+    /// overrides).
     pub source: String,
-    /// Parameter names (spec order).
+    /// Parameter names (description order).
     pub names: Vec<String>,
     /// Lower bounds (parameter units).
     pub min: Vec<f64>,
@@ -129,9 +154,24 @@ impl std::fmt::Display for OutOfRange {
 }
 
 impl TrainingRanges {
-    /// The parameters of `params` (spec order) outside their range; bounds are inclusive,
-    /// with a relative slack of 1e-9 for values written in decimal.
-    pub fn outside(&self, params: &[f64; 14]) -> Vec<OutOfRange> {
+    /// The sampling ranges of `system`.
+    pub fn of(system: &mbd_system::System) -> Self {
+        let ranges = system.ranges();
+        Self {
+            source: "system description".into(),
+            names: system
+                .sampled_names()
+                .into_iter()
+                .map(str::to_owned)
+                .collect(),
+            min: ranges.iter().map(|r| r[0]).collect(),
+            max: ranges.iter().map(|r| r[1]).collect(),
+        }
+    }
+
+    /// The parameters of `params` (description order) outside their range; bounds are
+    /// inclusive, with a relative slack of 1e-9 for values written in decimal.
+    pub fn outside(&self, params: &[f64]) -> Vec<OutOfRange> {
         let mut out = Vec::new();
         for (k, &v) in params.iter().enumerate() {
             let (lo, hi) = (self.min[k], self.max[k]);

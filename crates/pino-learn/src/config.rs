@@ -4,19 +4,6 @@
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 
-/// Input channels: `t`, `eta_1..eta_4`, 14 parameters.
-pub const IN_CHANNELS: usize = 19;
-/// Output channels (`pino_data::schema::output_channels`): 10 vehicle DOFs, 4 rail
-/// displacements (channels `0..SOLUTION_CHANNELS`, the paper's solutions), then the 4 contact
-/// forces `p_1..p_4` (channels `SOLUTION_CHANNELS..OUT_CHANNELS`).
-pub const OUT_CHANNELS: usize = 18;
-/// Displacement channels (vehicle DOFs and rail): the "solutions" of Table 4.
-pub const SOLUTION_CHANNELS: usize = 14;
-/// First contact-force channel.
-pub const FORCE_OFFSET: usize = SOLUTION_CHANNELS;
-/// Vehicle DOFs (equations).
-pub const DOFS: usize = 10;
-
 /// The algorithms of Table 3 (`docs/learning.md`, Algorithms).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(try_from = "i64", into = "i64")]
@@ -116,9 +103,9 @@ impl From<Algorithm> for i64 {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ModelConfig {
-    /// Input channels (19).
+    /// Input channels (the layout's, `1 + E + P`).
     pub in_channels: usize,
-    /// Output channels (18: 14 displacements, 4 contact forces).
+    /// Output channels (the layout's solutions and forces).
     pub out_channels: usize,
     /// Channel width `W` of the Fourier layers.
     pub width: usize,
@@ -270,10 +257,6 @@ pub struct TrainConfig {
     pub rho: f64,
     /// Seed of initialisation and shuffling.
     pub seed: u64,
-    /// Gravity (m/s^2) for the static wheel load W.
-    pub gravity: f64,
-    /// Wheel radius (m) for the Hertz constant G.
-    pub wheel_radius: f64,
 }
 
 impl TrainConfig {
@@ -310,14 +293,8 @@ impl TrainConfig {
                 return bad(f, v.to_string(), ">= 0");
             }
         }
-        for (f, v) in [
-            ("rho", self.rho),
-            ("gravity", self.gravity),
-            ("wheel_radius", self.wheel_radius),
-        ] {
-            if !(v > 0.0 && v.is_finite()) {
-                return bad(f, v.to_string(), "> 0");
-            }
+        if !(self.rho > 0.0 && self.rho.is_finite()) {
+            return bad("rho", self.rho.to_string(), "> 0");
         }
         Ok(())
     }
@@ -328,126 +305,52 @@ impl TrainConfig {
     }
 }
 
-fn d_width() -> usize {
-    32
-}
-fn d_modes() -> usize {
-    32
-}
-fn d_proj() -> usize {
-    64
-}
-fn d_padding() -> usize {
-    0
-}
-fn d_epochs() -> usize {
-    50
-}
-fn d_batch() -> usize {
-    4
-}
-fn d_lr() -> f64 {
-    1e-3
-}
-fn d_decay() -> f64 {
-    0.75
-}
-fn d_decay_every() -> usize {
-    10
-}
-fn d_lambda_ode() -> f64 {
-    0.25
-}
-fn d_lambda_d() -> f64 {
-    1.0
-}
-fn d_rail_weight() -> f64 {
-    0.0
-}
-fn d_rho() -> f64 {
-    0.025
-}
-fn d_seed() -> u64 {
-    1
-}
-fn d_g() -> f64 {
-    9.81
-}
-fn d_r() -> f64 {
-    0.43
-}
-fn d_startup() -> f64 {
-    0.1
-}
-fn d_one() -> usize {
-    1
-}
 fn d_device() -> DeviceKind {
     DeviceKind::Cpu
 }
 
-/// The `train` stage's parameters as they appear in pipeline.yaml (defaults = laptop scale).
+/// The `train` stage's parameters as they appear in pipeline.yaml, every one required (their
+/// one home is the pipeline file) except `depth` (Table 3's: 3, or 5 for algorithm 5) and
+/// `device` (the CPU).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrainParams {
     /// Table 3 algorithm, 1..=5 (the matrix key).
     pub algorithm: i64,
     /// Channel width W.
-    #[serde(default = "d_width")]
     pub width: usize,
     /// Fourier modes M.
-    #[serde(default = "d_modes")]
     pub modes: usize,
     /// Fourier layers L (default: 3, or 5 for algorithm 5).
     #[serde(default)]
     pub depth: Option<usize>,
     /// Hidden width of the projection MLP.
-    #[serde(default = "d_proj")]
     pub projection_width: usize,
     /// Zeros appended to the time axis inside the network (% of the window).
-    #[serde(default = "d_padding")]
     pub padding: usize,
     /// Epochs.
-    #[serde(default = "d_epochs")]
     pub epochs: usize,
     /// Batch size.
-    #[serde(default = "d_batch")]
     pub batch_size: usize,
     /// Initial learning rate.
-    #[serde(default = "d_lr")]
     pub learning_rate: f64,
     /// Step-decay factor.
-    #[serde(default = "d_decay")]
     pub lr_decay: f64,
     /// Decay period in epochs.
-    #[serde(default = "d_decay_every")]
     pub lr_decay_every: usize,
     /// ODE loss weight.
-    #[serde(default = "d_lambda_ode")]
     pub lambda_ode: f64,
     /// Derivative loss weight.
-    #[serde(default = "d_lambda_d")]
     pub lambda_d: f64,
     /// Weight of the extra rail-channel data term.
-    #[serde(default = "d_rail_weight")]
     pub rail_weight: f64,
     /// Target residual level of the weighted ODE loss.
-    #[serde(default = "d_rho")]
     pub rho: f64,
     /// Seed.
-    #[serde(default = "d_seed")]
     pub seed: u64,
-    /// Gravity (m/s^2).
-    #[serde(default = "d_g")]
-    pub gravity: f64,
-    /// Wheel radius (m).
-    #[serde(default = "d_r")]
-    pub wheel_radius: f64,
-    /// Fraction of each record dropped at its start (start-up), 0.1 in the spec.
-    #[serde(default = "d_startup")]
+    /// Fraction of each record dropped at its start (start-up).
     pub startup_fraction: f64,
     /// Keep every n-th time point of the window (1 = all).
-    #[serde(default = "d_one")]
     pub time_stride: usize,
     /// "cpu" or "cuda".
     #[serde(default = "d_device")]
@@ -455,18 +358,28 @@ pub struct TrainParams {
 }
 
 impl TrainParams {
-    /// Parameters with every default and the given algorithm.
-    pub fn with_algorithm(algorithm: i64) -> Self {
-        serde_json::from_value(serde_json::json!({ "algorithm": algorithm }))
-            .expect("defaults deserialise")
+    /// Small settings for tests and examples: width 8, 8 modes, projection 16, 2 epochs of
+    /// batches of 2 (the product's settings are `pipeline.yaml`'s).
+    pub fn small(algorithm: i64) -> Self {
+        serde_json::from_value(serde_json::json!({
+            "algorithm": algorithm, "width": 8, "modes": 8, "projection_width": 16, "padding": 0,
+            "epochs": 2, "batch_size": 2, "learning_rate": 1e-3, "lr_decay": 0.75,
+            "lr_decay_every": 10, "lambda_ode": 0.25, "lambda_d": 1.0, "rail_weight": 0.0,
+            "rho": 0.025, "seed": 1, "startup_fraction": 0.1, "time_stride": 1
+        }))
+        .expect("complete parameters")
     }
 
-    /// Splits into checked model and training configurations (`t_points` checked later).
-    pub fn configs(&self) -> Result<(ModelConfig, TrainConfig, WindowConfig)> {
+    /// Splits into checked model and training configurations for a system of `layout`
+    /// (`t_points` checked later).
+    pub fn configs(
+        &self,
+        layout: &crate::layout::Layout,
+    ) -> Result<(ModelConfig, TrainConfig, WindowConfig)> {
         let algorithm = Algorithm::from_id(self.algorithm)?;
         let model = ModelConfig {
-            in_channels: IN_CHANNELS,
-            out_channels: OUT_CHANNELS,
+            in_channels: layout.n_inputs(),
+            out_channels: layout.n_outputs(),
             width: self.width,
             modes: self.modes,
             depth: self.depth.unwrap_or(algorithm.default_depth()),
@@ -485,8 +398,6 @@ impl TrainParams {
             rail_weight: self.rail_weight,
             rho: self.rho,
             seed: self.seed,
-            gravity: self.gravity,
-            wheel_radius: self.wheel_radius,
         };
         train.validate()?;
         let window = WindowConfig {
@@ -506,15 +417,6 @@ pub struct WindowConfig {
     pub startup_fraction: f64,
     /// Keep every n-th point (1 = all).
     pub time_stride: usize,
-}
-
-impl Default for WindowConfig {
-    fn default() -> Self {
-        Self {
-            startup_fraction: 0.1,
-            time_stride: 1,
-        }
-    }
 }
 
 impl WindowConfig {
@@ -557,10 +459,15 @@ mod tests {
             err.contains("unknown algorithm 7") && err.contains("1 (FNO)"),
             "{err}"
         );
-        let p: std::result::Result<TrainParams, _> =
-            serde_json::from_value(serde_json::json!({"algorithm": 9}));
-        let err = p.unwrap().configs().unwrap_err().to_string();
+        let layout = crate::synthetic::vehicle_track_layout();
+        let err = TrainParams::small(9)
+            .configs(&layout)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("unknown algorithm 9"), "{err}");
+        let p: std::result::Result<TrainParams, _> =
+            serde_json::from_value(serde_json::json!({"algorithm": 1, "width": 3}));
+        assert!(p.unwrap_err().to_string().contains("missing field"));
         let p: std::result::Result<TrainParams, _> =
             serde_json::from_value(serde_json::json!({"algorithm": 1, "widht": 3}));
         assert!(p.unwrap_err().to_string().contains("unknown field `widht`"));
@@ -568,14 +475,15 @@ mod tests {
 
     #[test]
     fn depth_defaults_by_algorithm_and_lr_decays_in_steps() {
-        let (m, t, _) = TrainParams::with_algorithm(5).configs().unwrap();
-        assert_eq!(m.depth, 5);
-        let (m, _, _) = TrainParams::with_algorithm(4).configs().unwrap();
+        let layout = crate::synthetic::vehicle_track_layout();
+        let (m, t, _) = TrainParams::small(5).configs(&layout).unwrap();
+        assert_eq!((m.depth, m.in_channels, m.out_channels), (5, 19, 18));
+        let (m, _, _) = TrainParams::small(4).configs(&layout).unwrap();
         assert_eq!(m.depth, 3);
         assert_eq!(t.lr_at(9), 1e-3);
         assert!((t.lr_at(10) - 7.5e-4).abs() < 1e-15);
         assert!((t.lr_at(25) - 1e-3 * 0.75 * 0.75).abs() < 1e-15);
-        assert!(m.validate(64).is_ok());
-        assert!(m.validate(63).is_err(), "32 modes need 64 points");
+        assert!(m.validate(16).is_ok());
+        assert!(m.validate(15).is_err(), "8 modes need 16 points");
     }
 }

@@ -1,9 +1,10 @@
 //! Datasets: Parquet artifacts -> a sample index and streamed windows -> z-scored f32
 //! storage -> batches.
 //!
-//! Inputs are the artifacts of the physics stages: `params.parquet` (`sample_id`, `split`, 14
-//! parameters), `simulation.parquet` shards (rows sorted by `sample_id` then `t`) and, for
-//! algorithm 3, `weights.parquet` (`sample_id`, `phi_1..phi_10`). Each record must have the
+//! Inputs are the artifacts of the physics stages: `params.parquet` (`sample_id`, `split`, the
+//! sampled parameters), `simulation.parquet` shards (rows sorted by `sample_id` then `t`) and,
+//! for algorithm 3, `weights.parquet` (`sample_id`, `phi_<dof>` of each equation); which
+//! columns are read follows the [`Layout`] of the system description. Each record must have the
 //! same uniform time grid; the window drops the first `startup_fraction` of it and keeps every
 //! `time_stride`-th point, leaving `T` points with spacing `dt`.
 //!
@@ -12,25 +13,28 @@
 //! only its window is kept, z-scored, in f32. [`load_dataset`] makes one such pass that
 //! checks every record and accumulates the training split's normalisation statistics in f64
 //! (no time series kept); [`prepare`] makes a second pass storing each sample once:
-//! outputs `u [T, 18]`, derivative targets `v, a [T, 10]` (f32, z-scored), the irregularity
-//! `eta [T, 4]` (f64, physical, for the ODE residual), in a [`SeriesStore`] (memory, or a
-//! spill file past the memory budget), and the 14 parameters once per sample.
-//! The `[T, 19]` input block (`t`, `eta_1..4`, parameters) is built only at batch time, with
-//! the same arithmetic as before, so batches are bitwise those of an all-in-memory f64 load.
+//! outputs `u [T, O]`, derivative targets `v, a [T, D]` (f32, z-scored), the excitations
+//! `eta [T, E]` (f64, physical, for the ODE residual), in a [`SeriesStore`] (memory, or a
+//! spill file past the memory budget), and the `P` parameters once per sample.
+//! The `[T, 1 + E + P]` input block (`t`, excitations, parameters) is built only at batch
+//! time, with the same arithmetic as an all-in-memory f64 load, bitwise.
 //! [`load_split`] reads one split in a single pass (the `evaluate` stage).
 //!
-//! A [`Batch`] holds f32 z-scored tensors `x [B, T, 19]`, `u [B, T, 18]`, interior derivative
-//! targets `v, a [B, T-2, 10]`, and f64 physical `params [B, 14]`, `eta [B, T-2, 4]`,
-//! `phi [B, 10]` for the ODE residual.
+//! A [`Batch`] holds f32 z-scored tensors `x [B, T, 1 + E + P]`, `u [B, T, O]`, interior
+//! derivative targets `v, a [B, T-2, D]`, and f64 physical `params [B, P]`, `eta [B, T, E]`,
+//! `phi [B, Q]` (`Q` equations) and the force scale `f_scale [B]` for the ODE residual.
 
-use crate::config::{WindowConfig, DOFS, IN_CHANNELS, OUT_CHANNELS};
+use crate::config::WindowConfig;
+use crate::layout::Layout;
 use crate::norm::{Normalisation, StatsAccumulator};
 use crate::store::{SampleSeries, SeriesStore};
 use crate::{Error, Result};
 use candle_core::{DType, Device, Tensor};
-use pino_data::{for_each_batch, read_parquet, schema, Table};
+use mbd_system::System;
+use pino_data::{read_parquet, schema};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Which split a sample belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -61,16 +65,21 @@ pub struct Sample {
     pub id: i64,
     /// Its split.
     pub split: Split,
-    /// The 14 parameters (spec order).
-    pub params: [f64; 14],
-    /// ODE magnitude weights (N, N m), when a weights file was given.
-    pub phi: Option<[f64; DOFS]>,
+    /// The sampled parameters (description order).
+    pub params: Vec<f64>,
+    /// ODE magnitude weights (N, N m) of each equation, when a weights file was given.
+    pub phi: Option<Vec<f64>>,
+    /// The force scale of its ODE residual (N): the mean static force of its contact
+    /// elements (`mbd_engine::statics::contact_scale`), when it has some.
+    pub force_scale: Option<f64>,
 }
 
 /// A windowed dataset: the index of the simulated samples, the window's grid, the training
 /// split's normalisation statistics, and where to stream the time series from.
 #[derive(Debug, Clone)]
 pub struct Dataset {
+    /// The channel layout.
+    pub layout: Layout,
     /// Samples sorted by id.
     pub samples: Vec<Sample>,
     /// Times of the window (s), `T` values.
@@ -83,6 +92,7 @@ pub struct Dataset {
     params_file: PathBuf,
     window: WindowConfig,
     train_stats: Option<Normalisation>,
+    info: DatasetInfo,
 }
 
 fn dataset_err(path: &Path, message: String) -> Error {
@@ -92,47 +102,39 @@ fn dataset_err(path: &Path, message: String) -> Error {
     }
 }
 
-/// Channel groups of a streamed window, column-major: `[OUT_CHANNELS]` outputs (14
-/// displacements, 4 forces), `[DOFS]` velocities, `[DOFS]` accelerations, 4 irregularities.
-const U0: usize = 0;
-const V0: usize = OUT_CHANNELS;
-const A0: usize = V0 + DOFS;
-const E0: usize = A0 + DOFS;
-const SERIES: usize = E0 + 4;
-
-fn velocity_names() -> Vec<String> {
-    schema::VEHICLE_DOFS
-        .iter()
-        .map(|s| schema::velocity(s))
-        .collect()
+/// Channel groups of a streamed window, column-major: outputs, velocities, accelerations,
+/// excitations (the order of [`Layout::simulation_columns`] after `sample_id`, `t`).
+#[derive(Debug, Clone, Copy)]
+struct Groups {
+    v0: usize,
+    a0: usize,
+    e0: usize,
+    end: usize,
 }
 
-fn acceleration_names() -> Vec<String> {
-    schema::VEHICLE_DOFS
-        .iter()
-        .map(|s| schema::acceleration(s))
-        .collect()
+impl Groups {
+    fn of(l: &Layout) -> Self {
+        let v0 = l.n_outputs();
+        let a0 = v0 + l.n_dofs();
+        let e0 = a0 + l.n_dofs();
+        Self {
+            v0,
+            a0,
+            e0,
+            end: e0 + l.n_excitations(),
+        }
+    }
 }
 
-/// The simulation columns this crate reads: `sample_id`, `t`, then the window's series in
-/// channel order (outputs, `_v`, `_a`, `eta_1..4`).
-pub fn needed_simulation_columns() -> Vec<String> {
-    let mut c = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
-    c.extend(schema::output_channels().iter().map(|s| s.to_string()));
-    c.extend(velocity_names());
-    c.extend(acceleration_names());
-    c.extend(schema::ETA_UNDER_WHEEL.iter().map(|s| s.to_string()));
-    c
-}
-
-/// Reads `params.parquet`: `(sample_id, split, params)` rows.
-pub fn read_params(path: &Path) -> Result<Vec<(i64, Split, [f64; 14])>> {
+/// Reads `params.parquet`: `(sample_id, split, params)` rows, the parameters of `layout`.
+pub fn read_params(path: &Path, layout: &Layout) -> Result<Vec<(i64, Split, Vec<f64>)>> {
     let mut cols = vec![schema::SAMPLE_ID, schema::SPLIT];
-    cols.extend(schema::PARAMETERS);
+    cols.extend(layout.params.iter().map(String::as_str));
     let t = read_parquet(path, Some(&cols))?;
     let ids = t.i64(schema::SAMPLE_ID)?;
     let splits = t.str(schema::SPLIT)?;
-    let values: Vec<&[f64]> = schema::PARAMETERS
+    let values: Vec<&[f64]> = layout
+        .params
         .iter()
         .map(|p| t.f64(p))
         .collect::<pino_data::Result<_>>()?;
@@ -151,14 +153,15 @@ pub fn read_params(path: &Path) -> Result<Vec<(i64, Split, [f64; 14])>> {
                 ))
             }
         };
-        out.push((id, split, std::array::from_fn(|k| values[k][r])));
+        out.push((id, split, values.iter().map(|v| v[r]).collect()));
     }
     Ok(out)
 }
 
-/// Reads `weights.parquet` into `(sample_id, phi)` rows; every phi must be finite and > 0.
-pub fn read_weights(path: &Path) -> Result<Vec<(i64, [f64; DOFS])>> {
-    let names = schema::phi_columns();
+/// Reads `weights.parquet` into `(sample_id, phi)` rows (the `phi_<dof>` of each equation of
+/// `layout`); every phi must be finite and > 0.
+pub fn read_weights(path: &Path, layout: &Layout) -> Result<Vec<(i64, Vec<f64>)>> {
+    let names = layout.phi_columns();
     let mut cols = vec![schema::SAMPLE_ID];
     cols.extend(names.iter().map(String::as_str));
     let t = read_parquet(path, Some(&cols))?;
@@ -169,14 +172,13 @@ pub fn read_weights(path: &Path) -> Result<Vec<(i64, [f64; DOFS])>> {
         .collect::<pino_data::Result<_>>()?;
     let mut out = Vec::with_capacity(ids.len());
     for (r, &id) in ids.iter().enumerate() {
-        let phi: [f64; DOFS] = std::array::from_fn(|i| phis[i][r]);
+        let phi: Vec<f64> = phis.iter().map(|p| p[r]).collect();
         if let Some(i) = phi.iter().position(|p| !(p.is_finite() && *p > 0.0)) {
             return Err(dataset_err(
                 path,
                 format!(
-                    "sample {id}: phi_{} = {} must be finite and > 0",
-                    i + 1,
-                    phi[i]
+                    "sample {id}: {} = {} must be finite and > 0",
+                    names[i], phi[i]
                 ),
             ));
         }
@@ -187,10 +189,7 @@ pub fn read_weights(path: &Path) -> Result<Vec<(i64, [f64; DOFS])>> {
 
 /// The splits present in `params.parquet`, without reading any simulation.
 pub fn splits_present(params_file: &Path) -> Result<BTreeSet<Split>> {
-    Ok(read_params(params_file)?
-        .into_iter()
-        .map(|(_, s, _)| s)
-        .collect())
+    Ok(splits_of(params_file)?.into_iter().collect())
 }
 
 /// The first record's grid `(points, dt, t0, sample id)`, which every record must share.
@@ -239,91 +238,61 @@ fn check_grid(file: &Path, id: i64, ts: &[f64], grid: &mut Option<Grid>) -> Resu
     Ok(())
 }
 
-/// One record being assembled from streamed batches: `t` then the [`SERIES`] columns.
-struct Record {
-    id: i64,
-    cols: Vec<Vec<f64>>,
+/// A dataset's system description, read from its shards' records (`system.json`), with how
+/// its data were simulated (`run.json`), when recorded.
+#[derive(Debug, Clone)]
+pub struct DatasetInfo {
+    /// The description's text and overrides.
+    pub source: mbd_system::SystemSource,
+    /// It compiled.
+    pub system: Arc<System>,
+    /// The run and profile controls of the simulation.
+    pub settings: Option<crate::checkpoint::DataSettings>,
 }
 
-/// Receives one whole record: its file, `sample_id` and columns (`t`, then the series).
-type RecordSink<'a> = dyn FnMut(&Path, i64, &[Vec<f64>]) -> Result<()> + 'a;
+impl DatasetInfo {
+    /// Reads the records of every shard directory (one description, checked).
+    pub fn from_dirs(dirs: &[PathBuf]) -> Result<Self> {
+        let (source, system) = pino_data::system::read_record(dirs)?;
+        let run = dirs[0].join(pino_data::system::RUN_FILE);
+        let settings = if run.is_file() {
+            let v = pino_data::system::read_json(&run)?;
+            Some(serde_json::from_value(v).map_err(|e| Error::Format {
+                path: run.clone(),
+                message: e.to_string(),
+            })?)
+        } else {
+            None
+        };
+        Ok(Self {
+            source,
+            system: Arc::new(system),
+            settings,
+        })
+    }
+
+    /// From a description alone (tests, synthetic data).
+    pub fn of(source: mbd_system::SystemSource) -> Result<Self> {
+        let system = source.compile().map_err(|e| Error::Format {
+            path: PathBuf::from(&source.file),
+            message: e.to_string(),
+        })?;
+        Ok(Self {
+            source,
+            system: Arc::new(system),
+            settings: None,
+        })
+    }
+}
+
 /// Receives one windowed sample: the sample, the window's times and its series.
 type WindowSink<'a> = dyn FnMut(&Sample, &[f64], &[Vec<f64>]) -> Result<()> + 'a;
 
-/// Streams every record of `files` in file order, one at a time, to `f(file, id, columns)`
-/// (`t` then the series, full record length, physical f64). Checks contiguity of ids.
-fn for_each_record(files: &[PathBuf], f: &mut RecordSink<'_>) -> Result<()> {
-    let names = needed_simulation_columns();
-    let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
-    let mut seen = BTreeSet::new();
-    for file in files {
-        let mut failure: Option<Error> = None;
-        let mut current: Option<Record> = None;
-        let mut finish = |rec: Record, failure: &mut Option<Error>| -> bool {
-            let r = if !seen.insert(rec.id) {
-                Err(dataset_err(
-                    file,
-                    format!("rows of sample {} are not contiguous (rows must be sorted by sample_id then t)", rec.id),
-                ))
-            } else {
-                f(file, rec.id, &rec.cols)
-            };
-            match r {
-                Ok(()) => true,
-                Err(e) => {
-                    *failure = Some(e);
-                    false
-                }
-            }
-        };
-        let stop = || pino_data::Error::Parquet {
-            path: file.clone(),
-            message: "stopped".into(),
-        };
-        let streamed = for_each_batch(file, Some(&name_refs), |table: Table| {
-            let ids = table.i64(schema::SAMPLE_ID)?;
-            let cols: Vec<&[f64]> = names[1..]
-                .iter()
-                .map(|n| table.f64(n))
-                .collect::<pino_data::Result<_>>()?;
-            let mut lo = 0;
-            while lo < ids.len() {
-                let id = ids[lo];
-                let hi = (lo..ids.len()).find(|&r| ids[r] != id).unwrap_or(ids.len());
-                if current.as_ref().is_some_and(|c| c.id != id) {
-                    let done = current.take().expect("checked");
-                    if !finish(done, &mut failure) {
-                        return Err(stop());
-                    }
-                }
-                let rec = current.get_or_insert_with(|| Record {
-                    id,
-                    cols: vec![Vec::new(); cols.len()],
-                });
-                for (dst, src) in rec.cols.iter_mut().zip(&cols) {
-                    dst.extend_from_slice(&src[lo..hi]);
-                }
-                lo = hi;
-            }
-            Ok(())
-        });
-        if let Some(e) = failure {
-            return Err(e);
-        }
-        streamed?;
-        if let Some(rec) = current.take() {
-            if !finish(rec, &mut failure) {
-                return Err(failure.expect("set on failure"));
-            }
-        }
-    }
-    Ok(())
-}
-
 /// The index pass: streams every record, checks ids and grids, and calls `on_window` with
-/// the window's times and series (column-major, [`SERIES`] columns of `T` values) of each sample
+/// the window's times and series (column-major, [`Groups`] of `T` values) of each sample
 /// whose split `want` accepts. Returns the dataset of those samples (no statistics).
 fn scan(
+    info: &DatasetInfo,
     params_file: &Path,
     simulation_files: &[PathBuf],
     weights_file: Option<&Path>,
@@ -332,16 +301,20 @@ fn scan(
     on_window: &mut WindowSink<'_>,
 ) -> Result<Dataset> {
     window.validate()?;
-    let params: BTreeMap<i64, (Split, [f64; 14])> = read_params(params_file)?
+    let system = &info.system;
+    let layout = Layout::of(system);
+    let params: BTreeMap<i64, (Split, Vec<f64>)> = read_params(params_file, &layout)?
         .into_iter()
         .map(|(id, s, p)| (id, (s, p)))
         .collect();
     // The weights stage covers the training split only; `train` checks that every training
     // sample has its phi when the algorithm needs it.
-    let weights: BTreeMap<i64, [f64; DOFS]> = match weights_file {
-        Some(w) => read_weights(w)?.into_iter().collect(),
+    let weights: BTreeMap<i64, Vec<f64>> = match weights_file {
+        Some(w) => read_weights(w, &layout)?.into_iter().collect(),
         None => BTreeMap::new(),
     };
+    let names = layout.simulation_columns();
+    let columns: Vec<&str> = names[1..].iter().map(String::as_str).collect();
     let first_file = simulation_files.first().ok_or_else(|| {
         dataset_err(
             params_file,
@@ -351,10 +324,11 @@ fn scan(
     let mut grid: Option<Grid> = None;
     let mut samples = Vec::new();
     let mut t_window: Vec<f64> = Vec::new();
-    let mut windowed: Vec<Vec<f64>> = vec![Vec::new(); SERIES];
-    for_each_record(simulation_files, &mut |file, id, cols| {
+    let mut windowed: Vec<Vec<f64>> = vec![Vec::new(); Groups::of(&layout).end];
+    pino_data::records::for_each_record::<Error>(simulation_files, &columns, &mut |file, rec| {
+        let (id, cols) = (rec.id, &rec.columns);
         check_grid(file, id, &cols[0], &mut grid)?;
-        let Some(&(split, p)) = params.get(&id) else {
+        let Some((split, p)) = params.get(&id) else {
             return Err(dataset_err(
                 params_file,
                 format!("sample {id} is in the simulation but not in the parameters file"),
@@ -365,14 +339,19 @@ fn scan(
         if t_window.is_empty() {
             t_window = keep.clone().map(|k| cols[0][k]).collect();
         }
-        if !want(split) {
+        if !want(*split) {
             return Ok(());
         }
+        let force_scale = system
+            .instantiate(p)
+            .ok()
+            .and_then(|m| mbd_engine::statics::contact_scale(system, &m));
         let sample = Sample {
             id,
-            split,
-            params: p,
-            phi: weights.get(&id).copied(),
+            split: *split,
+            params: p.clone(),
+            phi: weights.get(&id).cloned(),
+            force_scale,
         };
         for (dst, src) in windowed.iter_mut().zip(&cols[1..]) {
             dst.clear();
@@ -393,6 +372,7 @@ fn scan(
     }
     samples.sort_by_key(|s| s.id);
     Ok(Dataset {
+        layout,
         samples,
         t: t_window,
         dt: dt * window.time_stride as f64,
@@ -401,11 +381,13 @@ fn scan(
         params_file: params_file.to_owned(),
         window: *window,
         train_stats: None,
+        info: info.clone(),
     })
 }
 
 /// Streaming accumulators of the four statistic groups.
 struct NormAccumulator {
+    groups: Groups,
     t: StatsAccumulator,
     eta: StatsAccumulator,
     params: StatsAccumulator,
@@ -415,30 +397,33 @@ struct NormAccumulator {
 }
 
 impl NormAccumulator {
-    fn new() -> Self {
-        let vel = velocity_names();
-        let acc = acceleration_names();
-        let vel: Vec<&str> = vel.iter().map(String::as_str).collect();
-        let acc: Vec<&str> = acc.iter().map(String::as_str).collect();
+    fn new(l: &Layout) -> Self {
+        let names = |v: &[String]| -> Vec<String> { v.to_vec() };
+        let acc = |v: Vec<String>| {
+            let r: Vec<&str> = v.iter().map(String::as_str).collect();
+            StatsAccumulator::new(&r)
+        };
         Self {
+            groups: Groups::of(l),
             t: StatsAccumulator::new(&[schema::TIME]),
-            eta: StatsAccumulator::new(&schema::ETA_UNDER_WHEEL),
-            params: StatsAccumulator::new(&schema::PARAMETERS),
-            outputs: StatsAccumulator::new(&schema::output_channels()),
-            velocities: StatsAccumulator::new(&vel),
-            accelerations: StatsAccumulator::new(&acc),
+            eta: acc(names(&l.excitations)),
+            params: acc(names(&l.params)),
+            outputs: acc(names(&l.outputs)),
+            velocities: acc(l.velocities()),
+            accelerations: acc(l.accelerations()),
         }
     }
 
     fn add(&mut self, t: &[f64], s: &Sample, w: &[Vec<f64>]) {
         let refs =
             |r: std::ops::Range<usize>| -> Vec<&[f64]> { w[r].iter().map(Vec::as_slice).collect() };
+        let g = self.groups;
         self.t.add_columns(&[t]);
-        self.eta.add_columns(&refs(E0..SERIES));
+        self.eta.add_columns(&refs(g.e0..g.end));
         self.params.add_constant(&s.params, t.len());
-        self.outputs.add_columns(&refs(U0..V0));
-        self.velocities.add_columns(&refs(V0..A0));
-        self.accelerations.add_columns(&refs(A0..E0));
+        self.outputs.add_columns(&refs(0..g.v0));
+        self.velocities.add_columns(&refs(g.v0..g.a0));
+        self.accelerations.add_columns(&refs(g.a0..g.e0));
     }
 
     fn finish(self) -> Normalisation {
@@ -458,14 +443,16 @@ impl NormAccumulator {
 /// so nothing in training can see it ([`load_split`] reads it for `evaluate`). Samples present in `params` but absent from the simulation (failed simulations) are
 /// skipped; a simulated sample without parameters is an error.
 pub fn load_dataset(
+    info: &DatasetInfo,
     params_file: &Path,
     simulation_files: &[PathBuf],
     weights_file: Option<&Path>,
     window: &WindowConfig,
 ) -> Result<Dataset> {
-    let mut acc = NormAccumulator::new();
+    let mut acc = NormAccumulator::new(&Layout::of(&info.system));
     let mut any_train = false;
     let mut ds = scan(
+        info,
         params_file,
         simulation_files,
         weights_file,
@@ -498,18 +485,29 @@ impl Dataset {
             .collect()
     }
 
-    /// Mean static wheel load W (N) over the training split: the PINO force scale F_ref.
-    pub fn mean_wheel_load(&self, gravity: f64) -> f64 {
+    /// The force scale `F_ref` of the global ODE loss (N): the mean over the training split of
+    /// each sample's mean static contact force (`W` for the vehicle-track model); `None` when
+    /// the description has no contact element or its rigid part is not statically determinate.
+    pub fn force_scale(&self) -> Option<f64> {
         let train: Vec<&Sample> = self
             .samples
             .iter()
             .filter(|s| s.split == Split::Train)
             .collect();
-        let sum: f64 = train
-            .iter()
-            .map(|s| static_wheel_load(&s.params, gravity))
-            .sum();
-        sum / train.len().max(1) as f64
+        let scales: Option<Vec<f64>> = train.iter().map(|s| s.force_scale).collect();
+        let scales = scales.filter(|v| !v.is_empty())?;
+        let sum: f64 = scales.iter().sum();
+        Some(sum / scales.len() as f64)
+    }
+
+    /// The system description of the data.
+    pub fn system(&self) -> &Arc<System> {
+        &self.info.system
+    }
+
+    /// The description's record and the simulation settings.
+    pub fn info(&self) -> &DatasetInfo {
+        &self.info
     }
 
     /// Z-score statistics over the training split (accumulated by [`load_dataset`]).
@@ -531,38 +529,36 @@ impl Dataset {
     }
 }
 
-/// Static wheel load W (N) of a parameter set.
-pub fn static_wheel_load(params: &[f64; 14], gravity: f64) -> f64 {
-    vtcd::vehicle::Vehicle::new(&vtcd::params::SampleParams::from_array(*params), gravity).w
-}
-
-/// Physical input block `[T, 19]`: `t`, `eta_1..4`, the 14 parameters.
-pub fn input_block(t: &[f64], eta: &[f64], params: &[f64; 14]) -> Vec<f64> {
-    let mut out = Vec::with_capacity(t.len() * IN_CHANNELS);
+/// Physical input block `[T, 1 + E + P]`: `t`, the excitations (`eta` row-major `[T, E]`),
+/// the parameters.
+pub fn input_block(t: &[f64], eta: &[f64], params: &[f64]) -> Vec<f64> {
+    let e = if t.is_empty() { 0 } else { eta.len() / t.len() };
+    let mut out = Vec::with_capacity(t.len() * (1 + e + params.len()));
     for (k, &tk) in t.iter().enumerate() {
         out.push(tk);
-        out.extend_from_slice(&eta[4 * k..4 * k + 4]);
+        out.extend_from_slice(&eta[e * k..e * k + e]);
         out.extend_from_slice(params);
     }
     out
 }
 
-/// Samples prepared for batching, each stored once: z-scored f32 outputs `[T, 18]` and
-/// derivative targets `[T, 10]`, physical f64 irregularity `[T, 4]` (in a [`SeriesStore`],
-/// in memory or spilled to disk), the parameters once per sample (physical f64 and z-scored
-/// f32). Index `i` is the `i`-th sample of the dataset (or of the split) it was prepared
-/// from.
+/// Samples prepared for batching, each stored once: z-scored f32 outputs `[T, O]` and
+/// derivative targets `[T, D]`, physical f64 excitations `[T, E]` (in a [`SeriesStore`], in
+/// memory or spilled to disk), the parameters once per sample (physical f64 and z-scored f32).
+/// Index `i` is the `i`-th sample of the dataset (or of the split) it was prepared from.
 #[derive(Debug)]
 pub struct Prepared {
+    layout: Layout,
     t_points: usize,
     /// z-scored window times `[T]`, shared by every sample.
     t_n: Vec<f32>,
-    eta_mean: [f64; 4],
-    eta_std: [f64; 4],
+    eta_mean: Vec<f64>,
+    eta_std: Vec<f64>,
     ids: Vec<i64>,
-    params: Vec<[f64; 14]>,
-    params_n: Vec<[f32; 14]>,
-    phi: Vec<[f64; DOFS]>,
+    params: Vec<Vec<f64>>,
+    params_n: Vec<Vec<f32>>,
+    phi: Vec<Vec<f64>>,
+    force_scale: Vec<f64>,
     /// Record of each sample in the store.
     slots: Vec<usize>,
     store: SeriesStore,
@@ -573,8 +569,8 @@ fn zscore(cols: &[Vec<f64>], st: &crate::norm::ChannelStats) -> Vec<f32> {
     let c = cols.len();
     let rows = cols.first().map_or(0, Vec::len);
     let mut out = vec![0.0f32; rows * c];
-    for (k, row) in out.chunks_exact_mut(c).enumerate() {
-        for (j, x) in row.iter_mut().enumerate() {
+    for (k, row) in out.chunks_exact_mut(c.max(1)).enumerate().take(rows) {
+        for (j, x) in row.iter_mut().enumerate().take(c) {
             *x = ((cols[j][k] - st.mean[j]) / st.std[j]) as f32;
         }
     }
@@ -584,32 +580,44 @@ fn zscore(cols: &[Vec<f64>], st: &crate::norm::ChannelStats) -> Vec<f32> {
 /// Builds a [`Prepared`] from streamed windows (any order), then orders it like a dataset.
 struct Builder<'a> {
     norm: &'a Normalisation,
+    groups: Groups,
     store: SeriesStore,
     by_id: BTreeMap<i64, usize>,
 }
 
 impl<'a> Builder<'a> {
-    fn new(norm: &'a Normalisation, t_points: usize, expected: usize) -> Result<Self> {
+    fn new(
+        norm: &'a Normalisation,
+        layout: &Layout,
+        t_points: usize,
+        expected: usize,
+    ) -> Result<Self> {
         Ok(Self {
             norm,
-            store: SeriesStore::new(t_points, expected)?,
+            groups: Groups::of(layout),
+            store: SeriesStore::new(t_points, layout.series_shape(), expected)?,
             by_id: BTreeMap::new(),
         })
     }
 
     fn add(&mut self, s: &Sample, w: &[Vec<f64>]) -> Result<()> {
-        let n = self.norm;
+        let (n, g) = (self.norm, self.groups);
         let rows = w[0].len();
-        let mut eta = vec![0.0; rows * 4];
-        for (k, row) in eta.chunks_exact_mut(4).enumerate() {
+        let ne = g.end - g.e0;
+        let mut eta = vec![0.0; rows * ne];
+        for (k, row) in eta
+            .chunks_exact_mut(ne.max(1))
+            .enumerate()
+            .take(if ne == 0 { 0 } else { rows })
+        {
             for (i, x) in row.iter_mut().enumerate() {
-                *x = w[E0 + i][k];
+                *x = w[g.e0 + i][k];
             }
         }
         let slot = self.store.push(&SampleSeries {
-            u: zscore(&w[U0..V0], &n.outputs),
-            v: zscore(&w[V0..A0], &n.velocities),
-            a: zscore(&w[A0..E0], &n.accelerations),
+            u: zscore(&w[0..g.v0], &n.outputs),
+            v: zscore(&w[g.v0..g.a0], &n.velocities),
+            a: zscore(&w[g.a0..g.e0], &n.accelerations),
             eta,
         })?;
         self.by_id.insert(s.id, slot);
@@ -622,8 +630,12 @@ impl<'a> Builder<'a> {
             norm,
             store,
             mut by_id,
+            ..
         } = self;
         let ins = &norm.inputs;
+        let layout = ds.layout.clone();
+        let ne = layout.n_excitations();
+        let n_eq = layout.equations.len();
         let mut p = Prepared {
             t_points: ds.t.len(),
             t_n: ds
@@ -631,23 +643,30 @@ impl<'a> Builder<'a> {
                 .iter()
                 .map(|&x| ((x - ins.mean[0]) / ins.std[0]) as f32)
                 .collect(),
-            eta_mean: std::array::from_fn(|i| ins.mean[1 + i]),
-            eta_std: std::array::from_fn(|i| ins.std[1 + i]),
+            eta_mean: ins.mean[1..1 + ne].to_vec(),
+            eta_std: ins.std[1..1 + ne].to_vec(),
             ids: Vec::with_capacity(ds.samples.len()),
             params: Vec::with_capacity(ds.samples.len()),
             params_n: Vec::with_capacity(ds.samples.len()),
             phi: Vec::with_capacity(ds.samples.len()),
+            force_scale: Vec::with_capacity(ds.samples.len()),
             slots: Vec::with_capacity(ds.samples.len()),
             store,
+            layout,
         };
         for s in &ds.samples {
             let slot = by_id.remove(&s.id).expect("every indexed sample streamed");
             p.ids.push(s.id);
-            p.params.push(s.params);
-            p.params_n.push(std::array::from_fn(|k| {
-                ((s.params[k] - ins.mean[5 + k]) / ins.std[5 + k]) as f32
-            }));
-            p.phi.push(s.phi.unwrap_or([1.0; DOFS]));
+            p.params.push(s.params.clone());
+            p.params_n.push(
+                s.params
+                    .iter()
+                    .enumerate()
+                    .map(|(k, v)| ((v - ins.mean[1 + ne + k]) / ins.std[1 + ne + k]) as f32)
+                    .collect(),
+            );
+            p.phi.push(s.phi.clone().unwrap_or_else(|| vec![1.0; n_eq]));
+            p.force_scale.push(s.force_scale.unwrap_or(1.0));
             p.slots.push(slot);
         }
         p
@@ -675,13 +694,18 @@ impl Prepared {
         self.t_points
     }
 
-    /// The series of sample `i`: z-scored `u [T, 18]`, `v, a [T, 10]`, physical `eta [T, 4]`.
+    /// The layout.
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// The series of sample `i`: z-scored `u [T, O]`, `v, a [T, D]`, physical `eta [T, E]`.
     pub fn series(&self, i: usize) -> Result<SampleSeries> {
         self.store.get(self.slots[i])
     }
 
     /// Parameters of sample `i`.
-    pub fn params(&self, i: usize) -> &[f64; 14] {
+    pub fn params(&self, i: usize) -> &[f64] {
         &self.params[i]
     }
 
@@ -690,14 +714,15 @@ impl Prepared {
         self.store.spilled()
     }
 
-    /// z-scored input block `[T, 19]` of a sample with irregularity `eta` and index `i`,
+    /// z-scored input block `[T, 1 + E + P]` of a sample with excitations `eta` and index `i`,
     /// appended to `out`: the same values as `norm.inputs.normalise(&input_block(..))`.
     fn push_inputs(&self, i: usize, eta: &[f64], out: &mut Vec<f32>) {
         let pn = &self.params_n[i];
+        let ne = self.eta_mean.len();
         for (k, &tn) in self.t_n.iter().enumerate() {
             out.push(tn);
-            for j in 0..4 {
-                out.push(((eta[4 * k + j] - self.eta_mean[j]) / self.eta_std[j]) as f32);
+            for j in 0..ne {
+                out.push(((eta[ne * k + j] - self.eta_mean[j]) / self.eta_std[j]) as f32);
             }
             out.extend_from_slice(pn);
         }
@@ -705,17 +730,19 @@ impl Prepared {
 
     /// Bytes held in memory by the samples (series in memory plus per-sample values).
     pub fn heap_bytes(&self) -> usize {
+        let p = self.layout.params.len();
         self.store.memory_bytes()
             + 4 * self.t_n.len()
-            + self.ids.len() * (8 + 14 * 8 + 14 * 4 + DOFS * 8 + 8)
+            + self.ids.len() * (8 + p * 8 + p * 4 + self.layout.equations.len() * 8 + 16)
     }
 }
 
 /// Loads and z-scores every sample of `ds` (a second streaming pass over its files).
 pub fn prepare(ds: &Dataset, norm: &Normalisation) -> Result<Prepared> {
-    let mut b = Builder::new(norm, ds.t.len(), ds.samples.len())?;
+    let mut b = Builder::new(norm, &ds.layout, ds.t.len(), ds.samples.len())?;
     let wanted: BTreeSet<i64> = ds.samples.iter().map(|s| s.id).collect();
     scan(
+        &ds.info,
         &ds.params_file,
         &ds.simulation_files,
         None,
@@ -734,18 +761,21 @@ pub fn prepare(ds: &Dataset, norm: &Normalisation) -> Result<Prepared> {
 /// Reads and z-scores (with `norm`, a model's statistics) only the samples of `split`, in one
 /// streaming pass: the dataset of that split and its prepared samples, index for index.
 pub fn load_split(
+    info: &DatasetInfo,
     params_file: &Path,
     simulation_files: &[PathBuf],
     window: &WindowConfig,
     split: Split,
     norm: &Normalisation,
 ) -> Result<(Dataset, Prepared)> {
-    let expected = read_params(params_file)?
+    let layout = Layout::of(&info.system);
+    let expected = splits_of(params_file)?
         .iter()
-        .filter(|(_, s, _)| *s == split)
+        .filter(|s| **s == split)
         .count();
     let mut builder: Option<Builder> = None;
     let ds = scan(
+        info,
         params_file,
         simulation_files,
         None,
@@ -753,14 +783,14 @@ pub fn load_split(
         &|s| s == split,
         &mut |s, t, w| {
             if builder.is_none() {
-                builder = Some(Builder::new(norm, t.len(), expected)?);
+                builder = Some(Builder::new(norm, &layout, t.len(), expected)?);
             }
             builder.as_mut().expect("created").add(s, w)
         },
     )?;
     let b = match builder {
         Some(b) => b,
-        None => Builder::new(norm, ds.t.len(), 0)?,
+        None => Builder::new(norm, &layout, ds.t.len(), 0)?,
     };
     let items = b.finish(&ds);
     Ok((ds, items))
@@ -769,20 +799,24 @@ pub fn load_split(
 /// One batch of tensors (see the module doc for shapes).
 #[derive(Debug, Clone)]
 pub struct Batch {
-    /// Inputs `[B, T, 19]` f32 z-scored.
+    /// Inputs `[B, T, 1 + E + P]` f32 z-scored.
     pub x: Tensor,
-    /// Target outputs `[B, T, 18]` f32 z-scored (14 displacements, 4 contact forces).
+    /// Target outputs `[B, T, O]` f32 z-scored (solutions, then forces).
     pub u: Tensor,
-    /// Target velocities at interior points `[B, T-2, 10]` f32 z-scored.
+    /// Target velocities at interior points `[B, T-2, D]` f32 z-scored.
     pub v: Tensor,
-    /// Target accelerations at interior points `[B, T-2, 10]` f32 z-scored.
+    /// Target accelerations at interior points `[B, T-2, D]` f32 z-scored.
     pub a: Tensor,
-    /// Parameters `[B, 14]` f64 physical.
+    /// Parameters `[B, P]` f64 physical.
     pub params: Tensor,
-    /// Irregularity at interior points `[B, T-2, 4]` f64 physical (m).
+    /// Excitations `[B, T, E]` f64 physical (m).
     pub eta: Tensor,
-    /// ODE magnitude weights `[B, 10]` f64 (ones when absent).
+    /// ODE magnitude weights `[B, Q]` f64 (ones when absent).
     pub phi: Tensor,
+    /// The samples' force scales `[B]` f64 (N; 1 when absent).
+    pub f_scale: Tensor,
+    /// Index of each sample in its [`Prepared`].
+    pub index: Vec<usize>,
 }
 
 /// Builds the batch of `items[idx]` on `device`; the input blocks are assembled here.
@@ -795,30 +829,61 @@ pub fn make_batch(
     let b = idx.len();
     let t = t_points;
     debug_assert_eq!(t, items.t_points);
-    let mut x = Vec::with_capacity(b * t * IN_CHANNELS);
-    let mut u = Vec::with_capacity(b * t * OUT_CHANNELS);
-    let mut v = Vec::with_capacity(b * (t - 2) * DOFS);
-    let mut a = Vec::with_capacity(b * (t - 2) * DOFS);
-    let mut eta = Vec::with_capacity(b * (t - 2) * 4);
+    let l = &items.layout;
+    let (n_in, n_out, d, e) = (l.n_inputs(), l.n_outputs(), l.n_dofs(), l.n_excitations());
+    let mut x = Vec::with_capacity(b * t * n_in);
+    let mut u = Vec::with_capacity(b * t * n_out);
+    let mut v = Vec::with_capacity(b * (t - 2) * d);
+    let mut a = Vec::with_capacity(b * (t - 2) * d);
+    let mut eta = Vec::with_capacity(b * t * e);
     for &i in idx {
         let s = items.series(i)?;
         items.push_inputs(i, &s.eta, &mut x);
         u.extend_from_slice(&s.u);
-        v.extend_from_slice(&s.v[DOFS..(t - 1) * DOFS]);
-        a.extend_from_slice(&s.a[DOFS..(t - 1) * DOFS]);
-        eta.extend_from_slice(&s.eta[4..(t - 1) * 4]);
+        v.extend_from_slice(&s.v[d..(t - 1) * d]);
+        a.extend_from_slice(&s.a[d..(t - 1) * d]);
+        eta.extend_from_slice(&s.eta);
     }
-    let params: Vec<f64> = idx.iter().flat_map(|&i| items.params[i]).collect();
-    let phi: Vec<f64> = idx.iter().flat_map(|&i| items.phi[i]).collect();
+    let params: Vec<f64> = idx
+        .iter()
+        .flat_map(|&i| items.params[i].iter().copied())
+        .collect();
+    let phi: Vec<f64> = idx
+        .iter()
+        .flat_map(|&i| items.phi[i].iter().copied())
+        .collect();
+    let f_scale: Vec<f64> = idx.iter().map(|&i| items.force_scale[i]).collect();
+    let n_eq = l.equations.len();
     Ok(Batch {
-        x: Tensor::from_vec(x, (b, t, IN_CHANNELS), device)?,
-        u: Tensor::from_vec(u, (b, t, OUT_CHANNELS), device)?,
-        v: Tensor::from_vec(v, (b, t - 2, DOFS), device)?,
-        a: Tensor::from_vec(a, (b, t - 2, DOFS), device)?,
-        params: Tensor::from_vec(params, (b, 14), device)?,
-        eta: Tensor::from_vec(eta, (b, t - 2, 4), device)?,
-        phi: Tensor::from_vec(phi, (b, DOFS), device)?.to_dtype(DType::F64)?,
+        x: Tensor::from_vec(x, (b, t, n_in), device)?,
+        u: Tensor::from_vec(u, (b, t, n_out), device)?,
+        v: Tensor::from_vec(v, (b, t - 2, d), device)?,
+        a: Tensor::from_vec(a, (b, t - 2, d), device)?,
+        params: Tensor::from_vec(params, (b, l.params.len()), device)?,
+        eta: Tensor::from_vec(eta, (b, t, e), device)?,
+        phi: Tensor::from_vec(phi, (b, n_eq), device)?.to_dtype(DType::F64)?,
+        f_scale: Tensor::from_vec(f_scale, b, device)?,
+        index: idx.to_vec(),
     })
+}
+
+/// The split label of every row of `params.parquet`.
+fn splits_of(params_file: &Path) -> Result<Vec<Split>> {
+    let t = read_parquet(params_file, Some(&[schema::SPLIT]))?;
+    t.str(schema::SPLIT)?
+        .iter()
+        .map(|label| {
+            [Split::Train, Split::Validation, Split::Test]
+                .into_iter()
+                .find(|s| s.label() == label)
+                .ok_or_else(|| {
+                    dataset_err(
+                        params_file,
+                        format!("split `{label}`, allowed `train`, `validation` or `test`"),
+                    )
+                })
+        })
+        .collect()
 }
 
 #[cfg(test)]

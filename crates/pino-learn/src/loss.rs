@@ -1,22 +1,28 @@
 //! Losses of the five algorithms (`docs/learning.md`, Losses):
 //! ```text
 //! relL2(p, y)  = mean_k ||p_k - y_k|| / ||y_k||          (per sample over channels and time)
-//! L_data       = relL2(u, u*)                            (18 outputs: 14 displacements and
-//!                                                         4 contact forces, z-scored)
-//! L_deriv      = relL2(v, v*) + relL2(a, a*)             (10 vehicle DOFs, z-scored with the
+//! L_data       = relL2(u, u*)                            (every output: solutions and forces,
+//!                                                         z-scored)
+//! L_deriv      = relL2(v, v*) + relL2(a, a*)             (the rigid DOFs, z-scored with the
 //!                                                         `_v`/`_a` statistics, interior points)
-//! L_ode_global = mean_{i,t} |R_i| / F_ref                (F_ref = mean static wheel load W)
+//! L_ode_global = mean_{i,t} |R_i| / F_ref                (F_ref = mean static contact force)
 //! L_ode_phi    = mean_{i,t} rho |R_i| / phi_ki
 //! total        = L_data [+ lambda_ode L_ode_* | + lambda_d L_deriv]   (Table 3)
-//!                [+ rail_weight relL2(z_r, z_r*)]        (optional balance of the rail channels)
+//!                [+ rail_weight relL2(w, w*)]            (optional balance of the beam
+//!                                                         deflection channels)
 //! ```
 
-use crate::config::{Algorithm, TrainConfig, DOFS};
+use crate::config::{Algorithm, TrainConfig};
 use crate::data::Batch;
+use crate::layout::Layout;
 use crate::norm::Normalisation;
-use crate::physics::{derivatives, residuals};
-use crate::Result;
+use crate::residual::{
+    composed_residuals, derivatives, ChannelMap, OdeLoss, OdeWeights, SampleEquations,
+};
+use crate::{Error, Result};
 use candle_core::{DType, Tensor};
+use mbd_system::System;
+use std::sync::Arc;
 
 /// Per-sample relative L2 `||p - y|| / ||y||` over all but the first axis: `[B]`.
 pub fn rel_l2_per_sample(pred: &Tensor, truth: &Tensor) -> Result<Tensor> {
@@ -41,23 +47,27 @@ pub struct LossContext {
     pub norm: Normalisation,
     /// Time step of the window (s).
     pub dt: f64,
-    /// Force scale of the global ODE loss (N).
-    pub f_ref: f64,
+    /// Force scale of the global ODE loss (N), when the description has one.
+    pub f_ref: Option<f64>,
+    /// The channel layout.
+    pub layout: Layout,
+    /// The system description (the residual's element code).
+    pub system: Arc<System>,
 }
 
 impl LossContext {
-    /// Hertz constant of the configured wheel radius.
-    pub fn hertz_g(&self) -> f64 {
-        vtcd::contact::hertz_constant(self.config.wheel_radius)
+    fn dofs(&self) -> usize {
+        self.layout.n_dofs()
     }
 
-    /// z-scored predicted derivatives at interior points, f64 `[B, T-2, 10]` each.
+    /// z-scored predicted derivatives at interior points, f64 `[B, T-2, D]` each.
     pub fn predicted_derivatives(&self, u_n: &Tensor) -> Result<(Tensor, Tensor)> {
-        let vehicle = u_n.narrow(2, 0, DOFS)?;
-        let (_, v, a) = derivatives(&vehicle, &self.norm.outputs, self.dt)?;
+        let d = self.dofs();
+        let dofs = u_n.narrow(2, 0, d)?;
+        let (_, v, a) = derivatives(&dofs, &self.norm.outputs, self.dt)?;
         let zs = |x: &Tensor, s: &crate::norm::ChannelStats| -> Result<Tensor> {
-            let mean = Tensor::from_slice(&s.mean, (1, 1, DOFS), x.device())?;
-            let std = Tensor::from_slice(&s.std, (1, 1, DOFS), x.device())?;
+            let mean = Tensor::from_slice(&s.mean, (1, 1, d), x.device())?;
+            let std = Tensor::from_slice(&s.std, (1, 1, d), x.device())?;
             Ok(x.broadcast_sub(&mean)?.broadcast_div(&std)?)
         };
         Ok((
@@ -66,23 +76,50 @@ impl LossContext {
         ))
     }
 
-    /// ODE residuals `[B, T-2, 10]` (N, N m) of a z-scored prediction.
+    /// The channel map of the residual.
+    pub fn channel_map(&self) -> ChannelMap {
+        ChannelMap::new(&self.system, &self.layout)
+    }
+
+    /// The equations of the batch's samples.
+    pub fn sample_equations(
+        &self,
+        map: &ChannelMap,
+        batch: &Batch,
+    ) -> Result<Vec<SampleEquations>> {
+        if map.equations.is_empty() {
+            return Err(Error::OutOfRange {
+                field: "algorithm".into(),
+                value: self.config.algorithm.id().to_string(),
+                allowed: format!(
+                    "1, 4 or 5: the ODE losses need DOFs with equations, and no DOF of `{}` has one with these outputs (every element acting on a DOF must have both ends among the outputs or the excitations)",
+                    self.system.name
+                ),
+            });
+        }
+        let params = batch.params.to_dtype(DType::F64)?.to_vec2::<f64>()?;
+        params
+            .iter()
+            .map(|p| SampleEquations::new(&self.system, map, p))
+            .collect()
+    }
+
+    /// ODE residuals `[B, T-2, Q]` (N, N m) of a z-scored prediction, as candle ops.
     pub fn residuals(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
-        let (z, v, a) = derivatives(&u_n.narrow(2, 0, DOFS)?, &self.norm.outputs, self.dt)?;
-        let rail_stats = crate::norm::ChannelStats {
-            names: self.norm.outputs.names[DOFS..].to_vec(),
-            mean: self.norm.outputs.mean[DOFS..].to_vec(),
-            std: self.norm.outputs.std[DOFS..].to_vec(),
-        };
-        let (z_r, _, _) = derivatives(&u_n.narrow(2, DOFS, 4)?, &rail_stats, self.dt)?;
-        residuals(
-            (&z, &v, &a),
-            &z_r,
-            &batch.eta,
-            &batch.params,
-            self.config.gravity,
-            self.hertz_g(),
-        )
+        let map = self.channel_map();
+        let samples = self.sample_equations(&map, batch)?;
+        composed_residuals(&map, &samples, u_n, &batch.eta, &self.norm.outputs, self.dt)
+    }
+
+    fn f_ref(&self) -> Result<f64> {
+        self.f_ref.ok_or_else(|| Error::OutOfRange {
+            field: "algorithm".into(),
+            value: "2".into(),
+            allowed: format!(
+                "not 2 for `{}`: the global ODE loss scales by the mean static force of the contact elements (those resting on moving points), and it has none or is not statically determinate",
+                self.system.name
+            ),
+        })
     }
 
     /// `L_deriv` of a prediction (a fused op for f32 on the CPU, the composition elsewhere).
@@ -90,7 +127,7 @@ impl LossContext {
         if u_n.device().is_cpu() && u_n.dtype() == DType::F32 {
             let host = |t: &Tensor| t.flatten_all()?.to_vec1::<f32>();
             let op = crate::kernels::deriv_loss::DerivativeLoss {
-                dofs: DOFS,
+                dofs: self.dofs(),
                 dt: self.dt,
                 out_std: self.norm.outputs.std.clone(),
                 velocity: (
@@ -121,29 +158,21 @@ impl LossContext {
         &self,
         u_n: &Tensor,
         batch: &Batch,
-        weights: crate::kernels::ode_loss::OdeWeights,
+        weights: OdeWeights,
     ) -> Result<Option<Tensor>> {
         if !(u_n.device().is_cpu() && u_n.dtype() == DType::F32) {
             return Ok(None);
         }
-        let params = batch.params.to_dtype(DType::F64)?.to_vec2::<f64>()?;
-        let vehicles = params
-            .iter()
-            .map(|p| {
-                let p: [f64; 14] = std::array::from_fn(|k| p[k]);
-                vtcd::vehicle::Vehicle::new(
-                    &vtcd::params::SampleParams::from_array(p),
-                    self.config.gravity,
-                )
-            })
-            .collect();
-        let op = crate::kernels::ode_loss::OdeLoss {
-            vehicles,
+        let map = self.channel_map();
+        let samples = self.sample_equations(&map, batch)?;
+        let op = OdeLoss {
+            map,
+            samples,
             eta: batch.eta.to_dtype(DType::F64)?.flatten_all()?.to_vec1()?,
+            n_eta: self.layout.n_excitations(),
             mean: self.norm.outputs.mean.clone(),
             std: self.norm.outputs.std.clone(),
             dt: self.dt,
-            hertz_g: self.hertz_g(),
             weights,
         };
         Ok(Some(u_n.contiguous()?.apply_op1(op)?.to_dtype(DType::F64)?))
@@ -151,7 +180,9 @@ impl LossContext {
 
     /// `L_ode_global`.
     pub fn ode_global_loss(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
-        let weights = crate::kernels::ode_loss::OdeWeights::Global { f_ref: self.f_ref };
+        let weights = OdeWeights::Global {
+            f_ref: self.f_ref()?,
+        };
         if let Some(l) = self.fused_ode_loss(u_n, batch, weights)? {
             return Ok(l);
         }
@@ -160,12 +191,12 @@ impl LossContext {
 
     /// `L_ode_global` as candle ops (any device; the reference of the fused op).
     pub fn ode_global_loss_composed(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
-        Ok((self.residuals(u_n, batch)?.abs()?.mean_all()? / self.f_ref)?)
+        Ok((self.residuals(u_n, batch)?.abs()?.mean_all()? / self.f_ref()?)?)
     }
 
     /// `L_ode_phi`.
     pub fn ode_phi_loss(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
-        let weights = crate::kernels::ode_loss::OdeWeights::Phi {
+        let weights = OdeWeights::Phi {
             rho: self.config.rho,
             phi: batch.phi.to_dtype(DType::F64)?.flatten_all()?.to_vec1()?,
         };
@@ -178,8 +209,8 @@ impl LossContext {
     /// `L_ode_phi` as candle ops (any device; the reference of the fused op).
     pub fn ode_phi_loss_composed(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
         let r = self.residuals(u_n, batch)?.abs()?;
-        let b = r.dim(0)?;
-        let phi = batch.phi.reshape((b, 1, DOFS))?;
+        let (b, _, q) = r.dims3()?;
+        let phi = batch.phi.reshape((b, 1, q))?;
         Ok((r.broadcast_div(&phi)?.mean_all()? * self.config.rho)?)
     }
 
@@ -213,7 +244,8 @@ impl LossContext {
             None => data,
         };
         if self.config.rail_weight > 0.0 {
-            let rail = rel_l2(&u_n.narrow(2, DOFS, 4)?, &batch.u.narrow(2, DOFS, 4)?)?;
+            let (d, n) = (self.dofs(), self.layout.solutions - self.dofs());
+            let rail = rel_l2(&u_n.narrow(2, d, n)?, &batch.u.narrow(2, d, n)?)?;
             values.rail = rail.to_scalar::<f32>()? as f64;
             total = (total + (rail * self.config.rail_weight)?)?;
         }
@@ -221,13 +253,13 @@ impl LossContext {
         Ok((total, values))
     }
 
-    /// Table 4 metrics of a prediction, per sample: relative L2 of solutions (the 14
-    /// displacement channels, as in the paper; not the contact forces), first and second
-    /// derivatives (fractions, not percent).
+    /// Table 4 metrics of a prediction, per sample: relative L2 of solutions (the
+    /// displacement channels, as in the paper; not the forces), first and second derivatives
+    /// (fractions, not percent).
     pub fn metrics_per_sample(&self, u_n: &Tensor, batch: &Batch) -> Result<[Vec<f64>; 3]> {
         let (v, a) = self.predicted_derivatives(u_n)?;
         let disp = |u: &Tensor| -> Result<Tensor> {
-            Ok(u.narrow(2, 0, crate::config::SOLUTION_CHANNELS)?
+            Ok(u.narrow(2, 0, self.layout.solutions)?
                 .to_dtype(DType::F64)?)
         };
         let sol = rel_l2_per_sample(&disp(u_n)?, &disp(&batch.u)?)?;
@@ -306,7 +338,7 @@ mod tests {
             dt: ds.dt,
             f_ref: ds.mean_wheel_load(9.81),
         };
-        let mut s = vtcd::rng::SampleStream::new(9, vtcd::rng::Purpose::Training, 1);
+        let mut s = mbd_dataset::rng::SampleStream::new(9, mbd_dataset::rng::Purpose::Training, 1);
         let noise: Vec<f32> = (0..batch.u.elem_count())
             .map(|_| 0.05 * s.normal() as f32)
             .collect();

@@ -71,7 +71,11 @@ impl Fno {
         device: &Device,
     ) -> Result<Self> {
         config.validate(t_points)?;
-        let mut rng = vtcd::rng::SampleStream::new(seed, vtcd::rng::Purpose::Training, INIT_STREAM);
+        let mut rng = mbd_dataset::rng::SampleStream::new(
+            seed,
+            mbd_dataset::rng::Purpose::Training,
+            INIT_STREAM,
+        );
         let mut vars = Vec::new();
         for (name, shape) in parameter_shapes(&config) {
             let n: usize = shape.iter().product();
@@ -420,7 +424,11 @@ mod tests {
                 let model = Fno::new(config, t, 11, transform, &dev).unwrap();
                 let predictor = model.predictor().unwrap();
                 for b in [1, 2, 5] {
-                    let mut s = vtcd::rng::SampleStream::new(4, vtcd::rng::Purpose::Training, b);
+                    let mut s = mbd_dataset::rng::SampleStream::new(
+                        4,
+                        mbd_dataset::rng::Purpose::Training,
+                        b,
+                    );
                     let x: Vec<f32> = (0..b as usize * t * 19)
                         .map(|_| s.normal() as f32)
                         .collect();
@@ -481,7 +489,8 @@ mod tests {
                 &dev,
             )
             .unwrap();
-            let mut s = vtcd::rng::SampleStream::new(3, vtcd::rng::Purpose::Training, 5);
+            let mut s =
+                mbd_dataset::rng::SampleStream::new(3, mbd_dataset::rng::Purpose::Training, 5);
             let x: Vec<f32> = (0..b * t * 19).map(|_| s.normal() as f32).collect();
             let x = Tensor::from_vec(x, (b, t, 19), &dev).unwrap();
             let r: Vec<f32> = (0..b * t * 14).map(|_| s.normal() as f32).collect();

@@ -627,9 +627,9 @@ pub fn parse_sweep(text: &str, origin: &Path) -> Result<Vec<SampleParams>> {
             ranges.sort_by_key(|(k, _)| *k);
             Ok((0..r.count)
                 .map(|i| {
-                    let mut s = vtcd::rng::SampleStream::new(
+                    let mut s = mbd_dataset::rng::SampleStream::new(
                         r.seed,
-                        vtcd::rng::Purpose::Parameters,
+                        mbd_dataset::rng::Purpose::Parameters,
                         i as u64,
                     );
                     let mut p = base;

@@ -163,7 +163,8 @@ mod tests {
     use candle_core::Var;
 
     fn rand_vec(n: usize, seed: u64) -> Vec<f32> {
-        let mut s = vtcd::rng::SampleStream::new(seed, vtcd::rng::Purpose::Training, 99);
+        let mut s =
+            mbd_dataset::rng::SampleStream::new(seed, mbd_dataset::rng::Purpose::Training, 99);
         (0..n).map(|_| s.normal() as f32).collect()
     }
 

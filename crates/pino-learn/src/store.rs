@@ -1,8 +1,8 @@
 //! Where prepared samples' time series live: in memory, or spilled to an unlinked temporary
 //! file when they would exceed a memory budget.
 //!
-//! Each sample is one fixed-size record: z-scored f32 outputs `[T, 18]`, velocities and
-//! accelerations `[T, 10]`, then the physical f64 irregularity `[T, 4]`. Records are appended
+//! Each sample is one fixed-size record ([`SeriesShape`]): z-scored f32 outputs `[T, O]`,
+//! velocities and accelerations `[T, D]`, then the physical f64 excitations `[T, E]`. Records are appended
 //! in the order they are read and addressed by slot. In memory they sit in four contiguous
 //! vectors. Past the budget (`PINO_DATA_MEMORY_MB`, default 4096 MiB, checked against the
 //! expected sample count before the first record), every record goes to a file created in
@@ -13,7 +13,7 @@
 //! counting them in the process's resident set, and the values read back are bitwise those
 //! written.
 
-use crate::config::{DOFS, OUT_CHANNELS};
+use crate::layout::SeriesShape;
 use crate::{io_err, Result};
 use std::fs::File;
 use std::os::unix::fs::FileExt;
@@ -22,13 +22,13 @@ use std::path::PathBuf;
 /// One sample's series, owned.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SampleSeries {
-    /// z-scored outputs `[T, 18]`.
+    /// z-scored outputs `[T, O]`.
     pub u: Vec<f32>,
-    /// z-scored velocities `[T, 10]`.
+    /// z-scored velocities `[T, D]`.
     pub v: Vec<f32>,
-    /// z-scored accelerations `[T, 10]`.
+    /// z-scored accelerations `[T, D]`.
     pub a: Vec<f32>,
-    /// Irregularity `[T, 4]` (m).
+    /// Excitations `[T, E]` (m).
     pub eta: Vec<f64>,
 }
 
@@ -50,6 +50,7 @@ enum Backend {
 #[derive(Debug)]
 pub struct SeriesStore {
     tp: usize,
+    shape: SeriesShape,
     len: usize,
     backend: Backend,
 }
@@ -67,19 +68,19 @@ fn budget_bytes() -> usize {
 
 impl SeriesStore {
     /// Bytes of one record of `tp` points.
-    pub fn record_bytes(tp: usize) -> usize {
-        tp * (4 * (OUT_CHANNELS + 2 * DOFS) + 8 * 4)
+    pub fn record_bytes(tp: usize, shape: SeriesShape) -> usize {
+        tp * (4 * (shape.outputs + 2 * shape.dofs) + 8 * shape.excitations)
     }
 
     /// A store for about `expected` records of `tp` points: in memory when they fit the
     /// budget, else in a spill file.
-    pub fn new(tp: usize, expected: usize) -> Result<Self> {
-        let backend = if expected.saturating_mul(Self::record_bytes(tp)) <= budget_bytes() {
+    pub fn new(tp: usize, shape: SeriesShape, expected: usize) -> Result<Self> {
+        let backend = if expected.saturating_mul(Self::record_bytes(tp, shape)) <= budget_bytes() {
             Backend::Memory {
-                u: Vec::with_capacity(expected * tp * OUT_CHANNELS),
-                v: Vec::with_capacity(expected * tp * DOFS),
-                a: Vec::with_capacity(expected * tp * DOFS),
-                eta: Vec::with_capacity(expected * tp * 4),
+                u: Vec::with_capacity(expected * tp * shape.outputs),
+                v: Vec::with_capacity(expected * tp * shape.dofs),
+                a: Vec::with_capacity(expected * tp * shape.dofs),
+                eta: Vec::with_capacity(expected * tp * shape.excitations),
             }
         } else {
             let dir = std::env::var_os("PINO_DATA_SPILL_DIR")
@@ -100,6 +101,7 @@ impl SeriesStore {
         };
         Ok(Self {
             tp,
+            shape,
             len: 0,
             backend,
         })
@@ -130,10 +132,15 @@ impl SeriesStore {
 
     /// Appends one record; returns its slot.
     pub fn push(&mut self, s: &SampleSeries) -> Result<usize> {
-        let tp = self.tp;
+        let (tp, sh) = (self.tp, self.shape);
         debug_assert_eq!(
             (s.u.len(), s.v.len(), s.a.len(), s.eta.len()),
-            (tp * OUT_CHANNELS, tp * DOFS, tp * DOFS, tp * 4)
+            (
+                tp * sh.outputs,
+                tp * sh.dofs,
+                tp * sh.dofs,
+                tp * sh.excitations
+            )
         );
         let slot = self.len;
         match &mut self.backend {
@@ -144,14 +151,14 @@ impl SeriesStore {
                 eta.extend_from_slice(&s.eta);
             }
             Backend::File { file, path } => {
-                let mut bytes = Vec::with_capacity(Self::record_bytes(tp));
+                let mut bytes = Vec::with_capacity(Self::record_bytes(tp, sh));
                 for x in s.u.iter().chain(&s.v).chain(&s.a) {
                     bytes.extend_from_slice(&x.to_le_bytes());
                 }
                 for x in &s.eta {
                     bytes.extend_from_slice(&x.to_le_bytes());
                 }
-                file.write_all_at(&bytes, (slot * Self::record_bytes(tp)) as u64)
+                file.write_all_at(&bytes, (slot * Self::record_bytes(tp, sh)) as u64)
                     .map_err(|e| io_err(path, e))?;
             }
         }
@@ -161,8 +168,8 @@ impl SeriesStore {
 
     /// The record in `slot`.
     pub fn get(&self, slot: usize) -> Result<SampleSeries> {
-        let tp = self.tp;
-        let (nu, nd, ne) = (tp * OUT_CHANNELS, tp * DOFS, tp * 4);
+        let (tp, sh) = (self.tp, self.shape);
+        let (nu, nd, ne) = (tp * sh.outputs, tp * sh.dofs, tp * sh.excitations);
         match &self.backend {
             Backend::Memory { u, v, a, eta } => Ok(SampleSeries {
                 u: u[slot * nu..(slot + 1) * nu].to_vec(),
@@ -171,8 +178,8 @@ impl SeriesStore {
                 eta: eta[slot * ne..(slot + 1) * ne].to_vec(),
             }),
             Backend::File { file, path } => {
-                let mut bytes = vec![0u8; Self::record_bytes(tp)];
-                file.read_exact_at(&mut bytes, (slot * Self::record_bytes(tp)) as u64)
+                let mut bytes = vec![0u8; Self::record_bytes(tp, sh)];
+                file.read_exact_at(&mut bytes, (slot * Self::record_bytes(tp, sh)) as u64)
                     .map_err(|e| io_err(path, e))?;
                 let (f32s, f64s) = bytes.split_at(4 * (nu + 2 * nd));
                 let f: Vec<f32> = f32s
@@ -197,32 +204,41 @@ impl SeriesStore {
 mod tests {
     use super::*;
 
+    const SHAPE: SeriesShape = SeriesShape {
+        outputs: 18,
+        dofs: 10,
+        excitations: 4,
+    };
+
     fn series(tp: usize, k: usize) -> SampleSeries {
         let f = |n: usize, o: usize| -> Vec<f32> {
             (0..n).map(|i| (i * 7 + k * 13 + o) as f32 / 3.0).collect()
         };
         SampleSeries {
-            u: f(tp * OUT_CHANNELS, 0),
-            v: f(tp * DOFS, 1),
-            a: f(tp * DOFS, 2),
-            eta: (0..tp * 4).map(|i| (i + k) as f64 * 1.1e-4).collect(),
+            u: f(tp * SHAPE.outputs, 0),
+            v: f(tp * SHAPE.dofs, 1),
+            a: f(tp * SHAPE.dofs, 2),
+            eta: (0..tp * SHAPE.excitations)
+                .map(|i| (i + k) as f64 * 1.1e-4)
+                .collect(),
         }
     }
 
     #[test]
     fn memory_and_spill_file_hold_the_same_bits() {
         let tp = 5;
-        let mut mem = SeriesStore::new(tp, 3).unwrap();
+        let mut mem = SeriesStore::new(tp, SHAPE, 3).unwrap();
         assert!(!mem.spilled());
         // Far above any budget: a spill file.
-        let mut file = SeriesStore::new(tp, usize::MAX / SeriesStore::record_bytes(tp)).unwrap();
+        let mut file =
+            SeriesStore::new(tp, SHAPE, usize::MAX / SeriesStore::record_bytes(tp, SHAPE)).unwrap();
         assert!(file.spilled() && file.memory_bytes() == 0);
         for k in 0..3 {
             assert_eq!(mem.push(&series(tp, k)).unwrap(), k);
             assert_eq!(file.push(&series(tp, k)).unwrap(), k);
         }
         assert_eq!((mem.len(), file.len()), (3, 3));
-        assert_eq!(mem.memory_bytes(), 3 * SeriesStore::record_bytes(tp));
+        assert_eq!(mem.memory_bytes(), 3 * SeriesStore::record_bytes(tp, SHAPE));
         for k in [2, 0, 1] {
             let want = series(tp, k);
             assert_eq!(mem.get(k).unwrap(), want);

@@ -76,67 +76,19 @@ pub fn model_meta(
             record_points: ds.record_points,
         },
         norm: ds.normalisation()?,
-        f_ref: ds.mean_wheel_load(train.gravity),
+        f_ref: ds.force_scale(),
         train_samples: ds.split_indices(Split::Train).len(),
-        training_ranges: Some(training_ranges(ds)?),
-    })
-}
-
-/// The parameter ranges of a dataset's training: the configured sampling ranges that
-/// `sample-params` wrote beside `params.parquet` ([`checkpoint::RANGES_FILE`]), else the min
-/// and max of each parameter over the training split.
-pub fn training_ranges(ds: &Dataset) -> Result<checkpoint::TrainingRanges> {
-    let names: Vec<String> = pino_data::schema::PARAMETERS
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    let file = ds
-        .params_file()
-        .parent()
-        .map(|d| d.join(checkpoint::RANGES_FILE));
-    if let Some(file) = file.filter(|f| f.is_file()) {
-        let t = pino_data::read_parquet(&file, Some(&["name", "min", "max"]))?;
-        let (n, lo, hi) = (t.str("name")?, t.f64("min")?, t.f64("max")?);
-        let mut min = Vec::with_capacity(14);
-        let mut max = Vec::with_capacity(14);
-        for name in &names {
-            let k = n
-                .iter()
-                .position(|x| x == name)
-                .ok_or_else(|| Error::Dataset {
-                    path: file.clone(),
-                    message: format!("no range for parameter `{name}`"),
-                })?;
-            min.push(lo[k]);
-            max.push(hi[k]);
-        }
-        return Ok(checkpoint::TrainingRanges {
-            source: "sample-params".into(),
-            names,
-            min,
-            max,
-        });
-    }
-    let train = ds.split_indices(Split::Train);
-    let mut min = vec![f64::INFINITY; 14];
-    let mut max = vec![f64::NEG_INFINITY; 14];
-    for &i in &train {
-        for (k, &v) in ds.samples[i].params.iter().enumerate() {
-            min[k] = min[k].min(v);
-            max[k] = max[k].max(v);
-        }
-    }
-    Ok(checkpoint::TrainingRanges {
-        source: "training samples".into(),
-        names,
-        min,
-        max,
+        training_ranges: checkpoint::TrainingRanges::of(ds.system()),
+        layout: ds.layout.clone(),
+        system: ds.info().source.clone(),
+        data: ds.info().settings.clone(),
     })
 }
 
 /// Fisher-Yates shuffle of `items` from the seed's `Training` stream `stream`.
 pub fn shuffled(items: &[usize], seed: u64, stream: u64) -> Vec<usize> {
-    let mut rng = vtcd::rng::SampleStream::new(seed, vtcd::rng::Purpose::Training, stream);
+    let mut rng =
+        mbd_dataset::rng::SampleStream::new(seed, mbd_dataset::rng::Purpose::Training, stream);
     let mut out = items.to_vec();
     for i in (1..out.len()).rev() {
         let j = (rng.next_u64() % (i as u64 + 1)) as usize;
@@ -241,6 +193,8 @@ pub fn train(
         norm: meta.norm.clone(),
         dt: ds.dt,
         f_ref: meta.f_ref,
+        layout: ds.layout.clone(),
+        system: ds.system().clone(),
     };
     let items = prepare(ds, &meta.norm)?;
     let t_points = ds.t_points();
@@ -634,7 +588,8 @@ mod tests {
         let idx: Vec<usize> = (0..ds.samples.len()).collect();
         let batch = make_batch(&items, &idx, ds.t_points(), &dev).unwrap();
         let level = |noise: f64| -> f64 {
-            let mut s = vtcd::rng::SampleStream::new(3, vtcd::rng::Purpose::WeightNoise, 0);
+            let mut s =
+                mbd_dataset::rng::SampleStream::new(3, mbd_dataset::rng::Purpose::WeightNoise, 0);
             let n: Vec<f32> = (0..batch.u.elem_count())
                 .map(|_| (noise * s.normal()) as f32)
                 .collect();

@@ -3,7 +3,8 @@
 //! by the spectral method of `mbd_dataset::profile`, written as `irregularity.parquet`:
 //! `sample_id` (i64), `x` (m, `n dx`), `eta` (m, positive downward), sorted by sample then x.
 //! With several generated profiles a leading `profile` column (the profile's name) tells them
-//! apart, profiles in description order.
+//! apart, profiles in description order. `profiles.json` records the generator's controls
+//! (seed, dx, length), which `simulate` passes on to the models.
 //!
 //! Command: `irregularity DESCRIPTION.yaml`. Input `params` (the sample ids of
 //! `params.parquet`, and its `system.json`, which must be this description). Params: `seed`,
@@ -123,6 +124,10 @@ fn run() -> Result<String> {
             1.0 / band[0],
         ));
     }
+    pino_data::system::write_json(
+        &ctx.output_path(pino_data::system::PROFILES_FILE),
+        &serde_json::to_value(controls)?,
+    )?;
     match writer {
         Some(w) => w
             .finish()

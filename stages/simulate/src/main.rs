@@ -6,7 +6,9 @@
 //!   row group per sample;
 //! - `failures.parquet`: `sample_id`, `reason` of samples whose state became non-finite;
 //! - `provenance.parquet`: the run controls used (`pino_data::provenance`);
-//! - `system.json`: the description simulated (the learning stages read it from here).
+//! - `system.json`: the description simulated (the learning stages read it from here);
+//! - `run.json`: the run controls and the profile generator's controls (`profiles.json` of the
+//!   irregularity input): how the data were made, recorded in every trained model.
 //!
 //! Command: `simulate DESCRIPTION.yaml`. Inputs: `params` (`params.parquet`, whose
 //! `system.json` must be this description) and `irregularity` (`irregularity.parquet`: the
@@ -167,6 +169,16 @@ fn run() -> Result<String> {
         ],
     )?;
     pino_data::system::write_record(&ctx.output, &source)?;
+    let profiles = if generated.is_empty() {
+        serde_json::Value::Null
+    } else {
+        let dirs = ctx.input_dirs("irregularity")?;
+        pino_data::system::read_json(&dirs[0].join(pino_data::system::PROFILES_FILE))?
+    };
+    pino_data::system::write_json(
+        &ctx.output_path(pino_data::system::RUN_FILE),
+        &serde_json::json!({"run": config, "profiles": profiles}),
+    )?;
     let s = ctx.shard;
     Ok(format!(
         "{} ok, {n_failed} failed, {rows} rows (shard {}/{})",

@@ -4,11 +4,12 @@
 //! (weights.parquet, used by algorithm 3). Writes `model.safetensors`, `model.json` and
 //! `history.parquet`; checkpoints after every epoch in the unit's scratch directory (kept by
 //! `pipeline` across killed runs of the same configuration; the output directory when run by
-//! hand), from which the next run resumes. The residual's `gravity` and `wheel_radius` must
-//! equal the dataset's own (`provenance.parquet`), else nothing runs.
+//! hand), from which the next run resumes. The tensors' channels, the residuals of algorithms 2
+//! and 3 and the force scale come from the dataset's system description (`system.json`);
+//! algorithms 2 and 3 are refused, naming why, for a description without equations.
 use anyhow::{Context, Result};
 use pino_learn::config::TrainParams;
-use pino_learn::data::load_dataset;
+use pino_learn::data::{load_dataset, DatasetInfo};
 use pino_learn::spectral::Transform;
 use pino_learn::train::train_to_dir;
 use stage_kit::StageContext;
@@ -18,17 +19,21 @@ fn run() -> Result<()> {
     let ctx = StageContext::load()?;
     pino_data::metadata::set_stage_origin(&ctx)?;
     let p: TrainParams = ctx.params()?;
+    if ctx.is_check() {
+        pino_learn::config::Algorithm::from_id(p.algorithm)?;
+        stage_kit::summary("parameters valid");
+        return Ok(());
+    }
+    let info = DatasetInfo::from_dirs(ctx.input_dirs("dataset")?)
+        .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
+    pino_data::system::declare_units(&info.system)?;
+    let layout = pino_learn::layout::Layout::of(&info.system);
     let configs = p
-        .configs()
+        .configs(&layout)
         .with_context(|| format!("stage `{}`", ctx.stage))?;
     let (_, train, window) = configs;
     let device = p.device.device()?;
     let params = &ctx.single_input_file("params", "params.parquet")?;
-    pino_data::provenance::check_constants(
-        ctx.input_dirs("dataset")?,
-        &[("gravity", p.gravity), ("wheel_radius", p.wheel_radius)],
-    )
-    .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
     let sims = ctx.input_files("dataset", "simulation.parquet")?;
     let weights = if train.algorithm.needs_phi() {
         let w = ctx.input_files("weights", "weights.parquet")?;
@@ -40,7 +45,7 @@ fn run() -> Result<()> {
     } else {
         None
     };
-    let ds = load_dataset(params, &sims, weights.as_deref(), &window)?;
+    let ds = load_dataset(&info, params, &sims, weights.as_deref(), &window)?;
     let progress = ctx.progress(train.epochs as u64);
     let outcome = train_to_dir(
         &ds,

@@ -11,7 +11,8 @@
 //! - [`network`]: the whole FNO as one candle op built from those layers (one graph node);
 //! - [`deriv_loss`]: the direct-derivative loss of algorithms 4 and 5 (stencils, z-scores,
 //!   relative L2) and its gradient in one pass;
-//! - [`ode_loss`]: the ODE-residual losses of algorithms 2 and 3 and their gradient;
+//! - the ODE-residual losses of algorithms 2 and 3 and their gradient are the fused op of
+//!   [`crate::residual`] (they read the system's equations);
 //! - [`simd`]: the inner loops, compiled for AVX2 + FMA and AVX-512 with a run-time switch.
 //!
 //! The candle composition in [`crate::spectral`] and [`crate::model`] computes the same
@@ -21,7 +22,6 @@
 pub mod deriv_loss;
 pub mod layer;
 pub mod network;
-pub mod ode_loss;
 pub mod rdft;
 pub mod simd;
 pub mod spectral_op;

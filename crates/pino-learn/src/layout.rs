@@ -1,0 +1,229 @@
+//! The tensor layout of a described system (`docs/learning.md`, Tensors): which columns are
+//! the operator's inputs, outputs and derivative targets, derived from the system description
+//! and stored in `model.json`, so no channel count or position is written in code.
+//!
+//! - inputs `[T, 1 + E + P]`: `t`, the excitation columns (`eta_<element>`, the profile under
+//!   each element that reads one) and the sampled parameters (the description's order);
+//! - outputs `[T, S + F]`: the `S` solutions (the rigid DOFs' displacements, then the stored
+//!   displacement columns of moving points and sensors) and the `F` element forces stored
+//!   (`p_<contact>`, `f_<element>`);
+//! - derivative targets `[T, D]`: the exact `_v` and `_a` of the `D` rigid DOFs (the first `D`
+//!   outputs);
+//! - equations: the DOFs whose forces close on the outputs and the excitations
+//!   ([`mbd_system::System::equation_dofs`]): the ODE losses and the magnitude weights use them.
+//!
+//! For the vehicle-track description this is today's `t, eta_1..eta_4`, the 14 parameters
+//! (19 inputs), `z_c .. z_w4, z_r1..z_r4, p_1..p_4` (18 outputs, 14 solutions) and the ten
+//! vehicle DOFs, all with equations.
+
+use mbd_system::system::Role;
+use mbd_system::System;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// The time column.
+pub const TIME: &str = "t";
+
+/// A system's channel layout.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Layout {
+    /// Sampled parameters (description order).
+    pub params: Vec<String>,
+    /// Excitation columns.
+    pub excitations: Vec<String>,
+    /// Output columns: solutions, then forces.
+    pub outputs: Vec<String>,
+    /// How many outputs are solutions (displacements).
+    pub solutions: usize,
+    /// The rigid DOFs (the first outputs), derivative targets.
+    pub dofs: Vec<String>,
+    /// Indices into `dofs` of the DOFs with an equation.
+    pub equations: Vec<usize>,
+    /// Unit of every named column (inputs, outputs, `_v`, `_a`).
+    pub units: BTreeMap<String, String>,
+}
+
+impl Layout {
+    /// The layout of `system`.
+    pub fn of(system: &System) -> Self {
+        let names = |role| -> Vec<String> {
+            system
+                .channels_of(role)
+                .into_iter()
+                .map(|i| system.channels[i].name.clone())
+                .collect()
+        };
+        let excitations = names(Role::Excitation);
+        let mut outputs = names(Role::Solution);
+        let solutions = outputs.len();
+        outputs.extend(names(Role::Force));
+        let dofs: Vec<String> = system.dofs.iter().map(|d| d.name.clone()).collect();
+        debug_assert!(
+            outputs.iter().zip(&dofs).all(|(o, d)| o == d),
+            "DOF columns lead the outputs"
+        );
+        let params: Vec<String> = system
+            .sampled_names()
+            .into_iter()
+            .map(str::to_owned)
+            .collect();
+        let out_refs: Vec<&str> = outputs.iter().map(String::as_str).collect();
+        let in_refs: Vec<&str> = excitations.iter().map(String::as_str).collect();
+        let equations = system.equation_dofs(&out_refs, &in_refs);
+        let mut units: BTreeMap<String, String> = system
+            .channels
+            .iter()
+            .map(|c| (c.name.clone(), c.unit.clone()))
+            .collect();
+        for i in system.sampled() {
+            let p = &system.parameters[i];
+            units.insert(p.name.clone(), p.unit.clone());
+        }
+        units.insert(TIME.to_owned(), "s".to_owned());
+        Self {
+            params,
+            excitations,
+            outputs,
+            solutions,
+            dofs,
+            equations,
+            units,
+        }
+    }
+
+    /// Input columns: `t`, the excitations, the parameters.
+    pub fn inputs(&self) -> Vec<String> {
+        std::iter::once(TIME.to_owned())
+            .chain(self.excitations.iter().cloned())
+            .chain(self.params.iter().cloned())
+            .collect()
+    }
+
+    /// Number of input channels.
+    pub fn n_inputs(&self) -> usize {
+        1 + self.excitations.len() + self.params.len()
+    }
+
+    /// Number of output channels.
+    pub fn n_outputs(&self) -> usize {
+        self.outputs.len()
+    }
+
+    /// Number of rigid DOFs (derivative targets).
+    pub fn n_dofs(&self) -> usize {
+        self.dofs.len()
+    }
+
+    /// Number of excitation channels.
+    pub fn n_excitations(&self) -> usize {
+        self.excitations.len()
+    }
+
+    /// The force outputs (channel indices).
+    pub fn forces(&self) -> std::ops::Range<usize> {
+        self.solutions..self.outputs.len()
+    }
+
+    /// `_v` columns of the DOFs.
+    pub fn velocities(&self) -> Vec<String> {
+        self.dofs.iter().map(|d| format!("{d}_v")).collect()
+    }
+
+    /// `_a` columns of the DOFs.
+    pub fn accelerations(&self) -> Vec<String> {
+        self.dofs.iter().map(|d| format!("{d}_a")).collect()
+    }
+
+    /// The simulation columns a dataset is read from: `sample_id`, `t`, the outputs, the
+    /// `_v`, the `_a`, the excitations.
+    pub fn simulation_columns(&self) -> Vec<String> {
+        let mut c = vec![pino_data::schema::SAMPLE_ID.to_owned(), TIME.to_owned()];
+        c.extend(self.outputs.iter().cloned());
+        c.extend(self.velocities());
+        c.extend(self.accelerations());
+        c.extend(self.excitations.iter().cloned());
+        c
+    }
+
+    /// Unit of column `name` (`-` when unknown).
+    pub fn unit(&self, name: &str) -> &str {
+        self.units.get(name).map_or("-", String::as_str)
+    }
+
+    /// The magnitude-weight columns, one per equation: `phi_<dof>`.
+    pub fn phi_columns(&self) -> Vec<String> {
+        self.equations
+            .iter()
+            .map(|&i| pino_data::system::phi_column(&self.dofs[i]))
+            .collect()
+    }
+
+    /// The series sizes of one sample's stored record.
+    pub fn series_shape(&self) -> SeriesShape {
+        SeriesShape {
+            outputs: self.outputs.len(),
+            dofs: self.dofs.len(),
+            excitations: self.excitations.len(),
+        }
+    }
+}
+
+/// Channels per time point of a stored sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SeriesShape {
+    /// Outputs.
+    pub outputs: usize,
+    /// Derivative targets (each of `v` and `a`).
+    pub dofs: usize,
+    /// Excitations.
+    pub excitations: usize,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn system(file: &str) -> System {
+        let path = format!("{}/../../systems/{file}", env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        mbd_system::load_str(&text, file, &Default::default()).unwrap()
+    }
+
+    /// The vehicle-track description gives the historical tensors exactly.
+    #[test]
+    fn vehicle_track_layout_is_the_papers() {
+        let l = Layout::of(&system("vtcd.yaml"));
+        assert_eq!(
+            (l.n_inputs(), l.n_outputs(), l.solutions, l.n_dofs()),
+            (19, 18, 14, 10)
+        );
+        assert_eq!(l.excitations, ["eta_1", "eta_2", "eta_3", "eta_4"]);
+        assert_eq!(
+            &l.outputs[10..],
+            ["z_r1", "z_r2", "z_r3", "z_r4", "p_1", "p_2", "p_3", "p_4"]
+        );
+        assert_eq!(l.params[0], "m_c");
+        assert_eq!(l.equations, (0..10).collect::<Vec<_>>());
+        assert_eq!(l.phi_columns()[1], "phi_beta_c");
+        assert_eq!(l.unit("beta_c_a"), "rad/s^2");
+        let back: Layout = serde_json::from_str(&serde_json::to_string(&l).unwrap()).unwrap();
+        assert_eq!(back, l);
+    }
+
+    /// The bridge's vehicle has its equation through the deck deflection under it; a
+    /// description whose outputs leave a beam point out has none there.
+    #[test]
+    fn equations_close_on_the_outputs() {
+        let l = Layout::of(&system("bridge.yaml"));
+        assert_eq!(l.dofs, ["z_v"]);
+        assert_eq!(l.equations, [0]);
+        assert!(
+            l.outputs.contains(&"z_b1".to_owned())
+                && l.outputs.contains(&"f_suspension".to_owned())
+        );
+        let q = Layout::of(&system("quarter-car.yaml"));
+        assert_eq!(q.equations, [0, 1]);
+        assert_eq!(q.excitations, ["eta_tyre"]);
+    }
+}

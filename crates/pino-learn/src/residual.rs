@@ -1,0 +1,539 @@
+//! The ODE residuals of a prediction, for the losses of algorithms 2 and 3 and the magnitude
+//! weights: `R_i = m_i a_i - F_i` of every DOF with an equation, computed by the engine's own
+//! element code (`mbd_engine::residual::Equations`) from the de-normalised prediction.
+//!
+//! At interior points `n = 1..T-2` of a z-scored prediction `u_n [B, T, O]`
+//! (`docs/learning.md`): the DOFs' physical displacements `z = s u + m`, their velocities and
+//! accelerations by central differences (scaled by the channel std), the deflection under each
+//! moving point an element rests on from its output column (and its rate by central
+//! difference), the excitations from the inputs (physical, with their rates). The loss is
+//! ```text
+//! L = mean_{k,n,i} c_{k,i} |R_i(k, n)|     c = 1 / F_ref (global)  or  rho / phi_{k,i} (phi)
+//! ```
+//! On the CPU it is one fused op ([`OdeLoss`]); its backward pass uses that the residual is
+//! linear in the state once the nonlinear elements' forces (Hertz, tables) are given: the
+//! per-sample Jacobian is taken on unit vectors (exact for a linear map), `dL/d(state, f) = J^T
+//! (c sign R)`, then each nonlinear force's tangent back onto the state of its deflection,
+//! then the transposed stencils. Elsewhere (CUDA) [`composed_residuals`] computes the same as
+//! candle ops: the per-sample linear map as a batched product plus the Hertz terms.
+
+use crate::layout::Layout;
+use crate::norm::ChannelStats;
+use crate::{Error, Result};
+use candle_core::{CpuStorage, CustomOp1, DType, Layout as CLayout, Shape, Tensor};
+use mbd_engine::residual::{EquationState, Equations, StateEntry};
+use mbd_system::model::ModelLaw;
+use mbd_system::System;
+
+/// Where the residual's state comes from in the learner's channels (the same for every
+/// sample of a system).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChannelMap {
+    /// Rigid DOFs (the first outputs).
+    pub dofs: usize,
+    /// Per moving point: the output channel of its deflection, if predicted.
+    pub point: Vec<Option<usize>>,
+    /// Per element: the excitation channel of its profile, if it reads one.
+    pub eta: Vec<Option<usize>>,
+    /// The DOFs with equations.
+    pub equations: Vec<usize>,
+}
+
+impl ChannelMap {
+    /// The map of `layout` over `system`.
+    pub fn new(system: &System, layout: &Layout) -> Self {
+        let point = system
+            .points
+            .iter()
+            .map(|p| {
+                layout
+                    .outputs
+                    .iter()
+                    .position(|o| *o == format!("z_{}", p.name))
+            })
+            .collect();
+        let eta = system
+            .elements
+            .iter()
+            .map(|e| {
+                layout
+                    .excitations
+                    .iter()
+                    .position(|x| *x == format!("eta_{}", e.name))
+            })
+            .collect();
+        Self {
+            dofs: layout.n_dofs(),
+            point,
+            eta,
+            equations: layout.equations.clone(),
+        }
+    }
+
+    /// Columns of the linear state: `z, v, a` (D each), point deflections and rates (P each),
+    /// excitations and their rates (one per element).
+    fn columns(&self) -> usize {
+        3 * self.dofs + 2 * self.point.len() + 2 * self.eta.len()
+    }
+}
+
+/// Physical state of one sample at one interior point, in the residual's slices.
+#[derive(Debug, Clone)]
+struct State {
+    z: Vec<f64>,
+    v: Vec<f64>,
+    a: Vec<f64>,
+    w: Vec<f64>,
+    w_rate: Vec<f64>,
+    eta: Vec<f64>,
+    eta_rate: Vec<f64>,
+}
+
+impl State {
+    fn new(map: &ChannelMap) -> Self {
+        let (d, p, e) = (map.dofs, map.point.len(), map.eta.len());
+        Self {
+            z: vec![0.0; d],
+            v: vec![0.0; d],
+            a: vec![0.0; d],
+            w: vec![0.0; p],
+            w_rate: vec![0.0; p],
+            eta: vec![0.0; e],
+            eta_rate: vec![0.0; e],
+        }
+    }
+
+    fn view(&self) -> EquationState<'_> {
+        EquationState {
+            z: &self.z,
+            v: &self.v,
+            a: &self.a,
+            point_w: &self.w,
+            point_rate: &self.w_rate,
+            eta: &self.eta,
+            eta_rate: &self.eta_rate,
+        }
+    }
+
+    /// The linear state as one vector in [`ChannelMap::columns`] order.
+    fn set_column(&mut self, map: &ChannelMap, col: usize, value: f64) {
+        let (d, p) = (map.dofs, map.point.len());
+        match col {
+            c if c < d => self.z[c] = value,
+            c if c < 2 * d => self.v[c - d] = value,
+            c if c < 3 * d => self.a[c - 2 * d] = value,
+            c if c < 3 * d + p => self.w[c - 3 * d] = value,
+            c if c < 3 * d + 2 * p => self.w_rate[c - 3 * d - p] = value,
+            c if c < 3 * d + 2 * p + map.eta.len() => self.eta[c - 3 * d - 2 * p] = value,
+            c => self.eta_rate[c - 3 * d - 2 * p - map.eta.len()] = value,
+        }
+    }
+}
+
+/// One sample's equations with the Jacobian of their linear form.
+#[derive(Debug, Clone)]
+pub struct SampleEquations {
+    eq: Equations,
+    /// `[Q, C + N]`: the linear state's columns, then the nonlinear forces.
+    jacobian: Vec<Vec<f64>>,
+    /// The residual at the zero state with zero nonlinear forces (loads, preloads).
+    offset: Vec<f64>,
+}
+
+impl SampleEquations {
+    /// The equations of one sample with parameters `params`.
+    pub fn new(system: &System, map: &ChannelMap, params: &[f64]) -> Result<Self> {
+        let model = system.instantiate(params).map_err(|e| Error::OutOfRange {
+            field: e.path.clone(),
+            value: e.value.to_string(),
+            allowed: e.allowed.clone(),
+        })?;
+        let eq = Equations::new(model, map.equations.clone());
+        let q = map.equations.len();
+        let n_nl = eq.nonlinear().len();
+        let cols = map.columns();
+        let mut scratch = eq.scratch();
+        let mut zero = State::new(map);
+        let mut base = vec![0.0; q];
+        eq.residuals_with(&zero.view(), &vec![0.0; n_nl], &mut scratch, &mut base);
+        let mut jacobian = vec![vec![0.0; cols + n_nl]; q];
+        let mut r = vec![0.0; q];
+        for col in 0..cols {
+            zero.set_column(map, col, 1.0);
+            eq.residuals_with(&zero.view(), &vec![0.0; n_nl], &mut scratch, &mut r);
+            zero.set_column(map, col, 0.0);
+            for i in 0..q {
+                jacobian[i][col] = r[i] - base[i];
+            }
+        }
+        for j in 0..n_nl {
+            let mut f = vec![0.0; n_nl];
+            f[j] = 1.0;
+            eq.residuals_with(&zero.view(), &f, &mut scratch, &mut r);
+            for i in 0..q {
+                jacobian[i][cols + j] = r[i] - base[i];
+            }
+        }
+        Ok(Self {
+            eq,
+            jacobian,
+            offset: base,
+        })
+    }
+}
+
+/// How residuals are weighted.
+#[derive(Debug, Clone)]
+pub enum OdeWeights {
+    /// `1 / F_ref` for every equation (PINO).
+    Global {
+        /// Force scale (N).
+        f_ref: f64,
+    },
+    /// `rho / phi_{k,i}` (PINO-MBD with ODE magnitude weights), `phi [B, Q]`.
+    Phi {
+        /// Residual level.
+        rho: f64,
+        /// Weights per sample and equation (N, N m).
+        phi: Vec<f64>,
+    },
+}
+
+/// Everything the residual loss of one batch needs besides the prediction.
+pub struct OdeLoss {
+    /// The channel map.
+    pub map: ChannelMap,
+    /// One sample's equations per batch row.
+    pub samples: Vec<SampleEquations>,
+    /// Excitations `[B, T, E]` (m).
+    pub eta: Vec<f64>,
+    /// Number of excitation channels `E`.
+    pub n_eta: usize,
+    /// Output channel means.
+    pub mean: Vec<f64>,
+    /// Output channel stds.
+    pub std: Vec<f64>,
+    /// Time step (s).
+    pub dt: f64,
+    /// Residual weights.
+    pub weights: OdeWeights,
+}
+
+impl OdeLoss {
+    /// The physical state of sample `k` at interior point `n` from `u` (rows of `c`
+    /// channels, `t` points per sample).
+    fn state(&self, u: &[f32], k: usize, t: usize, c: usize, n: usize, s: &mut State) {
+        let base = k * t * c;
+        let at = |r: usize, ch: usize| u[base + r * c + ch] as f64;
+        let dt = self.dt;
+        for i in 0..self.map.dofs {
+            let (prev, mid, next) = (at(n - 1, i), at(n, i), at(n + 1, i));
+            s.z[i] = mid * self.std[i] + self.mean[i];
+            s.v[i] = (next - prev) / (2.0 * dt) * self.std[i];
+            s.a[i] = (next - 2.0 * mid + prev) / (dt * dt) * self.std[i];
+        }
+        for (p, ch) in self.map.point.iter().enumerate() {
+            if let Some(ch) = *ch {
+                s.w[p] = at(n, ch) * self.std[ch] + self.mean[ch];
+                s.w_rate[p] = (at(n + 1, ch) - at(n - 1, ch)) / (2.0 * dt) * self.std[ch];
+            }
+        }
+        let e = self.n_eta;
+        let eta = |r: usize, j: usize| self.eta[(k * t + r) * e + j];
+        for (el, ch) in self.map.eta.iter().enumerate() {
+            if let Some(j) = *ch {
+                s.eta[el] = eta(n, j);
+                s.eta_rate[el] = (eta(n + 1, j) - eta(n - 1, j)) / (2.0 * dt);
+            }
+        }
+    }
+
+    fn weight(&self, k: usize, i: usize) -> f64 {
+        match &self.weights {
+            OdeWeights::Global { f_ref } => 1.0 / f_ref,
+            OdeWeights::Phi { rho, phi } => rho / phi[k * self.map.equations.len() + i],
+        }
+    }
+}
+
+fn dims(shape: &Shape, map: &ChannelMap) -> candle_core::Result<(usize, usize, usize)> {
+    let (b, t, c) = shape.dims3()?;
+    if t < 3 || c < map.dofs {
+        return Err(candle_core::Error::Msg(format!(
+            "fused ODE loss: prediction {shape:?} needs >= 3 points and >= {} channels",
+            map.dofs
+        )));
+    }
+    Ok((b, t, c))
+}
+
+/// `upstream * df/dd` of a nonlinear law at deflection `d` (Hertz 3/2 written as the
+/// historical `1.5 sqrt(d / G) / G`).
+fn chain(law: &ModelLaw, d: f64, upstream: f64) -> f64 {
+    match law {
+        ModelLaw::Hertz { g, exponent } if *exponent == 1.5 => {
+            if d > 0.0 {
+                upstream * 1.5 * (d / g).sqrt() / g
+            } else {
+                0.0
+            }
+        }
+        law => upstream * law.stiffness(d),
+    }
+}
+
+impl CustomOp1 for OdeLoss {
+    fn name(&self) -> &'static str {
+        "fused-ode-loss"
+    }
+
+    fn cpu_fwd(
+        &self,
+        storage: &CpuStorage,
+        layout: &CLayout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
+        let (b, t, c) = dims(layout.shape(), &self.map)?;
+        let u = crate::kernels::cpu_f32(storage, layout, "fused ODE loss", "prediction")?;
+        let q = self.map.equations.len();
+        let mut total = 0.0f64;
+        let mut s = State::new(&self.map);
+        let mut r = vec![0.0; q];
+        for k in 0..b {
+            let eq = &self.samples[k].eq;
+            let mut scratch = eq.scratch();
+            let w: Vec<f64> = (0..q).map(|i| self.weight(k, i)).collect();
+            for n in 1..t - 1 {
+                self.state(u, k, t, c, n, &mut s);
+                eq.residuals(&s.view(), &mut scratch, &mut r);
+                total += r.iter().zip(&w).map(|(r, w)| r.abs() * w).sum::<f64>();
+            }
+        }
+        let mean = total / (b * (t - 2) * q) as f64;
+        Ok((CpuStorage::F32(vec![mean as f32]), Shape::from(())))
+    }
+
+    fn bwd(
+        &self,
+        arg: &Tensor,
+        _res: &Tensor,
+        grad_res: &Tensor,
+    ) -> candle_core::Result<Option<Tensor>> {
+        let (b, t, c) = dims(arg.shape(), &self.map)?;
+        let q = self.map.equations.len();
+        let upstream = grad_res.to_dtype(DType::F64)?.to_scalar::<f64>()?;
+        let scale = upstream / (b * (t - 2) * q) as f64;
+        let (d, p) = (self.map.dofs, self.map.point.len());
+        let cols = self.map.columns();
+        let grad = crate::kernels::with_host(arg, |u| {
+            let mut g = vec![0.0f64; u.len()];
+            let mut s = State::new(&self.map);
+            let mut r = vec![0.0; q];
+            for k in 0..b {
+                let se = &self.samples[k];
+                let eq = &se.eq;
+                let mut scratch = eq.scratch();
+                let terms: Vec<Vec<(StateEntry, f64)>> = eq
+                    .nonlinear()
+                    .iter()
+                    .map(|&e| eq.deflection_terms(e))
+                    .collect();
+                let base = k * t * c;
+                for n in 1..t - 1 {
+                    self.state(u, k, t, c, n, &mut s);
+                    eq.residuals(&s.view(), &mut scratch, &mut r);
+                    // dL/dR, then dL/d(state, f) = J^T dL/dR.
+                    let dr: Vec<f64> = (0..q)
+                        .map(|i| scale * self.weight(k, i) * r[i].signum())
+                        .collect();
+                    let mut dx = vec![0.0f64; cols + eq.nonlinear().len()];
+                    for (i, row) in se.jacobian.iter().enumerate() {
+                        if dr[i] != 0.0 {
+                            for (dd, j) in dx.iter_mut().zip(row) {
+                                *dd += dr[i] * j;
+                            }
+                        }
+                    }
+                    // Nonlinear forces back onto the state of their deflections.
+                    let mut dz: Vec<f64> = dx[..d].to_vec();
+                    let mut dw: Vec<f64> = dx[3 * d..3 * d + p].to_vec();
+                    for (j, &e) in eq.nonlinear().iter().enumerate() {
+                        let (_, defl) = eq.element(&scratch, e);
+                        let ge = chain(eq.law(e), defl, dx[cols + j]);
+                        for &(entry, coef) in &terms[j] {
+                            match entry {
+                                StateEntry::Dof(i) => dz[i] += ge * coef,
+                                StateEntry::Point(pt) => dw[pt] += ge * coef,
+                                StateEntry::Eta(_) => {}
+                            }
+                        }
+                    }
+                    for (pt, ch) in self.map.point.iter().enumerate() {
+                        let Some(ch) = *ch else { continue };
+                        let sd = self.std[ch];
+                        g[base + n * c + ch] += dw[pt] * sd;
+                        let gr = dx[3 * d + p + pt] * sd / (2.0 * self.dt);
+                        if gr != 0.0 {
+                            g[base + (n + 1) * c + ch] += gr;
+                            g[base + (n - 1) * c + ch] -= gr;
+                        }
+                    }
+                    for i in 0..d {
+                        let sd = self.std[i];
+                        let gv = dx[d + i] * sd / (2.0 * self.dt);
+                        let ga = dx[2 * d + i] * sd / (self.dt * self.dt);
+                        g[base + (n + 1) * c + i] += gv + ga;
+                        g[base + (n - 1) * c + i] += -gv + ga;
+                        g[base + n * c + i] += dz[i] * sd - 2.0 * ga;
+                    }
+                }
+            }
+            g.into_iter().map(|x| x as f32).collect::<Vec<f32>>()
+        })?;
+        Ok(Some(Tensor::from_vec(grad, arg.shape(), arg.device())?))
+    }
+}
+
+/// De-normalised interior values, first and second differences of `u_n [B, T, C]` (z-scored,
+/// any float dtype) with channel statistics `stats` (first C channels used): three f64 tensors
+/// `[B, T-2, C]` in physical units:
+/// `v_n = (u_{n+1} - u_{n-1}) / (2 dt)`, `a_n = (u_{n+1} - 2 u_n + u_{n-1}) / dt^2`, taken on
+/// z-scored values and scaled by the channel std (the mean cancels).
+pub fn derivatives(
+    u_n: &Tensor,
+    stats: &ChannelStats,
+    dt: f64,
+) -> Result<(Tensor, Tensor, Tensor)> {
+    let (_, t, c) = u_n.dims3()?;
+    let u = u_n.to_dtype(DType::F64)?;
+    let row = |v: &[f64]| Tensor::from_slice(v, (1, 1, v.len()), u.device());
+    let std = row(&stats.std[..c])?;
+    let mean = row(&stats.mean[..c])?;
+    let prev = u.narrow(1, 0, t - 2)?;
+    let mid = u.narrow(1, 1, t - 2)?;
+    let next = u.narrow(1, 2, t - 2)?;
+    let z = mid.broadcast_mul(&std)?.broadcast_add(&mean)?;
+    let v = ((&next - &prev)? * (1.0 / (2.0 * dt)))?.broadcast_mul(&std)?;
+    let a = ((&next - (&mid * 2.0)?)? + &prev)?
+        .affine(1.0 / (dt * dt), 0.0)?
+        .broadcast_mul(&std)?;
+    Ok((z, v, a))
+}
+
+/// The residuals `[B, T-2, Q]` (f64, N or N m) of a z-scored prediction as candle ops on any
+/// device: `R = J [state, f_nl] + offset` per sample, the state from [`derivatives`] of the
+/// predicted channels and the excitations, `f_nl` the Hertz forces `(max(d, 0) / G)^(3/2)` of
+/// the contacts' deflections `d = D state`. Tables are refused (the CPU's fused op has them).
+pub fn composed_residuals(
+    map: &ChannelMap,
+    samples: &[SampleEquations],
+    u_n: &Tensor,
+    eta: &Tensor,
+    outputs: &ChannelStats,
+    dt: f64,
+) -> Result<Tensor> {
+    let (b, t, _) = u_n.dims3()?;
+    let dev = u_n.device();
+    let (d, p, ne) = (map.dofs, map.point.len(), map.eta.len());
+    let (z, v, a) = derivatives(&u_n.narrow(2, 0, d)?, outputs, dt)?;
+    let mut parts = vec![z, v, a];
+    // Point deflections and rates (zeros where not predicted).
+    let zeros = Tensor::zeros((b, t - 2, 1), DType::F64, dev)?;
+    let mut w = Vec::with_capacity(p);
+    let mut w_rate = Vec::with_capacity(p);
+    for ch in &map.point {
+        match *ch {
+            Some(ch) => {
+                let stats = ChannelStats {
+                    names: vec![outputs.names[ch].clone()],
+                    mean: vec![outputs.mean[ch]],
+                    std: vec![outputs.std[ch]],
+                };
+                let (x, xr, _) = derivatives(&u_n.narrow(2, ch, 1)?, &stats, dt)?;
+                w.push(x);
+                w_rate.push(xr);
+            }
+            None => {
+                w.push(zeros.clone());
+                w_rate.push(zeros.clone());
+            }
+        }
+    }
+    // Excitations (physical) and their rates at interior points.
+    let eta = eta.to_dtype(DType::F64)?;
+    let mut e = Vec::with_capacity(ne);
+    let mut e_rate = Vec::with_capacity(ne);
+    for ch in &map.eta {
+        match *ch {
+            Some(j) => {
+                let col = eta.narrow(2, j, 1)?;
+                e.push(col.narrow(1, 1, t - 2)?);
+                e_rate.push(
+                    ((col.narrow(1, 2, t - 2)? - col.narrow(1, 0, t - 2)?)? * (1.0 / (2.0 * dt)))?,
+                );
+            }
+            None => {
+                e.push(zeros.clone());
+                e_rate.push(zeros.clone());
+            }
+        }
+    }
+    parts.extend(w);
+    parts.extend(w_rate);
+    parts.extend(e);
+    parts.extend(e_rate);
+    let state = Tensor::cat(&parts, 2)?; // [B, T-2, C]
+    let cols = map.columns();
+    let q = map.equations.len();
+    // Nonlinear elements: Hertz of the deflection terms (same elements in every sample).
+    let nl = samples.first().map_or(0, |s| s.eq.nonlinear().len());
+    let mut dmat = vec![0.0; b * cols * nl];
+    let mut inv_g = vec![0.0; b * nl];
+    for (k, s) in samples.iter().enumerate() {
+        for (j, &el) in s.eq.nonlinear().iter().enumerate() {
+            match s.eq.law(el) {
+                ModelLaw::Hertz { g, exponent } if *exponent == 1.5 => inv_g[k * nl + j] = 1.0 / g,
+                _ => {
+                    return Err(Error::OutOfRange {
+                        field: "device".into(),
+                        value: "cuda".into(),
+                        allowed: "\"cpu\" for descriptions with tabulated elements or a Hertz exponent other than 3/2 (the composed residual has Hertz 3/2 only)".into(),
+                    })
+                }
+            }
+            for (entry, coef) in s.eq.deflection_terms(el) {
+                let col = match entry {
+                    StateEntry::Dof(i) => i,
+                    StateEntry::Point(pt) => 3 * d + pt,
+                    StateEntry::Eta(x) => 3 * d + 2 * p + x,
+                };
+                dmat[(k * cols + col) * nl + j] += coef;
+            }
+        }
+    }
+    let mut jl = vec![0.0; b * cols * q];
+    let mut jn = vec![0.0; b * nl.max(1) * q];
+    let mut off = vec![0.0; b * q];
+    for (k, s) in samples.iter().enumerate() {
+        for i in 0..q {
+            for col in 0..cols {
+                jl[(k * cols + col) * q + i] = s.jacobian[i][col];
+            }
+            for j in 0..nl {
+                jn[(k * nl + j) * q + i] = s.jacobian[i][cols + j];
+            }
+            off[k * q + i] = s.offset[i];
+        }
+    }
+    let jl = Tensor::from_vec(jl, (b, cols, q), dev)?;
+    let off = Tensor::from_vec(off, (b, 1, q), dev)?;
+    let mut r = state.matmul(&jl)?.broadcast_add(&off)?;
+    if nl > 0 {
+        let dm = Tensor::from_vec(dmat, (b, cols, nl), dev)?;
+        let inv_g = Tensor::from_vec(inv_g, (b, 1, nl), dev)?;
+        let defl = state.matmul(&dm)?; // [B, T-2, N]
+        let f = defl.relu()?.broadcast_mul(&inv_g)?.powf(1.5)?;
+        let jn = Tensor::from_vec(jn[..b * nl * q].to_vec(), (b, nl, q), dev)?;
+        r = (r + f.matmul(&jn)?)?;
+    }
+    Ok(r)
+}
