@@ -651,6 +651,43 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
             });
         }
     }
+    let railway = raw.railway.as_ref().and_then(|r| {
+        let col = |n: &(String, Pos), diag: &mut Diagnostics| -> Option<usize> {
+            let found = channels.iter().position(|c| c.name == n.0);
+            if found.is_none() {
+                diag.push(
+                    n.1,
+                    format!(
+                        "railway: `{}` is not a stored column; stored: {}",
+                        n.0,
+                        names(channels.iter().map(|c| &c.name))
+                    ),
+                );
+            }
+            found
+        };
+        let cols = |v: &[(String, Pos)], diag: &mut Diagnostics| -> Option<Vec<usize>> {
+            v.iter().map(|n| col(n, diag)).collect()
+        };
+        let contact_forces = cols(&r.contact_forces, diag);
+        let bogies = cols(&r.bogies, diag);
+        let rails = cols(&r.rails, diag);
+        let (cv, cp) = match &r.car_body {
+            Some((v, p)) => (col(v, diag), col(p, diag)),
+            None => (None, None),
+        };
+        let half_length = scope.req(&r.half_length, "railway.half_length", diag);
+        let static_wheel_load = scope.req(&r.static_wheel_load, "railway.static_wheel_load", diag);
+        Some(Railway {
+            contact_forces: contact_forces?,
+            car_body_vertical: cv?,
+            car_body_pitch: cp?,
+            half_length: half_length?,
+            bogies: bogies?,
+            rails: rails?,
+            static_wheel_load: static_wheel_load?,
+        })
+    });
     for (i, p) in raw.parameters.iter().enumerate() {
         if !scope.used[i] {
             diag.push(
@@ -680,6 +717,7 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
         assembly,
         channels,
         indices,
+        railway,
     };
     if !diag.is_empty() {
         return None;

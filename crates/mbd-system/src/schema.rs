@@ -7,7 +7,7 @@
 //! `profiles`, `elements`, `loads`, `outputs`, `indices`.
 
 use crate::diag::Diagnostics;
-use crate::reader::{read_expr, read_names, read_pair, read_string, valid_name, Field, MapReader};
+use crate::reader::{read_expr, read_names, read_pair, valid_name, Field, MapReader};
 use crate::yaml::{Node, Pos};
 
 /// The only format version this crate reads.
@@ -397,6 +397,26 @@ pub struct RawIndex {
     pub doc: Option<String>,
 }
 
+/// The `railway` section: which stored columns the railway indices (`docs/indices.md`: wheel
+/// loads, Sperling, car-body and bogie accelerations, rail deflection) read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawRailway {
+    /// Where.
+    pub pos: Pos,
+    /// The contact force of each wheel, front to rear (4).
+    pub contact_forces: Vec<Named>,
+    /// The car body's vertical and pitch accelerations.
+    pub car_body: Option<(Named, Named)>,
+    /// Half the distance between the bogie centres (m), for the accelerations over them.
+    pub half_length: Option<Field>,
+    /// Each bogie frame's vertical acceleration, front then rear (2).
+    pub bogies: Vec<Named>,
+    /// The rail deflection under each wheel (4).
+    pub rails: Vec<Named>,
+    /// The static wheel load (N) the wheel load reduction refers to.
+    pub static_wheel_load: Option<Field>,
+}
+
 /// A description as written.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RawDescription {
@@ -424,9 +444,11 @@ pub struct RawDescription {
     pub outputs: Vec<Named>,
     /// `indices`.
     pub indices: Vec<RawIndex>,
+    /// `railway`.
+    pub railway: Option<RawRailway>,
 }
 
-const TOP: [&str; 13] = [
+const TOP: [&str; 14] = [
     "format",
     "name",
     "doc",
@@ -440,6 +462,7 @@ const TOP: [&str; 13] = [
     "loads",
     "outputs",
     "indices",
+    "railway",
 ];
 
 /// Reads the whole description (the parse step); problems go to `diag`.
@@ -553,6 +576,9 @@ pub fn read(root: &Node, diag: &mut Diagnostics) -> RawDescription {
     }
     if let Some(node) = top.get("outputs") {
         out.outputs = read_names(node, "outputs", diag);
+    }
+    if let Some(node) = top.get("railway") {
+        out.railway = railway(node, diag);
     }
     top.finish(&TOP, diag);
     out
@@ -1098,7 +1124,47 @@ fn index(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<Ra
     Some(i)
 }
 
-/// Reads a node as a plain name (used for references).
-pub fn name_of(node: &Node, what: &str, diag: &mut Diagnostics) -> Option<Named> {
-    read_string(node, what, diag)
+fn railway(node: &Node, diag: &mut Diagnostics) -> Option<RawRailway> {
+    let mut m = MapReader::new(node, "railway", diag)?;
+    let list = |m: &mut MapReader, key: &str, n: usize, diag: &mut Diagnostics| -> Vec<Named> {
+        let Some(node) = m.required(key, diag) else {
+            return Vec::new();
+        };
+        let names = read_names(node, &format!("railway.{key}"), diag);
+        if names.len() != n {
+            diag.push(node.pos, format!("railway.{key}: the railway indices are defined for a two-bogie, four-axle vehicle: {n} columns, found {}", names.len()));
+        }
+        names
+    };
+    let contact_forces = list(&mut m, "contact_forces", 4, diag);
+    let bogies = list(&mut m, "bogies", 2, diag);
+    let rails = list(&mut m, "rails", 4, diag);
+    let car_body = m.required("car_body", diag).and_then(|n| {
+        let mut c = MapReader::new(n, "railway.car_body", diag)?;
+        let v = c.required_string("vertical", diag);
+        let p = c.required_string("pitch", diag);
+        c.finish(&["vertical", "pitch"], diag);
+        Some((v?, p?))
+    });
+    let r = RawRailway {
+        pos: node.pos,
+        contact_forces,
+        car_body,
+        half_length: m.required_expr("half_length", diag),
+        bogies,
+        rails,
+        static_wheel_load: m.required_expr("static_wheel_load", diag),
+    };
+    m.finish(
+        &[
+            "contact_forces",
+            "car_body",
+            "half_length",
+            "bogies",
+            "rails",
+            "static_wheel_load",
+        ],
+        diag,
+    );
+    Some(r)
 }

@@ -347,6 +347,25 @@ pub struct Index {
     pub limit: Option<f64>,
 }
 
+/// The railway indices' columns (indices into [`System::channels`]) and constants.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Railway {
+    /// Contact force of each wheel (4).
+    pub contact_forces: Vec<usize>,
+    /// Car-body vertical acceleration.
+    pub car_body_vertical: usize,
+    /// Car-body pitch acceleration.
+    pub car_body_pitch: usize,
+    /// Half the bogie-centre distance (m).
+    pub half_length: Expr,
+    /// Bogie-frame vertical accelerations (2).
+    pub bogies: Vec<usize>,
+    /// Rail deflection under each wheel (4).
+    pub rails: Vec<usize>,
+    /// Static wheel load (N).
+    pub static_wheel_load: Expr,
+}
+
 /// A validated, compiled description.
 #[derive(Debug, Clone, PartialEq)]
 pub struct System {
@@ -382,6 +401,8 @@ pub struct System {
     pub channels: Vec<Channel>,
     /// Indices.
     pub indices: Vec<Index>,
+    /// The railway indices' binding, when declared.
+    pub railway: Option<Railway>,
 }
 
 impl System {
