@@ -10,14 +10,29 @@
 //! `p_1..4`, `z_c_a`, `beta_c_a`, `z_t1_a`, `z_t2_a`, `z_r1..4`; the stage projects onto
 //! those, so the other 42 columns of a real shard are never decoded). `run` computes the
 //! indices of the first `SHARDS` shards and prints the wall time of each pass, the cost per
-//! sample and the peak resident memory (VmHWM).
-use indices_scan::{aggregate, check_columns, read_params, spectral_pass};
+//! sample and the peak resident memory (VmHWM). The system is the vehicle-track description
+//! (`systems/vtcd.yaml`) at its nominal values.
+use indices_scan::{aggregate, check_columns, read_params, record_pass};
+use mbd_system::system::ParamSource;
+use mbd_system::{System, SystemSource};
 use pino_data::{schema, Column, StreamWriter, Table};
+use pino_indices::IndexSet;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-fn columns() -> Vec<&'static str> {
-    indices_scan::needed_columns()
+fn system() -> System {
+    SystemSource {
+        file: "systems/vtcd.yaml".into(),
+        text: include_str!("../../../systems/vtcd.yaml").into(),
+        values: Default::default(),
+    }
+    .compile()
+    .expect("the repository's vtcd.yaml compiles")
+}
+
+fn columns() -> &'static [String] {
+    static COLUMNS: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
+    COLUMNS.get_or_init(|| indices_scan::needed_columns(&IndexSet::of(&system())))
 }
 
 fn sample_table(id: i64, rows: usize) -> Table {
@@ -76,9 +91,13 @@ fn generate(
     let mut p = Table::default();
     p.push(schema::SAMPLE_ID, Column::I64((0..n as i64).collect()))?;
     p.push(schema::SPLIT, Column::Str(vec!["train".into(); n]))?;
-    let nominal = vtcd::params::SampleParams::NOMINAL.to_array();
-    for (j, name) in schema::PARAMETERS.iter().enumerate() {
-        p.push(name, Column::F64(vec![nominal[j]; n]))?;
+    let system = system();
+    for i in system.sampled() {
+        let par = &system.parameters[i];
+        let ParamSource::Sampled { nominal, .. } = par.source else {
+            unreachable!("sampled")
+        };
+        p.push(&par.name, Column::F64(vec![nominal; n]))?;
     }
     pino_data::write_parquet(&dir.join("params.parquet"), &p)?;
     for k in 0..shards {
@@ -104,19 +123,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .map(|k| dir.join(format!("sim_{k}.parquet")))
                 .collect();
             let cfg = pino_indices::IndexParams::default().validate()?;
-            let params = read_params(&dir.join("params.parquet"))?;
+            let system = system();
+            let set = IndexSet::of(&system);
+            let railway = set
+                .railway
+                .as_ref()
+                .ok_or("vtcd.yaml binds the railway indices")?;
+            let params = read_params(&system, &[dir.join("params.parquet")])?;
             let t0 = Instant::now();
-            check_columns(&files)?;
-            let spectral = spectral_pass(&files, &params, &cfg, &|_| {})?;
+            check_columns(&files, &indices_scan::needed_columns(&set))?;
+            let spectral = record_pass(&files, &system, &set, &params, &cfg, &|_| {})?;
             let t1 = Instant::now();
             let windows: Vec<(i64, f64)> =
                 spectral.iter().map(|(id, s)| (*id, s.t_start)).collect();
-            let aggs = aggregate(&files, &windows, &|_| PathBuf::new())?;
+            let aggs = aggregate(&files, railway, &windows, &|_| PathBuf::new())?;
             let t2 = Instant::now();
             let n = aggs.len();
             let (a1, a2) = ((t1 - t0).as_secs_f64(), (t2 - t1).as_secs_f64());
             println!(
-                "{n} samples x {} rows: spectral pass {a1:.1} s, polars aggregation {a2:.1} s, total {:.1} s = {:.2} ms/sample; peak RSS {:.0} MB",
+                "{n} samples x {} rows: record pass {a1:.1} s, polars aggregation {a2:.1} s, total {:.1} s = {:.2} ms/sample; peak RSS {:.0} MB",
                 spectral.values().next().map_or(0, |s| s.n),
                 a1 + a2,
                 1e3 * (a1 + a2) / n as f64,

@@ -1,14 +1,17 @@
-//! Pass 2 of the scan: the extremes of every sample's forces, bogie accelerations and rail
-//! displacements, by one lazy polars query on the streaming engine.
+//! Pass 2 of the scan (railway binding only): the extremes of every sample's contact forces,
+//! bogie accelerations and rail displacements, by one lazy polars query on the streaming
+//! engine.
 //!
-//! The query scans every shard, joins each sample's window start, keeps the window's rows and
+//! The columns are the ones the description binds ([`RailwayColumns`]). The query scans every
+//! shard, joins each sample's window start, keeps the window's rows and
 //! groups by `sample_id`. Maxima and minima are exact whatever the order in which the engine
 //! meets the rows, so the result is deterministic on every core count; a sum per signal checks
 //! finiteness (NaN or infinite exactly when one value is), and a non-finite signal is then
 //! located to its row by a plain read of the one file that holds it.
 
-use crate::{needed_columns, pl_path, polars_err, Error, Result};
+use crate::{pl_path, polars_err, Error, Result};
 use pino_data::schema;
+use pino_indices::RailwayColumns;
 use polars::prelude::{
     col, len, DataFrame, DataType, Engine, Expr, IntoLazy, LazyFrame, NamedFrom, ScanArgsParquet,
     Series,
@@ -39,12 +42,14 @@ pub struct Extremes {
 }
 
 /// Pass 2: the [`Extremes`] of every sample in `windows` (`(sample_id, t_start)`) over its
-/// rows with `t >= t_start`, by one lazy polars query over all `files` (joined with the
-/// windows, filtered, grouped by `sample_id`) on the streaming engine. A non-finite signal is
+/// rows with `t >= t_start`, of the columns of `railway`, by one lazy polars query over all
+/// `files` (joined with the windows, filtered, grouped by `sample_id`) on the streaming
+/// engine. A non-finite signal is
 /// reported by column and sample (`file_of` names its file). The car-body aggregates come
 /// from pass 1, where the time series are at hand and sums run in time order.
 pub fn aggregate(
     files: &[PathBuf],
+    railway: &RailwayColumns,
     windows: &[(i64, f64)],
     file_of: &dyn Fn(i64) -> PathBuf,
 ) -> Result<BTreeMap<i64, Extremes>> {
@@ -70,24 +75,22 @@ pub fn aggregate(
     let scan =
         LazyFrame::scan_parquet_files(paths.into_iter().collect(), ScanArgsParquet::default())
             .map_err(pe)?;
-    let signals: Vec<&str> = needed_columns()[2..].to_vec();
+    let signals: Vec<&str> = railway.all();
+    let (p, z_r, z_t_a) = (
+        railway.p.each_ref().map(String::as_str),
+        railway.z_r.each_ref().map(String::as_str),
+        railway.z_t_a.each_ref().map(String::as_str),
+    );
     let mut aggs: Vec<Expr> = vec![len().cast(DataType::Int64).alias("n")];
     for c in &signals {
         // The sum of every input signal: NaN or infinite exactly when one value is.
         aggs.push(col(*c).sum().alias(agg_name(c, "sum")));
     }
-    for c in pino_indices::columns::P
-        .iter()
-        .chain(&pino_indices::columns::Z_R)
-        .chain(&pino_indices::columns::Z_T_A)
-    {
+    for c in p.iter().chain(&z_r).chain(&z_t_a) {
         aggs.push(col(*c).max().alias(agg_name(c, "max")));
     }
     // max |x| = max(max x, -min x): no `abs` kernel needed.
-    for c in pino_indices::columns::P
-        .iter()
-        .chain(&pino_indices::columns::Z_T_A)
-    {
+    for c in p.iter().chain(&z_t_a) {
         aggs.push(col(*c).min().alias(agg_name(c, "min")));
     }
     let mut select: Vec<Expr> = vec![col(schema::SAMPLE_ID), col(schema::TIME)];
@@ -145,11 +148,11 @@ pub fn aggregate(
     let all = |cols: &[&str], stat: &str| -> Result<Vec<Vec<f64>>> {
         cols.iter().map(|c| get(c, stat)).collect()
     };
-    let p_max = all(&pino_indices::columns::P, "max")?;
-    let p_min = all(&pino_indices::columns::P, "min")?;
-    let zr_max = all(&pino_indices::columns::Z_R, "max")?;
-    let t_max = all(&pino_indices::columns::Z_T_A, "max")?;
-    let t_min = all(&pino_indices::columns::Z_T_A, "min")?;
+    let p_max = all(&p, "max")?;
+    let p_min = all(&p, "min")?;
+    let zr_max = all(&z_r, "max")?;
+    let t_max = all(&z_t_a, "max")?;
+    let t_min = all(&z_t_a, "min")?;
     let mut out = BTreeMap::new();
     for (k, &id) in ids.iter().enumerate() {
         out.insert(

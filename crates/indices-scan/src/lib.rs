@@ -1,36 +1,48 @@
-//! The `indices` stage's engine: the indices of every simulated sample
+//! The `indices` stage's engine: the indices of every simulated sample of any described system
 //! (`docs/indices.md`), in bounded memory on datasets far larger than RAM.
 //!
-//! Two passes over the `simulation.parquet` shards:
+//! A description brings two families of indices ([`pino_indices::IndexSet`]): the railway
+//! indices, when its `railway:` section binds them to its stored columns by name (the
+//! vehicle-track description does), and its own simple indices (`indices:`,
+//! `stat(channel - subtract) / divide` with `stat` one of max, min, max |.|, RMS,
+//! peak-to-peak). Two passes over the `simulation.parquet` shards:
 //!
-//! 1. [`spectral_pass`] (plain Rust, rayon): streams `sample_id, t, z_c_a, beta_c_a` batch by
-//!    batch, one group of whole samples at a time, checks each record (contiguous rows, a
-//!    uniform grid, finite values), fixes its evaluation window (the first kept point
-//!    `floor(f n)`, [`pino_indices::IndexConfig::first_index`]) and computes everything of the
-//!    car body: the Sperling index of the three car-body signals (rustfft), their peaks and
-//!    sums of squares (in time order, so the RMS has the same bits on every run).
-//! 2. [`aggregate`] (polars): one lazy query over all shards, joined with each sample's window
-//!    start, filtered to the window and grouped by `sample_id`: the extremes of the contact
-//!    forces, bogie accelerations and rail displacements ([`Extremes`]: maxima and minima, exact
-//!    whatever the order, so deterministic on the parallel streaming engine) and a finiteness
-//!    check of every signal, on every core, without materialising the dataset.
+//! 1. [`record_pass`] (plain Rust, rayon): streams `sample_id, t`, the car-body columns of the
+//!    railway binding and the channels of the simple indices through the shared record reader
+//!    ([`pino_data::records::for_each_record`]), one group of whole samples at a time; checks
+//!    each record (a uniform grid, finite values in the window), fixes its evaluation window
+//!    (the first kept point `floor(f n)`, [`pino_indices::IndexConfig::first_index`]) and
+//!    computes everything of the car body (the Sperling index of the three car-body signals,
+//!    their peaks and sums of squares, in time order so the RMS has the same bits on every
+//!    run) and every simple index ([`pino_indices::system::simple`]).
+//! 2. [`aggregate`] (polars, railway binding only): one lazy query over all shards, joined with
+//!    each sample's window start, filtered to the window and grouped by `sample_id`: the
+//!    extremes of the bound contact forces, bogie accelerations and rail displacements
+//!    ([`Extremes`]: maxima and minima, exact whatever the order, so deterministic on the
+//!    parallel streaming engine) and a finiteness check of every railway signal, on every
+//!    core, without materialising the dataset.
 //!
-//! [`pino_indices::Indices::from_parts`] then combines the two with the static wheel load `W`
-//! (`vtcd::vehicle::Vehicle`), as `evaluate` and `predict` do from their plain-Rust folds.
-//! [`write_outputs`] writes `indices.parquet` (`sample_id`, `split`, the 14 parameters, the 14
-//! indices, `window_s`, `pass`, `failed`; sorted by `sample_id`) and `indices.json` (the
-//! settings used and every column's unit and definition).
+//! [`pino_indices::Indices::from_parts`] then combines the two with the sample's static wheel
+//! load `W` and half bogie distance `l_c` (the binding's `static_wheel_load` and `half_length`
+//! expressions over the sample's parameters, [`mbd_system::System::values`]), as `evaluate`
+//! and `predict` do from their plain-Rust folds. [`write_outputs`] writes `indices.parquet`
+//! (`sample_id`, `split`, the sampled parameters, the index columns in
+//! [`pino_indices::IndexSet::columns`] order, `window_s`, `pass`, `failed`; sorted by
+//! `sample_id`) and `indices.json` (the settings used and every column's unit and definition).
+//! A description with neither family still gets both files, with the keys only.
 
 mod aggregate;
 mod output;
-mod spectral;
+mod records;
 
 pub use aggregate::{aggregate, Extremes};
-pub use output::{describe_json, to_table, write_outputs};
-pub use spectral::{spectral_pass, Spectral};
+pub use output::{describe_json, summary, to_table, write_outputs};
+pub use records::{record_pass, CarBody, RecordIndices};
 
+use mbd_system::System;
 use pino_data::schema;
-use pino_indices::{Aggregates, IndexConfig, Indices};
+use pino_indices::system::IndexInfo;
+use pino_indices::{Aggregates, IndexConfig, IndexSet, Indices};
 use polars::prelude::{LazyFrame, PlRefPath, ScanArgsParquet};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -97,45 +109,42 @@ fn dataset(path: &Path, message: String) -> Error {
 pub struct SampleInfo {
     /// Its split label.
     pub split: String,
-    /// The 14 parameters (spec order).
-    pub params: [f64; 14],
+    /// Its sampled parameters, in [`System::sampled`] order (the columns of `params.parquet`).
+    pub params: Vec<f64>,
+    /// Every parameter's value ([`System::values`] of `params`): what the description's
+    /// expressions (`static_wheel_load`, `half_length`, `subtract`, `divide`) evaluate over.
+    pub values: Vec<f64>,
 }
 
-/// Reads `params.parquet`: every sample's split and parameters, by id.
-pub fn read_params(path: &Path) -> Result<BTreeMap<i64, SampleInfo>> {
-    let mut cols = vec![schema::SAMPLE_ID, schema::SPLIT];
-    cols.extend(schema::PARAMETERS);
-    let t = pino_data::read_parquet(path, Some(&cols))?;
-    let values: Vec<&[f64]> = schema::PARAMETERS
-        .iter()
-        .map(|c| t.f64(c))
-        .collect::<pino_data::Result<_>>()?;
-    let mut out = BTreeMap::new();
-    for (row, (&id, split)) in t
-        .i64(schema::SAMPLE_ID)?
-        .iter()
-        .zip(t.str(schema::SPLIT)?)
-        .enumerate()
-    {
-        let info = SampleInfo {
-            split: split.clone(),
-            params: std::array::from_fn(|j| values[j][row]),
-        };
-        if out.insert(id, info).is_some() {
-            return Err(dataset(path, format!("sample_id {id} appears twice")));
-        }
-    }
-    Ok(out)
+/// Reads `params.parquet` (one file per upstream shard, usually one) through
+/// [`pino_data::records::read_params`]: every sample's split and sampled parameters, by id.
+pub fn read_params(system: &System, files: &[PathBuf]) -> Result<BTreeMap<i64, SampleInfo>> {
+    let names = system.sampled_names();
+    let table = pino_data::records::read_params(files, &names)?;
+    Ok(table
+        .ids
+        .into_iter()
+        .zip(table.splits)
+        .zip(table.values)
+        .map(|((id, split), params)| {
+            let values = system.values(&params);
+            (
+                id,
+                SampleInfo {
+                    split,
+                    params,
+                    values,
+                },
+            )
+        })
+        .collect())
 }
 
-/// The columns the indices read from a simulation file: `sample_id`, `t`, then the signals.
-pub fn needed_columns() -> Vec<&'static str> {
-    let mut c = vec![schema::SAMPLE_ID, schema::TIME];
-    c.extend(pino_indices::columns::P);
-    c.push(pino_indices::columns::Z_C_A);
-    c.push(pino_indices::columns::BETA_C_A);
-    c.extend(pino_indices::columns::Z_T_A);
-    c.extend(pino_indices::columns::Z_R);
+/// The columns the indices of `set` read from a simulation file: `sample_id`, `t`, then the
+/// signals ([`IndexSet::inputs`]: the railway binding's, then the simple indices' channels).
+pub fn needed_columns(set: &IndexSet) -> Vec<String> {
+    let mut c = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
+    c.extend(set.inputs());
     c
 }
 
@@ -156,18 +165,18 @@ fn polars_err(path: &Path, e: impl std::fmt::Display) -> Error {
     }
 }
 
-/// Checks, from each file's footer, that every [`needed_columns`] is there.
-pub fn check_columns(files: &[PathBuf]) -> Result<()> {
+/// Checks, from each file's footer, that every column of `needed` is there.
+pub fn check_columns(files: &[PathBuf], needed: &[String]) -> Result<()> {
     for f in files {
         let mut lf = LazyFrame::scan_parquet(pl_path(f)?, ScanArgsParquet::default())
             .map_err(|e| polars_err(f, e))?;
         let schema = lf.collect_schema().map_err(|e| polars_err(f, e))?;
         let present: Vec<String> = schema.iter_names().map(|n| n.to_string()).collect();
-        for c in needed_columns() {
-            if !present.iter().any(|p| p == c) {
+        for c in needed {
+            if !present.contains(c) {
                 return Err(Error::MissingColumn {
                     path: f.clone(),
-                    column: c.to_owned(),
+                    column: c.clone(),
                     present: present.join(", "),
                 });
             }
@@ -183,24 +192,36 @@ pub struct Row {
     pub id: i64,
     /// Its split and parameters.
     pub info: SampleInfo,
-    /// Its indices.
-    pub indices: Indices,
+    /// Its index values, in [`Computed::columns`] order.
+    pub values: Vec<f64>,
+    /// Its railway indices, when the description binds them.
+    pub railway: Option<Indices>,
+    /// Length of its evaluation window (s): points times `dt`.
+    pub window_s: f64,
     /// Limits it exceeds (empty: it passes).
-    pub failed: Vec<&'static str>,
+    pub failed: Vec<String>,
 }
 
 /// Everything the stage computed.
 #[derive(Debug, Clone)]
 pub struct Computed {
+    /// The description's name.
+    pub system: String,
+    /// The index columns ([`IndexSet::columns`]).
+    pub columns: Vec<IndexInfo>,
+    /// Whether the railway family is bound (the first 14 columns are then its indices).
+    pub railway: bool,
     /// One row per simulated sample, by id.
     pub rows: Vec<Row>,
     /// Samples of `params.parquet` absent from the simulation (failed runs).
     pub absent: usize,
 }
 
-/// Both passes and the combination: the indices of every sample of `files`.
+/// Both passes and the combination: the indices `system` defines of every sample of `files`
+/// (`params`: [`read_params`]).
 pub fn compute_all(
-    params_file: &Path,
+    system: &System,
+    params: &BTreeMap<i64, SampleInfo>,
     files: &[PathBuf],
     cfg: &IndexConfig,
     progress: &(dyn Fn(u64) + Sync),
@@ -211,61 +232,76 @@ pub fn compute_all(
             "no simulation.parquet given".into(),
         ));
     }
-    let params = read_params(params_file)?;
-    check_columns(files)?;
-    let spectral = spectral_pass(files, &params, cfg, progress)?;
-    if spectral.is_empty() {
+    let set = IndexSet::of(system);
+    check_columns(files, &needed_columns(&set))?;
+    let pass = record_pass(files, system, &set, params, cfg, progress)?;
+    if pass.is_empty() {
         return Err(dataset(
             &files[0],
             format!("no simulated sample in {} file(s)", files.len()),
         ));
     }
-    let windows: Vec<(i64, f64)> = spectral.iter().map(|(id, s)| (*id, s.t_start)).collect();
-    let file_of = |id: i64| {
-        spectral
-            .get(&id)
-            .map_or_else(|| files[0].clone(), |s| files[s.file].clone())
-    };
-    let aggs = aggregate(files, &windows, &file_of)?;
-    let mut rows = Vec::with_capacity(spectral.len());
-    for (id, s) in &spectral {
-        let path = &files[s.file];
-        let ext = aggs
-            .get(id)
-            .ok_or_else(|| dataset(path, format!("sample {id}: no rows in the aggregation")))?;
-        if ext.n != s.n {
-            return Err(dataset(
-                path,
-                format!(
-                    "sample {id}: {} window rows aggregated, {} read",
-                    ext.n, s.n
-                ),
-            ));
+    let extremes = match &set.railway {
+        Some(r) => {
+            let windows: Vec<(i64, f64)> = pass.iter().map(|(id, s)| (*id, s.t_start)).collect();
+            let file_of = |id: i64| {
+                pass.get(&id)
+                    .map_or_else(|| files[0].clone(), |s| files[s.file].clone())
+            };
+            Some(aggregate(files, r, &windows, &file_of)?)
         }
-        let agg = Aggregates {
-            n: s.n,
-            p_max: ext.p_max,
-            p_min: ext.p_min,
-            car_body_abs_max: s.car_abs_max,
-            car_body_sum_sq: s.car_sum_sq,
-            bogie_abs_max: ext.bogie_abs_max,
-            z_r_max: ext.z_r_max,
-        };
+        None => None,
+    };
+    let mut rows = Vec::with_capacity(pass.len());
+    for (id, s) in &pass {
+        let path = &files[s.file];
         let info = params[id].clone();
-        let w = vtcd::vehicle::Vehicle::new(
-            &vtcd::params::SampleParams::from_array(info.params),
-            cfg.gravity,
-        )
-        .w;
-        let ix = Indices::from_parts(&agg, s.wz, w, s.dt);
+        let mut values = Vec::new();
+        let mut railway = None;
+        // The three come together: the binding makes the set's railway columns, from which
+        // the record pass takes the car body and the aggregation the rest.
+        if let (Some(aggs), Some(binding), Some(car)) = (&extremes, &system.railway, &s.car_body) {
+            let ext = aggs
+                .get(id)
+                .ok_or_else(|| dataset(path, format!("sample {id}: no rows in the aggregation")))?;
+            if ext.n != s.n {
+                return Err(dataset(
+                    path,
+                    format!(
+                        "sample {id}: {} window rows aggregated, {} read",
+                        ext.n, s.n
+                    ),
+                ));
+            }
+            let agg = Aggregates {
+                n: s.n,
+                p_max: ext.p_max,
+                p_min: ext.p_min,
+                car_body_abs_max: car.abs_max,
+                car_body_sum_sq: car.sum_sq,
+                bogie_abs_max: ext.bogie_abs_max,
+                z_r_max: ext.z_r_max,
+            };
+            let w = binding.static_wheel_load.eval(&info.values);
+            let ix = Indices::from_parts(&agg, car.wz, w, s.dt);
+            values.extend(ix.values());
+            railway = Some(ix);
+        }
+        values.extend_from_slice(&s.simple);
+        let failed = set.failed(system, &values, railway.as_ref(), cfg);
         rows.push(Row {
             id: *id,
-            failed: cfg.limits.failed(&ix),
+            window_s: railway.map_or(s.n as f64 * s.dt, |ix| ix.window_s),
             info,
-            indices: ix,
+            values,
+            railway,
+            failed,
         });
     }
     Ok(Computed {
+        system: system.name.clone(),
+        columns: set.columns(system),
+        railway: set.railway.is_some(),
         absent: params.len().saturating_sub(rows.len()),
         rows,
     })

@@ -1,13 +1,18 @@
-//! Stage `indices`: the engineering indices of every simulated sample (`docs/indices.md`),
-//! written as `indices.parquet` (`sample_id`, `split`, the 14 parameters, the 14 indices,
-//! `window_s`, `pass`, `failed`; sorted by sample id) and `indices.json` (the settings used,
-//! every column's unit and definition).
+//! Stage `indices`: the indices of every simulated sample that the system description defines
+//! (`docs/indices.md`): the railway indices when its `railway:` section binds them to its
+//! columns (the vehicle-track description), then its own simple indices (`indices:`). Written
+//! as `indices.parquet` (`sample_id`, `split`, the sampled parameters, the index columns,
+//! `window_s`, `pass`, `failed`; sorted by sample id) and `indices.json` (the description's
+//! name, the settings used, every column's unit and definition). A description with no index
+//! still gets both files, with the keys only.
 //!
-//! Inputs: `params` (`params.parquet`), `dataset` (the `simulation.parquet` of every simulate
-//! shard). Params ([`indices::IndexParams`]): `window_start_fraction`, `gravity`, `sperling`
-//! (`segment_s`, `taper`, `f_min_hz`), `limits` (`peak_wheel_rail_force_kn`,
-//! `wheel_load_reduction_rate`, `sperling_wz`). The work is `indices_scan::compute_all`:
-//! a streamed spectral pass, then a streaming polars group-by on every core.
+//! Inputs: `params` (`params.parquet` and `system.json`), `dataset` (the `simulation.parquet`
+//! and `system.json` of every simulate shard; all the `system.json` must be one description).
+//! Params ([`indices::IndexParams`]): `window_start_fraction`, `sperling` (`segment_s`,
+//! `taper`, `f_min_hz`), `limits` of the railway family (`peak_wheel_rail_force_kn`,
+//! `wheel_load_reduction_rate`, `sperling_wz`; a simple index carries its own `limit` in the
+//! description). The work is `indices_scan::compute_all`: a streamed record pass, then, for
+//! the railway family, a streaming polars group-by on every core.
 
 use anyhow::{Context, Result};
 use pino_indices as indices;
@@ -19,27 +24,18 @@ fn run() -> Result<String> {
     let cfg = raw
         .validate()
         .with_context(|| format!("stage `{}`: bad parameters", ctx.stage))?;
-    let params = ctx.single_input_file("params", "params.parquet")?;
+    if ctx.is_check() {
+        return Ok("parameters valid".into());
+    }
+    let mut dirs = ctx.input_dirs("dataset")?.to_vec();
+    dirs.extend_from_slice(ctx.input_dirs("params")?);
+    let (_, system) = pino_data::system::read_record(&dirs)?;
+    let params = indices_scan::read_params(&system, &ctx.input_files("params", "params.parquet")?)?;
     let files = ctx.input_files("dataset", "simulation.parquet")?;
-    let total = indices_scan::read_params(&params)?.len() as u64;
-    let progress = ctx.progress(total);
-    let out = indices_scan::compute_all(&params, &files, &cfg, &|n| progress.inc(n))?;
-    indices_scan::write_outputs(&ctx.output, &out.rows, &cfg)?;
-    let failing = out.rows.iter().filter(|r| !r.failed.is_empty()).count();
-    let worst = |index: &dyn Fn(&indices::Indices) -> f64| {
-        out.rows
-            .iter()
-            .map(|r| index(&r.indices))
-            .fold(f64::NEG_INFINITY, f64::max)
-    };
-    Ok(format!(
-        "indices of {} samples ({} absent from the dataset); {failing} exceed a limit; worst: peak force {:.1} kN, wheel load reduction {:.3}, W_z {:.2}",
-        out.rows.len(),
-        out.absent,
-        worst(&|i| i.peak_wheel_rail_force_kn),
-        worst(&|i| i.wheel_load_reduction_rate),
-        worst(&|i| i.sperling_wz.into_iter().fold(f64::NEG_INFINITY, f64::max)),
-    ))
+    let progress = ctx.progress(params.len() as u64);
+    let out = indices_scan::compute_all(&system, &params, &files, &cfg, &|n| progress.inc(n))?;
+    indices_scan::write_outputs(&ctx.output, &system, &out, &cfg)?;
+    Ok(indices_scan::summary(&out))
 }
 
 fn main() {
