@@ -10,35 +10,129 @@
 
 use crate::diag::Diagnostics;
 use crate::model::{ModelEnd, ModelLaw};
-use crate::schema::RawDescription;
+use crate::reader::Field;
+use crate::schema::{RawDescription, RawLaw, RawLink, RawProfileKind};
 use crate::system::System;
 use crate::yaml::Pos;
 
 /// Relative pivot below which a DOF counts as unrestrained.
 const PIVOT_TOLERANCE: f64 = 1e-10;
 
+/// Where the field `path` (`bodies.c.mass`, `beams.r.supports.levels[0].link.k`) was written:
+/// the field itself when the description wrote it, else its entry, else the top.
 fn position(raw: &RawDescription, path: &str) -> Pos {
-    let mut parts = path.split('.');
-    let section = parts.next().unwrap_or("");
-    let name = parts.next().unwrap_or("");
-    let name = name.split('[').next().unwrap_or(name);
+    let parts: Vec<&str> = path.split('.').collect();
+    let section = parts[0];
+    let name = parts
+        .get(1)
+        .map_or("", |n| n.split('[').next().unwrap_or(n));
+    let field: Vec<&str> = parts.iter().skip(2).copied().collect();
+    let at = |f: &Option<Field>| f.as_ref().map(|f| f.pos);
+    // `name[i]` -> i.
+    let item = |s: &str| -> Option<usize> { s.split_once('[')?.1.strip_suffix(']')?.parse().ok() };
+    let link = |l: &Option<RawLink>, rest: &[&str]| -> Option<Pos> {
+        let l = l.as_ref()?;
+        match rest {
+            ["k"] => at(&l.k),
+            ["c"] => at(&l.c),
+            _ => None,
+        }
+        .or(Some(l.pos))
+    };
     let found = match section {
         "parameters" => raw
             .parameters
             .iter()
             .find(|p| p.name == name)
             .map(|p| p.pos),
-        "bodies" => raw.bodies.iter().find(|b| b.name == name).map(|b| b.pos),
-        "beams" => raw.beams.iter().find(|b| b.name == name).map(|b| b.pos),
-        "elements" => raw.elements.iter().find(|e| e.name == name).map(|e| e.pos),
-        "loads" => raw.loads.iter().find(|l| l.name == name).map(|l| l.pos),
-        "sensors" => raw.sensors.iter().find(|s| s.name == name).map(|s| s.pos),
-        "profiles" => raw.profiles.iter().find(|p| p.name == name).map(|p| p.pos),
-        "moving" => raw.moving.as_ref().map(|m| {
-            m.points
+        "bodies" => raw.bodies.iter().find(|b| b.name == name).map(|b| {
+            match field.as_slice() {
+                ["mass"] => at(&b.mass),
+                ["inertia"] => at(&b.inertia),
+                ["points", p] => b.points.iter().find(|q| q.0 == *p).map(|q| q.2.pos),
+                _ => None,
+            }
+            .unwrap_or(b.pos)
+        }),
+        "beams" => raw.beams.iter().find(|b| b.name == name).map(|b| {
+            let supports = |rest: &[&str]| -> Option<Pos> {
+                let s = b.supports.as_ref()?;
+                match rest {
+                    ["spacing"] => at(&s.spacing),
+                    ["count"] => at(&s.count),
+                    ["first"] => at(&s.first),
+                    ["ground", rest @ ..] => link(&s.ground, rest),
+                    [level, rest @ ..] if level.starts_with("levels[") => {
+                        let l = s.levels.get(item(level)?)?;
+                        match rest {
+                            ["mass"] => at(&l.mass),
+                            ["link", rest @ ..] => link(&l.link, rest),
+                            ["shear", rest @ ..] => link(&l.shear, rest),
+                            _ => None,
+                        }
+                        .or(Some(l.pos))
+                    }
+                    _ => None,
+                }
+                .or(Some(s.pos))
+            };
+            match field.as_slice() {
+                ["length"] => at(&b.length),
+                ["modes"] => at(&b.modes),
+                ["mass_per_length"] => at(&b.mass_per_length),
+                ["bending_stiffness"] => at(&b.bending_stiffness),
+                ["damping_ratio"] => at(&b.damping_ratio),
+                ["supports", rest @ ..] => supports(rest),
+                _ => None,
+            }
+            .unwrap_or(b.pos)
+        }),
+        "elements" => raw.elements.iter().find(|e| e.name == name).map(|e| {
+            let list =
+                |fields: &[Field], key: &str| item(key).and_then(|i| fields.get(i)).map(|f| f.pos);
+            match (&e.law, field.as_slice()) {
+                (RawLaw::SpringDamper { k, .. }, ["k"]) => at(k),
+                (RawLaw::SpringDamper { c, .. } | RawLaw::Table { c, .. }, ["c"]) => at(c),
+                (RawLaw::SpringDamper { preload, .. }, ["preload"]) => at(preload),
+                (RawLaw::Hertz { g, .. }, ["g"]) => at(g),
+                (RawLaw::Hertz { exponent, .. }, ["exponent"]) => at(exponent),
+                (RawLaw::Table { deflection, .. }, [key]) if key.starts_with("deflection") => {
+                    list(deflection, key)
+                }
+                (RawLaw::Table { force, .. }, [key]) if key.starts_with("force") => {
+                    list(force, key)
+                }
+                _ => None,
+            }
+            .unwrap_or(e.pos)
+        }),
+        "loads" => raw
+            .loads
+            .iter()
+            .find(|l| l.name == name)
+            .map(|l| at(&l.force).unwrap_or(l.pos)),
+        "sensors" => raw
+            .sensors
+            .iter()
+            .find(|s| s.name == name)
+            .map(|s| at(&s.x).unwrap_or(s.pos)),
+        "profiles" => raw.profiles.iter().find(|p| p.name == name).map(|p| {
+            match (&p.kind, field.as_slice()) {
+                (RawProfileKind::Harmonic { amplitude, .. }, ["amplitude"]) => at(amplitude),
+                (RawProfileKind::Harmonic { wavelength, .. }, ["wavelength"]) => at(wavelength),
+                (RawProfileKind::Harmonic { phase, .. }, ["phase"]) => at(phase),
+                _ => None,
+            }
+            .unwrap_or(p.pos)
+        }),
+        "moving" => raw.moving.as_ref().map(|m| match parts.as_slice() {
+            [_, "speed"] => at(&m.speed).unwrap_or(m.pos),
+            [_, "points", point, ..] => m
+                .points
                 .iter()
-                .find(|p| path.contains(&format!(".{}.", p.name)))
-                .map_or(m.pos, |p| p.pos)
+                .find(|p| p.name == *point)
+                .map_or(m.pos, |p| at(&p.offset).unwrap_or(p.pos)),
+            _ => m.pos,
         }),
         _ => None,
     };
@@ -47,13 +141,15 @@ fn position(raw: &RawDescription, path: &str) -> Pos {
 
 /// Domain and restraint checks at the nominal values.
 pub fn nominal_checks(system: &System, raw: &RawDescription, diag: &mut Diagnostics) {
-    let model = match system.instantiate(&system.nominal()) {
+    let model = match system.instantiate_all(&system.nominal()) {
         Ok(m) => m,
-        Err(e) => {
-            diag.push(
-                position(raw, &e.path),
-                format!("at the nominal values, {e}"),
-            );
+        Err(errors) => {
+            for e in errors {
+                diag.push(
+                    position(raw, &e.path),
+                    format!("at the nominal values, {e}"),
+                );
+            }
             return;
         }
     };
@@ -82,32 +178,55 @@ pub fn nominal_checks(system: &System, raw: &RawDescription, diag: &mut Diagnost
             }
         }
     }
-    if let Some(dof) = unrestrained(&mut k) {
-        let d = &system.dofs[dof];
-        let body = &system.bodies[d.body];
+    // Every unrestrained DOF, one problem per body.
+    let free = unrestrained(&mut k);
+    for (bi, body) in system.bodies.iter().enumerate() {
+        let dofs: Vec<&str> = free
+            .iter()
+            .filter(|&&d| system.dofs[d].body == bi)
+            .map(|&d| system.dofs[d].name.as_str())
+            .collect();
+        if dofs.is_empty() {
+            continue;
+        }
         let pos = raw
             .bodies
             .iter()
             .find(|b| b.name == body.name)
             .map_or(Pos { line: 1, col: 1 }, |b| b.pos);
+        let (noun, verb) = if dofs.len() == 1 {
+            ("DOF", "is")
+        } else {
+            ("DOFs", "are")
+        };
         diag.push(
             pos,
             format!(
-                "bodies.{}: DOF `{}` is not restrained by any element (the static problem is singular); connect the body so that every DOF is held, e.g. a pitch needs elements at two different points",
-                body.name, d.name
+                "bodies.{}: {noun} `{}` {verb} not restrained by any element (the static problem is singular); connect the body so that every DOF is held, e.g. a pitch needs elements at two different points",
+                body.name,
+                dofs.join("`, `")
             ),
         );
     }
 }
 
-/// The first DOF whose pivot vanishes in the Cholesky factorisation of `k` scaled to unit
-/// diagonal, or `None` when `k` is positive definite.
-fn unrestrained(k: &mut [Vec<f64>]) -> Option<usize> {
+/// The DOFs whose pivot vanishes in the Cholesky factorisation of `k` scaled to unit diagonal
+/// (empty when `k` is positive definite). A DOF found free is taken out (its pivot set to 1,
+/// its column of the factor to 0) and the factorisation goes on, so every free DOF is named.
+fn unrestrained(k: &mut [Vec<f64>]) -> Vec<usize> {
     let n = k.len();
-    let scale: Vec<f64> = (0..n).map(|i| k[i][i]).collect();
-    if let Some(i) = scale.iter().position(|&d| d.is_nan() || d <= 0.0) {
-        return Some(i);
+    // A DOF without any stiffness: its row and column are zero (K is a sum of b b^T).
+    let mut free: Vec<usize> = (0..n)
+        .filter(|&i| k[i][i].is_nan() || k[i][i] <= 0.0)
+        .collect();
+    for &i in &free {
+        for row in k.iter_mut() {
+            row[i] = 0.0;
+        }
+        k[i].fill(0.0);
+        k[i][i] = 1.0;
     }
+    let scale: Vec<f64> = (0..n).map(|i| k[i][i]).collect();
     for i in 0..n {
         for j in 0..n {
             k[i][j] /= (scale[i] * scale[j]).sqrt();
@@ -116,7 +235,12 @@ fn unrestrained(k: &mut [Vec<f64>]) -> Option<usize> {
     for j in 0..n {
         let d = k[j][j] - k[j][..j].iter().map(|x| x * x).sum::<f64>();
         if d.is_nan() || d <= PIVOT_TOLERANCE {
-            return Some(j);
+            free.push(j);
+            k[j][j] = 1.0;
+            for row in k.iter_mut().skip(j + 1) {
+                row[j] = 0.0;
+            }
+            continue;
         }
         let d = d.sqrt();
         k[j][j] = d;
@@ -125,5 +249,7 @@ fn unrestrained(k: &mut [Vec<f64>]) -> Option<usize> {
             k[i][j] = s / d;
         }
     }
-    None
+    free.sort_unstable();
+    free.dedup();
+    free
 }

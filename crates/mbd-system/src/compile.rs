@@ -8,7 +8,7 @@
 //! - element ends and load points name a body, one of its points, a moving point or `ground`;
 //!   an element's upper end is a body; a profile sits under a moving point;
 //! - every body DOF is restrained: the stiffness the elements give the rigid DOFs, with the
-//!   beams and the ground held, is positive definite at the nominal values (else the DOF
+//!   beams and the ground held, is positive definite at the nominal values (else every DOF
 //!   whose pivot vanishes is named);
 //! - every field is in its domain at the nominal values (a mass > 0, a damping >= 0, ...);
 //!   [`System::instantiate`] checks each sample again;
@@ -42,27 +42,38 @@ impl<'a> Scope<'a> {
     fn resolve(&mut self, f: &Field, what: &str, diag: &mut Diagnostics) -> Option<Expr> {
         let mut e = f.expr.clone();
         let names = &self.names;
-        match e.resolve(&|n| names.get(n).copied()) {
-            Ok(()) => {
-                for n in f.expr.names() {
-                    self.used[self.names[n]] = true;
-                }
-                Some(e)
-            }
+        let resolved = e.resolve(&|n| names.get(n).copied());
+        // The known names count as used even when another name is unknown (no follow-on
+        // "never used" for them).
+        self.mark_used(&f.expr);
+        match resolved {
+            Ok(()) => Some(e),
             Err(name) => {
-                let mut known: Vec<&&str> = self.names.keys().collect();
-                known.sort();
-                let known: Vec<&str> = known.into_iter().copied().collect();
                 diag.push(
                     f.pos,
                     format!(
                         "{what}: unknown parameter `{name}`; parameters: {}",
-                        known.join(", ")
+                        self.known()
                     ),
                 );
                 None
             }
         }
+    }
+
+    fn mark_used(&mut self, e: &Expr) {
+        for n in e.names() {
+            if let Some(&i) = self.names.get(n) {
+                self.used[i] = true;
+            }
+        }
+    }
+
+    /// The parameter names, sorted, for messages.
+    fn known(&self) -> String {
+        let mut known: Vec<&str> = self.names.keys().copied().collect();
+        known.sort_unstable();
+        known.join(", ")
     }
 
     fn opt(
@@ -172,8 +183,13 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
                     Err(name) => {
                         diag.push(
                             expr.pos,
-                            format!("parameters.{}.expr: unknown parameter `{name}`", p.name),
+                            format!(
+                                "parameters.{}.expr: unknown parameter `{name}`; parameters: {}",
+                                p.name,
+                                scope.known()
+                            ),
                         );
+                        scope.mark_used(&expr.expr);
                         ParamSource::Fixed(f64::NAN)
                     }
                 }
@@ -350,7 +366,9 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
                                     names(raw.beams.iter().map(|b| &b.name))
                                 ),
                             );
-                            None
+                            // A point meant for a beam keeps its column `z_<point>` (no
+                            // follow-on problem in `outputs`); the system is refused anyway.
+                            Some(beams.len())
                         }
                     },
                     None => None,
@@ -374,6 +392,8 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
     let mut sensors = Vec::new();
     for s in &raw.sensors {
         let what = format!("sensors.{}", s.name);
+        // A sensor whose beam or position fails keeps its columns (no follow-on problem in
+        // `outputs`); the system is refused anyway.
         let beam = match &s.on {
             Some((on, pos)) => match beam_index(on) {
                 Some(b) => b,
@@ -385,18 +405,17 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
                             names(raw.beams.iter().map(|b| &b.name))
                         ),
                     );
-                    continue;
+                    beams.len()
                 }
             },
-            None => continue,
+            None => beams.len(),
         };
-        if let Some(x) = scope.req(&s.x, &format!("{what}.x"), diag) {
-            sensors.push(Sensor {
-                name: s.name.clone(),
-                beam,
-                x,
-            });
-        }
+        let x = scope.req(&s.x, &format!("{what}.x"), diag);
+        sensors.push(Sensor {
+            name: s.name.clone(),
+            beam,
+            x: x.unwrap_or(Expr::Num(f64::NAN)),
+        });
     }
 
     // Profiles.
@@ -500,7 +519,7 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
         let profile = match &e.profile {
             None => None,
             Some((name, pos)) => {
-                if !matches!(to, Some(End::Moving(_))) {
+                if to.as_ref().is_some_and(|t| !matches!(t, End::Moving(_))) {
                     diag.push(*pos, format!("{what}.profile: a profile lies under a moving point; `to` must be one ({})", names(points.iter().map(|p| &p.name))));
                 }
                 match profiles.iter().position(|p| p.name() == name) {
@@ -513,7 +532,8 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
                                 names(profiles.iter().map(|p| p.name()))
                             ),
                         );
-                        None
+                        // Keeps the column `eta_<element>`; the system is refused anyway.
+                        Some(profiles.len())
                     }
                 }
             }
@@ -556,15 +576,15 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
                     .unwrap_or(Expr::Num(0.0)),
             },
         };
-        if let (Some(from), Some(to)) = (from, to) {
-            elements.push(Element {
-                name: e.name.clone(),
-                law,
-                from,
-                to,
-                profile,
-            });
-        }
+        // An element whose end fails keeps its columns (no follow-on problem in `outputs`);
+        // the system is refused anyway.
+        elements.push(Element {
+            name: e.name.clone(),
+            law,
+            from: from.unwrap_or(End::Ground),
+            to: to.unwrap_or(End::Ground),
+            profile,
+        });
     }
 
     // Loads.
@@ -607,7 +627,7 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
             }
         }
     }
-    let channel_table = channel_table(&dofs, &points, &sensors, &elements, raw, diag);
+    let channel_table = channel_table(&bodies, &dofs, &points, &sensors, &elements, raw, diag);
     let channels = stored_channels(&dofs, &channel_table, raw, diag);
     let mut indices = Vec::new();
     for ix in &raw.indices {
@@ -865,6 +885,7 @@ fn structural_count(
 
 /// Every column the naming rule gives (stored or not): name, unit, quantity, role.
 fn channel_table(
+    bodies: &[Body],
     dofs: &[Dof],
     points: &[MovingPoint],
     sensors: &[Sensor],
@@ -873,13 +894,23 @@ fn channel_table(
     diag: &mut Diagnostics,
 ) -> Vec<Channel> {
     let mut out = Vec::new();
+    // Who produces each column, for messages: what and its name.
+    let mut owners: Vec<(&str, &str)> = Vec::new();
     let mut push = |name: String, unit: &str, quantity: Quantity, role: Role| {
         out.push(Channel {
             name,
             unit: unit.to_owned(),
             quantity,
             role,
-        })
+        });
+        owners.push(match quantity {
+            Quantity::Dof(i, _) => ("body", bodies[dofs[i].body].name.as_str()),
+            Quantity::Point(i) => ("moving point", points[i].name.as_str()),
+            Quantity::Sensor(i, _) => ("sensor", sensors[i].name.as_str()),
+            Quantity::Excitation(i) | Quantity::Force(i) | Quantity::Deflection(i) => {
+                ("element", elements[i].name.as_str())
+            }
+        });
     };
     for (i, d) in dofs.iter().enumerate() {
         let (u, v, a) = match d.kind {
@@ -954,55 +985,52 @@ fn channel_table(
         );
     }
     // Unique names: a collision (a body `c_v` beside a body `c`, a sensor named like a body)
-    // is reported at the later declaration.
+    // is reported once per pair of producers, at the later declaration.
+    let declared = |(kind, name): (&str, &str)| -> Pos {
+        let found = match kind {
+            "body" => raw.bodies.iter().find(|b| b.name == name).map(|b| b.pos),
+            "moving point" => raw
+                .moving
+                .as_ref()
+                .and_then(|m| m.points.iter().find(|p| p.name == name).map(|p| p.pos)),
+            "sensor" => raw.sensors.iter().find(|s| s.name == name).map(|s| s.pos),
+            _ => raw.elements.iter().find(|e| e.name == name).map(|e| e.pos),
+        };
+        found.unwrap_or_default()
+    };
     let mut seen: HashMap<&str, usize> = HashMap::new();
+    let mut clashes: Vec<(usize, usize, Vec<&str>)> = Vec::new();
     for (i, c) in out.iter().enumerate() {
-        if let Some(&j) = seen.get(c.name.as_str()) {
-            let pos = declaration_pos(raw, &c.name).unwrap_or_default();
-            diag.push(
-                pos,
-                format!(
-                    "column `{}` is produced twice (by {} and by {}); rename one of them",
-                    c.name,
-                    describe(&out[j].quantity),
-                    describe(&c.quantity)
-                ),
-            );
-        } else {
-            seen.insert(&c.name, i);
+        match seen.get(c.name.as_str()) {
+            Some(&j) => match clashes
+                .iter_mut()
+                .find(|(a, b, _)| owners[*a] == owners[j] && owners[*b] == owners[i])
+            {
+                Some(clash) => clash.2.push(&c.name),
+                None => clashes.push((j, i, vec![&c.name])),
+            },
+            None => {
+                seen.insert(&c.name, i);
+            }
         }
     }
-    out
-}
-
-fn describe(q: &Quantity) -> &'static str {
-    match q {
-        Quantity::Dof(..) => "a body DOF",
-        Quantity::Point(_) => "a moving point",
-        Quantity::Sensor(..) => "a sensor",
-        Quantity::Excitation(_) => "an element's profile",
-        Quantity::Force(_) => "an element's force",
-        Quantity::Deflection(_) => "an element's deflection",
+    for (j, i, columns) in clashes {
+        let (first, second) = (owners[j], owners[i]);
+        let also = if columns.len() > 1 {
+            let rest: Vec<String> = columns[1..].iter().map(|c| format!("`{c}`")).collect();
+            format!(" (also {})", rest.join(", "))
+        } else {
+            String::new()
+        };
+        diag.push(
+            declared(first).max(declared(second)),
+            format!(
+                "column `{}` is produced by both {} `{}` and {} `{}`{also}; rename one of them",
+                columns[0], first.0, first.1, second.0, second.1
+            ),
+        );
     }
-}
-
-fn declaration_pos(raw: &RawDescription, column: &str) -> Option<Pos> {
-    let tail = column.split_once('_').map(|(_, t)| t)?;
-    let tail = tail
-        .strip_suffix("_v")
-        .or_else(|| tail.strip_suffix("_a"))
-        .unwrap_or(tail);
-    raw.sensors
-        .iter()
-        .find(|s| s.name == tail)
-        .map(|s| s.pos)
-        .or_else(|| {
-            raw.moving
-                .as_ref()
-                .and_then(|m| m.points.iter().find(|p| p.name == tail).map(|p| p.pos))
-        })
-        .or_else(|| raw.bodies.iter().find(|b| b.name == tail).map(|b| b.pos))
-        .or_else(|| raw.elements.iter().find(|e| e.name == tail).map(|e| e.pos))
+    out
 }
 
 /// The stored columns: DOF displacements, the listed displacement columns, DOF velocities,

@@ -37,7 +37,8 @@ impl Diagnostics {
 }
 
 impl std::fmt::Display for Diagnostics {
-    /// `file:line:col: message`, one line per problem, in file order.
+    /// `file:line:col: message`, one line per problem, in file order (control characters of
+    /// the message escaped).
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let mut items = self.items.clone();
         items.sort_by_key(|d| d.pos);
@@ -45,11 +46,16 @@ impl std::fmt::Display for Diagnostics {
             if i > 0 {
                 writeln!(f)?;
             }
-            write!(
-                f,
-                "{}:{}:{}: {}",
-                self.file, d.pos.line, d.pos.col, d.message
-            )?;
+            write!(f, "{}:{}:{}: ", self.file, d.pos.line, d.pos.col)?;
+            // One problem per line: line breaks and other controls quoted from the text are
+            // shown escaped.
+            for c in d.message.chars() {
+                if c.is_control() || matches!(c, '\u{2028}' | '\u{2029}') {
+                    write!(f, "{}", c.escape_debug())?;
+                } else {
+                    write!(f, "{c}")?;
+                }
+            }
         }
         Ok(())
     }

@@ -364,45 +364,62 @@ impl System {
             .collect()
     }
 
-    /// The model of one sample (`sampled` in [`System::sampled`] order), every field checked.
+    /// The model of one sample (`sampled` in [`System::sampled`] order), every field checked;
+    /// the first field out of its domain is the error.
     pub fn instantiate(&self, sampled: &[f64]) -> Result<Model, FieldError> {
+        self.instantiate_all(sampled)
+            .map_err(|errors| errors.into_iter().next().expect("at least one"))
+    }
+
+    /// [`System::instantiate`], reporting every field out of its domain (in the order of the
+    /// description's sections), not only the first: the checks of a description at its
+    /// nominal values list all of them at once.
+    pub fn instantiate_all(&self, sampled: &[f64]) -> Result<Model, Vec<FieldError>> {
         let v = self.values(sampled);
-        for (p, x) in self.parameters.iter().zip(&v) {
-            if !x.is_finite() {
-                return Err(FieldError {
-                    path: format!("parameters.{}", p.name),
-                    value: *x,
-                    allowed: "finite".to_owned(),
-                });
-            }
+        let non_finite: Vec<FieldError> = self
+            .parameters
+            .iter()
+            .zip(&v)
+            .filter(|(_, x)| !x.is_finite())
+            .map(|(p, x)| FieldError {
+                path: format!("parameters.{}", p.name),
+                value: *x,
+                allowed: "finite".to_owned(),
+            })
+            .collect();
+        if !non_finite.is_empty() {
+            return Err(non_finite);
         }
         let ev = |e: &crate::expr::Expr| e.eval(&v);
-        let check = |path: String, x: f64, ok: bool, allowed: &str| -> Result<f64, FieldError> {
-            if x.is_finite() && ok {
-                Ok(x)
-            } else {
-                Err(FieldError {
+        // Each check records a field out of its domain and passes the value on; the model is
+        // returned only when nothing was recorded.
+        let errors = std::cell::RefCell::new(Vec::new());
+        let check = |path: String, x: f64, ok: bool, allowed: &str| -> f64 {
+            if !(x.is_finite() && ok) {
+                errors.borrow_mut().push(FieldError {
                     path,
                     value: x,
                     allowed: allowed.to_owned(),
-                })
+                });
             }
+            x
         };
         let positive = |path: String, x: f64| check(path, x, x > 0.0, "finite and > 0");
         let non_negative = |path: String, x: f64| check(path, x, x >= 0.0, "finite and >= 0");
         let finite = |path: String, x: f64| check(path, x, true, "finite");
+        let recorded = || errors.borrow().len();
 
         let mut dof_mass = vec![0.0; self.dofs.len()];
         for b in &self.bodies {
-            let m = positive(format!("bodies.{}.mass", b.name), ev(&b.mass))?;
+            let m = positive(format!("bodies.{}.mass", b.name), ev(&b.mass));
             if let Some(z) = b.z {
                 dof_mass[z] = m;
             }
             if let (Some(p), Some(j)) = (b.pitch, &b.inertia) {
-                dof_mass[p] = positive(format!("bodies.{}.inertia", b.name), ev(j))?;
+                dof_mass[p] = positive(format!("bodies.{}.inertia", b.name), ev(j));
             }
             for (name, x) in &b.points {
-                finite(format!("bodies.{}.points.{name}", b.name), ev(x))?;
+                finite(format!("bodies.{}.points.{name}", b.name), ev(x));
             }
         }
         let end = |e: &End| -> ModelEnd {
@@ -427,13 +444,13 @@ impl System {
             let w = format!("elements.{}", e.name);
             let law = match &e.law {
                 Law::SpringDamper { k, c, preload } => ModelLaw::SpringDamper {
-                    k: non_negative(format!("{w}.k"), ev(k))?,
-                    c: non_negative(format!("{w}.c"), ev(c))?,
-                    preload: finite(format!("{w}.preload"), ev(preload))?,
+                    k: non_negative(format!("{w}.k"), ev(k)),
+                    c: non_negative(format!("{w}.c"), ev(c)),
+                    preload: finite(format!("{w}.preload"), ev(preload)),
                 },
                 Law::Hertz { g, exponent } => ModelLaw::Hertz {
-                    g: positive(format!("{w}.g"), ev(g))?,
-                    exponent: positive(format!("{w}.exponent"), ev(exponent))?,
+                    g: positive(format!("{w}.g"), ev(g)),
+                    exponent: positive(format!("{w}.exponent"), ev(exponent)),
                 },
                 Law::Table {
                     deflection,
@@ -443,7 +460,7 @@ impl System {
                     let d: Vec<f64> = deflection.iter().map(ev).collect();
                     let f: Vec<f64> = force.iter().map(ev).collect();
                     if d.len() < 2 || d.len() != f.len() {
-                        return Err(FieldError {
+                        errors.borrow_mut().push(FieldError {
                             path: format!("{w}.deflection"),
                             value: d.len() as f64,
                             allowed: "as many points as `force`, at least 2".to_owned(),
@@ -455,15 +472,15 @@ impl System {
                             pair[1],
                             pair[1] > pair[0],
                             "finite and above the previous point",
-                        )?;
+                        );
                     }
                     for (i, x) in f.iter().enumerate() {
-                        finite(format!("{w}.force[{i}]"), *x)?;
+                        finite(format!("{w}.force[{i}]"), *x);
                     }
                     ModelLaw::Table {
                         deflection: d,
                         force: f,
-                        c: non_negative(format!("{w}.c"), ev(c))?,
+                        c: non_negative(format!("{w}.c"), ev(c)),
                     }
                 }
             };
@@ -478,7 +495,7 @@ impl System {
         for l in &self.loads {
             loads.push(ModelLoad {
                 at: end(&l.at),
-                force: finite(format!("loads.{}.force", l.name), ev(&l.force))?,
+                force: finite(format!("loads.{}.force", l.name), ev(&l.force)),
             });
         }
         let assembly = self
@@ -495,30 +512,36 @@ impl System {
             })
             .collect();
         let mut beams = Vec::with_capacity(self.beams.len());
+        // Whether each beam's length is valid (the sensors on it are checked against it).
+        let mut length_valid = Vec::with_capacity(self.beams.len());
         for b in &self.beams {
             let w = format!("beams.{}", b.name);
-            let length = positive(format!("{w}.length"), ev(&b.length))?;
+            let before = recorded();
+            let length = positive(format!("{w}.length"), ev(&b.length));
+            length_valid.push(recorded() == before);
             let supports = match &b.supports {
                 None => None,
                 Some(s) => {
-                    let spacing = positive(format!("{w}.supports.spacing"), ev(&s.spacing))?;
-                    let first = non_negative(format!("{w}.supports.first"), ev(&s.first))?;
+                    let spacing = positive(format!("{w}.supports.spacing"), ev(&s.spacing));
+                    let first = non_negative(format!("{w}.supports.first"), ev(&s.first));
                     let last = first + (s.count.max(1) - 1) as f64 * spacing;
-                    check(format!("{w}.supports.count"), s.count as f64, last < length, &format!("supports from {first} m every {spacing} m must end inside the beam (length {length} m)"))?;
+                    // Only with a valid length, spacing and start (no follow-on problem).
+                    if recorded() == before {
+                        check(format!("{w}.supports.count"), s.count as f64, last < length, &format!("supports from {first} m every {spacing} m must end inside the beam (length {length} m)"));
+                    }
                     let mut levels = Vec::new();
                     for (i, l) in s.levels.iter().enumerate() {
                         let lw = format!("{w}.supports.levels[{i}]");
                         levels.push(ModelLevel {
-                            mass: positive(format!("{lw}.mass"), ev(&l.mass))?,
-                            k: positive(format!("{lw}.link.k"), ev(&l.link.k))?,
-                            c: non_negative(format!("{lw}.link.c"), ev(&l.link.c))?,
-                            shear: match &l.shear {
-                                None => None,
-                                Some(sh) => Some((
-                                    non_negative(format!("{lw}.shear.k"), ev(&sh.k))?,
-                                    non_negative(format!("{lw}.shear.c"), ev(&sh.c))?,
-                                )),
-                            },
+                            mass: positive(format!("{lw}.mass"), ev(&l.mass)),
+                            k: positive(format!("{lw}.link.k"), ev(&l.link.k)),
+                            c: non_negative(format!("{lw}.link.c"), ev(&l.link.c)),
+                            shear: l.shear.as_ref().map(|sh| {
+                                (
+                                    non_negative(format!("{lw}.shear.k"), ev(&sh.k)),
+                                    non_negative(format!("{lw}.shear.c"), ev(&sh.c)),
+                                )
+                            }),
                         });
                     }
                     Some(ModelSupports {
@@ -527,8 +550,8 @@ impl System {
                         first,
                         levels,
                         ground: (
-                            positive(format!("{w}.supports.ground.k"), ev(&s.ground.k))?,
-                            non_negative(format!("{w}.supports.ground.c"), ev(&s.ground.c))?,
+                            positive(format!("{w}.supports.ground.k"), ev(&s.ground.k)),
+                            non_negative(format!("{w}.supports.ground.c"), ev(&s.ground.c)),
                         ),
                     })
                 }
@@ -537,42 +560,49 @@ impl System {
             beams.push(ModelBeam {
                 length,
                 modes: b.modes,
-                mass_per_length: positive(format!("{w}.mass_per_length"), ev(&b.mass_per_length))?,
+                mass_per_length: positive(format!("{w}.mass_per_length"), ev(&b.mass_per_length)),
                 bending_stiffness: positive(
                     format!("{w}.bending_stiffness"),
                     ev(&b.bending_stiffness),
-                )?,
+                ),
                 damping_ratio: check(
                     format!("{w}.damping_ratio"),
                     zeta,
                     (0.0..1.0).contains(&zeta),
                     "in [0, 1)",
-                )?,
+                ),
                 outside: b.outside,
                 supports,
             });
         }
-        let speed = non_negative("moving.speed".to_owned(), ev(&self.speed))?;
+        let speed = non_negative("moving.speed".to_owned(), ev(&self.speed));
         let mut points = Vec::with_capacity(self.points.len());
         for p in &self.points {
             points.push((
                 p.beam,
-                finite(format!("moving.points.{}.offset", p.name), ev(&p.offset))?,
+                finite(format!("moving.points.{}.offset", p.name), ev(&p.offset)),
             ));
         }
         let mut sensors = Vec::with_capacity(self.sensors.len());
         for s in &self.sensors {
-            let length = beams[s.beam].length;
             let x = ev(&s.x);
-            sensors.push((
-                s.beam,
-                check(
-                    format!("sensors.{}.x", s.name),
-                    x,
-                    (0.0..=length).contains(&x),
-                    &format!("on the beam: in [0, {length}] m"),
-                )?,
-            ));
+            match beams.get(s.beam) {
+                Some(beam) if length_valid[s.beam] => {
+                    let length = beam.length;
+                    check(
+                        format!("sensors.{}.x", s.name),
+                        x,
+                        (0.0..=length).contains(&x),
+                        &format!("on the beam: in [0, {length}] m"),
+                    );
+                }
+                // Its beam's length is out of its domain, reported already.
+                Some(_) => {}
+                None => {
+                    check(format!("sensors.{}.x", s.name), x, false, "on a beam");
+                }
+            }
+            sensors.push((s.beam, x));
         }
         let mut profiles = Vec::with_capacity(self.profiles.len());
         for p in &self.profiles {
@@ -584,11 +614,15 @@ impl System {
                     wavelength,
                     phase,
                 } => ModelProfile::Harmonic {
-                    amplitude: finite(format!("profiles.{name}.amplitude"), ev(amplitude))?,
-                    wavelength: positive(format!("profiles.{name}.wavelength"), ev(wavelength))?,
-                    phase: finite(format!("profiles.{name}.phase"), ev(phase))?,
+                    amplitude: finite(format!("profiles.{name}.amplitude"), ev(amplitude)),
+                    wavelength: positive(format!("profiles.{name}.wavelength"), ev(wavelength)),
+                    phase: finite(format!("profiles.{name}.phase"), ev(phase)),
                 },
             });
+        }
+        let errors = errors.into_inner();
+        if !errors.is_empty() {
+            return Err(errors);
         }
         Ok(Model {
             values: v,

@@ -1,6 +1,6 @@
 //! The description as written: every section read from the YAML tree into typed records that
 //! keep their positions (the *parse* step). Names are not resolved here (that is
-//! [`crate::validate`]); only the shape of each entry is checked.
+//! [`crate::compile`]); only the shape of each entry is checked.
 //!
 //! Sections (`docs/systems.md` documents each field with its unit):
 //! `format` (1), `name`, `doc`, `parameters`, `bodies`, `beams`, `moving`, `sensors`,
@@ -594,6 +594,17 @@ fn parameter(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Optio
     let expr = m.expr("expr", diag);
     let range = m.get("range");
     m.finish(&["unit", "doc", "nominal", "range", "value", "expr"], diag);
+    // A field written but not readable is reported already; no follow-on about the kind.
+    let written = |key: &str| {
+        node.as_map()
+            .is_some_and(|e| e.iter().any(|(k, _)| k.name == key))
+    };
+    if (nominal.is_none() && written("nominal"))
+        || (value.is_none() && written("value"))
+        || (expr.is_none() && written("expr"))
+    {
+        return None;
+    }
     let kind = match (nominal, range, value, expr) {
         (Some((nominal, _)), Some(r), None, None) => {
             let range = read_range(r, nominal, &format!("{what}.range"), diag)?;

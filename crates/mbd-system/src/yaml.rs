@@ -6,13 +6,19 @@
 //! number or an expression); mappings keep their keys in file order and refuse a duplicate key
 //! (YAML allows it silently, a parameter declared twice is a mistake). Anchors and aliases are
 //! supported (an alias is a copy of the anchored node, with the anchor's position); tags are
-//! refused, and so are documents nested deeper than [`MAX_DEPTH`] (a fuzzer's favourite).
+//! refused, and so are documents nested deeper than [`MAX_DEPTH`] (a fuzzer's favourite) or
+//! larger than [`MAX_NODES`] nodes with the aliases expanded (nested aliases grow a short text
+//! exponentially: the "billion laughs").
 
 use saphyr_parser::{Event, Parser, ScalarStyle};
 use std::collections::HashMap;
 
 /// Deepest nesting of collections accepted.
 pub const MAX_DEPTH: usize = 64;
+
+/// Most nodes a document may have, every alias counted as a copy of its anchored node (the
+/// vehicle-track description has about 700).
+pub const MAX_NODES: usize = 100_000;
 
 /// A position in the source: 1-based line and column.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
@@ -89,7 +95,21 @@ enum Open {
 /// Parses one YAML document (an empty text is an empty mapping).
 pub fn parse(text: &str) -> Result<Node, SyntaxError> {
     let mut stack: Vec<Open> = Vec::new();
-    let mut anchors: HashMap<usize, Node> = HashMap::new();
+    // Anchored nodes with their sizes in nodes.
+    let mut anchors: HashMap<usize, (Node, usize)> = HashMap::new();
+    let mut nodes = 0usize;
+    let mut count = |n: usize, pos: Pos| -> Result<(), SyntaxError> {
+        nodes += n;
+        if nodes > MAX_NODES {
+            return Err(SyntaxError {
+                pos,
+                message: format!(
+                    "more than {MAX_NODES} nodes with the aliases expanded; a description is far smaller"
+                ),
+            });
+        }
+        Ok(())
+    };
     let mut root: Option<Node> = None;
     let mut documents = 0;
     for item in Parser::new_from_str(text) {
@@ -113,7 +133,10 @@ pub fn parse(text: &str) -> Result<Node, SyntaxError> {
                 None
             }
             Event::Alias(id) => match anchors.get(&id) {
-                Some(node) => Some((0, node.clone())),
+                Some((node, size)) => {
+                    count(*size, pos)?;
+                    Some((0, node.clone()))
+                }
                 None => {
                     return Err(SyntaxError {
                         pos,
@@ -123,6 +146,7 @@ pub fn parse(text: &str) -> Result<Node, SyntaxError> {
             },
             Event::Scalar(text, style, anchor, tag) => {
                 refuse_tag(tag.is_some(), pos)?;
+                count(1, pos)?;
                 let quoted = !matches!(style, ScalarStyle::Plain);
                 Some((
                     anchor,
@@ -137,12 +161,14 @@ pub fn parse(text: &str) -> Result<Node, SyntaxError> {
             }
             Event::SequenceStart(anchor, tag) => {
                 refuse_tag(tag.is_some(), pos)?;
+                count(1, pos)?;
                 depth_check(stack.len(), pos)?;
                 stack.push(Open::Seq(pos, anchor, Vec::new()));
                 None
             }
             Event::MappingStart(anchor, tag) => {
                 refuse_tag(tag.is_some(), pos)?;
+                count(1, pos)?;
                 depth_check(stack.len(), pos)?;
                 stack.push(Open::Map(pos, anchor, Vec::new(), None));
                 None
@@ -172,7 +198,7 @@ pub fn parse(text: &str) -> Result<Node, SyntaxError> {
             continue;
         };
         if anchor > 0 {
-            anchors.insert(anchor, node.clone());
+            anchors.insert(anchor, (node.clone(), size(&node)));
         }
         match stack.last_mut() {
             None => root = Some(node),
@@ -210,6 +236,15 @@ pub fn parse(text: &str) -> Result<Node, SyntaxError> {
     }))
 }
 
+/// Nodes in `node`, itself included.
+fn size(node: &Node) -> usize {
+    match &node.value {
+        Value::Scalar { .. } => 1,
+        Value::Seq(items) => 1 + items.iter().map(size).sum::<usize>(),
+        Value::Map(entries) => 1 + entries.iter().map(|(_, v)| 1 + size(v)).sum::<usize>(),
+    }
+}
+
 fn refuse_tag(tagged: bool, pos: Pos) -> Result<(), SyntaxError> {
     if tagged {
         Err(SyntaxError {
@@ -243,6 +278,9 @@ impl Node {
     /// A short description of the node's kind for messages ("a mapping", "`abc`").
     pub fn describe(&self) -> String {
         match &self.value {
+            Value::Scalar { text, .. } if text.chars().count() > 60 => {
+                format!("`{}...`", text.chars().take(57).collect::<String>())
+            }
             Value::Scalar { text, .. } => format!("`{text}`"),
             Value::Seq(_) => "a list".to_owned(),
             Value::Map(_) => "a mapping".to_owned(),
@@ -379,6 +417,18 @@ mod tests {
         ] {
             assert_eq!(parse_number(text), None, "{text}");
         }
+    }
+
+    #[test]
+    fn exponential_aliases_are_refused() {
+        let mut text = String::from("a0: &a0 [x, x, x, x, x, x, x, x, x, x]\n");
+        for i in 1..9 {
+            let p = format!("*a{}", i - 1);
+            text += &format!("a{i}: &a{i} [{}]\n", vec![p; 10].join(", "));
+        }
+        let e = parse(&text).unwrap_err();
+        assert!(e.message.contains("aliases expanded"), "{e}");
+        assert_eq!(e.pos.line, 5); // a4 would hold 111 111 nodes
     }
 
     #[test]
