@@ -223,32 +223,11 @@ impl Engine {
         system: Arc<System>,
         model: Model,
         config: &RunConfig,
-        mut profiles: Vec<Option<Profile>>,
+        profiles: Vec<Option<Profile>>,
         route: Route,
     ) -> Result<Self> {
         config.validate()?;
-        profiles.resize(model.profiles.len(), None);
-        let sources: Vec<ProfileSource> = model
-            .profiles
-            .iter()
-            .zip(profiles)
-            .map(|(m, p)| match (m, p) {
-                (
-                    ModelProfile::Harmonic {
-                        amplitude,
-                        wavelength,
-                        phase,
-                    },
-                    _,
-                ) => ProfileSource::Harmonic {
-                    amplitude: *amplitude,
-                    wavelength: *wavelength,
-                    phase: *phase,
-                },
-                (ModelProfile::Generated, Some(p)) => ProfileSource::Points(p),
-                (ModelProfile::Generated, None) => ProfileSource::Level,
-            })
-            .collect();
+        let sources = profile_sources(&model, profiles);
         // Layout and beams.
         let rigid = model.dof_mass.len();
         let mut at = rigid;
@@ -384,36 +363,7 @@ impl Engine {
                 });
             }
         }
-        let t_on = c.profile_on();
-        if t_on > t_end {
-            return Ok(());
-        }
-        for (e, el) in self.model.elements.iter().enumerate() {
-            let (Some(p), ModelEnd::Moving(pt)) = (el.profile, el.to) else {
-                continue;
-            };
-            let ProfileSource::Points(prof) = &self.profiles[p] else {
-                continue;
-            };
-            let need = span(self.model.points[pt].1, t_on);
-            let have = prof.range();
-            if need[0] < have[0] || need[1] > have[1] {
-                return Err(Error::TooShort {
-                    what: format!(
-                        "profile `{}` under element `{}`",
-                        self.system.profiles[p].name(),
-                        self.system.elements[e].name
-                    ),
-                    have_lo: have[0],
-                    have_hi: have[1],
-                    need_lo: need[0],
-                    need_hi: need[1],
-                    hint: "generate profiles that cover the whole run plus the vehicle length"
-                        .to_owned(),
-                });
-            }
-        }
-        Ok(())
+        check_profile_coverage(&self.system, &self.model, c, &self.profiles)
     }
 
     /// The compiled system.
@@ -552,7 +502,7 @@ impl Engine {
             };
             let src = &self.profiles[p];
             let xp = q.point_x[pt];
-            q.eta[e] = if ramp > 0.0 { ramp * src.at(xp) } else { 0.0 };
+            q.eta[e] = src.ramped(ramp, xp);
             if self.needs_rate[e] {
                 q.eta_rate[e] = ramp * m.speed * src.slope(xp) + ramp_rate * src.at(xp);
             }
@@ -846,6 +796,80 @@ impl Engine {
         self.accelerations(&mut ws, t, x, v, &mut a);
         (a, ws.q)
     }
+}
+
+/// The profile each of `model`'s profiles reads: its analytic form, the points `profiles[p]`
+/// supply for a generated one, or a level profile where none is given.
+pub(crate) fn profile_sources(
+    model: &Model,
+    mut profiles: Vec<Option<Profile>>,
+) -> Vec<ProfileSource> {
+    profiles.resize(model.profiles.len(), None);
+    model
+        .profiles
+        .iter()
+        .zip(profiles)
+        .map(|(m, p)| match (m, p) {
+            (
+                ModelProfile::Harmonic {
+                    amplitude,
+                    wavelength,
+                    phase,
+                },
+                _,
+            ) => ProfileSource::Harmonic {
+                amplitude: *amplitude,
+                wavelength: *wavelength,
+                phase: *phase,
+            },
+            (ModelProfile::Generated, Some(p)) => ProfileSource::Points(p),
+            (ModelProfile::Generated, None) => ProfileSource::Level,
+        })
+        .collect()
+}
+
+/// Checks that every sampled profile covers the positions its elements read from the moment
+/// the profile comes on ([`RunConfig::profile_on`]) to the end of the run.
+pub(crate) fn check_profile_coverage(
+    system: &System,
+    model: &Model,
+    c: &RunConfig,
+    sources: &[ProfileSource],
+) -> Result<()> {
+    let (t_end, t_on) = (c.t_end(), c.profile_on());
+    if t_on > t_end {
+        return Ok(());
+    }
+    for (e, el) in model.elements.iter().enumerate() {
+        let (Some(p), ModelEnd::Moving(pt)) = (el.profile, el.to) else {
+            continue;
+        };
+        let ProfileSource::Points(prof) = &sources[p] else {
+            continue;
+        };
+        let offset = model.points[pt].1;
+        let need = [
+            c.x0 + model.speed * t_on + offset,
+            c.x0 + model.speed * t_end + offset,
+        ];
+        let have = prof.range();
+        if need[0] < have[0] || need[1] > have[1] {
+            return Err(Error::TooShort {
+                what: format!(
+                    "profile `{}` under element `{}`",
+                    system.profiles[p].name(),
+                    system.elements[e].name
+                ),
+                have_lo: have[0],
+                have_hi: have[1],
+                need_lo: need[0],
+                need_hi: need[1],
+                hint: "generate profiles that cover the whole run plus the vehicle length"
+                    .to_owned(),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Displacement of an end given the rigid state and the point quantities.

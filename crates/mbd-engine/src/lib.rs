@@ -12,6 +12,7 @@
 //! - [`statics`]: the static-equilibrium start; [`stability`]: the time-step bound.
 //! - [`residual`]: the ODE residuals of the rigid DOFs for learning, by the same element code;
 //! - [`integrator`]: Zhai's two-step method; [`profile`]: profiles under moving points;
+//!   [`excitation`]: those profiles over a run without running it (inputs of a surrogate);
 //!   [`config`]: run controls.
 //!
 //! The engine recognises structure and takes a fast path where it exists (uniform supports:
@@ -23,6 +24,7 @@ pub mod beam;
 pub mod config;
 pub mod dst;
 pub mod engine;
+pub mod excitation;
 pub mod integrator;
 pub mod profile;
 pub mod residual;
@@ -32,6 +34,7 @@ pub mod supports;
 
 pub use config::{RunConfig, StartMode};
 pub use engine::{prepare, run_all, Engine, Failure, Route, SampleInput, StepView, Trajectory};
+pub use excitation::Excitations;
 pub use profile::{Profile, ProfileSource};
 
 /// Errors of the engine; variants carry the offending values.

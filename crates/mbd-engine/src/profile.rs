@@ -110,6 +110,17 @@ impl ProfileSource {
         }
     }
 
+    /// The excitation `r eta(x)` (m) with the start-up factor `r` of the run controls
+    /// ([`crate::RunConfig::ramp`]): exactly 0 while the profile is off.
+    #[inline]
+    pub fn ramped(&self, ramp: f64, x: f64) -> f64 {
+        if ramp > 0.0 {
+            ramp * self.at(x)
+        } else {
+            0.0
+        }
+    }
+
     /// `d eta / dx` (1).
     #[inline]
     pub fn slope(&self, x: f64) -> f64 {

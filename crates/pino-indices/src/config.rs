@@ -123,10 +123,6 @@ impl Limits {
     }
 }
 
-fn d_gravity() -> f64 {
-    9.81
-}
-
 /// The indices' parameters as written in a pipeline file (unchecked).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -137,10 +133,6 @@ pub struct IndexParams {
     /// `${constants.window_start_fraction}`).
     #[serde(default)]
     pub window_start_fraction: f64,
-    /// Gravity (m/s^2) of the static wheel load `W = (m_c + 2 m_t + 4 m_w) g / 8` of the
-    /// half vehicle (default 9.81, the pipeline passes `${constants.gravity}`).
-    #[serde(default = "d_gravity")]
-    pub gravity: f64,
     /// Sperling settings.
     #[serde(default)]
     pub sperling: SperlingParams,
@@ -153,7 +145,6 @@ impl Default for IndexParams {
     fn default() -> Self {
         Self {
             window_start_fraction: 0.0,
-            gravity: d_gravity(),
             sperling: SperlingParams::default(),
             limits: Limits::default(),
         }
@@ -165,8 +156,6 @@ impl Default for IndexParams {
 pub struct IndexConfig {
     /// Start-up fraction dropped, in `[0, 1)`.
     pub window_start_fraction: f64,
-    /// Gravity (m/s^2), > 0.
-    pub gravity: f64,
     /// Sperling settings (segment > 0 when given, `f_min_hz` > 0).
     pub sperling: SperlingParams,
     /// Limits (each > 0 when given).
@@ -187,13 +176,6 @@ impl IndexParams {
         let f = self.window_start_fraction;
         if !(f.is_finite() && (0.0..1.0).contains(&f)) {
             return Err(out_of_range("window_start_fraction", f, "[0, 1)"));
-        }
-        if !(self.gravity.is_finite() && self.gravity > 0.0) {
-            return Err(out_of_range(
-                "gravity",
-                self.gravity,
-                "finite and > 0 (m/s^2)",
-            ));
         }
         if let Some(s) = self.sperling.segment_s {
             if !(s.is_finite() && s > 0.0) {
@@ -223,7 +205,6 @@ impl IndexParams {
         }
         Ok(IndexConfig {
             window_start_fraction: f,
-            gravity: self.gravity,
             sperling: self.sperling,
             limits: self.limits,
         })
@@ -244,7 +225,6 @@ impl IndexConfig {
                 "window_start_fraction",
                 self.window_start_fraction.to_string(),
             ),
-            ("gravity", self.gravity.to_string()),
             (
                 "sperling.segment_s",
                 self.sperling

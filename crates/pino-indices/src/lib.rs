@@ -47,7 +47,10 @@
 mod config;
 pub mod sperling;
 
+pub mod system;
+
 pub use config::{IndexConfig, IndexParams, Limits, SperlingParams, Taper};
+pub use system::{IndexSet, RailwayColumns};
 
 /// Errors of the index computation; each names the field or signal at fault.
 #[derive(Debug, thiserror::Error)]
@@ -83,6 +86,12 @@ pub enum Error {
         reference: String,
         /// Its length.
         expected: usize,
+    },
+    /// A column an index reads is not available.
+    #[error("column `{column}` is not available to the indices")]
+    Missing {
+        /// The column.
+        column: String,
     },
     /// Too few points to compute the indices.
     #[error("{what}: {found} points in the evaluation window, at least {needed} needed")]

@@ -13,10 +13,9 @@
 //! measured cost (BENCHMARKS.md: 0.09 s of one core per simulated second).
 use candle_core::Device;
 use pino_learn::checkpoint::save_model;
-use pino_learn::config::{ModelConfig, TrainParams, OUT_CHANNELS};
-use pino_learn::data::load_dataset;
+use pino_learn::config::{TrainParams, WindowConfig};
 use pino_learn::model::Fno;
-use pino_learn::predict::{generated_profile, parse_sweep, Placement, Predictor};
+use pino_learn::predict::{parse_sweep, Predictor, ProfileChoice};
 use pino_learn::spectral::Transform;
 use pino_learn::synthetic::{write_dataset, SyntheticSpec};
 use pino_learn::train::model_meta;
@@ -39,24 +38,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 n_train: 4,
                 n_validation: 1,
                 duration: 2.0,
+                system: SyntheticSpec::vehicle_track_for(2.0),
                 ..Default::default()
             };
             let files = write_dataset(&spec, &dir)?;
-            let mut p = TrainParams::with_algorithm(4);
-            p.startup_fraction = 0.0;
-            p.modes = 128;
-            p.padding = 25;
-            let (m, t, w) = p.configs()?;
-            let ds = load_dataset(
-                &files.params,
-                std::slice::from_ref(&files.simulation),
-                None,
-                &w,
-            )?;
-            let cfg = ModelConfig {
-                out_channels: OUT_CHANNELS,
-                ..m
+            let mut p = TrainParams::small(4);
+            (p.width, p.modes, p.projection_width, p.padding) = (32, 128, 64, 25);
+            let w = WindowConfig {
+                startup_fraction: 0.0,
+                time_stride: 1,
             };
+            let ds = files.load(&w, false)?;
+            let (cfg, t, _) = p.configs(&ds.layout)?;
             let model = Fno::new(cfg, ds.t_points(), 1, Transform::Fused, &dev)?;
             let meta = model_meta(&ds, cfg, t, w)?;
             save_model(&dir, &model, &meta)?;
@@ -65,10 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let predictor = Predictor::load(&model_dir, &dev)?;
     let meta = &predictor.meta;
-    let ranges = meta
-        .training_ranges
-        .clone()
-        .ok_or("model.json has no training ranges")?;
+    let ranges = meta.training_ranges.clone();
     let mut yaml = format!("random:\n  seed: 7\n  count: {designs}\n  ranges:\n");
     for (k, name) in ranges.names.iter().enumerate() {
         yaml.push_str(&format!(
@@ -76,17 +66,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ranges.min[k], ranges.max[k]
         ));
     }
-    let sets = parse_sweep(&yaml, std::path::Path::new("bench"))?;
-    let profile = generated_profile(1, 0)?;
-    let place = Placement::default();
+    let sets = parse_sweep(&predictor.space, &yaml, std::path::Path::new("bench"))?;
+    let profiles = predictor.profiles(Some(&ProfileChoice::Generated { seed: 1, id: 0 }))?;
+    let run = predictor.run_config(None)?;
     let cfg = predictor.index_config()?;
     let t0 = Instant::now();
-    let ix = predictor.indices(&sets, &profile, &place, &cfg, batch)?;
+    let ix = predictor.indices(&sets, &profiles, &run, &cfg, batch)?;
     let wall = t0.elapsed().as_secs_f64();
     let simulated = meta.grid.t_points as f64 * meta.grid.dt;
+    let peak = predictor
+        .index_inputs()
+        .columns()
+        .iter()
+        .position(|c| c.name == "peak_wheel_rail_force_kn")
+        .ok_or("the vehicle-track indices name the peak force")?;
     let worst = ix
         .iter()
-        .map(|i| i.peak_wheel_rail_force_kn)
+        .map(|i| i.values[peak])
         .fold(f64::NEG_INFINITY, f64::max);
     println!(
         "{designs} designs x {simulated:.3} s ({} points, width {}, modes {}, depth {}, batch {batch}, {} rayon threads): {wall:.2} s = {:.0} designs/s (max peak force {worst:.1} kN)",

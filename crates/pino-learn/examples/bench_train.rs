@@ -10,7 +10,7 @@
 //! the median step time, samples per second, and the forward time for 40 samples.
 use candle_core::Device;
 use pino_learn::config::{ModelConfig, TrainParams};
-use pino_learn::data::{load_dataset, make_batch, prepare};
+use pino_learn::data::{make_batch, prepare};
 use pino_learn::loss::LossContext;
 use pino_learn::model::Fno;
 use pino_learn::optim::Adam;
@@ -35,33 +35,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let steps: usize = arg(6, "10").parse()?;
     let dir = std::env::temp_dir().join(format!("pino-bench-{points}"));
     std::fs::create_dir_all(&dir)?;
+    let duration = points as f64 / 0.9 * 1e-3;
     let spec = SyntheticSpec {
-        n_train: batch.max(8),
+        n_train: batch.max(8) as u64,
         n_validation: 40,
-        duration: points as f64 / 0.9 * 1e-3,
+        duration,
+        system: SyntheticSpec::vehicle_track_for(duration),
         ..Default::default()
     };
     let files = write_dataset(&spec, &dir)?;
     let algorithm: i64 = arg(7, "4").parse()?;
-    let mut p = TrainParams::with_algorithm(algorithm);
-    p.width = width;
-    p.modes = modes;
-    p.depth = Some(depth);
-    let (_, train, window) = p.configs()?;
-    let ds = load_dataset(
-        &files.params,
-        std::slice::from_ref(&files.simulation),
-        Some(&files.weights),
-        &window,
+    // The learning settings of `pipeline.yaml`'s laptop default, resized by the arguments.
+    let mut p = TrainParams::small(algorithm);
+    (p.width, p.modes, p.depth, p.projection_width) = (width, modes, Some(depth), 64);
+    let ds = files.load(
+        &pino_learn::config::WindowConfig {
+            startup_fraction: 0.1,
+            time_stride: 1,
+        },
+        true,
     )?;
+    let (model_cfg, train, _) = p.configs(&ds.layout)?;
     let cfg = ModelConfig {
-        in_channels: 19,
-        out_channels: pino_learn::config::OUT_CHANNELS,
         width,
         modes,
         depth,
-        projection_width: p.projection_width,
         padding_percent: arg(8, "0").parse()?,
+        ..model_cfg
     };
     let dev = Device::Cpu;
     let model = Fno::new(cfg, ds.t_points(), 1, transform, &dev)?;
@@ -70,7 +70,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         config: train,
         norm: norm.clone(),
         dt: ds.dt,
-        f_ref: ds.mean_wheel_load(9.81),
+        f_ref: ds.force_scale(),
+        layout: ds.layout.clone(),
+        system: ds.system().clone(),
     };
     let items = prepare(&ds, &norm)?;
     let idx: Vec<usize> = (0..batch).collect();
@@ -110,7 +112,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The 40 validation records are cycled up to the requested count (same cost per sample).
     let n_infer: usize = arg(9, "40").parse()?;
     let infer_batch: usize = arg(10, "8").parse()?;
-    let val: Vec<usize> = (0..n_infer).map(|k| spec.n_train + k % 40).collect();
+    let val: Vec<usize> = (0..n_infer)
+        .map(|k| spec.n_train as usize + k % 40)
+        .collect();
     let mut inf = Vec::new();
     for _ in 0..3 {
         let (_, wall) = pino_learn::eval::predict_samples(

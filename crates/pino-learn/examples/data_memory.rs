@@ -17,7 +17,7 @@
 //! the process's peak resident set (VmHWM).
 use candle_core::Device;
 use pino_learn::config::{TrainParams, WindowConfig};
-use pino_learn::data::{load_dataset, load_split, make_batch, prepare, Split};
+use pino_learn::data::{load_dataset, load_split, make_batch, prepare, DatasetInfo, Split};
 use pino_learn::synthetic::{write_dataset, SyntheticSpec};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -48,8 +48,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The laptop and paper configurations start from equilibrium: no start-up dropped.
     let window = WindowConfig {
         startup_fraction: 0.0,
-        ..WindowConfig::default()
+        time_stride: 1,
     };
+    let info = || DatasetInfo::from_dirs(std::slice::from_ref(&dir));
     let dev = Device::Cpu;
     let t0 = Instant::now();
     match mode {
@@ -58,17 +59,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 Ok(a.get(i).ok_or("missing count")?.parse()?)
             };
             std::fs::create_dir_all(&dir)?;
+            let duration = a.get(5).map_or(Ok(2.0), |d| d.parse())?;
             let spec = SyntheticSpec {
-                n_train: n(2)?,
-                n_validation: n(3)?,
-                n_test: n(4)?,
-                duration: a.get(5).map_or(Ok(2.0), |d| d.parse())?,
+                n_train: n(2)? as u64,
+                n_validation: n(3)? as u64,
+                n_test: n(4)? as u64,
+                duration,
+                system: SyntheticSpec::vehicle_track_for(duration),
                 ..Default::default()
             };
             write_dataset(&spec, Path::new(&dir))?;
         }
         "train" => {
-            let ds = load_dataset(&params, &sims, None, &window)?;
+            let ds = load_dataset(&info()?, &params, &sims, None, &window)?;
             let norm = ds.normalisation()?;
             let items = prepare(&ds, &norm)?;
             let idx = ds.split_indices(Split::Train);
@@ -90,10 +93,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "evaluate" => {
             // A model's statistics come from its file; the statistics pass stands in here
             // (it holds no time series).
-            let norm = load_dataset(&params, &sims, None, &window)?.normalisation()?;
+            let norm = load_dataset(&info()?, &params, &sims, None, &window)?.normalisation()?;
             let before = peak_rss_mb();
             let t1 = Instant::now();
-            let (ds, items) = load_split(&params, &sims, &window, Split::Test, &norm)?;
+            let (ds, items) = load_split(&info()?, &params, &sims, &window, Split::Test, &norm)?;
             let idx: Vec<usize> = (0..items.len()).collect();
             let mut checksum = 0.0f64;
             for chunk in idx.chunks(8) {
@@ -111,12 +114,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             );
         }
         "model" => {
-            let ds = load_dataset(&params, &sims, None, &window)?;
-            let mut p = TrainParams::with_algorithm(5);
+            let ds = load_dataset(&info()?, &params, &sims, None, &window)?;
+            let mut p = TrainParams::small(5);
             (p.width, p.modes, p.projection_width, p.padding) = (72, 320, 72, 25);
             (p.batch_size, p.startup_fraction) = (20, 0.0);
             p.epochs = a.get(2).map_or(Ok(1), |e| e.parse())?;
-            let (model_cfg, cfg, window) = p.configs()?;
+            let (model_cfg, cfg, window) = p.configs(&ds.layout)?;
             let n_train = ds.split_indices(Split::Train).len();
             // A fresh start every time (a checkpoint left by an earlier run would resume).
             let _ = std::fs::remove_dir_all(dir.join("checkpoint"));

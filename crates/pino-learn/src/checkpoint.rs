@@ -410,12 +410,19 @@ pub fn load_checkpoint(
 mod tests {
     use super::*;
     use crate::config::{TrainParams, WindowConfig};
-    use crate::data::{load_dataset, Dataset};
+    use crate::data::Dataset;
     use crate::synthetic::{write_dataset, SyntheticSpec};
     use crate::train::{train, TrainOptions, TrainOutcome};
     use std::path::PathBuf;
 
     const EPOCHS: usize = 3;
+
+    fn window() -> WindowConfig {
+        WindowConfig {
+            startup_fraction: 0.1,
+            time_stride: 1,
+        }
+    }
 
     fn setup(dir: &Path) -> (Dataset, ModelConfig, TrainConfig) {
         let spec = SyntheticSpec {
@@ -424,18 +431,14 @@ mod tests {
             duration: 0.2,
             ..Default::default()
         };
-        let f = write_dataset(&spec, dir).unwrap();
-        let ds = load_dataset(
-            &f.params,
-            &[f.simulation],
-            Some(&f.weights),
-            &WindowConfig::default(),
-        )
-        .unwrap();
-        let mut p = TrainParams::with_algorithm(4);
-        (p.width, p.modes, p.projection_width, p.depth) = (8, 6, 16, Some(2));
-        (p.epochs, p.batch_size, p.learning_rate) = (EPOCHS, 2, 3e-3);
-        let (m, t, _) = p.configs().unwrap();
+        let ds = write_dataset(&spec, dir)
+            .unwrap()
+            .load(&window(), true)
+            .unwrap();
+        let mut p = TrainParams::small(4);
+        (p.modes, p.depth) = (6, Some(2));
+        (p.epochs, p.learning_rate) = (EPOCHS, 3e-3);
+        let (m, t, _) = p.configs(&ds.layout).unwrap();
         (ds, m, t)
     }
 
@@ -452,7 +455,7 @@ mod tests {
             stop_after_epochs: stop,
         };
         let dev = Device::Cpu;
-        train(ds, m, t, WindowConfig::default(), &opts, &dev, &mut |_| {}).unwrap()
+        train(ds, m, t, window(), &opts, &dev, &mut |_| {}).unwrap()
     }
 
     fn params(model: &Fno) -> Vec<Vec<f32>> {

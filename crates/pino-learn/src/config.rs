@@ -443,6 +443,11 @@ impl WindowConfig {
     pub fn first_index(&self, n: usize) -> usize {
         (self.startup_fraction * n as f64).floor() as usize
     }
+
+    /// The kept points of a record of `n` points.
+    pub fn rows(&self, n: usize) -> std::iter::StepBy<std::ops::Range<usize>> {
+        (self.first_index(n)..n).step_by(self.time_stride)
+    }
 }
 
 #[cfg(test)]

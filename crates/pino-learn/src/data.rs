@@ -335,7 +335,7 @@ fn scan(
             ));
         };
         let n = cols[0].len();
-        let keep = (window.first_index(n)..n).step_by(window.time_stride);
+        let keep = window.rows(n);
         if t_window.is_empty() {
             t_window = keep.clone().map(|k| cols[0][k]).collect();
         }
@@ -709,6 +709,11 @@ impl Prepared {
         &self.params[i]
     }
 
+    /// Force scale of sample `i` (N): its mean static contact force (1 when it has none).
+    pub fn force_scale(&self, i: usize) -> f64 {
+        self.force_scale[i]
+    }
+
     /// Whether the series were spilled to disk (over the memory budget).
     pub fn spilled(&self) -> bool {
         self.store.spilled()
@@ -921,32 +926,23 @@ mod tests {
             ..Default::default()
         };
         let f = write_dataset(&spec, dir.path()).unwrap();
-        let ds = load_dataset(
-            &f.params,
-            std::slice::from_ref(&f.simulation),
-            Some(&f.weights),
-            &WindowConfig::default(),
-        )
-        .unwrap();
+        let ds = f.load(&window(), true).unwrap();
+        let layout = ds.layout.clone();
         // 100 points, the first 10 dropped.
         assert_eq!((ds.t_points(), ds.record_points), (90, 100));
         assert!((ds.t[0] - 0.01).abs() < 1e-12 && (ds.dt - 1e-3).abs() < 1e-15);
         assert_eq!(ds.split_indices(Split::Validation), vec![2]);
         let norm = ds.normalisation().unwrap();
         // Stats come from the training split only: sample 2's parameters do not move them.
+        let m_c = 1 + layout.n_excitations();
+        assert_eq!(norm.inputs.names[m_c], layout.params[0]);
         let m_c_mean = (ds.samples[0].params[0] + ds.samples[1].params[0]) / 2.0;
-        assert!((norm.inputs.mean[5] - m_c_mean).abs() < 1e-9 * m_c_mean);
+        assert!((norm.inputs.mean[m_c] - m_c_mean).abs() < 1e-9 * m_c_mean);
+        assert_ne!(ds.samples[2].params[0], m_c_mean);
 
         // Mismatched record lengths: sample 1 loses its last row.
         rewrite(&f.simulation, &|r| r != 199, &|_| true);
-        let err = load_dataset(
-            &f.params,
-            std::slice::from_ref(&f.simulation),
-            None,
-            &WindowConfig::default(),
-        )
-        .unwrap_err()
-        .to_string();
+        let err = f.load(&window(), false).unwrap_err().to_string();
         assert!(
             err.contains("sample 1 has 99 time points but sample 0 has 100"),
             "{err}"
@@ -954,14 +950,7 @@ mod tests {
 
         // A missing column is named with its file.
         rewrite(&f.simulation, &|_| true, &|c| c != "beta_t2_v");
-        let err = load_dataset(
-            &f.params,
-            std::slice::from_ref(&f.simulation),
-            None,
-            &WindowConfig::default(),
-        )
-        .unwrap_err()
-        .to_string();
+        let err = f.load(&window(), false).unwrap_err().to_string();
         assert!(
             err.contains("simulation.parquet") && err.contains("missing column `beta_t2_v`"),
             "{err}"
@@ -970,14 +959,7 @@ mod tests {
         // A missing contact-force column (an output channel, read before the derivatives) is
         // named with its file.
         rewrite(&f.simulation, &|_| true, &|c| c != "p_3");
-        let err = load_dataset(
-            &f.params,
-            std::slice::from_ref(&f.simulation),
-            None,
-            &WindowConfig::default(),
-        )
-        .unwrap_err()
-        .to_string();
+        let err = f.load(&window(), false).unwrap_err().to_string();
         assert!(
             err.contains("simulation.parquet") && err.contains("missing column `p_3`"),
             "{err}"
@@ -988,14 +970,14 @@ mod tests {
         let mut bad = Table::default();
         for (name, c) in w.columns() {
             let c = match (name.as_str(), c) {
-                ("phi_4", Column::F64(v)) => Column::F64(v.iter().map(|_| 0.0).collect()),
+                ("phi_z_t2", Column::F64(v)) => Column::F64(v.iter().map(|_| 0.0).collect()),
                 _ => c.clone(),
             };
             bad.push(name, c).unwrap();
         }
         write_parquet(&f.weights, &bad).unwrap();
-        let err = read_weights(&f.weights).unwrap_err().to_string();
-        assert!(err.contains("sample 0: phi_4 = 0"), "{err}");
+        let err = read_weights(&f.weights, &layout).unwrap_err().to_string();
+        assert!(err.contains("sample 0: phi_z_t2 = 0"), "{err}");
 
         // An unknown split label is refused with the allowed ones.
         rewrite(&f.params, &|_| true, &|_| true);
@@ -1011,7 +993,7 @@ mod tests {
             bad.push(name, c).unwrap();
         }
         write_parquet(&f.params, &bad).unwrap();
-        let err = read_params(&f.params).unwrap_err().to_string();
+        let err = read_params(&f.params, &layout).unwrap_err().to_string();
         assert!(
             err.contains("params.parquet")
                 && err.contains("split `holdout`, allowed `train`, `validation` or `test`"),
@@ -1019,12 +1001,12 @@ mod tests {
         );
     }
 
-    /// Names of the 19 input channels.
-    fn input_names() -> Vec<&'static str> {
-        let mut n = vec![schema::TIME];
-        n.extend(schema::ETA_UNDER_WHEEL);
-        n.extend(schema::PARAMETERS);
-        n
+    /// The training window of these tests: the first 10 % dropped, every point kept.
+    fn window() -> WindowConfig {
+        WindowConfig {
+            startup_fraction: 0.1,
+            time_stride: 1,
+        }
     }
 
     /// The previous all-in-memory path, kept here as the reference: the whole table in f64,
@@ -1036,9 +1018,13 @@ mod tests {
         norm: Normalisation,
     }
 
-    fn reference(f: &crate::synthetic::SyntheticFiles, window: &WindowConfig) -> Reference {
+    fn reference(
+        f: &crate::synthetic::SyntheticFiles,
+        layout: &Layout,
+        window: &WindowConfig,
+    ) -> Reference {
         use crate::norm::ChannelStats;
-        let params: BTreeMap<i64, (Split, [f64; 14])> = read_params(&f.params)
+        let params: BTreeMap<i64, (Split, Vec<f64>)> = read_params(&f.params, layout)
             .unwrap()
             .into_iter()
             .map(|(i, s, p)| (i, (s, p)))
@@ -1046,8 +1032,9 @@ mod tests {
         let t = read_parquet(&f.simulation, None).unwrap();
         let ids = t.i64(schema::SAMPLE_ID).unwrap();
         let time = t.f64(schema::TIME).unwrap();
-        let names = needed_simulation_columns();
+        let names = layout.simulation_columns();
         let cols: Vec<&[f64]> = names[2..].iter().map(|n| t.f64(n).unwrap()).collect();
+        let g = Groups::of(layout);
         let mut phys: Vec<[Vec<f64>; 5]> = vec![];
         let mut out_ids = vec![];
         let mut train = vec![];
@@ -1056,43 +1043,38 @@ mod tests {
             let hi = (lo..ids.len())
                 .find(|&k| ids[k] != ids[lo])
                 .unwrap_or(ids.len());
-            let n = hi - lo;
-            let keep: Vec<usize> = (window.first_index(n)..n)
-                .step_by(window.time_stride)
-                .map(|k| lo + k)
-                .collect();
+            let keep: Vec<usize> = window.rows(hi - lo).map(|k| lo + k).collect();
             let cols = &cols;
             let block = |r0: usize, r1: usize| -> Vec<f64> {
                 keep.iter()
                     .flat_map(|&k| (r0..r1).map(move |c| cols[c][k]))
                     .collect()
             };
-            let (split, p) = params[&ids[lo]];
+            let (split, p) = &params[&ids[lo]];
             let tw: Vec<f64> = keep.iter().map(|&k| time[k]).collect();
-            let eta = block(E0, SERIES);
-            if split == Split::Train {
+            let eta = block(g.e0, g.end);
+            if *split == Split::Train {
                 train.push(phys.len());
             }
             phys.push([
-                input_block(&tw, &eta, &p),
-                block(U0, V0),
-                block(V0, A0),
-                block(A0, E0),
+                input_block(&tw, &eta, p),
+                block(0, g.v0),
+                block(g.v0, g.a0),
+                block(g.a0, g.e0),
                 eta,
             ]);
             out_ids.push(ids[lo]);
             lo = hi;
         }
-        let stats = |g: usize, names: &[&str]| {
-            ChannelStats::from_blocks(names, train.iter().map(|&i| phys[i][g].as_slice()))
+        let stats = |k: usize, names: &[String]| {
+            let names: Vec<&str> = names.iter().map(String::as_str).collect();
+            ChannelStats::from_blocks(&names, train.iter().map(|&i| phys[i][k].as_slice()))
         };
-        let vel = velocity_names();
-        let acc = acceleration_names();
         let norm = Normalisation {
-            inputs: stats(0, &input_names()),
-            outputs: stats(1, &schema::output_channels()),
-            velocities: stats(2, &vel.iter().map(String::as_str).collect::<Vec<_>>()),
-            accelerations: stats(3, &acc.iter().map(String::as_str).collect::<Vec<_>>()),
+            inputs: stats(0, &layout.inputs()),
+            outputs: stats(1, &layout.outputs),
+            velocities: stats(2, &layout.velocities()),
+            accelerations: stats(3, &layout.accelerations()),
         };
         Reference {
             ids: out_ids,
@@ -1129,14 +1111,14 @@ mod tests {
             startup_fraction: 0.1,
             time_stride: 2,
         };
-        let r = reference(&f, &window);
-        let ds = load_dataset(
-            &f.params,
-            std::slice::from_ref(&f.simulation),
-            None,
-            &window,
-        )
-        .unwrap();
+        let ds = f.load(&window, false).unwrap();
+        let layout = ds.layout.clone();
+        let (n_in, n_out, n_e) = (
+            layout.n_inputs(),
+            layout.n_outputs(),
+            layout.n_excitations(),
+        );
+        let r = reference(&f, &layout, &window);
         // Training never sees the test split.
         assert_eq!(ds.split_indices(Split::Test), Vec::<usize>::new());
         assert_eq!(ds.split_indices(Split::Validation), vec![3, 4]);
@@ -1147,7 +1129,10 @@ mod tests {
         close(&norm.outputs, &r.norm.outputs);
         close(&norm.velocities, &r.norm.velocities);
         close(&norm.accelerations, &r.norm.accelerations);
-        assert_eq!(norm.outputs.names[14..], ["p_1", "p_2", "p_3", "p_4"]);
+        assert_eq!(
+            norm.outputs.names[layout.forces()],
+            ["p_1", "p_2", "p_3", "p_4"]
+        );
         // With the same statistics, the stored samples and the batches (inputs built at batch
         // time, parameters stored once) are bitwise those of the f64 path.
         let items = prepare(&ds, &norm).unwrap();
@@ -1160,34 +1145,27 @@ mod tests {
         assert_eq!((items.len(), r.ids.len()), (5, 7));
         for (i, ph) in r.phys.iter().take(5).enumerate() {
             assert_eq!((items.id(i), ds.samples[i].id), (r.ids[i], r.ids[i]));
-            let n = t * IN_CHANNELS;
+            let n = t * n_in;
             assert_eq!(&x[i * n..(i + 1) * n], &norm.inputs.normalise(&ph[0])[..]);
-            let n = t * OUT_CHANNELS;
+            let n = t * n_out;
             assert_eq!(&u[i * n..(i + 1) * n], &norm.outputs.normalise(&ph[1])[..]);
             let se = items.series(i).unwrap();
             assert_eq!(se.v, norm.velocities.normalise(&ph[2]));
             assert_eq!(se.a, norm.accelerations.normalise(&ph[3]));
             assert_eq!(se.eta, ph[4]);
-            let n = (t - 2) * 4;
-            assert_eq!(&eta[i * n..(i + 1) * n], &ph[4][4..(t - 1) * 4]);
+            let n = t * n_e;
+            assert_eq!(&eta[i * n..(i + 1) * n], &ph[4][..]);
             // The f32 storage round-trips to the f64 values within f32 precision of the
             // z-scored value.
             let back = norm.outputs.denormalise(&se.u);
             for (k, (y, x)) in back.iter().zip(&ph[1]).enumerate() {
-                let s = norm.outputs.std[k % OUT_CHANNELS];
-                let z = (x - norm.outputs.mean[k % OUT_CHANNELS]) / s;
+                let s = norm.outputs.std[k % n_out];
+                let z = (x - norm.outputs.mean[k % n_out]) / s;
                 assert!((y - x).abs() <= 1e-7 * s * z.abs().max(1.0), "{x} {y}");
             }
         }
         // One split alone, in one pass: the same values, index for index.
-        let (test_ds, test_items) = load_split(
-            &f.params,
-            std::slice::from_ref(&f.simulation),
-            &window,
-            Split::Test,
-            &norm,
-        )
-        .unwrap();
+        let (test_ds, test_items) = f.load_split(&window, Split::Test, &norm).unwrap();
         assert_eq!(test_items.len(), 2);
         assert!(test_ds.samples.iter().all(|s| s.split == Split::Test));
         for (k, ph) in r.phys[5..].iter().enumerate() {

@@ -2,23 +2,29 @@
 //! paper's Table 4 with a truth row, per-channel errors in physical units, prediction speed,
 //! and PNG plots. Only the scored split is read.
 //!
-//! Table 4 (`docs/learning.md`): per algorithm, the mean over scored samples of the relative L2
-//! error (%) of the 14 z-scored displacement solutions, of the 10 vehicle velocities and of
-//! the 10 vehicle accelerations (central differences of the prediction at interior points),
-//! plus the 4 predicted contact forces and the peak contact force error (% of the static
-//! wheel load W). The truth row feeds the exact solutions through the same metric: 0 on
-//! solutions, the central-difference floor on derivatives.
+//! Table 4 (`docs/learning.md`), over the channel groups of the model's layout: per algorithm,
+//! the mean over scored samples of the relative L2 error (%) of the z-scored displacement
+//! solutions, of the rigid DOFs' velocities and accelerations (central differences of the
+//! prediction at interior points), plus the predicted forces and the peak force error (% of
+//! the sample's static contact force, the wheel load W of the vehicle-track model). The truth
+//! row feeds the exact solutions through the same metric: 0 on solutions, the
+//! central-difference floor on derivatives.
 //! Per channel: `||pred - exact|| / ||exact||` in physical units (mean over samples, %), the
 //! RMS error in an engineer's unit (mm, mrad, mm/s, mrad/s, m/s^2, rad/s^2, kN) and the worst
-//! sample; the predicted contact forces `p_1..p_4` and, for comparison, `p_i_hertz`, the
-//! Hertz force implied by the predicted `z_w - z_r` and the exact irregularity. Speed:
-//! simulated seconds (scored samples x window length) per wall second of forward passes.
+//! sample; the predicted forces and, for each Hertz contact whose deflection the model
+//! predicts, `<force>_hertz`, the force implied by the predicted deflection and the exact
+//! excitation. Speed: simulated seconds (scored samples x window length) per wall second of
+//! forward passes.
 
 use crate::checkpoint::{load_model, ModelMeta};
-use crate::config::{WindowConfig, DOFS, FORCE_OFFSET, OUT_CHANNELS};
+use crate::config::WindowConfig;
 use crate::data::{
-    load_split, make_batch, splits_present, static_wheel_load, Batch, Dataset, Prepared, Split,
+    load_split, make_batch, splits_present, Batch, Dataset, DatasetInfo, Prepared, Split,
 };
+use crate::indices_eval::{
+    model_indices, truth_indices, write_indices, IndexInputs, ModelIndices, StoredColumns,
+};
+use crate::layout::Layout;
 use crate::loss::{rel_l2_per_sample, LossContext};
 use crate::model::Fno;
 use crate::norm::Normalisation;
@@ -29,35 +35,36 @@ use candle_core::{DType, Device, Tensor};
 
 /// Name of Table 4's truth row.
 pub const TRUTH_NAME: &str = "truth (exact solutions, central differences)";
-use pino_data::{schema, write_parquet, Column, Table};
+use pino_data::{write_parquet, Column, Table};
 use report::csv::write_csv;
 use report::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-fn d_plots() -> usize {
-    2
-}
-fn d_batch() -> usize {
-    8
-}
 fn d_device() -> crate::config::DeviceKind {
     crate::config::DeviceKind::Cpu
 }
 
-/// The `evaluate` stage's parameters as they appear in pipeline.yaml.
+/// The `evaluate` stage's parameters as they appear in pipeline.yaml (all required but the
+/// device: their home is the pipeline file).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EvalParams {
-    /// Validation samples plotted per model.
-    #[serde(default = "d_plots")]
+    /// Scored samples plotted per model.
     pub plot_samples: usize,
+    /// The rigid-DOF columns plotted (one row each: displacement, velocity, acceleration).
+    pub plot_channels: Vec<String>,
     /// Samples per forward pass.
-    #[serde(default = "d_batch")]
     pub batch_size: usize,
+    /// Whether Table 4 carries the paper's figures beside ours (the vehicle-track model only).
+    pub compare_with_paper: bool,
     /// "cpu" or "cuda".
     #[serde(default = "d_device")]
     pub device: crate::config::DeviceKind,
+    /// Overrides of the description's values, as the data stages take them (read in check
+    /// mode, where the description the command names stands in for the dataset's record).
+    #[serde(default)]
+    pub system_values: std::collections::BTreeMap<String, mbd_system::Override>,
 }
 
 /// Evaluation settings.
@@ -65,10 +72,14 @@ pub struct EvalParams {
 pub struct EvalOptions {
     /// Scored samples plotted per model.
     pub plot_samples: usize,
+    /// Rigid-DOF columns plotted.
+    pub plot_channels: Vec<String>,
     /// Samples per forward pass.
     pub batch_size: usize,
     /// Transform implementation.
     pub transform: Transform,
+    /// Whether Table 4 carries the paper's figures.
+    pub compare_with_paper: bool,
 }
 
 /// One channel's error.
@@ -77,7 +88,7 @@ pub struct ChannelError {
     /// Column name (`z_c`, `z_c_v`, ...).
     pub channel: String,
     /// Unit of the RMS values.
-    pub unit: &'static str,
+    pub unit: String,
     /// Mean relative L2 (%) in physical units.
     pub rel_l2_pct: f64,
     /// RMS error over all samples and times, in `unit`.
@@ -88,8 +99,8 @@ pub struct ChannelError {
     pub worst_sample: i64,
     /// Its relative error (%).
     pub worst_rel_l2_pct: f64,
-    /// Contact forces only: mean over samples of `|max_t pred - max_t exact|`, % of the
-    /// sample's static wheel load W.
+    /// Forces only: mean over samples of `|max_t pred - max_t exact|`, % of the sample's
+    /// static contact force (W).
     pub peak_error_pct_w: Option<f64>,
 }
 
@@ -100,11 +111,11 @@ pub struct ModelResult {
     pub dir: PathBuf,
     /// Its metadata.
     pub meta: ModelMeta,
-    /// Table 4 values (%): solutions (14 displacement channels), first, second derivatives.
+    /// Table 4 values (%): solutions, first, second derivatives.
     pub table4: [f64; 3],
-    /// Relative L2 (%) of the 4 predicted contact forces (z-scored, as Table 4).
+    /// Relative L2 (%) of the predicted forces (z-scored, as Table 4; NaN without forces).
     pub forces_pct: f64,
-    /// Mean peak contact force error (% of W) over samples and wheels.
+    /// Mean peak force error (% of the static contact force) over samples and forces.
     pub peak_force_error_pct_w: f64,
     /// Per-channel errors.
     pub channels: Vec<ChannelError>,
@@ -116,10 +127,10 @@ pub struct ModelResult {
     pub samples: usize,
 }
 
-/// Display unit and scale of a channel: displacements mm, angles mrad, their rates per s,
-/// accelerations SI.
-fn unit_of(channel: &str, order: usize) -> (&'static str, f64) {
-    let angle = channel.starts_with("beta");
+/// Display unit and scale of a displacement channel of unit `unit` (m or rad) at derivative
+/// `order`: displacements mm, angles mrad, their rates per s, accelerations SI.
+fn unit_of(unit: &str, order: usize) -> (&'static str, f64) {
+    let angle = unit == "rad";
     match (order, angle) {
         (0, false) => ("mm", 1e3),
         (0, true) => ("mrad", 1e3),
@@ -130,8 +141,9 @@ fn unit_of(channel: &str, order: usize) -> (&'static str, f64) {
     }
 }
 
-/// Physical prediction of one sample: outputs `[T, 18]` (m, rad, N), and interior
-/// velocities and accelerations `[T-2, 10]`.
+/// Physical prediction of one sample: outputs `[T, O]` (m, rad, N), and interior
+/// velocities and accelerations `[T-2, D]`.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Physical {
     /// Outputs (displacements, then contact forces).
     pub u: Vec<f64>,
@@ -141,22 +153,23 @@ pub struct Physical {
     pub a: Vec<f64>,
 }
 
-/// De-normalises a z-scored prediction `[T, 18]` and differentiates its vehicle DOFs
-/// (central differences).
+/// De-normalises a z-scored prediction `[T, O]` and differentiates its rigid DOFs (central
+/// differences).
 pub fn to_physical(u_n: &[f32], meta: &ModelMeta) -> Physical {
-    let t = u_n.len() / OUT_CHANNELS;
+    let (o, d) = (meta.layout.n_outputs(), meta.layout.n_dofs());
+    let t = u_n.len() / o;
     let dt = meta.grid.dt;
     let u = meta.norm.outputs.denormalise(u_n);
-    let mut v = Vec::with_capacity((t - 2) * DOFS);
-    let mut a = Vec::with_capacity((t - 2) * DOFS);
+    let mut v = Vec::with_capacity((t - 2) * d);
+    let mut a = Vec::with_capacity((t - 2) * d);
     for n in 1..t - 1 {
-        for c in 0..DOFS {
+        for c in 0..d {
             // Differences of z-scored values times std: the mean cancels exactly.
             let s = meta.norm.outputs.std[c];
             let (p, m, x) = (
-                u_n[(n - 1) * OUT_CHANNELS + c] as f64,
-                u_n[n * OUT_CHANNELS + c] as f64,
-                u_n[(n + 1) * OUT_CHANNELS + c] as f64,
+                u_n[(n - 1) * o + c] as f64,
+                u_n[n * o + c] as f64,
+                u_n[(n + 1) * o + c] as f64,
             );
             v.push(s * (x - p) / (2.0 * dt));
             a.push(s * (x - 2.0 * m + p) / (dt * dt));
@@ -165,9 +178,9 @@ pub fn to_physical(u_n: &[f32], meta: &ModelMeta) -> Physical {
     Physical { u, v, a }
 }
 
-/// The exact (solver) values of prepared sample `i` in physical units: outputs `[T, 18]`,
-/// velocities and accelerations `[T, 10]` at every window point; and its irregularity
-/// `[T, 4]`.
+/// The exact (solver) values of prepared sample `i` in physical units: outputs `[T, O]`,
+/// velocities and accelerations `[T, D]` at every window point; and its excitations
+/// `[T, E]`.
 pub fn exact_physical(
     items: &Prepared,
     i: usize,
@@ -184,17 +197,21 @@ pub fn exact_physical(
     ))
 }
 
-/// Per-sample Table 4 metrics (fractions) of a z-scored prediction `u_n [B, T, 18]`:
-/// relative L2 of the 14 displacement channels ("solutions", the paper's metric), of the
-/// first and second derivatives (central differences of the 10 vehicle DOFs against the
-/// exact `_v`/`_a`, z-scored, interior points), and of the 4 contact forces (z-scored).
+/// Per-sample Table 4 metrics (fractions) of a z-scored prediction `u_n [B, T, O]`:
+/// relative L2 of the displacement solutions (the paper's metric), of the first and second
+/// derivatives (central differences of the rigid DOFs against the exact `_v`/`_a`, z-scored,
+/// interior points), and of the forces (z-scored; NaN without force outputs).
 pub fn table4_per_sample(ctx: &LossContext, u_n: &Tensor, batch: &Batch) -> Result<[Vec<f64>; 4]> {
     let [sol, first, second] = ctx.metrics_per_sample(u_n, batch)?;
-    let forces = |u: &Tensor| -> Result<Tensor> {
-        Ok(u.narrow(2, FORCE_OFFSET, OUT_CHANNELS - FORCE_OFFSET)?
-            .to_dtype(DType::F64)?)
+    let r = ctx.layout.forces();
+    let f = if r.is_empty() {
+        vec![f64::NAN; sol.len()]
+    } else {
+        let forces = |u: &Tensor| -> Result<Tensor> {
+            Ok(u.narrow(2, r.start, r.len())?.to_dtype(DType::F64)?)
+        };
+        rel_l2_per_sample(&forces(u_n)?, &forces(&batch.u)?)?.to_vec1::<f64>()?
     };
-    let f = rel_l2_per_sample(&forces(u_n)?, &forces(&batch.u)?)?.to_vec1::<f64>()?;
     Ok([sol, first, second, f])
 }
 
@@ -224,7 +241,7 @@ fn score_split(
     let score = |(chunk, pred): (&[usize], &[Vec<f32>])| -> Result<[[Vec<f64>; 4]; 2]> {
         let batch = make_batch(items, chunk, t, device)?;
         let flat: Vec<f32> = pred.concat();
-        let u = Tensor::from_vec(flat, (chunk.len(), t, OUT_CHANNELS), device)?;
+        let u = Tensor::from_vec(flat, (chunk.len(), t, ctx.layout.n_outputs()), device)?;
         Ok([
             table4_per_sample(ctx, &u, &batch)?,
             table4_per_sample(ctx, &batch.u, &batch)?,
@@ -254,7 +271,7 @@ fn score_split(
     Ok(out)
 }
 
-/// Predicts the z-scored outputs `[T, 18]` of every sample in `idx`, returning them with the
+/// Predicts the z-scored outputs `[T, O]` of every sample in `idx`, returning them with the
 /// wall time of the forward passes.
 pub fn predict_samples(
     model: &Fno,
@@ -283,7 +300,10 @@ pub fn predict_samples(
     let wall = t0.elapsed().as_secs_f64();
     let out = flats
         .iter()
-        .flat_map(|flat| flat.chunks(t_points * OUT_CHANNELS).map(<[f32]>::to_vec))
+        .flat_map(|flat| {
+            flat.chunks(t_points * items.layout().n_outputs())
+                .map(<[f32]>::to_vec)
+        })
         .collect();
     Ok((out, wall))
 }
@@ -331,7 +351,7 @@ impl Accum {
     fn finish(
         self,
         channel: String,
-        unit: &'static str,
+        unit: &str,
         ids: &[i64],
         peak_scale: Option<&[f64]>,
     ) -> ChannelError {
@@ -356,7 +376,7 @@ impl Accum {
         let n = self.n.max(1) as f64;
         ChannelError {
             channel,
-            unit,
+            unit: unit.to_owned(),
             rel_l2_pct: 100.0 * finite.iter().sum::<f64>() / finite.len().max(1) as f64,
             rms_error: (self.se / n).sqrt(),
             rms_exact: (self.sx / n).sqrt(),
@@ -370,36 +390,37 @@ impl Accum {
     }
 }
 
-/// Display name and unit of output channel `c` at derivative `order`.
-fn channel_label(c: usize, order: usize) -> (String, &'static str, f64) {
-    let names = schema::output_channels();
-    let base = names[c];
-    if c >= FORCE_OFFSET {
-        return (base.to_owned(), "kN", 1e-3);
+/// Display name, unit and scale of output channel `c` at derivative `order`.
+fn channel_label(layout: &Layout, c: usize, order: usize) -> (String, &'static str, f64) {
+    let base = &layout.outputs[c];
+    if layout.forces().contains(&c) {
+        return (base.clone(), "kN", 1e-3);
     }
-    let (unit, scale) = unit_of(base, order);
+    let (unit, scale) = unit_of(layout.unit(base), order);
     let name = match order {
-        0 => base.to_owned(),
-        1 => schema::velocity(base),
-        _ => schema::acceleration(base),
+        0 => base.clone(),
+        1 => format!("{base}_v"),
+        _ => format!("{base}_a"),
     };
     (name, unit, scale)
 }
 
-/// Per-channel errors in physical units over the scored samples `idx` of `items`:
-/// the 18 outputs (contact forces `p_1..p_4` in kN, predicted directly), the 10 velocities
-/// and accelerations, and `p_1_hertz..p_4_hertz`, the Hertz force of the predicted
-/// `z_w - z_r` with the exact irregularity (the displacement-implied route, kept for
-/// comparison). Force rows also carry the mean peak-force error as % of each sample's
-/// static wheel load W.
+/// Per-channel errors in physical units over the scored samples `idx` of `items`: every
+/// output (forces in kN, predicted directly), the DOFs' velocities and accelerations, and for
+/// each Hertz contact whose deflection the model predicts, `<force>_hertz`, the force of the
+/// predicted deflection with the exact excitation (the displacement-implied route, kept for
+/// comparison). Force rows also carry the mean peak-force error as % of each sample's static
+/// contact force.
 fn channel_errors(
     items: &Prepared,
     idx: &[usize],
     preds: &[Physical],
     meta: &ModelMeta,
+    system: &mbd_system::System,
 ) -> Result<Vec<ChannelError>> {
     let t = items.t_points();
-    let hertz_g = vtcd::contact::hertz_constant(meta.train.wheel_radius);
+    let layout = &meta.layout;
+    let (o, d) = (layout.n_outputs(), layout.n_dofs());
     let ids: Vec<i64> = idx.iter().map(|&i| items.id(i)).collect();
     let (exact, etas): (Vec<Physical>, Vec<Vec<f64>>) = idx
         .iter()
@@ -407,15 +428,12 @@ fn channel_errors(
         .collect::<Result<Vec<_>>>()?
         .into_iter()
         .unzip();
-    let w: Vec<f64> = idx
-        .iter()
-        .map(|&i| static_wheel_load(items.params(i), meta.train.gravity))
-        .collect();
+    let w_kn: Vec<f64> = idx.iter().map(|&i| items.force_scale(i) * 1e-3).collect();
     let mut out = Vec::new();
     for order in 0..3 {
-        let nch = if order == 0 { OUT_CHANNELS } else { DOFS };
+        let nch = if order == 0 { o } else { d };
         for c in 0..nch {
-            let (channel, unit, scale) = channel_label(c, order);
+            let (channel, unit, scale) = channel_label(layout, c, order);
             let mut acc = Accum::new();
             for (k, ex) in exact.iter().enumerate() {
                 let (x, p, rows, off): (&[f64], &[f64], usize, usize) = match order {
@@ -428,50 +446,62 @@ fn channel_errors(
                     (0..rows).map(|r| scale * p[r * nch + c]),
                 );
             }
-            let force = order == 0 && c >= FORCE_OFFSET;
-            let w_kn: Vec<f64> = w.iter().map(|w| w * 1e-3).collect();
+            let force = order == 0 && layout.forces().contains(&c);
             out.push(acc.finish(channel, unit, &ids, force.then_some(w_kn.as_slice())));
         }
     }
-    // Displacement-implied forces (kN): Hertz of the predicted `z_w - z_r - eta` against
-    // the exact contact force.
-    let w_kn: Vec<f64> = w.iter().map(|w| w * 1e-3).collect();
-    for i in 0..4 {
+    // Displacement-implied forces (kN): each Hertz contact's law at the predicted deflection.
+    let map = crate::residual::ChannelMap::new(system, layout);
+    let e = layout.n_excitations();
+    for (el, element) in system.elements.iter().enumerate() {
+        let force_name = format!("p_{}", element.name);
+        let (Some(fc), mbd_system::system::Law::Hertz { .. }) = (
+            layout.outputs.iter().position(|x| *x == force_name),
+            &element.law,
+        ) else {
+            continue;
+        };
         let mut acc = Accum::new();
-        for (k, eta) in etas.iter().enumerate() {
-            let u = &preds[k].u;
+        let mut complete = true;
+        for (k, &i) in idx.iter().enumerate() {
+            let eq = crate::residual::sample_equations(system, items.params(i), Vec::new())?;
+            let Some(deflection) = map.deflection(&eq, el) else {
+                complete = false;
+                break;
+            };
+            let law = eq.law(el);
+            let (u, eta) = (&preds[k].u, &etas[k]);
             acc.add(
-                (0..t).map(|r| 1e-3 * exact[k].u[r * OUT_CHANNELS + FORCE_OFFSET + i]),
+                (0..t).map(|r| 1e-3 * exact[k].u[r * o + fc]),
                 (0..t).map(|r| {
-                    let delta = u[r * OUT_CHANNELS + 6 + i]
-                        - u[r * OUT_CHANNELS + DOFS + i]
-                        - eta[r * 4 + i];
-                    vtcd::contact::contact_force(delta, hertz_g) * 1e-3
+                    let d = deflection.at(&u[r * o..(r + 1) * o], &eta[r * e..(r + 1) * e]);
+                    1e-3 * law.force(d, 0.0)
                 }),
             );
         }
-        out.push(acc.finish(
-            format!("{}_hertz", schema::CONTACT_FORCES[i]),
-            "kN",
-            &ids,
-            Some(&w_kn),
-        ));
+        if complete {
+            out.push(acc.finish(format!("{force_name}_hertz"), "kN", &ids, Some(&w_kn)));
+        }
     }
     Ok(out)
 }
 
-/// Mean over the four directly predicted contact forces of their peak error (% of W).
-fn peak_force_error(channels: &[ChannelError]) -> f64 {
+/// Mean over the directly predicted forces of their peak error (% of the static contact force).
+fn peak_force_error(channels: &[ChannelError], layout: &Layout) -> f64 {
+    let forces = &layout.outputs[layout.forces()];
     let v: Vec<f64> = channels
         .iter()
-        .filter(|c| schema::CONTACT_FORCES.contains(&c.channel.as_str()))
+        .filter(|c| forces.contains(&c.channel))
         .filter_map(|c| c.peak_error_pct_w)
         .collect();
-    v.iter().sum::<f64>() / v.len().max(1) as f64
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.iter().sum::<f64>() / v.len() as f64
 }
 
 /// "5 PINO-MBD (direct derivatives), depth 5": the depth tells algorithms 4 and 5 apart.
-fn alg_label(meta: &ModelMeta) -> String {
+pub(crate) fn alg_label(meta: &ModelMeta) -> String {
     let alg = meta.train.algorithm;
     format!("{} {}, depth {}", alg.id(), alg.name(), meta.model.depth)
 }
@@ -483,29 +513,30 @@ fn plot_sample(
     i: usize,
     pred: &Physical,
     meta: &ModelMeta,
+    channels: &[usize],
 ) -> Result<()> {
     let (s, _) = exact_physical(items, i, &meta.norm)?;
     let id = items.id(i);
     let split = ds.samples[i].split.label();
     let t = ds.t_points();
+    let (o, d) = (meta.layout.n_outputs(), meta.layout.n_dofs());
     let mut panels = Vec::new();
-    // Rows: car body z_c (channel 0), front wheel z_w1 (channel 6); columns: displacement
-    // (mm), velocity (mm/s), acceleration (m/s^2).
-    for (c, body) in [(0usize, "car body"), (6, "wheel 1")] {
+    // One row per chosen DOF; columns: displacement, velocity, acceleration.
+    for &c in channels {
         for (order, quantity) in ["displacement", "velocity", "acceleration"]
             .into_iter()
             .enumerate()
         {
-            let name = schema::VEHICLE_DOFS[c];
-            let (unit, scale) = unit_of(name, order);
+            let name = &meta.layout.dofs[c];
+            let (unit, scale) = unit_of(meta.layout.unit(name), order);
             let (exact, p, nch, rows, off) = match order {
-                0 => (&s.u, &pred.u, OUT_CHANNELS, t, 0),
-                1 => (&s.v, &pred.v, DOFS, t - 2, 1),
-                _ => (&s.a, &pred.a, DOFS, t - 2, 1),
+                0 => (&s.u, &pred.u, o, t, 0),
+                1 => (&s.v, &pred.v, d, t - 2, 1),
+                _ => (&s.a, &pred.a, d, t - 2, 1),
             };
             let x: Vec<f64> = (0..rows).map(|r| ds.t[r + off]).collect();
             panels.push(Panel {
-                title: format!("{body} {name}: {quantity} ({unit})"),
+                title: format!("{name}: {quantity} ({unit})"),
                 xlabel: "t (s)".into(),
                 log_y: false,
                 series: vec![
@@ -539,7 +570,7 @@ fn plot_sample(
                     format!("red: predicted (alg {})", meta.train.algorithm.id()),
                 ),
             ],
-            rows: 2,
+            rows: channels.len(),
             cols: 3,
             panel: (420, 260),
             panels,
@@ -607,6 +638,33 @@ fn plot_training_curves(path: &Path, results: &[ModelResult]) -> Result<bool> {
     Ok(any)
 }
 
+/// The rigid DOFs `names` (the stage's `plot_channels`) as positions in `layout`, or an error
+/// naming the allowed columns.
+pub fn plot_channels(
+    names: &[String],
+    layout: &Layout,
+    system: &mbd_system::System,
+) -> Result<Vec<usize>> {
+    names
+        .iter()
+        .map(|name| {
+            layout
+                .dofs
+                .iter()
+                .position(|d| d == name)
+                .ok_or_else(|| Error::OutOfRange {
+                    field: "plot_channels".into(),
+                    value: name.clone(),
+                    allowed: format!(
+                        "rigid-DOF columns of `{}`: {}",
+                        system.name,
+                        layout.dofs.join(", ")
+                    ),
+                })
+        })
+        .collect()
+}
+
 /// Which split `evaluate` scores: `test` when `params.parquet` has one, else `validation`
 /// (flagged in every output as a fallback: the study chose settings on it).
 pub fn scored_split(params_file: &Path) -> Result<Split> {
@@ -647,9 +705,11 @@ pub struct Evaluation {
 /// Evaluates every model directory on the test split (the validation split when the dataset
 /// has none, flagged) and writes, into `out`: `table4.{parquet,csv,md}`,
 /// `channel_errors.{parquet,csv}`, `pred_alg{A}_sample{ID}.png`, `training_curves.png`,
-/// `plots.md` and `speed.csv` (the only machine-dependent file). Only the scored split is
-/// read from the simulation files.
+/// `plots.md` and `speed.csv` (the only machine-dependent file), and the engineering indices of
+/// the description against the solver. Only the scored split is read from the simulation
+/// files; every model must have been trained on the dataset's description.
 pub fn evaluate(
+    info: &DatasetInfo,
     params_file: &Path,
     simulation_files: &[PathBuf],
     model_dirs: &[PathBuf],
@@ -659,36 +719,52 @@ pub fn evaluate(
     progress: &mut dyn FnMut(usize, &str),
 ) -> Result<Evaluation> {
     let split = scored_split(params_file)?;
+    let system = &info.system;
+    let layout = Layout::of(system);
+    let plot_channels = plot_channels(&opts.plot_channels, &layout, system)?;
     let mut results = Vec::new();
     let mut truth: Option<TruthRow> = None;
     // Engineering indices of every model (and the truth row) against the solver.
-    let mut index_sets: Vec<crate::indices_eval::ModelIndices> = Vec::new();
+    let index_inputs = IndexInputs::of(system, &layout)?;
+    let mut index_sets: Vec<ModelIndices> = Vec::new();
     // One load per (window, statistics): models trained on the same data share it.
-    let mut cache: Vec<(WindowConfig, Normalisation, Dataset, Prepared)> = Vec::new();
+    let mut cache: Vec<(
+        WindowConfig,
+        Normalisation,
+        Dataset,
+        Prepared,
+        StoredColumns,
+    )> = Vec::new();
     for (m, dir) in model_dirs.iter().enumerate() {
         let (model, meta) = load_model(dir, opts.transform, device)?;
-        if meta.model.out_channels != OUT_CHANNELS || meta.norm.outputs.len() != OUT_CHANNELS {
+        if meta.system.hash() != info.source.hash() || meta.layout != layout {
             return Err(Error::Format {
                 path: dir.join("model.json"),
                 message: format!(
-                    "the model predicts {} channels; this build predicts {OUT_CHANNELS} ({}): retrain it",
-                    meta.model.out_channels,
-                    schema::output_channels().join(", ")
+                    "the model was trained on another system description ({}) than the dataset's ({}): retrain it on this dataset",
+                    meta.system.file, info.source.file
                 ),
             });
         }
         let key = |w: &WindowConfig, n: &Normalisation| *w == meta.window && *n == meta.norm;
-        if !cache.iter().any(|(w, n, _, _)| key(w, n)) {
+        if !cache.iter().any(|(w, n, ..)| key(w, n)) {
             let (ds, items) = load_split(
+                info,
                 params_file,
                 simulation_files,
                 &meta.window,
                 split,
                 &meta.norm,
             )?;
-            cache.push((meta.window, meta.norm.clone(), ds, items));
+            let stored = if index_inputs.computable() {
+                let ids = (0..items.len()).map(|i| items.id(i)).collect();
+                StoredColumns::read(simulation_files, &index_inputs, &ids, &meta.window)?
+            } else {
+                StoredColumns::default()
+            };
+            cache.push((meta.window, meta.norm.clone(), ds, items, stored));
         }
-        let (_, _, ds, items) = cache.iter().find(|(w, n, _, _)| key(w, n)).expect("cached");
+        let (_, _, ds, items, stored) = cache.iter().find(|(w, n, ..)| key(w, n)).expect("cached");
         if ds.t_points() != meta.grid.t_points || (ds.dt - meta.grid.dt).abs() > 1e-9 * meta.grid.dt
         {
             return Err(Error::Dataset {
@@ -715,6 +791,8 @@ pub fn evaluate(
             norm: meta.norm.clone(),
             dt: meta.grid.dt,
             f_ref: meta.f_ref,
+            layout: meta.layout.clone(),
+            system: system.clone(),
         };
         let sc = score_split(&model, &ctx, items, &idx, opts.batch_size, device)?;
         let mean = |v: &[f64]| 100.0 * v.iter().sum::<f64>() / v.len() as f64;
@@ -725,13 +803,28 @@ pub fn evaluate(
             samples: idx.len(),
         });
         let phys: Vec<Physical> = sc.preds.iter().map(|p| to_physical(p, &meta)).collect();
-        let channels = channel_errors(items, &idx, &phys, &meta)?;
-        if index_sets.is_empty() {
-            index_sets.push(crate::indices_eval::truth_indices(items, &idx, &meta)?);
+        let channels = channel_errors(items, &idx, &phys, &meta, system)?;
+        if index_inputs.computable() {
+            if index_sets.is_empty() {
+                index_sets.push(truth_indices(
+                    system,
+                    &index_inputs,
+                    items,
+                    &idx,
+                    stored,
+                    &meta,
+                )?);
+            }
+            index_sets.push(model_indices(
+                system,
+                &index_inputs,
+                items,
+                &idx,
+                &phys,
+                stored,
+                &meta,
+            )?);
         }
-        index_sets.push(crate::indices_eval::model_indices(
-            items, &idx, &phys, &meta,
-        )?);
         let alg = meta.train.algorithm.id();
         for (k, &i) in idx.iter().take(opts.plot_samples).enumerate() {
             let id = items.id(i);
@@ -742,10 +835,11 @@ pub fn evaluate(
                 i,
                 &phys[k],
                 &meta,
+                &plot_channels,
             )?;
         }
         let simulated = idx.len() as f64 * ds.t_points() as f64 * ds.dt;
-        let peak = peak_force_error(&channels);
+        let peak = peak_force_error(&channels, &meta.layout);
         results.push(ModelResult {
             dir: dir.clone(),
             meta,
@@ -760,24 +854,24 @@ pub fn evaluate(
         progress(
             m + 1,
             &format!(
-                "algorithm {alg}: {:.2}% / {:.2}% / {:.2}%, forces {forces_pct:.2}%, peak force {peak:.2}% of W",
+                "algorithm {alg}: {:.2}% / {:.2}% / {:.2}%, forces {forces_pct:.2}%, peak force {peak:.2}% of the static contact force",
                 table4[0], table4[1], table4[2]
             ),
         );
     }
     results.sort_by_key(|r| r.meta.train.algorithm.id());
     index_sets.sort_by_key(|m| m.algorithm);
-    crate::indices_eval::write_indices(out, split, &index_sets)?;
+    write_indices(out, split, &index_inputs, &layout, &index_sets)?;
     let evaluation = Evaluation {
         split,
         models: results,
         truth,
     };
-    write_outputs(out, &evaluation)?;
+    write_outputs(out, &evaluation, &layout, opts)?;
     Ok(evaluation)
 }
 
-fn write_outputs(out: &Path, ev: &Evaluation) -> Result<()> {
+fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOptions) -> Result<()> {
     let results = &ev.models;
     let split = ev.split.label();
     let fallback = ev.split != Split::Test;
@@ -814,7 +908,11 @@ fn write_outputs(out: &Path, ev: &Evaluation) -> Result<()> {
             t4: r.table4,
             forces: r.forces_pct,
             peak: r.peak_force_error_pct_w,
-            paper: a.paper_table4(),
+            paper: if opts.compare_with_paper {
+                a.paper_table4()
+            } else {
+                [f64::NAN; 3]
+            },
             samples: r.samples as i64,
         });
     }
@@ -906,16 +1004,25 @@ fn write_outputs(out: &Path, ev: &Evaluation) -> Result<()> {
         ],
         &cells,
     ));
+    let forces = &layout.outputs[layout.forces()];
     md.push_str(&format!(
         "\nMetric: per sample, relative L2 of z-scored values, then the mean over the samples. \
-         *Solutions*: the 14 displacement channels (10 vehicle DOFs, 4 rail), as in the paper, so \
-         the column stays comparable with it and with earlier tables; the contact forces \
-         `p_1..p_4`, also predicted, are scored in their own column. *First / second derivatives*: \
-         central differences of the predicted vehicle DOFs against the solver's exact `_v` / `_a` \
-         (interior points). *Peak force error*: per sample and wheel `|max_t p_pred - max_t \
-         p_exact|`, mean over samples and wheels, in % of the sample's static wheel load W. \
-         *{TRUTH_NAME}*: the exact solutions fed through the same metric: 0 on solutions and \
-         forces, and the floor any model has on the derivatives at this output rate.\n"
+         *Solutions*: the {} displacement channels ({}), as in the paper; the forces ({}), also \
+         predicted, are scored in their own column. *First / second derivatives*: central \
+         differences of the predicted rigid DOFs ({}) against the solver's exact `_v` / `_a` \
+         (interior points). *Peak force error*: per sample and force `|max_t f_pred - max_t \
+         f_exact|`, mean over samples and forces, in % of the sample's static contact force \
+         (the static wheel load W of the vehicle-track model). *{TRUTH_NAME}*: the exact \
+         solutions fed through the same metric: 0 on solutions and forces, and the floor any \
+         model has on the derivatives at this output rate.\n",
+        layout.solutions,
+        layout.outputs[..layout.solutions].join(", "),
+        if forces.is_empty() {
+            "none".to_owned()
+        } else {
+            forces.join(", ")
+        },
+        layout.dofs.join(", "),
     ));
     // Wall-clock figures live in their own file so that every other artifact is a pure
     // function of the inputs (byte-identical on a rerun).
@@ -1015,10 +1122,10 @@ fn write_outputs(out: &Path, ev: &Evaluation) -> Result<()> {
          Each figure has a title and a colour legend at the top; each panel has a title with \
          quantity and unit, numbered ticks on both axes with light grid lines through them, and \
          an x-axis label.\n\n\
-         `pred_alg{A}_sample{ID}.png`: scored (test, else validation) sample ID predicted by algorithm A. Top row car \
-         body `z_c`, bottom row front wheel `z_w1`; columns displacement (mm), velocity (mm/s), \
-         acceleration (m/s^2) against time. Black: exact (solver), red: prediction (velocities and \
-         accelerations by central differences).\n\n",
+         `pred_alg{A}_sample{ID}.png`: scored (test, else validation) sample ID predicted by \
+         algorithm A. One row per plotted channel (the stage's `plot_channels`); columns \
+         displacement (mm or mrad), velocity (per s), acceleration (per s^2) against time. Black: \
+         exact (solver), red: prediction (velocities and accelerations by central differences).\n\n",
     );
     if curves {
         doc.push_str(
@@ -1035,8 +1142,7 @@ fn write_outputs(out: &Path, ev: &Evaluation) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{TrainParams, SOLUTION_CHANNELS};
-    use crate::data::load_dataset;
+    use crate::config::TrainParams;
     use crate::synthetic::{write_dataset, SyntheticSpec};
     use crate::train::model_meta;
     use pino_data::read_parquet;
@@ -1061,29 +1167,19 @@ mod tests {
             ..Default::default()
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
-        let (m, t, w) = TrainParams::with_algorithm(4).configs().unwrap();
-        let ds = load_dataset(
-            &files.params,
-            std::slice::from_ref(&files.simulation),
-            None,
-            &w,
-        )
-        .unwrap();
+        let layout = crate::synthetic::vehicle_track_layout();
+        let (m, t, w) = TrainParams::small(4).configs(&layout).unwrap();
+        let ds = files.load(&w, false).unwrap();
         let meta = model_meta(&ds, m, t, w).unwrap();
         // The scored split alone, as `evaluate` reads it.
-        let (_, items) = load_split(
-            &files.params,
-            std::slice::from_ref(&files.simulation),
-            &w,
-            Split::Test,
-            &meta.norm,
-        )
-        .unwrap();
+        let (_, items) = files.load_split(&w, Split::Test, &meta.norm).unwrap();
         let ctx = LossContext {
             config: meta.train,
             norm: meta.norm.clone(),
             dt: meta.grid.dt,
             f_ref: meta.f_ref,
+            layout: meta.layout.clone(),
+            system: ds.system().clone(),
         };
         let test: Vec<usize> = (0..items.len()).collect();
         assert_eq!(test.len(), 2);
@@ -1103,7 +1199,7 @@ mod tests {
     /// z-scored exact `_v` / `_a`, interior window points.
     fn truth_floor_f64(fx: &Fixture, ids: &[i64]) -> [Vec<f64>; 2] {
         let t = read_parquet(&fx.files.simulation, None).unwrap();
-        let sid = t.i64(schema::SAMPLE_ID).unwrap();
+        let sid = t.i64(pino_data::schema::SAMPLE_ID).unwrap();
         let dt = fx.ds.dt;
         let norm = &fx.meta.norm;
         let mut out: [Vec<f64>; 2] = Default::default();
@@ -1112,10 +1208,10 @@ mod tests {
             let first = fx.meta.window.first_index(rows.len());
             let rows = &rows[first..];
             let (mut e1, mut x1, mut e2, mut x2) = (0.0, 0.0, 0.0, 0.0);
-            for (c, dof) in schema::VEHICLE_DOFS.iter().enumerate() {
+            for (c, dof) in fx.meta.layout.dofs.iter().enumerate() {
                 let z = t.f64(dof).unwrap();
-                let v = t.f64(&schema::velocity(dof)).unwrap();
-                let a = t.f64(&schema::acceleration(dof)).unwrap();
+                let v = t.f64(&format!("{dof}_v")).unwrap();
+                let a = t.f64(&format!("{dof}_a")).unwrap();
                 let zs = |x: f64, s: &crate::norm::ChannelStats| (x - s.mean[c]) / s.std[c];
                 for n in 1..rows.len() - 1 {
                     let (p, m, q) = (z[rows[n - 1]], z[rows[n]], z[rows[n + 1]]);
@@ -1168,27 +1264,31 @@ mod tests {
         let truth = table4_per_sample(&fx.ctx, &batch.u, &batch).unwrap();
         let u: Vec<f32> = batch.u.flatten_all().unwrap().to_vec1().unwrap();
         let c = 0.25f32;
-        // Offset c on rail channel z_r1 (10): solutions error sqrt(T) c / ||u_14||, the
-        // derivatives (vehicle DOFs only) and forces unchanged.
-        // Offset c on force channel p_2 (15): forces error sqrt(T) c / ||u_p||, solutions 0.
-        for (chan, group) in [(DOFS, 0usize), (FORCE_OFFSET + 1, 3)] {
+        let layout = &fx.meta.layout;
+        let (o, forces) = (layout.n_outputs(), layout.forces());
+        // Offset c on the first solution after the DOFs (the rail under wheel 1, z_r1):
+        // solutions error sqrt(T) c / ||u_solutions||, the derivatives (the rigid DOFs only) and
+        // forces unchanged. Offset c on the second force (p_2): forces error
+        // sqrt(T) c / ||u_forces||, solutions 0.
+        assert_eq!(layout.outputs[layout.n_dofs()], "z_r1");
+        for (chan, group) in [(layout.n_dofs(), 0usize), (forces.start + 1, 3)] {
             let shifted: Vec<f32> = u
                 .iter()
                 .enumerate()
-                .map(|(k, &x)| if k % OUT_CHANNELS == chan { x + c } else { x })
+                .map(|(k, &x)| if k % o == chan { x + c } else { x })
                 .collect();
             let pred = Tensor::from_vec(shifted.clone(), batch.u.shape(), &Device::Cpu).unwrap();
             let m = table4_per_sample(&fx.ctx, &pred, &batch).unwrap();
             let range = if group == 0 {
-                0..SOLUTION_CHANNELS
+                0..layout.solutions
             } else {
-                FORCE_OFFSET..OUT_CHANNELS
+                forces.clone()
             };
             for s in 0..fx.test.len() {
-                let blk = &u[s * t * OUT_CHANNELS..(s + 1) * t * OUT_CHANNELS];
-                let sblk = &shifted[s * t * OUT_CHANNELS..(s + 1) * t * OUT_CHANNELS];
+                let blk = &u[s * t * o..(s + 1) * t * o];
+                let sblk = &shifted[s * t * o..(s + 1) * t * o];
                 let norm2: f64 = blk
-                    .chunks(OUT_CHANNELS)
+                    .chunks(o)
                     .flat_map(|r| r[range.clone()].iter())
                     .map(|&x| (x as f64).powi(2))
                     .sum();
@@ -1197,7 +1297,7 @@ mod tests {
                     .iter()
                     .zip(sblk)
                     .skip(chan)
-                    .step_by(OUT_CHANNELS)
+                    .step_by(o)
                     .map(|(&a, &b)| (b as f64 - a as f64).powi(2))
                     .sum();
                 let want = (err2 / norm2).sqrt();
@@ -1222,35 +1322,45 @@ mod tests {
     fn peak_force_error_is_a_fraction_of_the_static_wheel_load() {
         let fx = fixture();
         let t = fx.ds.t_points();
+        let layout = &fx.meta.layout;
+        let (o, d, f0) = (layout.n_outputs(), layout.n_dofs(), layout.forces().start);
         // Predictions = exact, with p_1 raised by 5 kN at every time and p_3 lowered by 2 kN
         // at its peak only: peak errors 5 kN and 2 kN per sample, relative L2 of p_2 zero.
         let mut preds = Vec::new();
         for &i in &fx.test {
             let (ex, _) = exact_physical(&fx.items, i, &fx.meta.norm).unwrap();
             let mut u = ex.u.clone();
-            let c3 = FORCE_OFFSET + 2;
+            let c3 = f0 + 2;
             let kmax = (0..t)
-                .max_by(|&a, &b| {
-                    ex.u[a * OUT_CHANNELS + c3].total_cmp(&ex.u[b * OUT_CHANNELS + c3])
-                })
+                .max_by(|&a, &b| ex.u[a * o + c3].total_cmp(&ex.u[b * o + c3]))
                 .unwrap();
             for r in 0..t {
-                u[r * OUT_CHANNELS + FORCE_OFFSET] += 5e3;
+                u[r * o + f0] += 5e3;
             }
-            u[kmax * OUT_CHANNELS + c3] -= 2e3;
+            u[kmax * o + c3] -= 2e3;
             preds.push(Physical {
                 u,
-                v: ex.v[DOFS..(t - 1) * DOFS].to_vec(),
-                a: ex.a[DOFS..(t - 1) * DOFS].to_vec(),
+                v: ex.v[d..(t - 1) * d].to_vec(),
+                a: ex.a[d..(t - 1) * d].to_vec(),
             });
         }
-        let ch = channel_errors(&fx.items, &fx.test, &preds, &fx.meta).unwrap();
+        let system = crate::synthetic::vehicle_track_system();
+        let ch = channel_errors(&fx.items, &fx.test, &preds, &fx.meta, &system).unwrap();
         let row = |name: &str| ch.iter().find(|c| c.channel == name).unwrap();
+        // The static contact force W = (m_c + 2 m_t + 4 m_w) g / 8 of each sample.
         let w: Vec<f64> = fx
             .test
             .iter()
-            .map(|&i| static_wheel_load(fx.items.params(i), fx.meta.train.gravity))
+            .map(|&i| {
+                let p = |name: &str| {
+                    fx.items.params(i)[layout.params.iter().position(|n| n == name).unwrap()]
+                };
+                (p("m_c") + 2.0 * p("m_t") + 4.0 * p("m_w")) * 9.81 / 8.0
+            })
             .collect();
+        for (k, &i) in fx.test.iter().enumerate() {
+            assert!((fx.items.force_scale(i) - w[k]).abs() < 1e-9 * w[k]);
+        }
         let mean_inv_w = w.iter().map(|w| 1.0 / w).sum::<f64>() / w.len() as f64;
         let p1 = row("p_1");
         assert_eq!(p1.unit, "kN");
@@ -1265,10 +1375,10 @@ mod tests {
         );
         assert_eq!(row("p_2").rel_l2_pct, 0.0);
         assert_eq!(row("p_2").peak_error_pct_w, Some(0.0));
-        // Displacements are exact, so the Hertz route gives back the exact force of this
-        // rigid-rail dataset (to the f32 storage of displacements).
+        // Displacements are exact, so the Hertz route gives back the exact force (to the f32
+        // storage of displacements).
         assert!(row("p_2_hertz").rel_l2_pct < 1.0);
         assert_eq!(row("z_c").peak_error_pct_w, None);
-        assert_eq!(ch.len(), OUT_CHANNELS + 2 * DOFS + 4);
+        assert_eq!(ch.len(), o + 2 * d + 4);
     }
 }

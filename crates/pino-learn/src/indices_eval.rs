@@ -1,28 +1,226 @@
-//! The engineering indices (`docs/indices.md`, crate `pino-indices`) of the surrogate against
-//! the solver, for `evaluate`.
+//! The engineering indices of the surrogate against the solver, for `evaluate`: the indices
+//! the system description defines (its `railway:` family and its own `indices:`, crate
+//! `pino-indices`, `docs/indices.md`), through the same [`pino_indices::IndexSet`] as the
+//! `indices` stage.
 //!
-//! Per scored sample and model: the indices of the prediction and of the exact solution,
-//! through the same [`pino_indices::compute`] as the `indices` stage. The contact forces are
-//! the model's own output channels `p_1..p_4` (predicted directly); accelerations of the
-//! prediction are central differences of its displacements, defined on the interior points
-//! `1..T-1` of the window, so both sides use those points (the exact side with the solver's
-//! exact `_a`). The truth row (algorithm 0) takes the exact displacements through the same
-//! central differences: the floor of every model.
+//! Per scored sample and model, each column an index reads is rebuilt from the prediction
+//! ([`IndexInputs`]): an output the model predicts is taken as predicted (displacements,
+//! contact and element forces); a rigid DOF's velocity or acceleration, and a sensor's, are
+//! central differences of the predicted displacement; an element's deflection is its
+//! kinematics over the predicted displacements and the exact profile; a profile is the exact
+//! input. Central differences exist on the interior points `1..T-1` of the window, so both
+//! sides use those points; the exact side reads the solver's values (its exact `_v` / `_a`,
+//! and the stored column for anything the model does not carry). The truth row
+//! (algorithm 0) takes the exact displacements through the same reconstruction: the floor of
+//! every model. A column the prediction cannot give (a stored force of an element the model
+//! does not predict, ...) is named in the report and the indices are left out.
 //!
 //! Written: `indices_errors.{parquet,csv,md}` (per index and algorithm: mean and worst absolute
 //! error, mean and worst relative error (%), Pearson correlation), `indices_samples.parquet`
 //! (per algorithm and sample: predicted and exact) and `indices_scatter_<index>.png`.
 
 use crate::checkpoint::ModelMeta;
-use crate::config::{DOFS, FORCE_OFFSET, OUT_CHANNELS};
-use crate::data::{static_wheel_load, Prepared, Split};
-use crate::eval::{exact_physical, to_physical, Physical};
+use crate::config::WindowConfig;
+use crate::data::{Prepared, Split};
+use crate::eval::{alg_label, exact_physical, to_physical, Physical};
+use crate::layout::Layout;
+use crate::residual::ChannelMap;
 use crate::{write_atomic, Error, Result};
+use mbd_system::system::Quantity;
+use mbd_system::System;
 use pino_data::{schema, write_parquet, Column, Table};
-use pino_indices::{IndexConfig, IndexParams, Indices, Record, INDEX_COLUMNS};
+use pino_indices::system::IndexInfo;
+use pino_indices::{IndexConfig, IndexParams, IndexSet};
 use report::csv::write_csv;
 use report::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
-use std::path::Path;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// Where one index input comes from on the prediction's side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Source {
+    /// An output the model predicts (its channel).
+    Output(usize),
+    /// Rigid DOF `i`'s velocity (1) or acceleration (2): central differences of the
+    /// prediction; exact: the solver's `_v` / `_a`.
+    DofRate(usize, u8),
+    /// The velocity (1) or acceleration (2) of a predicted displacement output (a sensor):
+    /// central differences; exact: the stored column.
+    OutputRate(usize, u8),
+    /// An excitation input (exact on both sides).
+    Excitation(usize),
+    /// Element `e`'s deflection over the predicted displacements and the exact profile;
+    /// exact: the stored column.
+    Deflection(usize),
+}
+
+impl Source {
+    /// Whether the exact side is a stored column `evaluate` reads beside the model's data.
+    fn exact_is_stored(self) -> bool {
+        matches!(self, Source::OutputRate(..) | Source::Deflection(_))
+    }
+}
+
+/// The index columns of a system and how each is rebuilt from a model's prediction.
+#[derive(Debug, Clone)]
+pub struct IndexInputs {
+    set: IndexSet,
+    columns: Vec<IndexInfo>,
+    sources: Vec<(String, Source)>,
+    /// Input columns no prediction of this layout can give, with the reason.
+    underivable: Vec<(String, String)>,
+}
+
+impl IndexInputs {
+    /// The indices of `system` and their inputs for a model of `layout`.
+    pub fn of(system: &System, layout: &Layout) -> Result<Self> {
+        let set = IndexSet::of(system);
+        let map = ChannelMap::new(system, layout);
+        let nominal = crate::residual::sample_equations(system, &system.nominal(), Vec::new())?;
+        let output = |name: &str| layout.outputs.iter().position(|o| o == name);
+        let mut sources = Vec::new();
+        let mut underivable = Vec::new();
+        for name in set.inputs() {
+            let Some(ch) = system.channel(&name) else {
+                underivable.push((name, "not a column of the description".into()));
+                continue;
+            };
+            let source = if let Some(c) = output(&name) {
+                Some(Source::Output(c))
+            } else {
+                match system.channels[ch].quantity {
+                    Quantity::Dof(i, order) if order > 0 => Some(Source::DofRate(i, order)),
+                    Quantity::Sensor(s, order) if order > 0 => system
+                        .channels
+                        .iter()
+                        .find(|c| c.quantity == Quantity::Sensor(s, 0))
+                        .and_then(|c| output(&c.name))
+                        .map(|c| Source::OutputRate(c, order)),
+                    Quantity::Excitation(_) => layout
+                        .excitations
+                        .iter()
+                        .position(|x| *x == name)
+                        .map(Source::Excitation),
+                    Quantity::Deflection(e) => {
+                        map.deflection(&nominal, e).map(|_| Source::Deflection(e))
+                    }
+                    _ => None,
+                }
+            };
+            match source {
+                Some(s) => sources.push((name, s)),
+                None => underivable.push((
+                    name,
+                    "neither predicted by the model nor derivable from its outputs".into(),
+                )),
+            }
+        }
+        Ok(Self {
+            columns: set.columns(system),
+            set,
+            sources,
+            underivable,
+        })
+    }
+
+    /// The index columns, in value order.
+    pub fn columns(&self) -> &[IndexInfo] {
+        &self.columns
+    }
+
+    /// Whether every index can be computed from a prediction (and there is one).
+    pub fn computable(&self) -> bool {
+        !self.set.is_empty() && self.underivable.is_empty()
+    }
+
+    /// Why the indices cannot be computed from a prediction (empty when they can).
+    pub fn why_not(&self) -> String {
+        if self.set.is_empty() {
+            return "the description defines no index (`indices:`, `railway:`)".into();
+        }
+        self.underivable
+            .iter()
+            .map(|(name, why)| format!("`{name}`: {why}"))
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+
+    /// Stored columns the exact side reads beside the model's data.
+    pub fn stored_columns(&self) -> Vec<&str> {
+        self.sources
+            .iter()
+            .filter(|(_, s)| s.exact_is_stored())
+            .map(|(n, _)| n.as_str())
+            .collect()
+    }
+
+    /// How each input is taken from the prediction, for the report.
+    fn describe(&self, layout: &Layout) -> Vec<String> {
+        let rate = |o: u8| if o == 1 { "velocity" } else { "acceleration" };
+        self.sources
+            .iter()
+            .map(|(name, s)| {
+                let how = match *s {
+                    Source::Output(_) => "predicted".to_owned(),
+                    Source::DofRate(i, o) | Source::OutputRate(i, o) => format!(
+                        "{} by central differences of the predicted `{}`",
+                        rate(o),
+                        layout.outputs[i]
+                    ),
+                    Source::Excitation(_) => "the exact input".to_owned(),
+                    Source::Deflection(_) => {
+                        "the element's kinematics over the predicted displacements".to_owned()
+                    }
+                };
+                format!("`{name}`: {how}")
+            })
+            .collect()
+    }
+}
+
+/// The stored columns [`IndexInputs::stored_columns`] of the scored samples over a model's
+/// window, by sample id.
+#[derive(Debug, Clone, Default)]
+pub struct StoredColumns {
+    columns: Vec<String>,
+    by_id: BTreeMap<i64, Vec<Vec<f64>>>,
+}
+
+impl StoredColumns {
+    /// Reads `inputs`' stored columns of samples `ids` from `files`, each cut to `window`.
+    pub fn read(
+        files: &[PathBuf],
+        inputs: &IndexInputs,
+        ids: &BTreeSet<i64>,
+        window: &WindowConfig,
+    ) -> Result<Self> {
+        let columns: Vec<&str> = inputs.stored_columns();
+        let mut by_id = BTreeMap::new();
+        if !columns.is_empty() {
+            pino_data::records::for_each_record(files, &columns, &mut |_, rec| {
+                if ids.contains(&rec.id) {
+                    let n = rec.columns.first().map_or(0, Vec::len);
+                    let cut = rec
+                        .columns
+                        .iter()
+                        .map(|c| window.rows(n).map(|k| c[k]).collect())
+                        .collect();
+                    by_id.insert(rec.id, cut);
+                }
+                Ok::<(), Error>(())
+            })?;
+        }
+        Ok(Self {
+            columns: columns.into_iter().map(str::to_owned).collect(),
+            by_id,
+        })
+    }
+
+    fn get(&self, id: i64, name: &str) -> Option<&[f64]> {
+        let c = self.columns.iter().position(|x| x == name)?;
+        Some(&self.by_id.get(&id)?[c])
+    }
+}
 
 /// The indices of one model's predictions (or of the truth row) on the scored samples.
 #[derive(Debug, Clone)]
@@ -33,18 +231,17 @@ pub struct ModelIndices {
     pub label: String,
     /// Scored sample ids.
     pub ids: Vec<i64>,
-    /// Indices of the prediction, per sample.
-    pub predicted: Vec<Indices>,
-    /// Indices of the solver's solution, per sample.
-    pub exact: Vec<Indices>,
+    /// Index values of the prediction, per sample ([`IndexInputs::columns`] order).
+    pub predicted: Vec<Vec<f64>>,
+    /// Index values of the solver's solution, per sample.
+    pub exact: Vec<Vec<f64>>,
 }
 
-/// The settings `evaluate` uses: the stage's defaults, with the model's gravity and no
-/// start-up (the model's window already dropped it).
-pub fn eval_config(meta: &ModelMeta) -> Result<IndexConfig> {
+/// The settings `evaluate` uses: the stage's defaults with no start-up (the model's window
+/// already dropped it).
+pub fn eval_config() -> Result<IndexConfig> {
     IndexParams {
         window_start_fraction: 0.0,
-        gravity: meta.train.gravity,
         ..IndexParams::default()
     }
     .validate()
@@ -55,95 +252,195 @@ pub fn eval_config(meta: &ModelMeta) -> Result<IndexConfig> {
     })
 }
 
-/// Indices of one sample's physical series: outputs `u [T, 18]` (rows `1..T-1` used) and
-/// accelerations `acc` (`[T-2, 10]` interior rows when `interior_acc`, else `[T, 10]`).
-pub fn indices_of_physical(
-    u: &[f64],
-    acc: &[f64],
-    interior_acc: bool,
+/// The index inputs of one side of one sample, on the interior points `1..T-1`.
+struct SampleColumns(BTreeMap<String, Vec<f64>>);
+
+/// Rebuilds the inputs from a prediction (`exact: None`) or reads the solver's values
+/// (`exact: Some(stored)`, the stored columns of sample `id`) of one sample with parameters
+/// `params`, physical series `side` and excitations `eta [T, E]`.
+#[allow(clippy::too_many_arguments)]
+fn sample_columns(
+    system: &System,
+    inputs: &IndexInputs,
+    params: &[f64],
+    id: i64,
+    side: &Physical,
+    exact: Option<&StoredColumns>,
+    eta: &[f64],
+    layout: &Layout,
     dt: f64,
-    params: &[f64; 14],
-    cfg: &IndexConfig,
-) -> pino_indices::Result<Indices> {
-    let t = u.len() / OUT_CHANNELS;
-    let rows = 1..t.saturating_sub(1);
-    let ucol = |c: usize| -> Vec<f64> { rows.clone().map(|r| u[r * OUT_CHANNELS + c]).collect() };
-    let acol = |c: usize| -> Vec<f64> {
-        if interior_acc {
-            acc.chunks_exact(DOFS).map(|r| r[c]).collect()
+) -> Result<SampleColumns> {
+    let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
+    let t = eta.len() / e.max(1);
+    let t = if e == 0 { side.u.len() / o } else { t };
+    let interior = 1..t.saturating_sub(1);
+    let map = ChannelMap::new(system, layout);
+    let mut equations = None;
+    let mut out = BTreeMap::new();
+    for (name, source) in &inputs.sources {
+        let u = |c: usize| -> Vec<f64> { interior.clone().map(|r| side.u[r * o + c]).collect() };
+        let values: Vec<f64> = if let Some(stored) = exact.filter(|_| source.exact_is_stored()) {
+            let col = stored.get(id, name).ok_or_else(|| Error::Dataset {
+                path: PathBuf::from("evaluate"),
+                message: format!("sample {id}: stored column `{name}` not read"),
+            })?;
+            interior.clone().map(|r| col[r]).collect()
         } else {
-            rows.clone().map(|r| acc[r * DOFS + c]).collect()
-        }
-    };
-    let p: [Vec<f64>; 4] = std::array::from_fn(|i| ucol(FORCE_OFFSET + i));
-    let z_r: [Vec<f64>; 4] = std::array::from_fn(|i| ucol(DOFS + i));
-    // Vehicle DOF order: z_c 0, beta_c 1, z_t1 2, beta_t1 3, z_t2 4.
-    let (z_c, beta_c, z_t1, z_t2) = (acol(0), acol(1), acol(2), acol(4));
-    let rec = Record {
-        dt,
-        p: std::array::from_fn(|i| p[i].as_slice()),
-        z_c_a: &z_c,
-        beta_c_a: &beta_c,
-        z_t_a: [&z_t1, &z_t2],
-        z_r: std::array::from_fn(|i| z_r[i].as_slice()),
-    };
-    let w = static_wheel_load(params, cfg.gravity);
-    let l_c = vtcd::params::SampleParams::from_array(*params).l_c;
-    pino_indices::compute(&rec, l_c, w, cfg)
+            match *source {
+                Source::Output(c) => u(c),
+                Source::Excitation(j) => interior.clone().map(|r| eta[r * e + j]).collect(),
+                Source::DofRate(j, order) => {
+                    let x = if order == 1 { &side.v } else { &side.a };
+                    if exact.is_some() {
+                        // The solver's rates, stored at every window point.
+                        interior.clone().map(|r| x[r * d + j]).collect()
+                    } else {
+                        // Central differences, at the interior points only.
+                        x.chunks_exact(d).map(|row| row[j]).collect()
+                    }
+                }
+                Source::OutputRate(c, order) => interior
+                    .clone()
+                    .map(|r| {
+                        let at = |k: usize| side.u[k * o + c];
+                        let (p, m, n) = (at(r - 1), at(r), at(r + 1));
+                        if order == 1 {
+                            (n - p) / (2.0 * dt)
+                        } else {
+                            (n - 2.0 * m + p) / (dt * dt)
+                        }
+                    })
+                    .collect(),
+                Source::Deflection(el) => {
+                    let eq = match &equations {
+                        Some(eq) => eq,
+                        None => equations.insert(crate::residual::sample_equations(
+                            system,
+                            params,
+                            Vec::new(),
+                        )?),
+                    };
+                    let Some(reader) = map.deflection(eq, el) else {
+                        return Err(Error::Dataset {
+                            path: PathBuf::from("evaluate"),
+                            message: format!("`{name}`: not derivable from the outputs"),
+                        });
+                    };
+                    interior
+                        .clone()
+                        .map(|r| reader.at(&side.u[r * o..(r + 1) * o], &eta[r * e..(r + 1) * e]))
+                        .collect()
+                }
+            }
+        };
+        out.insert(name.clone(), values);
+    }
+    Ok(SampleColumns(out))
 }
 
-fn index_err(items: &Prepared, i: usize, e: pino_indices::Error) -> Error {
-    Error::Dataset {
-        path: std::path::PathBuf::from("evaluate"),
-        message: format!("sample {}: indices: {e}", items.id(i)),
+/// The index values of one sample, from a prediction or (with `exact`) the solver.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampleIndices {
+    /// Values in [`IndexInputs::columns`] order.
+    pub values: Vec<f64>,
+    /// Length of the window they were taken over (s).
+    pub window_s: f64,
+    /// The indices over their limits.
+    pub failed: Vec<String>,
+}
+
+impl IndexInputs {
+    /// The indices of one sample (`params` its sampled parameters, `id` for messages) from
+    /// its physical series `side` and excitations `eta [T, E]` at spacing `dt`: rebuilt from a
+    /// prediction (`exact: None`, [`to_physical`]'s interior derivatives) or the solver's
+    /// values (`exact: Some`, [`exact_physical`]'s and the stored columns).
+    #[allow(clippy::too_many_arguments)]
+    pub fn sample(
+        &self,
+        system: &System,
+        layout: &Layout,
+        params: &[f64],
+        id: i64,
+        side: &Physical,
+        exact: Option<&StoredColumns>,
+        eta: &[f64],
+        dt: f64,
+        cfg: &IndexConfig,
+    ) -> Result<SampleIndices> {
+        let cols = sample_columns(system, self, params, id, side, exact, eta, layout, dt)?;
+        let points = cols.0.values().next().map_or(0, Vec::len);
+        let get = |name: &str| cols.0.get(name).cloned();
+        let values = system.values(params);
+        let (v, railway) = self
+            .set
+            .compute(system, &values, &get, dt, cfg)
+            .map_err(|e| Error::Dataset {
+                path: PathBuf::from(if exact.is_some() {
+                    "solver"
+                } else {
+                    "prediction"
+                }),
+                message: format!("sample {id}: indices: {e}"),
+            })?;
+        let failed = self.set.failed(system, &v, railway.as_ref(), cfg);
+        Ok(SampleIndices {
+            window_s: railway.map_or(points as f64 * dt, |r| r.window_s),
+            values: v,
+            failed,
+        })
     }
 }
 
 /// The indices of one model's predictions `preds` (physical, in `idx` order) and of the
-/// exact solutions of samples `idx`.
+/// exact solutions of samples `idx` (with their `stored` columns).
 pub fn model_indices(
+    system: &System,
+    inputs: &IndexInputs,
     items: &Prepared,
     idx: &[usize],
     preds: &[Physical],
+    stored: &StoredColumns,
     meta: &ModelMeta,
 ) -> Result<ModelIndices> {
-    let cfg = eval_config(meta)?;
+    let cfg = eval_config()?;
     let dt = meta.grid.dt;
+    let layout = &meta.layout;
     let mut out = ModelIndices {
         algorithm: meta.train.algorithm.id(),
-        label: format!(
-            "{} {}, depth {}",
-            meta.train.algorithm.id(),
-            meta.train.algorithm.name(),
-            meta.model.depth
-        ),
+        label: alg_label(meta),
         ids: Vec::with_capacity(idx.len()),
         predicted: Vec::with_capacity(idx.len()),
         exact: Vec::with_capacity(idx.len()),
     };
     for (k, &i) in idx.iter().enumerate() {
-        let (ex, _) = exact_physical(items, i, &meta.norm)?;
-        let params = items.params(i);
-        let e = indices_of_physical(&ex.u, &ex.a, false, dt, params, &cfg)
-            .map_err(|e| index_err(items, i, e))?;
-        let p = indices_of_physical(&preds[k].u, &preds[k].a, true, dt, params, &cfg)
-            .map_err(|e| index_err(items, i, e))?;
-        out.ids.push(items.id(i));
-        out.exact.push(e);
-        out.predicted.push(p);
+        let (ex, eta) = exact_physical(items, i, &meta.norm)?;
+        let (params, id) = (items.params(i), items.id(i));
+        let side = |phys: &Physical, exact: Option<&StoredColumns>| {
+            inputs.sample(system, layout, params, id, phys, exact, &eta, dt, &cfg)
+        };
+        out.exact.push(side(&ex, Some(stored))?.values);
+        out.predicted.push(side(&preds[k], None)?.values);
+        out.ids.push(id);
     }
     Ok(out)
 }
 
-/// The truth row: the exact displacements and forces through the model's central differences
+/// The truth row: the exact displacements and forces through the model's reconstruction
 /// (z-score of the exact outputs, then [`to_physical`]).
-pub fn truth_indices(items: &Prepared, idx: &[usize], meta: &ModelMeta) -> Result<ModelIndices> {
+pub fn truth_indices(
+    system: &System,
+    inputs: &IndexInputs,
+    items: &Prepared,
+    idx: &[usize],
+    stored: &StoredColumns,
+    meta: &ModelMeta,
+) -> Result<ModelIndices> {
     let mut preds = Vec::with_capacity(idx.len());
     for &i in idx {
         let s = items.series(i)?;
         preds.push(to_physical(&s.u, meta));
     }
-    let mut m = model_indices(items, idx, &preds, meta)?;
+    let mut m = model_indices(system, inputs, items, idx, &preds, stored, meta)?;
     m.algorithm = 0;
     m.label = "truth: exact, central differences".into();
     Ok(m)
@@ -213,18 +510,51 @@ pub fn index_error(pred: &[f64], exact: &[f64], ids: &[i64]) -> IndexError {
 }
 
 /// Writes the index files (module doc) for `models` (the truth row first, then by algorithm)
-/// scored on `split`.
-pub fn write_indices(out: &Path, split: Split, models: &[ModelIndices]) -> Result<()> {
+/// scored on `split`; when the indices cannot be computed from the predictions
+/// ([`IndexInputs::computable`]), `indices_errors.md` alone says why.
+pub fn write_indices(
+    out: &Path,
+    split: Split,
+    inputs: &IndexInputs,
+    layout: &Layout,
+    models: &[ModelIndices],
+) -> Result<()> {
+    if !inputs.computable() {
+        let mut md = String::from(
+            "# Engineering indices: surrogate against solver
+
+",
+        );
+        if inputs.set.is_empty() {
+            md.push_str("The system description defines no index (`indices:`, `railway:`).\n");
+        } else {
+            md.push_str(
+                "Not computed: the indices read columns the model's predictions cannot give.\n\n",
+            );
+            for (name, why) in &inputs.underivable {
+                md.push_str(&format!("- `{name}`: {why}\n"));
+            }
+            md.push_str(
+                "\nList the columns (or the displacements they follow from) among the \
+                 description's `outputs:` and retrain to score them.\n",
+            );
+        }
+        return write_atomic(&out.join("indices_errors.md"), md.as_bytes());
+    }
+    let columns = inputs.columns();
+    let value = |rows: &[Vec<f64>], s: usize, k: usize| rows[s][k];
     // Errors table: one row per (algorithm, index).
     let (mut alg, mut name, mut unit) = (Vec::new(), Vec::new(), Vec::new());
     let mut stats: Vec<IndexError> = Vec::new();
     for m in models {
-        for (k, c) in INDEX_COLUMNS.iter().enumerate() {
-            let p: Vec<f64> = m.predicted.iter().map(|ix| ix.values()[k]).collect();
-            let e: Vec<f64> = m.exact.iter().map(|ix| ix.values()[k]).collect();
+        for (k, c) in columns.iter().enumerate() {
+            let p: Vec<f64> = (0..m.ids.len())
+                .map(|s| value(&m.predicted, s, k))
+                .collect();
+            let e: Vec<f64> = (0..m.ids.len()).map(|s| value(&m.exact, s, k)).collect();
             alg.push(m.algorithm);
-            name.push(c.name.to_owned());
-            unit.push(c.unit.to_owned());
+            name.push(c.name.clone());
+            unit.push(c.unit.clone());
             stats.push(index_error(&p, &e, &m.ids));
         }
     }
@@ -253,13 +583,14 @@ pub fn write_indices(out: &Path, split: Split, models: &[ModelIndices]) -> Resul
     let n = models.first().map_or(0, |m| m.ids.len());
     let mut md = format!(
         "# Engineering indices: surrogate against solver on the {} split ({n} samples)\n\n\
-         Definitions: docs/indices.md. Contact forces are the model's predicted channels \
-         `p_1..p_4`; accelerations are central differences of the predicted displacements, so \
-         both sides are taken on the interior points of the window (the exact side with the \
-         solver's `_a`). Algorithm 0 is the truth row: exact displacements through the same \
-         central differences (the floor of every model).\n\n\
+         Definitions: docs/indices.md and the system description. The columns the indices read, \
+         from the prediction: {}. Central differences exist on the interior points of the \
+         window, so both sides are taken there (the exact side with the solver's values). \
+         Algorithm 0 is the truth row: the exact displacements through the same reconstruction \
+         (the floor of every model).\n\n\
          | index | unit | exact mean |",
-        split.label()
+        split.label(),
+        inputs.describe(layout).join("; ")
     );
     for m in models {
         md.push_str(&format!(
@@ -277,7 +608,7 @@ pub fn write_indices(out: &Path, split: Split, models: &[ModelIndices]) -> Resul
             format!("{v:.4}")
         }
     };
-    for (k, c) in INDEX_COLUMNS.iter().enumerate() {
+    for (k, c) in columns.iter().enumerate() {
         md.push_str(&format!(
             "| `{}` | {} | {} |",
             c.name,
@@ -285,7 +616,7 @@ pub fn write_indices(out: &Path, split: Split, models: &[ModelIndices]) -> Resul
             cell(stats.get(k).map_or(f64::NAN, |s| s.exact_mean))
         ));
         for m in 0..models.len() {
-            let s = &stats[m * INDEX_COLUMNS.len() + k];
+            let s = &stats[m * columns.len() + k];
             md.push_str(&format!(
                 " {} / {} / {:.2} / {:.3} |",
                 cell(s.mean_abs),
@@ -314,27 +645,23 @@ pub fn write_indices(out: &Path, split: Split, models: &[ModelIndices]) -> Resul
         schema::SAMPLE_ID,
         Column::I64(rows.iter().map(|&(m, k)| models[m].ids[k]).collect()),
     )?;
-    for (j, c) in INDEX_COLUMNS.iter().enumerate() {
+    for (j, c) in columns.iter().enumerate() {
         s.push(
-            c.name,
+            &c.name,
             Column::F64(
                 rows.iter()
-                    .map(|&(m, k)| models[m].predicted[k].values()[j])
+                    .map(|&(m, k)| models[m].predicted[k][j])
                     .collect(),
             ),
         )?;
         s.push(
             &format!("{}_exact", c.name),
-            Column::F64(
-                rows.iter()
-                    .map(|&(m, k)| models[m].exact[k].values()[j])
-                    .collect(),
-            ),
+            Column::F64(rows.iter().map(|&(m, k)| models[m].exact[k][j]).collect()),
         )?;
     }
     write_parquet(&out.join("indices_samples.parquet"), &s)?;
 
-    for (j, c) in INDEX_COLUMNS.iter().enumerate() {
+    for (j, c) in columns.iter().enumerate() {
         scatter(
             &out.join(format!("indices_scatter_{}.png", c.name)),
             j,
@@ -347,16 +674,11 @@ pub fn write_indices(out: &Path, split: Split, models: &[ModelIndices]) -> Resul
 
 /// One PNG per index: a panel per model, predicted (y) against exact (x), each sample a small
 /// cross, the equality line in black.
-fn scatter(
-    path: &Path,
-    j: usize,
-    c: &pino_indices::IndexColumn,
-    models: &[ModelIndices],
-) -> Result<()> {
+fn scatter(path: &Path, j: usize, c: &IndexInfo, models: &[ModelIndices]) -> Result<()> {
     let all = models
         .iter()
         .flat_map(|m| m.predicted.iter().chain(&m.exact))
-        .map(|ix| ix.values()[j])
+        .map(|ix| ix[j])
         .filter(|v| v.is_finite());
     let (lo, hi) = all.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
         (a.min(v), b.max(v))
@@ -371,7 +693,7 @@ fn scatter(
     for mi in models {
         let (mut x, mut y) = (Vec::new(), Vec::new());
         for (p, e) in mi.predicted.iter().zip(&mi.exact) {
-            let (px, py) = (e.values()[j], p.values()[j]);
+            let (px, py) = (e[j], p[j]);
             // A cross: two strokes, each ended by a NaN that breaks the polyline.
             for (dx, dy) in [(arm, arm), (arm, -arm)] {
                 x.extend([px - dx, px + dx, f64::NAN]);
@@ -433,7 +755,6 @@ fn scatter(
 mod tests {
     use super::*;
     use crate::config::TrainParams;
-    use crate::data::{load_dataset, load_split};
     use crate::synthetic::{write_dataset, SyntheticSpec};
     use crate::train::model_meta;
 
@@ -448,54 +769,80 @@ mod tests {
             ..Default::default()
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
-        let (m, t, w) = TrainParams::with_algorithm(4).configs().unwrap();
-        let sims = std::slice::from_ref(&files.simulation);
-        let ds = load_dataset(&files.params, sims, None, &w).unwrap();
+        let system = crate::synthetic::vehicle_track_system();
+        let layout = Layout::of(&system);
+        let (m, t, w) = TrainParams::small(4).configs(&layout).unwrap();
+        let ds = files.load(&w, false).unwrap();
         let meta = model_meta(&ds, m, t, w).unwrap();
-        let (_, items) = load_split(&files.params, sims, &w, Split::Test, &meta.norm).unwrap();
+        let (_, items) = files.load_split(&w, Split::Test, &meta.norm).unwrap();
         let idx: Vec<usize> = (0..items.len()).collect();
-        let truth = truth_indices(&items, &idx, &meta).unwrap();
-        // The truth row's forces and rail are exact: those indices agree to f32 storage.
+        let inputs = IndexInputs::of(&system, &layout).unwrap();
+        assert!(inputs.computable(), "{}", inputs.why_not());
+        // The railway family reads predicted forces and rails, and DOF accelerations.
+        assert!(inputs.stored_columns().is_empty());
+        let ids = idx.iter().map(|&i| items.id(i)).collect();
+        let stored =
+            StoredColumns::read(std::slice::from_ref(&files.simulation), &inputs, &ids, &w)
+                .unwrap();
+        let truth = truth_indices(&system, &inputs, &items, &idx, &stored, &meta).unwrap();
+        let col = |name: &str| {
+            inputs
+                .columns()
+                .iter()
+                .position(|c| c.name == name)
+                .unwrap()
+        };
+        let (peak, reduction, sperling) = (
+            col("peak_wheel_rail_force_kn"),
+            col("wheel_load_reduction_rate"),
+            col("sperling_wz_front"),
+        );
+        // The truth row's forces are exact: those indices agree to f32 storage.
         for (p, e) in truth.predicted.iter().zip(&truth.exact) {
-            let (pv, ev) = (p.values(), e.values());
-            assert!((pv[0] - ev[0]).abs() < 1e-3 * ev[0], "{} {}", pv[0], ev[0]);
-            assert!((pv[13] - ev[13]).abs() <= 1e-3 * ev[13].abs().max(1e-6));
-            assert_eq!(p.window_s, e.window_s);
+            assert!(
+                (p[peak] - e[peak]).abs() < 1e-3 * e[peak],
+                "{} {}",
+                p[peak],
+                e[peak]
+            );
         }
         // A prediction: the truth with every contact force raised by 5 kN.
+        let (o, forces) = (layout.n_outputs(), layout.forces());
         let preds: Vec<Physical> = idx
             .iter()
             .map(|&i| {
                 let mut ph = to_physical(&items.series(i).unwrap().u, &meta);
-                for row in ph.u.chunks_exact_mut(OUT_CHANNELS) {
-                    for f in &mut row[FORCE_OFFSET..] {
+                for row in ph.u.chunks_exact_mut(o) {
+                    for f in &mut row[forces.clone()] {
                         *f += 5e3;
                     }
                 }
                 ph
             })
             .collect();
-        let m5 = model_indices(&items, &idx, &preds, &meta).unwrap();
+        let m5 = model_indices(&system, &inputs, &items, &idx, &preds, &stored, &meta).unwrap();
         for (k, (p, t)) in m5.predicted.iter().zip(&truth.predicted).enumerate() {
-            assert!((p.peak_wheel_rail_force_kn - t.peak_wheel_rail_force_kn - 5.0).abs() < 1e-9);
-            let w = static_wheel_load(items.params(idx[k]), meta.train.gravity);
-            let d = t.wheel_load_reduction_rate - p.wheel_load_reduction_rate;
+            assert!((p[peak] - t[peak] - 5.0).abs() < 1e-9);
+            // W: the sample's static wheel load, the force scale of the dataset.
+            let w = items.force_scale(idx[k]);
+            let d = t[reduction] - p[reduction];
             assert!((d - 5e3 / w).abs() < 1e-12, "{d}");
-            assert_eq!(p.sperling_wz, t.sperling_wz);
+            assert_eq!(p[sperling], t[sperling]);
         }
         let out = dir.path().join("out");
         std::fs::create_dir_all(&out).unwrap();
-        write_indices(&out, Split::Test, &[truth, m5]).unwrap();
+        write_indices(&out, Split::Test, &inputs, &layout, &[truth, m5]).unwrap();
+        let n = inputs.columns().len();
         let table = pino_data::read_parquet(&out.join("indices_errors.parquet"), None).unwrap();
-        assert_eq!(table.num_rows(), 2 * INDEX_COLUMNS.len());
+        assert_eq!(table.num_rows(), 2 * n);
         let mean_abs = table.f64("mean_abs_error").unwrap();
-        let peak_row = INDEX_COLUMNS.len(); // algorithm 4, first index
+        let peak_row = n + peak; // algorithm 4
         assert!(
             mean_abs[peak_row] > 4.99 && mean_abs[peak_row] < 5.01,
             "{}",
             mean_abs[peak_row]
         );
-        for c in INDEX_COLUMNS {
+        for c in inputs.columns() {
             assert!(out
                 .join(format!("indices_scatter_{}.png", c.name))
                 .is_file());
@@ -504,6 +851,71 @@ mod tests {
             out.join("indices_errors.md").is_file()
                 && out.join("indices_samples.parquet").is_file()
         );
+    }
+
+    /// The quarter car's indices read a DOF acceleration, an element deflection and a force:
+    /// rebuilt from the prediction's own channels (a deflection from the predicted
+    /// displacements) they equal the solver's stored values on the exact solution.
+    #[test]
+    fn a_deflection_and_a_rate_are_rebuilt_from_the_prediction() {
+        let dir = tempfile::tempdir().unwrap();
+        let source = mbd_system::SystemSource {
+            file: "systems/quarter-car.yaml".into(),
+            text: include_str!("../../../systems/quarter-car.yaml").into(),
+            values: Default::default(),
+        };
+        let spec = SyntheticSpec {
+            n_train: 2,
+            n_validation: 1,
+            n_test: 2,
+            duration: 0.5,
+            system: source,
+            x0: 0.0,
+            ..Default::default()
+        };
+        let files = write_dataset(&spec, dir.path()).unwrap();
+        let info = files.info().unwrap();
+        let system = info.system.clone();
+        let layout = Layout::of(&system);
+        let (m, t, w) = TrainParams::small(1).configs(&layout).unwrap();
+        let ds = files.load(&w, false).unwrap();
+        let meta = model_meta(&ds, m, t, w).unwrap();
+        let (_, items) = files.load_split(&w, Split::Test, &meta.norm).unwrap();
+        let idx: Vec<usize> = (0..items.len()).collect();
+        let inputs = IndexInputs::of(&system, &layout).unwrap();
+        assert!(inputs.computable(), "{}", inputs.why_not());
+        assert_eq!(inputs.stored_columns(), ["d_suspension"]);
+        let ids = idx.iter().map(|&i| items.id(i)).collect();
+        let stored =
+            StoredColumns::read(std::slice::from_ref(&files.simulation), &inputs, &ids, &w)
+                .unwrap();
+        let truth = truth_indices(&system, &inputs, &items, &idx, &stored, &meta).unwrap();
+        let travel = inputs
+            .columns()
+            .iter()
+            .position(|c| c.name == "suspension_travel")
+            .unwrap();
+        let rms = inputs
+            .columns()
+            .iter()
+            .position(|c| c.name == "sprung_rms_acceleration")
+            .unwrap();
+        for (p, e) in truth.predicted.iter().zip(&truth.exact) {
+            // The deflection is linear in the displacements: exact to their f32 storage.
+            assert!(
+                (p[travel] - e[travel]).abs() < 1e-5 * e[travel],
+                "{} {}",
+                p[travel],
+                e[travel]
+            );
+            // The acceleration by central differences: the O(dt^2) floor, well under 1 %.
+            assert!(
+                e[rms] > 0.0 && (p[rms] - e[rms]).abs() < 1e-2 * e[rms],
+                "{} {}",
+                p[rms],
+                e[rms]
+            );
+        }
     }
 
     #[test]

@@ -32,15 +32,15 @@
 pub mod checkpoint;
 pub mod config;
 pub mod data;
-// pub mod eval;
-// pub mod indices_eval;
+pub mod eval;
+pub mod indices_eval;
 pub mod kernels;
 pub mod layout;
 pub mod loss;
 pub mod model;
 pub mod norm;
 pub mod optim;
-// pub mod predict;
+pub mod predict;
 pub mod residual;
 pub mod spectral;
 pub mod store;

@@ -1,40 +1,44 @@
-//! Prediction for design exploration: a trained model, parameter sets and an irregularity
-//! profile in, the 14 displacement responses, the 4 contact forces and the vehicle
-//! derivatives out, from one forward pass.
+//! Prediction for design exploration: a trained model, designs (values of its system's
+//! sampled parameters) and the profiles under the system in, every output channel of the
+//! model (displacements and forces), the rigid DOFs' velocities and accelerations and the
+//! excitations out, from one forward pass per batch. Nothing here knows a particular system:
+//! names, counts and defaults come from the model's description (`model.json`).
 //!
-//! The irregularity under wheel `i` follows the `simulate` stage (`vtcd::simulation`):
-//! `eta_i(t) = r(t) eta(x0 + v t + o_i)` with `o = (2 l_c + 2 l_t, 2 l_c, 2 l_t, 0)` (m), the
-//! start-up factor `r(t)` of [`vtcd::simulation::SimulationConfig::ramp`] over the record
-//! duration (the model's record length), and the profile linearly interpolated. The model
-//! sees the same window of times it was trained on. Output rows are the interior points of
-//! the window (`n = 1..T-2`), where the central-difference derivatives exist:
-//! `set, t, <14 solutions>, p_1..p_4, <10 _v>, <10 _a>, eta_1..eta_4` (SI units, forces N).
+//! A design lists values by parameter name; the parameters it leaves out take the
+//! description's nominal values (with the overrides the model's data were simulated with).
+//! The excitation under each element follows the simulation exactly
+//! ([`mbd_engine::Excitations`]): the model's run controls (`x0`, start-up ramp, duration)
+//! from the dataset's `run.json`, the profile points from a profile file (the `irregularity`
+//! artifact, one sample) or generated as `irregularity` generates them (the dataset's spacing
+//! and length, a seed and sample id). The model sees the window of times it was trained on;
+//! output rows are the interior points of the window (`n = 1..T-2`), where the
+//! central-difference derivatives exist: `set, t, <outputs>, <dof>_v.., <dof>_a..,
+//! <excitations>` (SI units, forces N).
 //!
-//! Parameter sets come from YAML, either a list of maps or `{sets: [...]}`; each map gives
-//! any of the 14 parameter names (the rest take the CRH380 nominal values of
-//! [`vtcd::params::SampleParams::NOMINAL`]); `name=value` overrides apply to every set.
-//! Sweeps ([`parse_sweep`]) give designs by the thousand: a grid or a seeded random sample
-//! over ranges. [`Predictor`] runs them in batches (side by side on the CPU) and computes
-//! their engineering indices ([`Predictor::indices`], `docs/indices.md`) from the predicted
-//! contact forces and central-difference accelerations, as `evaluate` does. Designs outside
-//! the model's training ranges ([`crate::checkpoint::TrainingRanges`], stored in `model.json`)
-//! are reported by [`Predictor::outside_training`].
+//! Designs come from YAML, a list of maps or `{sets: [...]}`, from `name=value` overrides
+//! applied to every set, and from sweeps ([`parse_sweep`]): a grid or a seeded random sample
+//! over ranges. [`Predictor`] runs them in batches (side by side on the CPU) and computes the
+//! description's engineering indices ([`Predictor::indices`], as `evaluate` rebuilds them from
+//! a prediction). Designs outside the model's training ranges
+//! ([`crate::checkpoint::TrainingRanges`]) are reported by [`Predictor::outside_training`].
 
 use crate::checkpoint::{load_model, ModelMeta, OutOfRange};
-use crate::config::{DOFS, OUT_CHANNELS};
 use crate::data::input_block;
 use crate::eval::{to_physical, Physical};
-use crate::indices_eval::indices_of_physical;
+use crate::indices_eval::{eval_config, IndexInputs, SampleIndices};
+use crate::layout::Layout;
 use crate::model::Fno;
 use crate::spectral::Transform;
 use crate::{Error, Result};
 use candle_core::{Device, Tensor};
+use mbd_engine::{Excitations, Profile, RunConfig};
+use mbd_system::system::Quantity;
+use mbd_system::System;
 use pino_data::{schema, Column, Table};
-use pino_indices::{IndexConfig, Indices, INDEX_COLUMNS};
+use pino_indices::IndexConfig;
 use std::collections::BTreeMap;
 use std::path::Path;
-use vtcd::params::{SampleParams, PARAMETER_NAMES};
-use vtcd::simulation::{Profile, SimulationConfig};
+use std::sync::Arc;
 
 fn fmt_err(path: &Path, message: String) -> Error {
     Error::Format {
@@ -43,191 +47,296 @@ fn fmt_err(path: &Path, message: String) -> Error {
     }
 }
 
-/// Position of parameter `name` in [`PARAMETER_NAMES`], or an error naming `origin` and
-/// the allowed names.
-fn param_index(name: &str, origin: &Path) -> Result<usize> {
-    PARAMETER_NAMES
-        .iter()
-        .position(|n| *n == name)
-        .ok_or_else(|| {
+/// The design parameters of a model's system: its sampled parameters, by name, with their
+/// nominal values.
+#[derive(Debug, Clone)]
+pub struct DesignSpace {
+    system: Arc<System>,
+    names: Vec<String>,
+    nominal: Vec<f64>,
+}
+
+impl DesignSpace {
+    /// The sampled parameters of `system`.
+    pub fn of(system: Arc<System>) -> Self {
+        let names = system
+            .sampled_names()
+            .into_iter()
+            .map(str::to_owned)
+            .collect();
+        let nominal = system.nominal();
+        Self {
+            system,
+            names,
+            nominal,
+        }
+    }
+
+    /// Parameter names, in value order.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// The nominal design.
+    pub fn nominal(&self) -> Vec<f64> {
+        self.nominal.clone()
+    }
+
+    /// Position of parameter `name`, or an error naming `origin`, the system and the allowed
+    /// names (a fixed or derived parameter is named as such).
+    pub fn index(&self, name: &str, origin: &Path) -> Result<usize> {
+        if let Some(k) = self.names.iter().position(|n| n == name) {
+            return Ok(k);
+        }
+        let why = if self.system.parameter(name).is_some() {
+            format!(
+                "`{name}` is not sampled in the description `{}` (it is fixed or derived there), so the model cannot vary it",
+                self.system.name
+            )
+        } else {
+            format!(
+                "unknown parameter `{name}` of the system `{}`",
+                self.system.name
+            )
+        };
+        Err(fmt_err(
+            origin,
+            format!("{why}; allowed: {}", self.names.join(", ")),
+        ))
+    }
+
+    fn set(&self, design: &mut [f64], name: &str, value: f64, origin: &Path) -> Result<()> {
+        let k = self.index(name, origin)?;
+        if !value.is_finite() {
+            return Err(fmt_err(
+                origin,
+                format!("parameter `{name}` = {value} must be finite"),
+            ));
+        }
+        design[k] = value;
+        Ok(())
+    }
+
+    /// Checks a design against the description's domains (masses positive, ...): the error
+    /// names the design and the field.
+    pub fn check(&self, design: &[f64], label: &str) -> Result<mbd_system::model::Model> {
+        self.system
+            .instantiate(design)
+            .map_err(|e| Error::OutOfRange {
+                field: format!("{label}: {}", e.path),
+                value: e.value.to_string(),
+                allowed: e.allowed.clone(),
+            })
+    }
+
+    /// Parses designs from YAML text (`origin` names the file in errors).
+    pub fn parse_sets(&self, text: &str, origin: &Path) -> Result<Vec<Vec<f64>>> {
+        #[derive(serde::Deserialize)]
+        #[serde(untagged)]
+        enum Doc {
+            List(Vec<BTreeMap<String, f64>>),
+            Sets { sets: Vec<BTreeMap<String, f64>> },
+        }
+        let doc: Doc = serde_yaml::from_str(text).map_err(|e| {
             fmt_err(
                 origin,
-                format!(
-                    "unknown parameter `{name}`; allowed: {}",
-                    PARAMETER_NAMES.join(", ")
-                ),
+                format!("expected a list of parameter maps or `sets: [...]` with numbers: {e}"),
             )
-        })
+        })?;
+        let maps = match doc {
+            Doc::List(l) | Doc::Sets { sets: l } => l,
+        };
+        if maps.is_empty() {
+            return Err(fmt_err(origin, "no parameter set given".into()));
+        }
+        maps.iter()
+            .map(|m| {
+                let mut p = self.nominal();
+                for (k, v) in m {
+                    self.set(&mut p, k, *v, origin)?;
+                }
+                Ok(p)
+            })
+            .collect()
+    }
+
+    /// Applies `name=value` to every design.
+    pub fn apply_override(&self, sets: &mut [Vec<f64>], assignment: &str) -> Result<()> {
+        let origin = Path::new("--set");
+        let (name, value) = assignment
+            .split_once('=')
+            .ok_or_else(|| fmt_err(origin, format!("`{assignment}`: expected name=value")))?;
+        let value: f64 = value
+            .trim()
+            .parse()
+            .map_err(|_| fmt_err(origin, format!("`{assignment}`: `{value}` is not a number")))?;
+        for s in sets.iter_mut() {
+            self.set(s, name.trim(), value, origin)?;
+        }
+        Ok(())
+    }
+
+    /// The designs as a table: one column per parameter.
+    pub fn push_columns(&self, table: &mut Table, sets: &[Vec<f64>]) -> Result<()> {
+        for (j, name) in self.names.iter().enumerate() {
+            table.push(name, Column::F64(sets.iter().map(|p| p[j]).collect()))?;
+        }
+        Ok(())
+    }
 }
 
-fn set_param(p: &mut [f64; 14], name: &str, value: f64, origin: &Path) -> Result<()> {
-    let k = param_index(name, origin)?;
-    if !(value.is_finite() && value > 0.0) {
+/// Where the profile points under the system come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ProfileChoice {
+    /// A Parquet file with columns `x`, `eta` (m), optionally `sample_id` (the rows of the given
+    /// id, else of the first) and `profile` (the rows of each generated profile by name).
+    File {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The sample whose rows are used.
+        sample_id: Option<i64>,
+    },
+    /// Generated as `irregularity` generates them, with the model's dataset's spacing and
+    /// length and this seed and sample id.
+    Generated {
+        /// Seed of the random phases.
+        seed: u64,
+        /// Sample id of the stream.
+        id: u64,
+    },
+}
+
+/// The points of each generated profile of `system` (`None` for analytic ones), from `choice`;
+/// `settings` are the dataset's generator controls (needed to generate).
+pub fn profiles(
+    system: &System,
+    settings: Option<&mbd_dataset::ProfileParams>,
+    choice: Option<&ProfileChoice>,
+) -> Result<Vec<Option<Profile>>> {
+    let generated: Vec<&str> = system
+        .profiles
+        .iter()
+        .filter(|p| matches!(p, mbd_system::system::Profile::Generated { .. }))
+        .map(|p| p.name())
+        .collect();
+    if generated.is_empty() {
+        return Ok(vec![None; system.profiles.len()]);
+    }
+    let flag = Path::new("--profile / --seed");
+    match choice {
+        None => Err(fmt_err(
+            flag,
+            format!(
+                "the system `{}` has generated profile(s) {}: give their points (--profile FILE) or a seed to generate them (--seed N)",
+                system.name,
+                generated.join(", ")
+            ),
+        )),
+        Some(ProfileChoice::Generated { seed, id }) => {
+            let base = settings.ok_or_else(|| {
+                fmt_err(
+                    flag,
+                    "the model's dataset records no profile settings (run.json): give --profile FILE".into(),
+                )
+            })?;
+            let params = mbd_dataset::ProfileParams { seed: *seed, ..*base };
+            let generators = mbd_dataset::profile_generators(system, &params)
+                .map_err(|e| fmt_err(flag, e.to_string()))?;
+            generators
+                .iter()
+                .map(|g| {
+                    g.as_ref()
+                        .map(|g| Profile::new(g.positions(), g.profile(*id)))
+                        .transpose()
+                        .map_err(|e| fmt_err(flag, e.to_string()))
+                })
+                .collect()
+        }
+        Some(ProfileChoice::File { path, sample_id }) => {
+            read_profiles(system, path, *sample_id, &generated)
+        }
+    }
+}
+
+fn read_profiles(
+    system: &System,
+    path: &Path,
+    sample_id: Option<i64>,
+    generated: &[&str],
+) -> Result<Vec<Option<Profile>>> {
+    let t = pino_data::read_parquet(path, None)?;
+    let x = t.f64(schema::TRACK_X)?;
+    let eta = t.f64(schema::TRACK_ETA)?;
+    let names = t.str(PROFILE_COLUMN).ok();
+    if names.is_none() && generated.len() > 1 {
         return Err(fmt_err(
-            origin,
-            format!("parameter `{name}` = {value} must be finite and > 0"),
+            path,
+            format!(
+                "no `{PROFILE_COLUMN}` column, but the system `{}` has {} generated profiles ({}): label the rows by profile",
+                system.name,
+                generated.len(),
+                generated.join(", ")
+            ),
         ));
     }
-    p[k] = value;
-    Ok(())
-}
-
-/// Parses parameter sets from YAML text (`origin` names the file in errors).
-pub fn parse_param_sets(text: &str, origin: &Path) -> Result<Vec<SampleParams>> {
-    #[derive(serde::Deserialize)]
-    #[serde(untagged)]
-    enum Doc {
-        List(Vec<BTreeMap<String, f64>>),
-        Sets { sets: Vec<BTreeMap<String, f64>> },
-    }
-    let doc: Doc = serde_yaml::from_str(text).map_err(|e| {
-        fmt_err(
-            origin,
-            format!("expected a list of parameter maps or `sets: [...]` with numbers: {e}"),
-        )
-    })?;
-    let maps = match doc {
-        Doc::List(l) | Doc::Sets { sets: l } => l,
+    let ids = t.i64(schema::SAMPLE_ID).ok();
+    let id = match (ids, sample_id) {
+        (Some(_), Some(id)) => Some(id),
+        (Some(ids), None) => ids.first().copied(),
+        (None, _) => None,
     };
-    if maps.is_empty() {
-        return Err(fmt_err(origin, "no parameter set given".into()));
-    }
-    maps.iter()
-        .map(|m| {
-            let mut p = SampleParams::NOMINAL.to_array();
-            for (k, v) in m {
-                set_param(&mut p, k, *v, origin)?;
+    system
+        .profiles
+        .iter()
+        .map(|p| {
+            if !matches!(p, mbd_system::system::Profile::Generated { .. }) {
+                return Ok(None);
             }
-            Ok(SampleParams::from_array(p))
+            let rows: Vec<usize> = (0..x.len())
+                .filter(|&r| ids.is_none_or(|ids| Some(ids[r]) == id))
+                .filter(|&r| names.is_none_or(|n| n[r] == p.name()))
+                .collect();
+            if rows.is_empty() {
+                return Err(fmt_err(
+                    path,
+                    format!("no rows of profile `{}` for sample_id {id:?}", p.name()),
+                ));
+            }
+            Profile::new(
+                rows.iter().map(|&r| x[r]).collect(),
+                rows.iter().map(|&r| eta[r]).collect(),
+            )
+            .map(Some)
+            .map_err(|e| fmt_err(path, format!("profile `{}`: {e}", p.name())))
         })
         .collect()
 }
 
-/// Applies `name=value` to every set.
-pub fn apply_override(sets: &mut [SampleParams], assignment: &str) -> Result<()> {
-    let origin = Path::new("--set");
-    let (name, value) = assignment
-        .split_once('=')
-        .ok_or_else(|| fmt_err(origin, format!("`{assignment}`: expected name=value")))?;
-    let value: f64 = value
-        .trim()
-        .parse()
-        .map_err(|_| fmt_err(origin, format!("`{assignment}`: `{value}` is not a number")))?;
-    for s in sets.iter_mut() {
-        let mut a = s.to_array();
-        set_param(&mut a, name.trim(), value, origin)?;
-        *s = SampleParams::from_array(a);
-    }
-    Ok(())
-}
-
-/// Reads a profile Parquet file with columns `x` (m) and `eta` (m); when it holds a
-/// `sample_id` column (the `irregularity` artifact), the rows of `sample_id` are used.
-pub fn read_profile(path: &Path, sample_id: Option<i64>) -> Result<Profile> {
-    let t = pino_data::read_parquet(path, None)?;
-    let x = t.f64(schema::TRACK_X)?;
-    let eta = t.f64(schema::TRACK_ETA)?;
-    let rows: Vec<usize> = match (t.i64(schema::SAMPLE_ID).ok(), sample_id) {
-        (Some(ids), Some(id)) => (0..ids.len()).filter(|&r| ids[r] == id).collect(),
-        (Some(ids), None) => {
-            let first = ids.first().copied().unwrap_or(0);
-            (0..ids.len()).filter(|&r| ids[r] == first).collect()
-        }
-        (None, _) => (0..x.len()).collect(),
-    };
-    if rows.is_empty() {
-        return Err(fmt_err(
-            path,
-            format!("no profile rows for sample_id {sample_id:?}"),
-        ));
-    }
-    Profile::new(
-        rows.iter().map(|&r| x[r]).collect(),
-        rows.iter().map(|&r| eta[r]).collect(),
-    )
-    .map_err(|e| fmt_err(path, e.to_string()))
-}
-
-/// A generated profile: the `irregularity` stage's defaults with `seed`, sample `id`.
-pub fn generated_profile(seed: u64, id: u64) -> Result<Profile> {
-    let gen = vtcd::irregularity::IrregularityParams::with_seed(seed)
-        .validate()
-        .map_err(|e| fmt_err(Path::new("--seed"), e.to_string()))?;
-    Profile::new(gen.positions(), gen.profile(id))
-        .map_err(|e| fmt_err(Path::new("--seed"), e.to_string()))
-}
-
-/// Placement and start-up of the records the model was trained on.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Placement {
-    /// Rear-wheel position at t = 0 (m); the spec's default is 20.
-    pub x0: f64,
-    /// Fraction of the record with the irregularity off (0: the `simulate` default since the
-    /// equilibrium start).
-    pub startup_zero_fraction: f64,
-    /// Fraction over which it fades in (0, as `simulate`).
-    pub startup_ramp_fraction: f64,
-}
-
-impl Default for Placement {
-    fn default() -> Self {
-        Self {
-            x0: 20.0,
-            startup_zero_fraction: 0.0,
-            startup_ramp_fraction: 0.0,
-        }
-    }
-}
-
-/// Irregularity under the four wheels `[T, 4]` at times `t` for one parameter set.
-pub fn wheel_irregularity(
-    p: &SampleParams,
-    profile: &Profile,
-    t: &[f64],
-    duration: f64,
-    place: &Placement,
-) -> Result<Vec<f64>> {
-    let cfg = SimulationConfig {
-        duration,
-        startup_zero_fraction: place.startup_zero_fraction,
-        startup_ramp_fraction: place.startup_ramp_fraction,
-        x0: place.x0,
-        ..SimulationConfig::default()
-    };
-    let offsets = [2.0 * (p.l_c + p.l_t), 2.0 * p.l_c, 2.0 * p.l_t, 0.0];
-    let [lo, hi] = profile.range();
-    let mut out = Vec::with_capacity(4 * t.len());
-    for &tk in t {
-        let r = cfg.ramp(tk);
-        for o in offsets {
-            let x = place.x0 + p.speed() * tk + o;
-            if x < lo || x > hi {
-                return Err(Error::OutOfRange {
-                    field: "irregularity profile".into(),
-                    value: format!("wheel position {x:.2} m at t = {tk} s"),
-                    allowed: format!("[{lo}, {hi}] m (the profile's extent)"),
-                });
-            }
-            out.push(if r > 0.0 { r * profile.at(x) } else { 0.0 });
-        }
-    }
-    Ok(out)
-}
+/// The column of a profile file naming each row's profile (written by `irregularity` when a
+/// description has several).
+pub const PROFILE_COLUMN: &str = "profile";
 
 /// A trained model loaded for prediction.
 pub struct Predictor {
     model: Fno,
-    /// Its metadata (window, statistics, training ranges).
+    /// Its metadata (window, statistics, training ranges, system, run controls).
     pub meta: ModelMeta,
+    /// Its system's design parameters.
+    pub space: DesignSpace,
+    system: Arc<System>,
+    /// The element of each excitation column.
+    excitation_elements: Vec<usize>,
+    indices: IndexInputs,
     device: Device,
 }
 
-/// One set's prediction in physical units: outputs `[T, 18]`, interior velocities and
-/// accelerations `[T-2, 10]` ([`Physical`]), and the irregularity under the wheels `[T, 4]`.
+/// One design's prediction in physical units: outputs `[T, O]`, interior velocities and
+/// accelerations `[T-2, D]` ([`Physical`]), and the excitations `[T, E]`.
+#[derive(Debug, Clone)]
 pub struct SetPrediction {
     /// Outputs and derivatives.
     pub physical: Physical,
-    /// Irregularity under the wheels (m).
+    /// The excitations (m).
     pub eta: Vec<f64>,
 }
 
@@ -235,69 +344,124 @@ impl Predictor {
     /// Loads `model.safetensors` + `model.json` from `model_dir`.
     pub fn load(model_dir: &Path, device: &Device) -> Result<Self> {
         let (model, meta) = load_model(model_dir, Transform::for_device(device), device)?;
-        if meta.model.out_channels != OUT_CHANNELS {
+        let meta_path = model_dir.join(crate::checkpoint::MODEL_META);
+        let system = Arc::new(meta.compile_system(&meta_path)?);
+        if Layout::of(&system) != meta.layout {
             return Err(fmt_err(
-                &model_dir.join("model.json"),
-                format!(
-                    "the model predicts {} channels; this build predicts {OUT_CHANNELS} ({}): retrain it",
-                    meta.model.out_channels,
-                    schema::output_channels().join(", ")
-                ),
+                &meta_path,
+                "the stored layout does not follow from the stored system description (an edited model.json?)".into(),
             ));
         }
+        let excitation_elements = meta
+            .layout
+            .excitations
+            .iter()
+            .map(
+                |name| match system.channel(name).map(|c| system.channels[c].quantity) {
+                    Some(Quantity::Excitation(e)) => Ok(e),
+                    _ => Err(fmt_err(
+                        &meta_path,
+                        format!("`{name}` is not an excitation of the system"),
+                    )),
+                },
+            )
+            .collect::<Result<_>>()?;
+        let indices = IndexInputs::of(&system, &meta.layout)?;
         Ok(Self {
             model,
+            space: DesignSpace::of(system.clone()),
+            system,
+            excitation_elements,
+            indices,
             meta,
             device: device.clone(),
         })
     }
 
-    /// The parameters of each set outside the model's training ranges (empty lists when the
-    /// model has none recorded: see [`ModelMeta::training_ranges`]).
-    pub fn outside_training(&self, sets: &[SampleParams]) -> Vec<Vec<OutOfRange>> {
+    /// The model's system.
+    pub fn system(&self) -> &Arc<System> {
+        &self.system
+    }
+
+    /// The run controls of the model's data (`x0` replaced when given), or an error when the
+    /// dataset recorded none.
+    pub fn run_config(&self, x0: Option<f64>) -> Result<RunConfig> {
+        let data = self.meta.data.as_ref().ok_or_else(|| {
+            fmt_err(
+                Path::new("model.json"),
+                "the model's dataset records no run controls (run.json of `simulate`): retrain on a dataset that has them".into(),
+            )
+        })?;
+        let mut run = data.run;
+        if let Some(x0) = x0 {
+            run.x0 = x0;
+        }
+        Ok(run)
+    }
+
+    /// The points of the system's generated profiles from `choice`.
+    pub fn profiles(&self, choice: Option<&ProfileChoice>) -> Result<Vec<Option<Profile>>> {
+        let settings = self.meta.data.as_ref().and_then(|d| d.profiles.as_ref());
+        profiles(&self.system, settings, choice)
+    }
+
+    /// The parameters of each design outside the model's training ranges.
+    pub fn outside_training(&self, sets: &[Vec<f64>]) -> Vec<Vec<OutOfRange>> {
         sets.iter()
-            .map(|p| {
-                self.meta
-                    .training_ranges
-                    .as_ref()
-                    .map_or_else(Vec::new, |r| r.outside(&p.to_array()))
-            })
+            .map(|p| self.meta.training_ranges.outside(p))
             .collect()
     }
 
-    /// Predicts `sets` in one forward pass.
+    /// The excitations `[T, E]` of design `k` at the window's times.
+    fn excitations(
+        &self,
+        k: usize,
+        design: &[f64],
+        profiles: &[Option<Profile>],
+        run: &RunConfig,
+    ) -> Result<Vec<f64>> {
+        let model = self.space.check(design, &format!("set {k}"))?;
+        let ex = Excitations::new(&self.system, &model, run, profiles.to_vec()).map_err(|e| {
+            Error::OutOfRange {
+                field: format!("set {k}: profiles"),
+                value: e.to_string(),
+                allowed: "profiles that cover the run".into(),
+            }
+        })?;
+        let times = self.meta.grid.times();
+        let mut out = Vec::with_capacity(times.len() * self.excitation_elements.len());
+        for &t in &times {
+            out.extend(self.excitation_elements.iter().map(|&e| ex.at(e, t)));
+        }
+        Ok(out)
+    }
+
+    /// Predicts designs `sets` (the first numbered `first`) in one forward pass.
     pub fn forward(
         &self,
-        sets: &[SampleParams],
-        profile: &Profile,
-        place: &Placement,
+        first: usize,
+        sets: &[Vec<f64>],
+        profiles: &[Option<Profile>],
+        run: &RunConfig,
     ) -> Result<Vec<SetPrediction>> {
         let meta = &self.meta;
         let times = meta.grid.times();
-        let tp = meta.grid.t_points;
-        let record_dt = meta.grid.dt / meta.window.time_stride as f64;
-        let duration = meta.grid.record_points as f64 * record_dt;
-        let mut x = Vec::with_capacity(sets.len() * tp * 19);
+        let (tp, n_in) = (meta.grid.t_points, meta.layout.n_inputs());
+        let mut x = Vec::with_capacity(sets.len() * tp * n_in);
         let mut etas = Vec::with_capacity(sets.len());
-        for p in sets {
-            p.validate()
-                .map_err(|e| fmt_err(Path::new("parameters"), e.to_string()))?;
-            let eta = wheel_irregularity(p, profile, &times, duration, place)?;
-            x.extend(
-                meta.norm
-                    .inputs
-                    .normalise(&input_block(&times, &eta, &p.to_array())),
-            );
+        for (k, p) in sets.iter().enumerate() {
+            let eta = self.excitations(first + k, p, profiles, run)?;
+            x.extend(meta.norm.inputs.normalise(&input_block(&times, &eta, p)));
             etas.push(eta);
         }
-        let xt = Tensor::from_vec(x, (sets.len(), tp, 19), &self.device)?;
+        let xt = Tensor::from_vec(x, (sets.len(), tp, n_in), &self.device)?;
         let u = self
             .model
             .predictor()?
             .predict(&xt)?
             .flatten_all()?
             .to_vec1::<f32>()?;
-        Ok(u.chunks(tp * OUT_CHANNELS)
+        Ok(u.chunks(tp * meta.layout.n_outputs())
             .zip(etas)
             .map(|(chunk, eta)| SetPrediction {
                 physical: to_physical(chunk, meta),
@@ -310,66 +474,56 @@ impl Predictor {
     /// CPU; results in set order, independent of the thread count).
     fn batched<T: Send>(
         &self,
-        sets: &[SampleParams],
-        profile: &Profile,
-        place: &Placement,
+        sets: &[Vec<f64>],
+        profiles: &[Option<Profile>],
+        run: &RunConfig,
         batch: usize,
         f: &(dyn Fn(usize, &SetPrediction) -> Result<T> + Sync),
     ) -> Result<Vec<T>> {
         use rayon::prelude::*;
-        let chunks: Vec<(usize, &[SampleParams])> = sets
-            .chunks(batch.max(1))
+        let batch = batch.max(1);
+        let chunks: Vec<(usize, &[Vec<f64>])> = sets
+            .chunks(batch)
             .enumerate()
-            .map(|(k, c)| (k * batch.max(1), c))
+            .map(|(k, c)| (k * batch, c))
             .collect();
-        let run = |(start, chunk): &(usize, &[SampleParams])| -> Result<Vec<T>> {
-            self.forward(chunk, profile, place)?
+        let go = |(start, chunk): &(usize, &[Vec<f64>])| -> Result<Vec<T>> {
+            self.forward(*start, chunk, profiles, run)?
                 .iter()
                 .enumerate()
                 .map(|(k, p)| f(start + k, p))
                 .collect()
         };
         let parts: Vec<Vec<T>> = if self.device.is_cpu() {
-            chunks.par_iter().map(run).collect::<Result<_>>()?
+            chunks.par_iter().map(go).collect::<Result<_>>()?
         } else {
-            chunks.iter().map(run).collect::<Result<_>>()?
+            chunks.iter().map(go).collect::<Result<_>>()?
         };
         Ok(parts.into_iter().flatten().collect())
     }
 
-    /// The time histories of every set (module doc) as one table.
+    /// The time histories of every design (module doc) as one table.
     pub fn histories(
         &self,
-        sets: &[SampleParams],
-        profile: &Profile,
-        place: &Placement,
+        sets: &[Vec<f64>],
+        profiles: &[Option<Profile>],
+        run: &RunConfig,
         batch: usize,
     ) -> Result<Table> {
+        let layout = &self.meta.layout;
+        let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
         let times = self.meta.grid.times();
         let tp = self.meta.grid.t_points;
-        let preds = self.batched(sets, profile, place, batch, &|_, p| {
-            Ok(SetPrediction {
-                physical: Physical {
-                    u: p.physical.u.clone(),
-                    v: p.physical.v.clone(),
-                    a: p.physical.a.clone(),
-                },
-                eta: p.eta.clone(),
-            })
-        })?;
-        let mut cols: Vec<(String, Vec<f64>)> = Vec::new();
-        for name in schema::output_channels() {
-            cols.push((name.to_string(), Vec::new()));
-        }
-        for name in schema::VEHICLE_DOFS {
-            cols.push((schema::velocity(name), Vec::new()));
-        }
-        for name in schema::VEHICLE_DOFS {
-            cols.push((schema::acceleration(name), Vec::new()));
-        }
-        for name in schema::ETA_UNDER_WHEEL {
-            cols.push((name.to_owned(), Vec::new()));
-        }
+        let preds = self.batched(sets, profiles, run, batch, &|_, p| Ok(p.clone()))?;
+        let names: Vec<String> = layout
+            .outputs
+            .iter()
+            .cloned()
+            .chain(layout.velocities())
+            .chain(layout.accelerations())
+            .chain(layout.excitations.iter().cloned())
+            .collect();
+        let mut cols: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
         let mut set_col = Vec::new();
         let mut t_col = Vec::new();
         for (s, pred) in preds.iter().enumerate() {
@@ -377,104 +531,113 @@ impl Predictor {
             for (n, &t) in times.iter().enumerate().take(tp - 1).skip(1) {
                 set_col.push(s as i64);
                 t_col.push(t);
-                for (c, col) in cols.iter_mut().take(OUT_CHANNELS).enumerate() {
-                    col.1.push(ph.u[n * OUT_CHANNELS + c]);
-                }
-                for c in 0..DOFS {
-                    cols[OUT_CHANNELS + c].1.push(ph.v[(n - 1) * DOFS + c]);
-                    cols[OUT_CHANNELS + DOFS + c]
-                        .1
-                        .push(ph.a[(n - 1) * DOFS + c]);
-                }
-                for i in 0..4 {
-                    cols[OUT_CHANNELS + 2 * DOFS + i]
-                        .1
-                        .push(pred.eta[n * 4 + i]);
+                let row = ph.u[n * o..(n + 1) * o]
+                    .iter()
+                    .chain(&ph.v[(n - 1) * d..n * d])
+                    .chain(&ph.a[(n - 1) * d..n * d])
+                    .chain(&pred.eta[n * e..(n + 1) * e]);
+                for (col, &x) in cols.iter_mut().zip(row) {
+                    col.push(x);
                 }
             }
         }
         let mut table = Table::default();
         table.push("set", Column::I64(set_col))?;
         table.push(schema::TIME, Column::F64(t_col))?;
-        for (name, values) in cols {
-            table.push(&name, Column::F64(values))?;
+        for (name, values) in names.iter().zip(cols) {
+            table.push(name, Column::F64(values))?;
         }
         Ok(table)
     }
 
-    /// The settings of the indices of a prediction: the `indices` stage's defaults with the
-    /// model's gravity and no start-up (the model's window already excludes it).
+    /// The settings of the indices of a prediction: the `indices` stage's defaults with no
+    /// start-up (the model's window already excludes it).
     pub fn index_config(&self) -> Result<IndexConfig> {
-        crate::indices_eval::eval_config(&self.meta)
+        eval_config()
     }
 
-    /// The engineering indices (`docs/indices.md`) of every set, computed from its predicted
-    /// contact forces, displacements and central-difference accelerations (the interior
-    /// points of the window), as `evaluate` computes them; batches of `batch` sets.
+    /// The index columns of the model's system.
+    pub fn index_inputs(&self) -> &IndexInputs {
+        &self.indices
+    }
+
+    /// The engineering indices of every design, rebuilt from its prediction as `evaluate`
+    /// rebuilds them (the interior points of the window); batches of `batch` sets. Refused
+    /// when the description defines none or reads a column the model cannot give.
     pub fn indices(
         &self,
-        sets: &[SampleParams],
-        profile: &Profile,
-        place: &Placement,
+        sets: &[Vec<f64>],
+        profiles: &[Option<Profile>],
+        run: &RunConfig,
         cfg: &IndexConfig,
         batch: usize,
-    ) -> Result<Vec<Indices>> {
-        let dt = self.meta.grid.dt;
-        self.batched(sets, profile, place, batch, &|k, p| {
-            indices_of_physical(
-                &p.physical.u,
-                &p.physical.a,
-                true,
+    ) -> Result<Vec<SampleIndices>> {
+        if !self.indices.computable() {
+            return Err(fmt_err(
+                Path::new("--indices"),
+                format!(
+                    "the system `{}` has no index this model can compute: {}",
+                    self.system.name,
+                    self.indices.why_not()
+                ),
+            ));
+        }
+        let (layout, dt) = (&self.meta.layout, self.meta.grid.dt);
+        self.batched(sets, profiles, run, batch, &|k, p| {
+            self.indices.sample(
+                &self.system,
+                layout,
+                &sets[k],
+                k as i64,
+                &p.physical,
+                None,
+                &p.eta,
                 dt,
-                &sets[k].to_array(),
                 cfg,
             )
-            .map_err(|e| fmt_err(Path::new("prediction"), format!("set {k}: indices: {e}")))
         })
     }
-}
 
-/// The indices table of `predict`: `set`, the 14 parameters, the 14 indices, `window_s`,
-/// `pass`, `failed`, and `outside_training_range` (the parameters outside the model's
-/// training ranges, `name=value` comma-separated; empty inside).
-pub fn indices_table(
-    sets: &[SampleParams],
-    indices: &[Indices],
-    outside: &[Vec<OutOfRange>],
-    cfg: &IndexConfig,
-) -> Result<Table> {
-    let mut t = Table::default();
-    t.push("set", Column::I64((0..sets.len() as i64).collect()))?;
-    for (j, name) in schema::PARAMETERS.iter().enumerate() {
+    /// The indices table of `predict`: `set`, the design's parameters, the indices of the
+    /// description, `window_s`, `pass`, `failed`, and [`OUTSIDE_COLUMN`].
+    pub fn indices_table(
+        &self,
+        sets: &[Vec<f64>],
+        indices: &[SampleIndices],
+        outside: &[Vec<OutOfRange>],
+    ) -> Result<Table> {
+        let mut t = Table::default();
+        t.push("set", Column::I64((0..sets.len() as i64).collect()))?;
+        self.space.push_columns(&mut t, sets)?;
+        for (k, c) in self.indices.columns().iter().enumerate() {
+            t.push(
+                &c.name,
+                Column::F64(indices.iter().map(|ix| ix.values[k]).collect()),
+            )?;
+        }
         t.push(
-            name,
-            Column::F64(sets.iter().map(|p| p.to_array()[j]).collect()),
+            pino_indices::WINDOW_COLUMN,
+            Column::F64(indices.iter().map(|ix| ix.window_s).collect()),
         )?;
-    }
-    for (k, c) in INDEX_COLUMNS.iter().enumerate() {
         t.push(
-            c.name,
-            Column::F64(indices.iter().map(|ix| ix.values()[k]).collect()),
+            pino_indices::PASS_COLUMN,
+            Column::I64(
+                indices
+                    .iter()
+                    .map(|ix| ix.failed.is_empty() as i64)
+                    .collect(),
+            ),
         )?;
+        t.push(
+            pino_indices::FAILED_COLUMN,
+            Column::Str(indices.iter().map(|ix| ix.failed.join(",")).collect()),
+        )?;
+        t.push(
+            OUTSIDE_COLUMN,
+            Column::Str(outside.iter().map(|o| outside_flag(o)).collect()),
+        )?;
+        Ok(t)
     }
-    t.push(
-        pino_indices::WINDOW_COLUMN,
-        Column::F64(indices.iter().map(|ix| ix.window_s).collect()),
-    )?;
-    let failed: Vec<Vec<&str>> = indices.iter().map(|ix| cfg.limits.failed(ix)).collect();
-    t.push(
-        pino_indices::PASS_COLUMN,
-        Column::I64(failed.iter().map(|f| f.is_empty() as i64).collect()),
-    )?;
-    t.push(
-        pino_indices::FAILED_COLUMN,
-        Column::Str(failed.iter().map(|f| f.join(",")).collect()),
-    )?;
-    t.push(
-        OUTSIDE_COLUMN,
-        Column::Str(outside.iter().map(|o| outside_flag(o)).collect()),
-    )?;
-    Ok(t)
 }
 
 /// Column of the indices table naming the parameters outside the training ranges.
@@ -488,19 +651,6 @@ pub fn outside_flag(outside: &[OutOfRange]) -> String {
         .map(|r| format!("{}={}", r.name, r.value))
         .collect::<Vec<_>>()
         .join(",")
-}
-
-/// Predicts every set; returns the time-history table and the model's metadata.
-pub fn predict(
-    model_dir: &Path,
-    sets: &[SampleParams],
-    profile: &Profile,
-    place: &Placement,
-    device: &Device,
-) -> Result<(Table, ModelMeta)> {
-    let p = Predictor::load(model_dir, device)?;
-    let table = p.histories(sets, profile, place, 16)?;
-    Ok((table, p.meta))
 }
 
 /// How a sweep is written (`predict --sweep FILE`): `base` (optional, values of the parameters
@@ -538,19 +688,20 @@ enum Axis {
 /// Most designs a sweep may produce (a typo in `steps` should not exhaust the memory).
 pub const MAX_SWEEP: usize = 10_000_000;
 
-/// Parses a sweep (see the YAML layout above) into parameter sets (`origin` names the file).
-pub fn parse_sweep(text: &str, origin: &Path) -> Result<Vec<SampleParams>> {
+/// Parses a sweep (see the YAML layout above) into designs of `space` (`origin` names the
+/// file).
+pub fn parse_sweep(space: &DesignSpace, text: &str, origin: &Path) -> Result<Vec<Vec<f64>>> {
     let doc: SweepDoc = serde_yaml::from_str(text).map_err(|e| {
         fmt_err(
             origin,
             format!("expected `base:` and one of `grid:` or `random:`: {e}"),
         )
     })?;
-    let mut base = SampleParams::NOMINAL.to_array();
+    let mut base = space.nominal();
     for (k, v) in &doc.base {
-        set_param(&mut base, k, *v, origin)?;
+        space.set(&mut base, k, *v, origin)?;
     }
-    let index_of = |name: &str| param_index(name, origin);
+    let index_of = |name: &str| space.index(name, origin);
     match (doc.grid, doc.random) {
         (Some(grid), None) => {
             let mut axes: Vec<(usize, Vec<f64>)> = Vec::new();
@@ -595,14 +746,20 @@ pub fn parse_sweep(text: &str, origin: &Path) -> Result<Vec<SampleParams>> {
                 .ok_or_else(|| fmt_err(origin, format!("grid: more than {MAX_SWEEP} designs")))?;
             let mut sets = Vec::with_capacity(total);
             for i in 0..total {
-                let mut p = base;
+                let mut p = base.clone();
                 let mut rest = i;
                 for (k, values) in axes.iter().rev() {
                     let v = values[rest % values.len()];
                     rest /= values.len();
-                    set_param(&mut p, PARAMETER_NAMES[*k], v, origin)?;
+                    if !v.is_finite() {
+                        return Err(fmt_err(
+                            origin,
+                            format!("grid.{}: {v} must be finite", space.names[*k]),
+                        ));
+                    }
+                    p[*k] = v;
                 }
-                sets.push(SampleParams::from_array(p));
+                sets.push(p);
             }
             Ok(sets)
         }
@@ -616,10 +773,10 @@ pub fn parse_sweep(text: &str, origin: &Path) -> Result<Vec<SampleParams>> {
             let mut ranges: Vec<(usize, [f64; 2])> = Vec::new();
             for (name, range) in &r.ranges {
                 let [lo, hi] = *range;
-                if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
+                if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
                     return Err(fmt_err(
                         origin,
-                        format!("random.ranges.{name} = [{lo}, {hi}]: finite, 0 < lo <= hi"),
+                        format!("random.ranges.{name} = [{lo}, {hi}]: finite, lo <= hi"),
                     ));
                 }
                 ranges.push((index_of(name)?, *range));
@@ -632,11 +789,11 @@ pub fn parse_sweep(text: &str, origin: &Path) -> Result<Vec<SampleParams>> {
                         mbd_dataset::rng::Purpose::Parameters,
                         i as u64,
                     );
-                    let mut p = base;
+                    let mut p = base.clone();
                     for (k, [lo, hi]) in &ranges {
                         p[*k] = s.uniform_in(*lo, *hi);
                     }
-                    SampleParams::from_array(p)
+                    p
                 })
                 .collect())
         }
@@ -647,65 +804,92 @@ pub fn parse_sweep(text: &str, origin: &Path) -> Result<Vec<SampleParams>> {
     }
 }
 
-/// The parameter type of a set (re-exported so that callers need not depend on `vtcd`).
-pub type NominalParams = SampleParams;
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::TrainParams;
+    use crate::synthetic::{vehicle_track_system, write_dataset, SyntheticSpec};
+
+    fn space() -> DesignSpace {
+        DesignSpace::of(vehicle_track_system())
+    }
 
     #[test]
     fn yaml_sets_and_overrides() {
+        let sp = space();
         let o = Path::new("sets.yaml");
-        let sets = parse_param_sets("- {k_s: 4.0e5}\n- {v_kmh: 310}\n", o).unwrap();
+        let ix = |n: &str| sp.index(n, o).unwrap();
+        let nominal = sp.nominal();
+        let sets = sp
+            .parse_sets("- {k_s: 4.0e5}\n- {v_kmh: 310}\n", o)
+            .unwrap();
         assert_eq!(sets.len(), 2);
-        assert_eq!(sets[0].k_s, 4.0e5);
-        assert_eq!(sets[0].m_c, SampleParams::NOMINAL.m_c);
-        assert_eq!(sets[1].v_kmh, 310.0);
-        let sets2 = parse_param_sets("sets:\n  - {c_p: 2.2e4}\n", o).unwrap();
-        assert_eq!(sets2[0].c_p, 2.2e4);
+        assert_eq!(sets[0][ix("k_s")], 4.0e5);
+        assert_eq!(sets[0][ix("m_c")], nominal[ix("m_c")]);
+        assert_eq!(sets[1][ix("v_kmh")], 310.0);
+        let sets2 = sp.parse_sets("sets:\n  - {c_p: 2.2e4}\n", o).unwrap();
+        assert_eq!(sets2[0][ix("c_p")], 2.2e4);
         let mut s = sets.clone();
-        apply_override(&mut s, "l_c=8.5").unwrap();
-        assert!(s.iter().all(|p| p.l_c == 8.5));
-        let err = parse_param_sets("- {kk: 1}\n", o).unwrap_err().to_string();
+        sp.apply_override(&mut s, "l_c=8.5").unwrap();
+        assert!(s.iter().all(|p| p[ix("l_c")] == 8.5));
+        let err = sp.parse_sets("- {kk: 1}\n", o).unwrap_err().to_string();
         assert!(
-            err.contains("sets.yaml") && err.contains("unknown parameter `kk`"),
+            err.contains("sets.yaml")
+                && err.contains("unknown parameter `kk`")
+                && err.contains("allowed: m_c"),
             "{err}"
         );
-        assert!(apply_override(&mut s, "m_c=-1").is_err());
-        assert!(apply_override(&mut s, "m_c").is_err());
+        // A parameter the description fixes is not a design parameter of the model.
+        let err = sp
+            .parse_sets("- {wheel_radius: 0.45}\n", o)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("`wheel_radius` is not sampled"), "{err}");
+        assert!(sp.apply_override(&mut s, "m_c").is_err());
+        // Values outside the description's domains are refused naming the design and field.
+        sp.apply_override(&mut s, "m_c=-1").unwrap();
+        let err = sp.check(&s[1], "set 1").unwrap_err().to_string();
+        assert!(
+            err.contains("set 1") && err.contains("mass") && err.contains("> 0"),
+            "{err}"
+        );
     }
 
     #[test]
     fn sweeps_by_grid_and_by_seeded_random_sample() {
+        let sp = space();
         let o = Path::new("sweep.yaml");
+        let ix = |n: &str| sp.index(n, o).unwrap();
+        let nominal = sp.nominal();
         let g = parse_sweep(
+            &sp,
             "base: {v_kmh: 340}\ngrid:\n  k_s: {from: 4.0e+5, to: 5.0e+5, steps: 3}\n  c_s: [1.0e+4, 3.0e+4]\n",
             o,
         )
         .unwrap();
         // Every combination, the last axis fastest; the base and nominal values elsewhere.
         assert_eq!(g.len(), 6);
-        let ks: Vec<f64> = g.iter().map(|p| p.k_s).collect();
-        let cs: Vec<f64> = g.iter().map(|p| p.c_s).collect();
+        let ks: Vec<f64> = g.iter().map(|p| p[ix("k_s")]).collect();
+        let cs: Vec<f64> = g.iter().map(|p| p[ix("c_s")]).collect();
         assert_eq!(ks, [4.0e5, 4.0e5, 4.5e5, 4.5e5, 5.0e5, 5.0e5]);
         assert_eq!(cs, [1.0e4, 3.0e4, 1.0e4, 3.0e4, 1.0e4, 3.0e4]);
         assert!(g
             .iter()
-            .all(|p| p.v_kmh == 340.0 && p.m_c == SampleParams::NOMINAL.m_c));
+            .all(|p| p[ix("v_kmh")] == 340.0 && p[ix("m_c")] == nominal[ix("m_c")]));
         let text =
             "random: {seed: 7, count: 500, ranges: {k_f: [3.5e+7, 4.5e+7], v_kmh: [300, 350]}}\n";
-        let r = parse_sweep(text, o).unwrap();
+        let r = parse_sweep(&sp, text, o).unwrap();
         assert_eq!(r.len(), 500);
         assert!(r
             .iter()
-            .all(|p| (3.5e7..4.5e7).contains(&p.k_f) && (300.0..350.0).contains(&p.v_kmh)));
-        assert!(r.iter().all(|p| p.k_s == SampleParams::NOMINAL.k_s));
+            .all(|p| (3.5e7..4.5e7).contains(&p[ix("k_f")])
+                && (300.0..350.0).contains(&p[ix("v_kmh")])));
+        assert!(r.iter().all(|p| p[ix("k_s")] == nominal[ix("k_s")]));
         // Deterministic, and design i depends only on (seed, i).
-        assert_eq!(parse_sweep(text, o).unwrap(), r);
-        let fewer = parse_sweep(&text.replace("500", "20"), o).unwrap();
+        assert_eq!(parse_sweep(&sp, text, o).unwrap(), r);
+        let fewer = parse_sweep(&sp, &text.replace("500", "20"), o).unwrap();
         assert_eq!(fewer[..], r[..20]);
-        let mean = r.iter().map(|p| p.k_f).sum::<f64>() / 500.0;
+        let mean = r.iter().map(|p| p[ix("k_f")]).sum::<f64>() / 500.0;
         assert!((mean - 4.0e7).abs() < 0.1e7, "{mean}");
         // Bad input: named file, field and allowed values.
         for (bad, want) in [
@@ -717,97 +901,132 @@ mod tests {
             ),
             (
                 "random: {seed: 1, count: 5, ranges: {k_s: [5, 1]}}\n",
-                "0 < lo <= hi",
+                "lo <= hi",
             ),
             ("base: {k_s: 1}\n", "exactly one of `grid:` or `random:`"),
-            ("grid: {k_s: [-1]}\n", "must be finite and > 0"),
+            ("base: {k_s: .nan}\ngrid: {c_s: [1]}\n", "must be finite"),
         ] {
-            let e = parse_sweep(bad, o).unwrap_err().to_string();
+            let e = parse_sweep(&sp, bad, o).unwrap_err().to_string();
             assert!(e.contains("sweep.yaml") && e.contains(want), "{bad}: {e}");
         }
     }
 
     #[test]
-    fn training_ranges_flag_designs_outside_and_old_model_files_still_load() {
-        let r = crate::checkpoint::TrainingRanges {
-            source: "sample-params".into(),
-            names: PARAMETER_NAMES.iter().map(|s| s.to_string()).collect(),
-            min: (0..14)
-                .map(|k| 0.8 * SampleParams::NOMINAL.to_array()[k])
-                .collect(),
-            max: (0..14)
-                .map(|k| 1.2 * SampleParams::NOMINAL.to_array()[k])
-                .collect(),
-        };
-        assert!(r.outside(&SampleParams::NOMINAL.to_array()).is_empty());
-        let mut p = SampleParams::NOMINAL.to_array();
-        p[12] = 1e9; // k_f, 25x the nominal
+    fn training_ranges_flag_designs_outside() {
+        let system = vehicle_track_system();
+        let r = crate::checkpoint::TrainingRanges::of(&system);
+        let sp = space();
+        let nominal = sp.nominal();
+        assert!(r.outside(&nominal).is_empty());
+        let mut p = nominal.clone();
+        let k_f = sp.index("k_f", Path::new("-")).unwrap();
+        p[k_f] = 25.0 * r.max[k_f];
         p[0] = r.max[0]; // a bound itself is inside
         let out = r.outside(&p);
         assert_eq!(out.len(), 1);
         assert_eq!(out[0].name, "k_f");
-        assert!(out[0].to_string().contains("k_f = 1000000000 (trained on"));
-        // A model.json without the field (written before it existed) reads as `None`.
-        let dir = tempfile::tempdir().unwrap();
-        let spec = crate::synthetic::SyntheticSpec {
-            n_train: 2,
-            n_validation: 1,
-            ..Default::default()
-        };
-        let files = crate::synthetic::write_dataset(&spec, dir.path()).unwrap();
-        let (m, t, w) = crate::config::TrainParams::with_algorithm(1)
-            .configs()
-            .unwrap();
-        let ds = crate::data::load_dataset(
-            &files.params,
-            std::slice::from_ref(&files.simulation),
-            None,
-            &w,
-        )
-        .unwrap();
-        let mut meta = crate::train::model_meta(&ds, m, t, w).unwrap();
-        let ranges = meta.training_ranges.clone().unwrap();
-        assert_eq!(ranges.source, "training samples");
-        assert!(ranges.min.iter().zip(&ranges.max).all(|(a, b)| a <= b));
-        // With the sampling ranges beside params.parquet (as `sample-params` writes them),
-        // those are the training ranges.
-        let mut rt = Table::default();
-        rt.push("name", Column::Str(r.names.clone())).unwrap();
-        let units = r.names.iter().map(|_| "-".to_string()).collect();
-        rt.push("unit", Column::Str(units)).unwrap();
-        rt.push("min", Column::F64(r.min.clone())).unwrap();
-        rt.push("max", Column::F64(r.max.clone())).unwrap();
-        let beside = files
-            .params
-            .parent()
-            .unwrap()
-            .join(crate::checkpoint::RANGES_FILE);
-        pino_data::write_parquet(&beside, &rt).unwrap();
-        assert_eq!(crate::train::training_ranges(&ds).unwrap(), r);
-        meta.training_ranges = None;
-        let old = serde_json::to_string(&meta).unwrap();
-        assert!(!old.contains("training_ranges"));
-        let back: ModelMeta = serde_json::from_str(&old).unwrap();
-        assert_eq!(back.training_ranges, None);
+        assert!(out[0].to_string().contains("(trained on"), "{}", out[0]);
+        assert_eq!(outside_flag(&out), format!("k_f={}", p[k_f]));
     }
 
+    /// A model trained on a synthetic dataset predicts a test sample from its parameters and
+    /// the profile regenerated from the dataset's seed: the excitations it builds are the
+    /// solver's stored ones bit for bit, and the prediction is `evaluate`'s for that sample.
     #[test]
-    fn wheel_irregularity_follows_the_simulation_placement() {
-        // Profile eta(x) = 1e-3 x (linear): wheel 4 at x0 + v t, wheel 1 2(l_c + l_t) ahead.
-        let xs: Vec<f64> = (0..=600).map(|k| k as f64).collect();
-        let profile = Profile::new(xs.clone(), xs.iter().map(|x| 1e-3 * x).collect()).unwrap();
-        let p = SampleParams::NOMINAL;
-        let place = Placement {
-            startup_zero_fraction: 0.1,
-            startup_ramp_fraction: 0.1,
-            ..Placement::default()
+    fn predict_rebuilds_the_datasets_inputs_and_evaluates_prediction() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = SyntheticSpec {
+            n_train: 2,
+            n_validation: 1,
+            n_test: 1,
+            duration: 0.2,
+            ..Default::default()
         };
-        // duration 1 s: r = 0 before 0.1 s, 0.5 at 0.15 s, 1 after 0.2 s.
-        let eta = wheel_irregularity(&p, &profile, &[0.05, 0.15, 0.5], 1.0, &place).unwrap();
-        assert_eq!(&eta[..4], &[0.0; 4]);
-        let x4 = 20.0 + p.speed() * 0.15;
-        assert!((eta[7] - 0.5e-3 * x4).abs() < 1e-12);
-        let x1 = 20.0 + p.speed() * 0.5 + 2.0 * (p.l_c + p.l_t);
-        assert!((eta[8] - 1e-3 * x1).abs() < 1e-12);
+        let files = write_dataset(&spec, dir.path()).unwrap();
+        let layout = crate::synthetic::vehicle_track_layout();
+        let mut p = TrainParams::small(1);
+        p.epochs = 1;
+        let (m, t, w) = p.configs(&layout).unwrap();
+        let ds = files.load(&w, false).unwrap();
+        let out = dir.path().join("model");
+        std::fs::create_dir_all(&out).unwrap();
+        let dev = Device::Cpu;
+        crate::train::train_to_dir(
+            &ds,
+            (m, t, w),
+            Transform::Fused,
+            &out,
+            &out,
+            &dev,
+            &mut |_| {},
+        )
+        .unwrap();
+        let predictor = Predictor::load(&out, &dev).unwrap();
+        let meta = &predictor.meta;
+        let (test_ds, items) = files
+            .load_split(&w, crate::data::Split::Test, &meta.norm)
+            .unwrap();
+        let id = items.id(0);
+        let design = items.params(0).to_vec();
+        assert!(predictor.outside_training(std::slice::from_ref(&design))[0].is_empty());
+        // Without a profile the generated track is refused by name.
+        let err = predictor.profiles(None).unwrap_err().to_string();
+        assert!(err.contains("--seed") && err.contains("track"), "{err}");
+        let profiles = predictor
+            .profiles(Some(&ProfileChoice::Generated {
+                seed: spec.seed,
+                id: id as u64,
+            }))
+            .unwrap();
+        let run = predictor.run_config(None).unwrap();
+        assert_eq!(run.x0, spec.x0);
+        let pred = predictor
+            .forward(0, std::slice::from_ref(&design), &profiles, &run)
+            .unwrap();
+        // The same formula at the same positions; the window's times are rebuilt as
+        // `t0 + k dt` where the solver counted steps, so positions agree to an ulp of `t`.
+        let stored = items.series(0).unwrap().eta;
+        let scale = stored.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(scale > 0.0);
+        for (k, (a, b)) in pred[0].eta.iter().zip(&stored).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-12 * scale,
+                "excitation {k}: {a} vs stored {b}"
+            );
+        }
+        for (a, b) in test_ds.t.iter().zip(meta.grid.times()) {
+            assert!((a - b).abs() <= 1e-12, "{a} {b}");
+        }
+        let model = crate::checkpoint::load_model(&out, Transform::Fused, &dev)
+            .unwrap()
+            .0;
+        let (evaluated, _) =
+            crate::eval::predict_samples(&model, &items, &[0], items.t_points(), 1, &dev).unwrap();
+        assert_eq!(pred[0].physical.u, to_physical(&evaluated[0], meta).u);
+        // The time-history table: interior rows, outputs, rates and excitations by name.
+        let table = predictor
+            .histories(std::slice::from_ref(&design), &profiles, &run, 4)
+            .unwrap();
+        assert_eq!(table.num_rows(), meta.grid.t_points - 2);
+        for name in layout.outputs.iter().chain(&layout.excitations) {
+            assert!(table.f64(name).is_ok(), "{name}");
+        }
+        assert!(table.f64("beta_c_a").is_ok() && table.f64("z_w4_v").is_ok());
+        // Indices of the prediction with the design's columns.
+        let cfg = predictor.index_config().unwrap();
+        let ix = predictor
+            .indices(std::slice::from_ref(&design), &profiles, &run, &cfg, 4)
+            .unwrap();
+        let it = predictor
+            .indices_table(std::slice::from_ref(&design), &ix, &[vec![]])
+            .unwrap();
+        assert_eq!(it.f64("m_c").unwrap()[0], design[0]);
+        assert!(it.f64("peak_wheel_rail_force_kn").unwrap()[0].is_finite());
+        // A profile too short for the run is refused.
+        let short = vec![Some(Profile::new(vec![0.0, 1.0], vec![0.0, 0.0]).unwrap())];
+        let err = predictor
+            .forward(0, std::slice::from_ref(&design), &short, &run)
+            .unwrap_err();
+        assert!(err.to_string().contains("set 0: profiles"), "{err}");
     }
 }

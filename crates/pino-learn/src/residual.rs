@@ -70,11 +70,70 @@ impl ChannelMap {
         }
     }
 
+    /// Element `e`'s deflection in the learner's channels (`eq` one sample's equations), or
+    /// `None` when a term of it (a moving point's deflection, a profile) is neither an output
+    /// nor an input of this layout.
+    pub fn deflection(&self, eq: &Equations, e: usize) -> Option<DeflectionReader> {
+        let terms = eq
+            .deflection_terms(e)
+            .into_iter()
+            .map(|(entry, coef)| {
+                let slot = match entry {
+                    StateEntry::Dof(j) => Slot::Output(j),
+                    StateEntry::Point(p) => Slot::Output(self.point[p]?),
+                    StateEntry::Eta(x) => Slot::Excitation(self.eta[x]?),
+                };
+                Some((slot, coef))
+            })
+            .collect::<Option<_>>()?;
+        Some(DeflectionReader { terms })
+    }
+
     /// Columns of the linear state: `z, v, a` (D each), point deflections and rates (P each),
     /// excitations and their rates (one per element).
     fn columns(&self) -> usize {
         3 * self.dofs + 2 * self.point.len() + 2 * self.eta.len()
     }
+}
+
+/// Where a deflection term is read: an output column or an excitation column.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Slot {
+    Output(usize),
+    Excitation(usize),
+}
+
+/// An element's deflection `d = (u_from - u_to) - eta` (m) as a sum over the learner's
+/// channels ([`ChannelMap::deflection`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeflectionReader {
+    terms: Vec<(Slot, f64)>,
+}
+
+impl DeflectionReader {
+    /// The deflection at one time point: `u` a physical output row `[O]`, `eta` an excitation
+    /// row `[E]`.
+    pub fn at(&self, u: &[f64], eta: &[f64]) -> f64 {
+        self.terms
+            .iter()
+            .map(|&(slot, coef)| {
+                coef * match slot {
+                    Slot::Output(c) => u[c],
+                    Slot::Excitation(c) => eta[c],
+                }
+            })
+            .sum()
+    }
+}
+
+/// The equations of DOFs `dofs` of the model of one sample with parameters `params`.
+pub fn sample_equations(system: &System, params: &[f64], dofs: Vec<usize>) -> Result<Equations> {
+    let model = system.instantiate(params).map_err(|e| Error::OutOfRange {
+        field: e.path.clone(),
+        value: e.value.to_string(),
+        allowed: e.allowed.clone(),
+    })?;
+    Ok(Equations::new(model, dofs))
 }
 
 /// Physical state of one sample at one interior point, in the residual's slices.
@@ -143,12 +202,7 @@ pub struct SampleEquations {
 impl SampleEquations {
     /// The equations of one sample with parameters `params`.
     pub fn new(system: &System, map: &ChannelMap, params: &[f64]) -> Result<Self> {
-        let model = system.instantiate(params).map_err(|e| Error::OutOfRange {
-            field: e.path.clone(),
-            value: e.value.to_string(),
-            allowed: e.allowed.clone(),
-        })?;
-        let eq = Equations::new(model, map.equations.clone());
+        let eq = sample_equations(system, params, map.equations.clone())?;
         let q = map.equations.len();
         let n_nl = eq.nonlinear().len();
         let cols = map.columns();
@@ -179,6 +233,11 @@ impl SampleEquations {
             jacobian,
             offset: base,
         })
+    }
+
+    /// The equations.
+    pub fn equations(&self) -> &Equations {
+        &self.eq
     }
 }
 

@@ -5,13 +5,15 @@
 //! 0.6 m, 72 m of rail, 60 modes) with the vehicle starting at `x0` = 5 m, every other value
 //! the description's; [`SyntheticSpec::system`] takes any description text and its overrides.
 //! Parameters are drawn as `sample-params` draws them, profiles as `irregularity` makes them
-//! (spacing 0.1 m over the beam's length), the records as `simulate` runs them (equilibrium
+//! (spacing 0.1 m over the beam's length, or the longest wavelength if longer), the records as `simulate` runs them (equilibrium
 //! start, `dt` 1e-4 s, 1 kHz output): the stored `(z, v, a)` satisfy the equations of motion to
 //! round-off.
 //!
-//! Files written: `params.parquet`, `ranges.parquet`, `system.json`, `simulation.parquet`,
-//! `weights.parquet` (phi of the training samples, [`crate::weights`]).
+//! Files written: `params.parquet`, `ranges.parquet`, `system.json`, `run.json`,
+//! `simulation.parquet`, `weights.parquet` (phi of the training samples, [`crate::weights`]).
 
+use crate::config::WindowConfig;
+use crate::data::{load_dataset, load_split, Dataset, DatasetInfo, Prepared, Split};
 use crate::layout::Layout;
 use crate::weights::{magnitude_weights, WeightConfig};
 use crate::{Error, Result};
@@ -61,12 +63,40 @@ impl SyntheticSpec {
     }
 }
 
+impl SyntheticSpec {
+    /// The vehicle-track model with a rail long enough for records of `duration` s from
+    /// `x0` = 5 m at the highest sampled speed (supports in steps of 60, half as many modes).
+    pub fn vehicle_track_for(duration: f64) -> SystemSource {
+        let mut source = Self::vehicle_track();
+        let system = source
+            .compile()
+            .expect("the repository's description compiles");
+        let values = system.values(&system.nominal());
+        let at = |name: &str| values[system.parameter(name).expect("a vehicle-track parameter")];
+        let hi = |name: &str| {
+            let k = system
+                .sampled_names()
+                .iter()
+                .position(|n| *n == name)
+                .expect("sampled");
+            system.ranges()[k][1]
+        };
+        let need = 5.0 + hi("v_kmh") / 3.6 * duration + 2.0 * (hi("l_c") + hi("l_t")) + 10.0;
+        let n_f = ((need / at("s") / 60.0).ceil() * 60.0).max(120.0);
+        source.values.insert("n_f".to_owned(), Override::Value(n_f));
+        source
+            .values
+            .insert("n_m".to_owned(), Override::Value(n_f / 2.0));
+        source
+    }
+}
+
 impl Default for SyntheticSpec {
     fn default() -> Self {
         Self {
             n_train: 8,
             n_validation: 2,
-            n_test: 0,
+            n_test: 1,
             duration: 0.3,
             seed: 1,
             noise_ratio: 0.02,
@@ -93,6 +123,8 @@ pub fn vehicle_track_layout() -> Layout {
 /// Where [`write_dataset`] put the files.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SyntheticFiles {
+    /// The directory (one shard of every artifact).
+    pub dir: PathBuf,
     /// `params.parquet`.
     pub params: PathBuf,
     /// `simulation.parquet`.
@@ -103,7 +135,43 @@ pub struct SyntheticFiles {
     pub system: PathBuf,
 }
 
-/// Simulates the dataset of `spec` into `dir`.
+impl SyntheticFiles {
+    /// The dataset's description and run controls, as the learning stages read them.
+    pub fn info(&self) -> Result<DatasetInfo> {
+        DatasetInfo::from_dirs(std::slice::from_ref(&self.dir))
+    }
+
+    /// The training and validation samples (with the magnitude weights when `weights`).
+    pub fn load(&self, window: &WindowConfig, weights: bool) -> Result<Dataset> {
+        let w = weights.then_some(self.weights.as_path());
+        load_dataset(
+            &self.info()?,
+            &self.params,
+            std::slice::from_ref(&self.simulation),
+            w,
+            window,
+        )
+    }
+
+    /// The samples of `split` alone, z-scored with `norm` (as `evaluate` reads them).
+    pub fn load_split(
+        &self,
+        window: &WindowConfig,
+        split: Split,
+        norm: &crate::norm::Normalisation,
+    ) -> Result<(Dataset, Prepared)> {
+        load_split(
+            &self.info()?,
+            &self.params,
+            std::slice::from_ref(&self.simulation),
+            window,
+            split,
+            norm,
+        )
+    }
+}
+
+/// Simulates the dataset of `spec` into `dir` (with `run.json`, as `simulate` writes it).
 pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles> {
     let bad = |message: String| Error::Dataset {
         path: dir.to_owned(),
@@ -158,10 +226,23 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         .iter()
         .map(|b| b.length.eval(&system.values(&system.nominal())))
         .fold(0.0, f64::max);
+    // At least the longest wavelength of any profile (the generator's band must fit).
+    let longest = system
+        .profiles
+        .iter()
+        .filter_map(|p| match p {
+            mbd_system::system::Profile::Generated { wavelengths, .. } => Some(wavelengths[1]),
+            _ => None,
+        })
+        .fold(0.0, f64::max);
     let controls = ProfileParams {
         seed: spec.seed,
         dx: 0.1,
-        length: if length > 0.0 { length } else { 1000.0 },
+        length: if length > 0.0 {
+            length.max(longest)
+        } else {
+            1000.0_f64.max(longest)
+        },
     };
     let generators =
         mbd_dataset::profile_generators(&system, &controls).map_err(|e| bad(e.to_string()))?;
@@ -247,7 +328,16 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     }
     let weights_path = dir.join("weights.parquet");
     write_parquet(&weights_path, &wt)?;
+    let settings = crate::checkpoint::DataSettings {
+        run: config,
+        profiles: generators.iter().any(Option::is_some).then_some(controls),
+    };
+    pino_data::system::write_json(
+        &dir.join(pino_data::system::RUN_FILE),
+        &serde_json::to_value(&settings).map_err(|e| bad(e.to_string()))?,
+    )?;
     Ok(SyntheticFiles {
+        dir: dir.to_owned(),
         params: params_path,
         simulation: sim_path,
         weights: weights_path,

@@ -18,7 +18,7 @@
 
 use candle_core::{DType, Device, Tensor};
 use pino_learn::config::{TrainParams, WindowConfig};
-use pino_learn::data::{load_dataset, make_batch, prepare, Dataset};
+use pino_learn::data::{make_batch, prepare, Dataset};
 use pino_learn::loss::{LossContext, LossValues};
 use pino_learn::model::Fno;
 use pino_learn::spectral::Transform;
@@ -48,14 +48,14 @@ fn dataset(dir: &std::path::Path) -> Dataset {
         duration: 0.2,
         ..Default::default()
     };
-    let f = write_dataset(&spec, dir).expect("synthetic dataset");
-    load_dataset(
-        &f.params,
-        &[f.simulation],
-        Some(&f.weights),
-        &WindowConfig::default(),
-    )
-    .expect("load synthetic dataset")
+    let window = WindowConfig {
+        startup_fraction: 0.1,
+        time_stride: 1,
+    };
+    write_dataset(&spec, dir)
+        .expect("synthetic dataset")
+        .load(&window, true)
+        .expect("load synthetic dataset")
 }
 
 fn to_host(t: &Tensor) -> Vec<f32> {
@@ -67,19 +67,19 @@ fn to_host(t: &Tensor) -> Vec<f32> {
 
 /// Forward, loss and backward of `algorithm` on `device`.
 fn run(ds: &Dataset, algorithm: i64, device: &Device) -> Outcome {
-    let mut p = TrainParams::with_algorithm(algorithm);
-    p.width = 8;
+    let mut p = TrainParams::small(algorithm);
     p.modes = 6;
-    p.projection_width = 16;
     p.depth = Some(2);
-    let (model_cfg, train_cfg, _) = p.configs().expect("configs");
+    let (model_cfg, train_cfg, _) = p.configs(&ds.layout).expect("configs");
     let norm = ds.normalisation().expect("normalisation");
     let items = prepare(ds, &norm).expect("prepare");
     let ctx = LossContext {
         config: train_cfg,
         norm,
         dt: ds.dt,
-        f_ref: ds.mean_wheel_load(train_cfg.gravity),
+        f_ref: ds.force_scale(),
+        layout: ds.layout.clone(),
+        system: ds.system().clone(),
     };
     let idx: Vec<usize> = (0..ds.samples.len()).collect();
     let batch = make_batch(&items, &idx, ds.t_points(), device).expect("batch");

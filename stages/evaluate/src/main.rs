@@ -1,10 +1,13 @@
 //! `evaluate` stage: Table 4 (with its truth row) on the test split for every trained model;
 //! on the validation split, flagged in the table, when the dataset has no test split.
 //!
-//! Inputs: `params` (params.parquet), `dataset` (simulation.parquet shards), `models` (one
-//! directory per expansion of `train`). Writes `table4.{parquet,csv,md}`,
-//! `channel_errors.{parquet,csv}`, prediction and training-curve PNGs and `plots.md`.
-use anyhow::{bail, Result};
+//! Inputs: `params` (params.parquet), `dataset` (simulation.parquet shards with the system
+//! description's record), `models` (one directory per expansion of `train`, each trained on
+//! that description). Writes `table4.{parquet,csv,md}`, `channel_errors.{parquet,csv}`, the
+//! engineering indices of the description against the solver (`indices_*`), prediction and
+//! training-curve PNGs and `plots.md`.
+use anyhow::{bail, Context, Result};
+use pino_learn::data::DatasetInfo;
 use pino_learn::eval::{evaluate, EvalOptions, EvalParams};
 use pino_learn::spectral::Transform;
 use stage_kit::StageContext;
@@ -14,6 +17,19 @@ fn run() -> Result<()> {
     let ctx = StageContext::load()?;
     pino_data::metadata::set_stage_origin(&ctx)?;
     let p: EvalParams = ctx.params()?;
+    if ctx.is_check() {
+        // Before anything runs: the channels to plot against the description the command
+        // names (the dataset does not exist yet).
+        let (_, system) = pino_data::system::load(&p.system_values)?;
+        let layout = pino_learn::layout::Layout::of(&system);
+        pino_learn::eval::plot_channels(&p.plot_channels, &layout, &system)
+            .with_context(|| format!("stage `{}`: parameter `plot_channels`", ctx.stage))?;
+        stage_kit::summary("parameters valid");
+        return Ok(());
+    }
+    let info = DatasetInfo::from_dirs(ctx.input_dirs("dataset")?)
+        .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
+    pino_data::system::declare_units(&info.system)?;
     let device = p.device.device()?;
     let params = &ctx.single_input_file("params", "params.parquet")?;
     let sims = ctx.input_files("dataset", "simulation.parquet")?;
@@ -23,11 +39,14 @@ fn run() -> Result<()> {
     }
     let opts = EvalOptions {
         plot_samples: p.plot_samples,
+        plot_channels: p.plot_channels.clone(),
         batch_size: p.batch_size.max(1),
         transform: Transform::for_device(&device),
+        compare_with_paper: p.compare_with_paper,
     };
     let progress = ctx.progress(models.len() as u64);
     let ev = evaluate(
+        &info,
         params,
         &sims,
         &models,
@@ -41,7 +60,7 @@ fn run() -> Result<()> {
         .iter()
         .map(|r| {
             format!(
-                "{}: {:.2}/{:.2}/{:.2}% (peak force {:.2}% of W)",
+                "{}: {:.2}/{:.2}/{:.2}% (peak force {:.2}% of the static force)",
                 r.meta.train.algorithm.id(),
                 r.table4[0],
                 r.table4[1],

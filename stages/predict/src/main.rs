@@ -1,38 +1,40 @@
 //! `predict`: what an engineer exploring designs runs (not a pipeline stage).
 //!
 //! ```text
-//! predict --model DIR [--params sets.yaml | --sweep sweep.yaml] [--set k_s=4e5 ...]
-//!         (--profile irregularity.parquet [--profile-id ID] | --seed N [--profile-id ID])
+//! predict --model DIR [--params sets.yaml | --sweep sweep.yaml] [--set NAME=VALUE ...]
+//!         [--profile profiles.parquet [--profile-id ID] | --seed N [--profile-id ID]]
 //!         [--out predictions.parquet] [--indices indices.parquet [--indices-only]]
-//!         [--strict] [--batch 16] [--x0 20] [--device cpu]
+//!         [--strict] [--batch 16] [--x0 X] [--device cpu]
 //! ```
-//! Writes, for every parameter set, the 14 responses, the contact forces, their first and
-//! second derivatives and the irregularity under the wheels at the model's time points
-//! (`--out`), and/or the engineering indices of every set (`--indices`, docs/indices.md);
-//! `--indices-only` skips the time histories. Sets come from `--params` (a list), `--sweep` (a
-//! grid or a seeded random sample over ranges) and `--set` overrides. Every set outside the
-//! model's training ranges is flagged (column `outside_training_range`) and warned about on
-//! stderr; `--strict` refuses to predict any (exit 2).
+//! Works for the model of any system description: the design parameters are the sampled
+//! parameters of the description stored in the model (the others keep its values), the outputs
+//! its channels. Writes, for every design, the model's outputs (displacements and forces), the
+//! rigid DOFs' first and second derivatives and the excitations at the model's time points
+//! (`--out`), and/or the description's engineering indices of every design (`--indices`,
+//! docs/indices.md); `--indices-only` skips the time histories. Designs come from `--params` (a
+//! list), `--sweep` (a grid or a seeded random sample over ranges) and `--set` overrides; none:
+//! the nominal design. A description with generated profiles needs their points: a profile file
+//! (`--profile`, the `irregularity` artifact) or a seed to generate them with the dataset's
+//! settings (`--seed`). Every design outside the model's training ranges is flagged (column
+//! `outside_training_range`) and warned about on stderr; `--strict` refuses to predict any
+//! (exit 2).
 use anyhow::{Context, Result};
 use clap::Parser;
 use pino_learn::config::DeviceKind;
-use pino_learn::predict::{
-    apply_override, generated_profile, indices_table, parse_param_sets, parse_sweep, read_profile,
-    Placement, Predictor, OUTSIDE_COLUMN,
-};
+use pino_learn::predict::{parse_sweep, Predictor, ProfileChoice, OUTSIDE_COLUMN};
 use std::path::PathBuf;
 
 #[derive(Parser)]
 #[command(
     name = "predict",
-    about = "Predict vehicle responses with a trained PINO-MBD model"
+    about = "Predict the responses of designs with a trained PINO-MBD model"
 )]
 struct Args {
     /// Model directory (model.safetensors + model.json from `train`).
     #[arg(long)]
     model: PathBuf,
-    /// YAML parameter sets: a list of maps (or `sets: [...]`) of parameter names to values;
-    /// missing names take the CRH380 nominal values.
+    /// YAML designs: a list of maps (or `sets: [...]`) of parameter names to values; missing
+    /// names take the nominal values of the model's system description.
     #[arg(long, conflicts_with = "sweep")]
     params: Option<PathBuf>,
     /// YAML sweep: `base: {..}` and `grid: {name: [values] | {from, to, steps}, ..}` (every
@@ -42,18 +44,20 @@ struct Args {
     /// Override `name=value` for every set (repeatable); alone, it varies the nominal set.
     #[arg(long = "set", value_name = "NAME=VALUE")]
     sets: Vec<String>,
-    /// Irregularity profile Parquet with columns `x`, `eta` (m), e.g. the `irregularity` artifact.
+    /// Profile Parquet with columns `x`, `eta` (m) (and `sample_id`, `profile` to choose
+    /// rows), e.g. the `irregularity` artifact.
     #[arg(long, conflicts_with = "seed")]
     profile: Option<PathBuf>,
-    /// Generate the profile with the `irregularity` stage's defaults and this seed.
+    /// Generate the profiles as `irregularity` does, with the model's dataset's spacing and
+    /// length and this seed.
     #[arg(long)]
     seed: Option<u64>,
-    /// Sample id of the profile (in a multi-profile file, or of the generated stream).
+    /// Sample id of the profile (the rows of a file, or the generated stream).
     #[arg(long)]
     profile_id: Option<i64>,
-    /// Rear-wheel position at t = 0 (m), as in `simulate`.
-    #[arg(long, default_value_t = 20.0)]
-    x0: f64,
+    /// Position of the moving frame at t = 0 (m); default: the model's simulation's.
+    #[arg(long)]
+    x0: Option<f64>,
     /// Time histories of every set (Parquet).
     #[arg(long, required_unless_present = "indices")]
     out: Option<PathBuf>,
@@ -98,41 +102,41 @@ fn run() -> Result<()> {
     let read = |path: &PathBuf| {
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
     };
+    let predictor = Predictor::load(&args.model, &device)?;
+    let space = &predictor.space;
     let mut sets = match (&args.params, &args.sweep) {
-        (Some(path), _) => parse_param_sets(&read(path)?, path)?,
-        (None, Some(path)) => parse_sweep(&read(path)?, path)?,
-        (None, None) => vec![vtcd_nominal()],
+        (Some(path), _) => space.parse_sets(&read(path)?, path)?,
+        (None, Some(path)) => parse_sweep(space, &read(path)?, path)?,
+        (None, None) => vec![space.nominal()],
     };
     for s in &args.sets {
-        apply_override(&mut sets, s)?;
+        space.apply_override(&mut sets, s)?;
     }
-    let profile = match (&args.profile, args.seed) {
-        (Some(path), _) => read_profile(path, args.profile_id)?,
-        (None, Some(seed)) => generated_profile(seed, args.profile_id.unwrap_or(0).max(0) as u64)?,
-        (None, None) => anyhow::bail!("give an irregularity: --profile FILE or --seed N"),
+    for (k, s) in sets.iter().enumerate() {
+        space.check(s, &format!("set {k}"))?;
+    }
+    if let Some(id) = args.profile_id.filter(|id| *id < 0) {
+        anyhow::bail!("--profile-id {id}: sample ids are >= 0");
+    }
+    let choice = match (&args.profile, args.seed) {
+        (Some(path), _) => Some(ProfileChoice::File {
+            path: path.clone(),
+            sample_id: args.profile_id,
+        }),
+        (None, Some(seed)) => Some(ProfileChoice::Generated {
+            seed,
+            id: args.profile_id.unwrap_or(0) as u64,
+        }),
+        (None, None) => None,
     };
-    let place = Placement {
-        x0: args.x0,
-        ..Placement::default()
-    };
-    let predictor = Predictor::load(&args.model, &device)?;
+    let profiles = predictor.profiles(choice.as_ref())?;
+    let run_config = predictor.run_config(args.x0)?;
     let meta = &predictor.meta;
     // Where the model was trained: flag, warn, or refuse under --strict.
     let outside = predictor.outside_training(&sets);
     let flagged: Vec<usize> = (0..sets.len())
         .filter(|&k| !outside[k].is_empty())
         .collect();
-    let ranges = meta.training_ranges.as_ref();
-    if ranges.is_none() {
-        let msg = format!(
-            "{}: the model records no training ranges (trained before they were stored): its designs cannot be checked",
-            args.model.join("model.json").display()
-        );
-        if args.strict {
-            return Err(Refused(format!("--strict: {msg}")).into());
-        }
-        eprintln!("predict: warning: {msg}");
-    }
     if !flagged.is_empty() {
         let shown: Vec<String> = flagged
             .iter()
@@ -146,7 +150,7 @@ fn run() -> Result<()> {
             "{} of {} set(s) outside the model's training ranges (from {}), where its predictions are extrapolations: {}{}",
             flagged.len(),
             sets.len(),
-            ranges.map_or("-", |r| r.source.as_str()),
+            meta.training_ranges.source,
             shown.join("; "),
             if flagged.len() > 5 { "; ..." } else { "" }
         );
@@ -159,11 +163,11 @@ fn run() -> Result<()> {
         .iter()
         .map(|o| pino_learn::predict::outside_flag(o))
         .collect();
-    pino_data::metadata::set_origin(origin(&args, &sets))?;
+    pino_data::metadata::set_origin(origin(&args, space.names(), &sets, &run_config))?;
     let started = std::time::Instant::now();
     let mut wrote = Vec::new();
     if let (Some(out), false) = (&args.out, args.indices_only) {
-        let mut table = predictor.histories(&sets, &profile, &place, args.batch)?;
+        let mut table = predictor.histories(&sets, &profiles, &run_config, args.batch)?;
         let per_row = (table.num_rows() / sets.len().max(1)).max(1);
         let rows: Vec<String> = flags
             .iter()
@@ -175,8 +179,8 @@ fn run() -> Result<()> {
     }
     if let Some(path) = &args.indices {
         let cfg = predictor.index_config()?;
-        let ix = predictor.indices(&sets, &profile, &place, &cfg, args.batch)?;
-        let table = indices_table(&sets, &ix, &outside, &cfg)?;
+        let ix = predictor.indices(&sets, &profiles, &run_config, &cfg, args.batch)?;
+        let table = predictor.indices_table(&sets, &ix, &outside)?;
         pino_data::write_parquet(path, &table)?;
         wrote.push(path.display().to_string());
     }
@@ -190,10 +194,6 @@ fn run() -> Result<()> {
         wrote.join(", ")
     );
     Ok(())
-}
-
-fn vtcd_nominal() -> pino_learn::predict::NominalParams {
-    pino_learn::predict::NominalParams::NOMINAL
 }
 
 fn main() {
@@ -210,18 +210,22 @@ fn main() {
 }
 
 /// The origin written into the output: stage and unit `predict`, and as parameters the
-/// resolved parameter sets and everything else that decides the numbers (the model directory
-/// as given, the profile's source, the placement, the device).
-fn origin(args: &Args, sets: &[pino_learn::predict::NominalParams]) -> pino_data::metadata::Origin {
+/// resolved designs and everything else that decides the numbers (the model directory as
+/// given, the profile's source, the run controls, the device).
+fn origin(
+    args: &Args,
+    names: &[String],
+    sets: &[Vec<f64>],
+    run: &mbd_engine::RunConfig,
+) -> pino_data::metadata::Origin {
     let sets: Vec<serde_json::Value> = sets
         .iter()
         .map(|p| {
-            let values = p.to_array();
             serde_json::Value::Object(
-                pino_data::schema::PARAMETERS
+                names
                     .iter()
-                    .zip(values)
-                    .map(|(name, v)| (name.to_string(), serde_json::Value::from(v)))
+                    .zip(p)
+                    .map(|(name, v)| (name.clone(), serde_json::Value::from(*v)))
                     .collect(),
             )
         })
@@ -232,7 +236,7 @@ fn origin(args: &Args, sets: &[pino_learn::predict::NominalParams]) -> pino_data
         "profile": args.profile.as_ref().map(|p| p.display().to_string()),
         "seed": args.seed,
         "profile_id": args.profile_id,
-        "x0": args.x0,
+        "run": run,
         "device": args.device,
     });
     pino_data::metadata::Origin::stage_unit("predict", 0, 1, &params)
