@@ -249,10 +249,9 @@ pub struct TrainConfig {
     pub lambda_ode: f64,
     /// Weight of the direct-derivative loss (algorithms 4, 5).
     pub lambda_d: f64,
-    /// Weight of an extra relative-L2 term on the rail channels `z_r1..z_r4` alone (0 = the
-    /// paper's loss; older models read as 0).
-    #[serde(default)]
-    pub rail_weight: f64,
+    /// Weight of an extra relative-L2 term on the beam deflections alone (the solutions after
+    /// the rigid DOFs: `z_r1..z_r4` of the vehicle-track model; 0 = the paper's loss).
+    pub beam_weight: f64,
     /// Target residual level rho of the weighted ODE loss (algorithm 3).
     pub rho: f64,
     /// Seed of initialisation and shuffling.
@@ -287,7 +286,7 @@ impl TrainConfig {
         for (f, v) in [
             ("lambda_ode", self.lambda_ode),
             ("lambda_d", self.lambda_d),
-            ("rail_weight", self.rail_weight),
+            ("beam_weight", self.beam_weight),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
                 return bad(f, v.to_string(), ">= 0");
@@ -342,8 +341,8 @@ pub struct TrainParams {
     pub lambda_ode: f64,
     /// Derivative loss weight.
     pub lambda_d: f64,
-    /// Weight of the extra rail-channel data term.
-    pub rail_weight: f64,
+    /// Weight of the extra data term on the beam deflections.
+    pub beam_weight: f64,
     /// Target residual level of the weighted ODE loss.
     pub rho: f64,
     /// Seed.
@@ -364,7 +363,7 @@ impl TrainParams {
         serde_json::from_value(serde_json::json!({
             "algorithm": algorithm, "width": 8, "modes": 8, "projection_width": 16, "padding": 0,
             "epochs": 2, "batch_size": 2, "learning_rate": 1e-3, "lr_decay": 0.75,
-            "lr_decay_every": 10, "lambda_ode": 0.25, "lambda_d": 1.0, "rail_weight": 0.0,
+            "lr_decay_every": 10, "lambda_ode": 0.25, "lambda_d": 1.0, "beam_weight": 0.0,
             "rho": 0.025, "seed": 1, "startup_fraction": 0.1, "time_stride": 1
         }))
         .expect("complete parameters")
@@ -395,7 +394,7 @@ impl TrainParams {
             lr_decay_every: self.lr_decay_every,
             lambda_ode: self.lambda_ode,
             lambda_d: self.lambda_d,
-            rail_weight: self.rail_weight,
+            beam_weight: self.beam_weight,
             rho: self.rho,
             seed: self.seed,
         };

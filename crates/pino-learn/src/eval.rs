@@ -1012,7 +1012,8 @@ fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOption
          differences of the predicted rigid DOFs ({}) against the solver's exact `_v` / `_a` \
          (interior points). *Peak force error*: per sample and force `|max_t f_pred - max_t \
          f_exact|`, mean over samples and forces, in % of the sample's static contact force \
-         (the static wheel load W of the vehicle-track model). *{TRUTH_NAME}*: the exact \
+         (the mean static force of the elements on the moving points: the wheel load W of the \
+         vehicle-track model). *{TRUTH_NAME}*: the exact \
          solutions fed through the same metric: 0 on solutions and forces, and the floor any \
          model has on the derivatives at this output rate.\n",
         layout.solutions,

@@ -542,6 +542,17 @@ pub fn write_indices(
         return write_atomic(&out.join("indices_errors.md"), md.as_bytes());
     }
     let columns = inputs.columns();
+    // Every index and its exact value beside it carry the index's unit.
+    let units: Vec<(String, String)> = columns
+        .iter()
+        .flat_map(|c| {
+            [
+                (c.name.clone(), c.unit.clone()),
+                (format!("{}_exact", c.name), c.unit.clone()),
+            ]
+        })
+        .collect();
+    pino_data::units::declare(units.iter().map(|(n, u)| (n.as_str(), u.as_str())))?;
     let value = |rows: &[Vec<f64>], s: usize, k: usize| rows[s][k];
     // Errors table: one row per (algorithm, index).
     let (mut alg, mut name, mut unit) = (Vec::new(), Vec::new(), Vec::new());

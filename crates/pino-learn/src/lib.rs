@@ -1,32 +1,37 @@
-//! The learning half of pino-mbd: a 1-D Fourier neural operator over time that maps a
-//! vehicle's 14 parameters and the track irregularity under its four wheels to the 14
-//! solution channels of the vehicle-track model, trained as FNO, PINO or PINO-MBD
-//! (`docs/learning.md`, the paper's sections 3 and 4.2).
+//! The learning half of pino-mbd: a 1-D Fourier neural operator over time that maps a described
+//! system's sampled parameters and the excitations under its elements to its solution channels,
+//! trained as FNO, PINO or PINO-MBD (`docs/learning.md`, the paper's sections 3 and 4.2). Every
+//! channel name and count comes from the system description ([`layout::Layout`]).
 //!
 //! Tensors (one sample, `T` time points of the training window, spacing `dt`):
-//! - input `a` `[T, 19]`: `t`, `eta_1..eta_4`, the 14 parameters broadcast over time;
-//! - output `u` `[T, 14]`: `z_c, beta_c, z_t1, beta_t1, z_t2, beta_t2, z_w1..z_w4, z_r1..z_r4`;
+//! - input `a` `[T, 1 + E + P]`: `t`, the `E` excitation columns, the `P` sampled parameters
+//!   broadcast over time;
+//! - output `u` `[T, S + F]`: the `S` solutions (the rigid DOFs' displacements first, then the
+//!   displacements stored under moving points and at sensors) and the `F` stored element forces;
 //!
-//! every channel z-scored with training-split statistics ([`norm`]). The model
-//! ([`model::Fno`]) is
+//! every channel z-scored with training-split statistics ([`norm`]). For the vehicle-track
+//! description that is 19 inputs and `z_c, beta_c, .., z_w4, z_r1..z_r4, p_1..p_4` (18 outputs,
+//! 14 solutions). The model ([`model::Fno`]) is
 //! ```text
 //! u = Q( (K_L + W_L) ... GELU((K_1 + W_1)( P(a) )) )      K_l v = F^-1( R_l . F v )  (lowest M modes)
 //! ```
 //! with the spectral convolution `K` in [`spectral`]. Derivatives of predictions are central
-//! differences ([`physics`]); the losses of the five algorithms of Table 3 are in [`loss`]:
+//! differences; the losses of the five algorithms of Table 3 are in [`loss`]:
 //! ```text
-//! L_data  = mean_k ||u_k - u*_k|| / ||u*_k||                      (z-scored, 14 channels)
-//! L_deriv = relL2(v) + relL2(a)                                   (10 vehicle DOFs, z-scored)
+//! L_data  = mean_k ||u_k - u*_k|| / ||u*_k||                      (z-scored outputs)
+//! L_deriv = relL2(v) + relL2(a)                                   (the rigid DOFs, z-scored)
 //! L_ode_global = mean_{i,t} |R_i| / F_ref      L_ode_phi = mean_{i,t} rho |R_i| / phi_ki
 //! ```
-//! `R_i` the ten vehicle equations in physical units (N, N m), Hertz contact included.
+//! `R_i` the equations of motion of the DOFs whose forces close on the outputs and inputs, in
+//! physical units (N, N m), computed by the engine's own element code ([`residual`]).
 //!
-//! Modules: [`config`] (algorithms, sizes), [`data`] (Parquet -> samples, streamed),
-//! [`store`] (sample series in memory or spilled), [`norm`],
-//! [`spectral`], [`model`], [`physics`], [`loss`], [`optim`] (Adam, step decay),
-//! [`checkpoint`], [`train`], [`eval`] (Table 4; its files and plots are written by the
-//! `report` crate), [`indices_eval`] (engineering indices), [`predict`], and [`synthetic`]
-//! (small consistent datasets for tests and benchmarks).
+//! Modules: [`layout`] (channels from the description), [`config`] (algorithms, sizes),
+//! [`data`] (Parquet -> samples, streamed), [`store`] (sample series in memory or spilled),
+//! [`norm`], [`spectral`], [`model`], [`residual`] and [`loss`], [`weights`] (ODE magnitude
+//! weights), [`optim`] (Adam, step decay), [`checkpoint`], [`train`], [`eval`] (Table 4; its
+//! files and plots are written by the `report` crate), [`indices_eval`] (the description's
+//! engineering indices of a prediction), [`predict`], and [`synthetic`] (small consistent
+//! datasets for tests and benchmarks).
 #![warn(missing_docs)]
 
 pub mod checkpoint;

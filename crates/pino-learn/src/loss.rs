@@ -8,7 +8,7 @@
 //! L_ode_global = mean_{i,t} |R_i| / F_ref                (F_ref = mean static contact force)
 //! L_ode_phi    = mean_{i,t} rho |R_i| / phi_ki
 //! total        = L_data [+ lambda_ode L_ode_* | + lambda_d L_deriv]   (Table 3)
-//!                [+ rail_weight relL2(w, w*)]            (optional balance of the beam
+//!                [+ beam_weight relL2(w, w*)]            (optional balance of the beam
 //!                                                         deflection channels)
 //! ```
 
@@ -243,11 +243,11 @@ impl LossContext {
             Some(e) => (data + e.to_dtype(DType::F32)?)?,
             None => data,
         };
-        if self.config.rail_weight > 0.0 {
+        if self.config.beam_weight > 0.0 {
             let (d, n) = (self.dofs(), self.layout.solutions - self.dofs());
             let rail = rel_l2(&u_n.narrow(2, d, n)?, &batch.u.narrow(2, d, n)?)?;
-            values.rail = rail.to_scalar::<f32>()? as f64;
-            total = (total + (rail * self.config.rail_weight)?)?;
+            values.beam = rail.to_scalar::<f32>()? as f64;
+            total = (total + (rail * self.config.beam_weight)?)?;
         }
         values.total = total.to_scalar::<f32>()? as f64;
         Ok((total, values))
@@ -280,8 +280,8 @@ pub struct LossValues {
     pub deriv: f64,
     /// `L_ode_global` or `L_ode_phi`.
     pub ode: f64,
-    /// Relative L2 of the rail channels, when `rail_weight > 0`.
-    pub rail: f64,
+    /// Relative L2 of the beam deflections, when `beam_weight > 0`.
+    pub beam: f64,
 }
 
 #[cfg(test)]

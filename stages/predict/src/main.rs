@@ -103,6 +103,7 @@ fn run() -> Result<()> {
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
     };
     let predictor = Predictor::load(&args.model, &device)?;
+    pino_data::system::declare_units(predictor.system())?;
     let space = &predictor.space;
     let mut sets = match (&args.params, &args.sweep) {
         (Some(path), _) => space.parse_sets(&read(path)?, path)?,
