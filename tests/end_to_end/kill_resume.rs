@@ -39,13 +39,7 @@ fn next(state: &mut u64) -> u64 {
 }
 
 fn workspace() -> pino_mbd_tests::TempWorkspace {
-    let ws = pino_mbd_tests::TempWorkspace::new();
-    std::fs::copy(
-        pino_mbd_tests::workspace_root().join("pipeline.yaml"),
-        ws.path().join("pipeline.yaml"),
-    )
-    .unwrap();
-    ws
+    pino_mbd_tests::product_workspace("pipeline.yaml")
 }
 
 /// Every output file of every stage: path relative to the workspace (identities included,

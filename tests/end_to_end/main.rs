@@ -7,6 +7,8 @@
 //! wiring, shards and the train matrix), the outputs are the public schema, and a second run
 //! is a no-op. Accuracy is not asserted here (2 epochs learn little); the learning tests do.
 
+use mbd_system::system::Role;
+use pino_data::system::channel_names;
 use pino_data::{read_parquet, schema};
 use pino_mbd_tests::output_text;
 use pino_mbd_tests::TINY;
@@ -56,12 +58,13 @@ fn named<'a>(files: &'a [PathBuf], name: &str) -> Vec<&'a PathBuf> {
 
 #[test]
 fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
-    let ws = pino_mbd_tests::TempWorkspace::new();
-    std::fs::copy(
-        pino_mbd_tests::workspace_root().join("pipeline.yaml"),
-        ws.path().join("pipeline.yaml"),
-    )
-    .unwrap();
+    let ws = pino_mbd_tests::product_workspace("pipeline.yaml");
+    let (_, system) = pino_mbd_tests::system("vtcd", &[]);
+    let columns: Vec<String> = [schema::SAMPLE_ID, schema::TIME]
+        .into_iter()
+        .map(str::to_owned)
+        .chain(system.channels.iter().map(|c| c.name.clone()))
+        .collect();
 
     let first = pipeline(ws.path(), &["run"]);
     assert!(first.status.success(), "{}", output_text(&first));
@@ -74,12 +77,16 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     for file in &shards {
         let t = read_parquet(file, None).unwrap();
         let names: Vec<String> = t.names().map(str::to_owned).collect();
-        assert_eq!(names, schema::simulation_columns(), "{}", file.display());
+        assert_eq!(names, columns, "{}", file.display());
         let mut these: Vec<i64> = t.i64(schema::SAMPLE_ID).unwrap().to_vec();
         these.dedup();
         ids.extend(these);
-        for p in schema::CONTACT_FORCES {
-            assert!(t.f64(p).unwrap().iter().all(|x| x.is_finite() && *x >= 0.0));
+        for p in channel_names(&system, Role::Force) {
+            assert!(t
+                .f64(&p)
+                .unwrap()
+                .iter()
+                .all(|x| x.is_finite() && *x >= 0.0));
         }
     }
     ids.sort();
@@ -89,7 +96,9 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     let weights = show(ws.path(), "weights", &[]);
     let w = read_parquet(named(&weights, "weights.parquet")[0], None).unwrap();
     assert_eq!(w.i64(schema::SAMPLE_ID).unwrap(), &[0, 1, 2, 3]);
-    for c in schema::phi_columns() {
+    let phi = pino_learn::layout::Layout::of(&system).phi_columns();
+    assert_eq!(phi.len(), 10, "one weight per vehicle DOF: {phi:?}");
+    for c in phi {
         assert!(
             w.f64(&c).unwrap().iter().all(|x| x.is_finite() && *x > 0.0),
             "{c}"

@@ -85,8 +85,8 @@ PARAM_UNITS = {
     "k_p": "N/m", "c_p": "N s/m", "k_s": "N/m", "c_s": "N s/m", "l_c": "m", "l_t": "m",
     "v_kmh": "km/h", "k_f": "N/m", "c_f": "N s/m",
 }
-CONSTANT_UNITS = {
-    "gravity": "m/s^2", "wheel_radius": "m", "dt": "s",
+CONSTANT_UNITS = {  # provenance.parquet: the run controls of simulate
+    "dt": "s", "duration": "s", "output_every": "-", "x0": "m",
     "startup_zero_fraction": "-", "startup_ramp_fraction": "-",
 }
 I64, F64, STR = "int64", "double", "string"
@@ -147,7 +147,7 @@ EXPECTED = {
     "weights.parquet": (
         "weights",
         [("sample_id", I64, "-")]
-        + [(f"phi_{i + 1}", F64, "N m" if d.startswith("beta") else "N") for i, d in enumerate(DOFS)],
+        + [(f"phi_{d}", F64, "N m" if d.startswith("beta") else "N") for d in DOFS],
     ),
     "history.parquet": (
         "train",
@@ -371,7 +371,7 @@ def recompute(arts, say):
         f"JOIN read_parquet({lit(params.path)}) p USING (sample_id) WHERE split = 'train') "
         f"SELECT (SELECT count(*) FROM s), (SELECT count(*) FROM read_parquet({lit(w.path)})), "
         f"(SELECT count(*) FROM read_parquet({lit(w.path)}) SEMI JOIN s USING (sample_id)), "
-        f"(SELECT min(least({', '.join(f'phi_{i}' for i in range(1, 11))})) FROM read_parquet({lit(w.path)}))"
+        f"(SELECT min(least({', '.join(f'phi_{d}' for d in DOFS)})) FROM read_parquet({lit(w.path)}))"
     ).fetchall()[0]
     check(row[0] == row[1] == row[2], f"{w.path}: {row[1]} rows, {row[2]} of the {row[0]} simulated training samples")
     check(row[3] > 0, f"{w.path}: a phi is not positive ({row[3]})")

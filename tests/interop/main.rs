@@ -12,7 +12,7 @@
 //! `PINO_PYTHON` names another interpreter): without them this test fails, it never skips.
 
 use pino_mbd_tests::output_text;
-use pino_mbd_tests::{bin, pipeline_bin_dir, workspace_root, TempWorkspace, TINY};
+use pino_mbd_tests::{bin, pipeline_bin_dir, product_workspace, workspace_root, TINY};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -63,13 +63,8 @@ fn output_dir(ws: &Path, target: &str, file: &str) -> PathBuf {
 #[test]
 fn every_artifact_reads_the_same_in_pyarrow_polars_and_duckdb() {
     let python = python();
-    let ws = TempWorkspace::new();
+    let ws = product_workspace("pipeline.yaml");
     let ws = ws.path();
-    std::fs::copy(
-        workspace_root().join("pipeline.yaml"),
-        ws.join("pipeline.yaml"),
-    )
-    .unwrap();
     bin("pipeline"); // a clear message when the binaries are not built or stale
     let release = ws.join("target/release");
     std::fs::create_dir_all(&release).unwrap();

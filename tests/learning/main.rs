@@ -62,9 +62,13 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     )
     .unwrap();
     let inputs = serde_json::json!({"params": [data], "dataset": [data], "weights": [data]});
+    // Every training parameter is required (their one home is the pipeline file).
     let small = |alg: i64| {
         serde_json::json!({"algorithm": alg, "width": 8, "modes": 6, "projection_width": 16,
-                           "epochs": 2, "batch_size": 2})
+                           "padding": 0, "epochs": 2, "batch_size": 2, "learning_rate": 1e-3,
+                           "lr_decay": 0.75, "lr_decay_every": 10, "lambda_ode": 0.25,
+                           "lambda_d": 1.0, "beam_weight": 0.0, "rho": 0.025, "seed": 1,
+                           "startup_fraction": 0.1, "time_stride": 1})
     };
 
     // Two algorithms: 3 uses phi and the ODE residual, 5 the derivative loss and depth 5.
@@ -104,7 +108,8 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     let (ctx, out) = context(
         dir,
         "evaluate",
-        serde_json::json!({"plot_samples": 1}),
+        serde_json::json!({"plot_samples": 1, "plot_channels": ["z_c", "z_w1"], "batch_size": 8,
+                            "compare_with_paper": true}),
         serde_json::json!({"params": [data], "dataset": [data], "models": models}),
     );
     let o = run("evaluate", &["--context", ctx.to_str().unwrap()]);
@@ -158,7 +163,8 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     let (ctx, out) = context(
         dir,
         "evaluate-no-test",
-        serde_json::json!({"plot_samples": 0}),
+        serde_json::json!({"plot_samples": 0, "plot_channels": ["z_c", "z_w1"], "batch_size": 8,
+                            "compare_with_paper": false}),
         serde_json::json!({"params": [no_test], "dataset": [no_test], "models": models}),
     );
     let o = run("evaluate", &["--context", ctx.to_str().unwrap()]);
@@ -284,7 +290,11 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     let (ctx, _) = context(
         dir,
         "bad-alg",
-        serde_json::json!({"algorithm": 6}),
+        {
+            let mut p = small(3);
+            p["algorithm"] = 6.into();
+            p
+        },
         inputs.clone(),
     );
     let o = run("train", &["--context", ctx.to_str().unwrap()]);
@@ -304,8 +314,10 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         }
     }
     pino_data::write_parquet(&broken.join("simulation.parquet"), &cut).unwrap();
-    let prov = pino_data::provenance::PROVENANCE_FILE;
-    std::fs::copy(data.join(prov), broken.join(prov)).unwrap();
+    // The dataset's records beside it (the description, the run controls).
+    for record in [mbd_system::SYSTEM_FILE, pino_data::system::RUN_FILE] {
+        std::fs::copy(data.join(record), broken.join(record)).unwrap();
+    }
     let (ctx, _) = context(
         dir,
         "bad-col",
@@ -341,13 +353,26 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
 
 #[test]
 fn pipeline_files_parameter_blocks_parse_into_the_learning_types() {
-    for file in ["pipeline.yaml", "configs/paper.yaml", "configs/long.yaml"] {
+    for (file, system) in [
+        ("pipeline.yaml", "vtcd"),
+        ("configs/paper.yaml", "vtcd"),
+        ("configs/long.yaml", "vtcd"),
+        ("configs/quarter-car.yaml", "quarter-car"),
+        ("configs/bridge.yaml", "bridge"),
+    ] {
+        let (_, described) = pino_mbd_tests::system(system, &[]);
+        let layout = pino_learn::layout::Layout::of(&described);
         for alg in 1..=5 {
             let mut params = pino_mbd_tests::stage_params(file, "train");
             params["algorithm"] = serde_json::Value::from(alg);
             let p: pino_learn::config::TrainParams = serde_json::from_value(params).unwrap();
-            let (m, _, _) = p.configs().unwrap_or_else(|e| panic!("{file}: {e}"));
+            let (m, _, _) = p.configs(&layout).unwrap_or_else(|e| panic!("{file}: {e}"));
             assert_eq!(m.depth, if alg == 5 { 5 } else { 3 }, "{file}");
+            assert_eq!(
+                (m.in_channels, m.out_channels),
+                (layout.n_inputs(), layout.n_outputs()),
+                "{file}"
+            );
         }
         let _: pino_learn::eval::EvalParams =
             serde_json::from_value(pino_mbd_tests::stage_params(file, "evaluate"))

@@ -436,8 +436,8 @@ fn physics_stages_on_slurm_are_byte_identical_to_local() {
         "sample-params.n_validation=1",
         "irregularity.length=120.0",
         "simulate.duration=0.2",
-        "simulate.n_f=200",
-        "simulate.n_m=100",
+        "constants.system_values.n_f=200",
+        "constants.system_values.n_m=100",
     ];
     let run = |ws: &Path, executor: &str| {
         let mut c = Command::new(pino_mbd_tests::bin("pipeline"));
@@ -459,15 +459,7 @@ fn physics_stages_on_slurm_are_byte_identical_to_local() {
             String::from_utf8_lossy(&o.stderr)
         );
     };
-    let mk = || {
-        let ws = pino_mbd_tests::TempWorkspace::new();
-        std::fs::copy(
-            pino_mbd_tests::workspace_root().join("pipeline.yaml"),
-            ws.path().join("pipeline.yaml"),
-        )
-        .unwrap();
-        ws
-    };
+    let mk = || pino_mbd_tests::product_workspace("pipeline.yaml");
     let (a, b) = (mk(), mk());
     run(a.path(), "slurm");
     run(b.path(), "local");

@@ -215,6 +215,114 @@ pub fn stage_params(file: &str, stage: &str) -> serde_json::Value {
         .clone()
 }
 
+/// The resolved command of `stage` in the workspace's pipeline file `file`: `cmd[0]` as
+/// written, then its arguments with `${constants.NAME}` substituted (the description path).
+pub fn stage_cmd(file: &str, stage: &str) -> Vec<String> {
+    let root = workspace_root();
+    let p = orchestrator::spec::Pipeline::load(
+        &root,
+        &root.join(file),
+        &orchestrator::spec::LoadOptions::default(),
+    )
+    .unwrap_or_else(|e| panic!("{file}: {e}"));
+    p.stage(stage)
+        .unwrap_or_else(|| panic!("{file}: no stage `{stage}`"))
+        .cmd
+        .clone()
+}
+
+/// Path of the shipped system description `systems/<name>.yaml` (`vtcd`, `quarter-car`,
+/// `bridge`).
+pub fn system_path(name: &str) -> PathBuf {
+    workspace_root()
+        .join("systems")
+        .join(format!("{name}.yaml"))
+}
+
+/// The shipped description `name` as a run records it (`system.json`), with the overrides
+/// `values`, and compiled; panics with every problem of the description.
+pub fn system(
+    name: &str,
+    values: &[(&str, mbd_system::Override)],
+) -> (mbd_system::SystemSource, mbd_system::System) {
+    let source = mbd_system::SystemSource::read(
+        &system_path(name),
+        values
+            .iter()
+            .map(|(n, v)| ((*n).to_owned(), v.clone()))
+            .collect(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let system = source.compile().unwrap_or_else(|e| panic!("{e}"));
+    (source, system)
+}
+
+/// Copies the shipped descriptions (`systems/*.yaml`) into the workspace `ws`: the pipeline
+/// files name their description relative to the workspace (`constants.system`).
+pub fn copy_systems(ws: &Path) {
+    let to = ws.join("systems");
+    std::fs::create_dir_all(&to).expect("systems directory");
+    for entry in std::fs::read_dir(workspace_root().join("systems")).expect("systems/") {
+        let p = entry.expect("systems/ entry").path();
+        if p.extension().is_some_and(|e| e == "yaml") {
+            std::fs::copy(&p, to.join(p.file_name().expect("a file name")))
+                .expect("copy a description");
+        }
+    }
+}
+
+/// A scratch workspace holding the workspace's pipeline file `file` as `pipeline.yaml` and
+/// the shipped descriptions under `systems/`.
+pub fn product_workspace(file: &str) -> TempWorkspace {
+    let ws = TempWorkspace::new();
+    std::fs::copy(workspace_root().join(file), ws.path().join("pipeline.yaml"))
+        .expect("copy the pipeline file");
+    copy_systems(ws.path());
+    ws
+}
+
+/// Writes the context file `<dir>/<name>.json` of a stage run by hand (as the orchestrator
+/// would: `params`, `inputs` as JSON, an empty output directory `<dir>/<name>-out`), with
+/// `check` set for check mode. Returns (context path, output directory).
+pub fn stage_context(
+    dir: &Path,
+    name: &str,
+    params: serde_json::Value,
+    inputs: serde_json::Value,
+    check: bool,
+) -> (PathBuf, PathBuf) {
+    let out = dir.join(format!("{name}-out"));
+    std::fs::create_dir_all(&out).expect("output directory");
+    let mut ctx = serde_json::json!({
+        "protocol": 1, "stage": name, "params": params, "inputs": inputs, "output": out,
+    });
+    if check {
+        ctx["check"] = serde_json::Value::Bool(true);
+    }
+    let path = dir.join(format!("{name}.json"));
+    std::fs::write(&path, serde_json::to_string(&ctx).expect("JSON")).expect("context file");
+    (path, out)
+}
+
+/// Runs the stage binary `exe` by hand: `exe [DESCRIPTION] --context CTX` with
+/// `RAYON_NUM_THREADS=threads`.
+pub fn run_stage(
+    exe: &str,
+    description: Option<&Path>,
+    ctx: &Path,
+    threads: usize,
+) -> std::process::Output {
+    let mut cmd = std::process::Command::new(bin(exe));
+    if let Some(d) = description {
+        cmd.arg(d);
+    }
+    cmd.arg("--context")
+        .arg(ctx)
+        .env("RAYON_NUM_THREADS", threads.to_string())
+        .output()
+        .expect("the stage binary runs")
+}
+
 /// `--set` overrides of the real `pipeline.yaml` that keep the real physics and wiring but
 /// cost seconds in the dev profile (the end-to-end and interop tests).
 /// The track is 200 fasteners (120 m): the front wheel starts at most 20 + 2 (1.2 * 9 + 1.2 *
@@ -226,8 +334,8 @@ pub const TINY: &[&str] = &[
     "sample-params.n_test=1",
     "irregularity.length=120.0",
     "simulate.duration=0.5",
-    "simulate.n_f=200",
-    "simulate.n_m=100",
+    "constants.system_values.n_f=200",
+    "constants.system_values.n_m=100",
     "train.epochs=2",
     "train.width=8",
     "train.modes=8",

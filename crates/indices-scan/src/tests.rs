@@ -260,7 +260,7 @@ fn cfg(fraction: f64) -> IndexConfig {
 fn the_polars_aggregation_equals_the_plain_rust_fold() {
     let fx = vtcd(&|_, _| {});
     // The vehicle-track description samples the 14 parameters of the public schema, in order.
-    assert_eq!(fx.system.sampled_names(), schema::PARAMETERS);
+    assert_eq!(fx.system.sampled_names(), vtcd::params::PARAMETER_NAMES);
     let c = cfg(0.1);
     let got = fx.compute(&c).unwrap();
     assert!(got.railway);
@@ -331,7 +331,7 @@ fn the_polars_aggregation_equals_the_plain_rust_fold() {
     let t = pino_data::read_parquet(&fx.dir.path().join("indices.parquet"), None).unwrap();
     let names: Vec<&str> = t.names().collect();
     assert_eq!(names.len(), 2 + 14 + 14 + 3);
-    assert_eq!(names[2..16], schema::PARAMETERS);
+    assert_eq!(names[2..16], vtcd::params::PARAMETER_NAMES);
     let index_names: Vec<&str> = pino_indices::INDEX_COLUMNS.iter().map(|c| c.name).collect();
     assert_eq!(names[16..30], index_names);
     assert_eq!(names[30..], ["window_s", "pass", "failed"]);

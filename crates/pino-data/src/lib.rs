@@ -124,14 +124,6 @@ pub enum Error {
     /// The system description could not be read, compiled or matched.
     #[error("{0}")]
     System(String),
-    /// A dataset's provenance record is missing or disagrees with a stage's constants.
-    #[error("{path}: {message}")]
-    Provenance {
-        /// The provenance file.
-        path: PathBuf,
-        /// What is wrong (names the constant and both values).
-        message: String,
-    },
 }
 
 /// Result alias of this crate.

@@ -157,7 +157,7 @@ mod tests {
         // Row groups of two rows: sample 0 spans two batches.
         write_parquet_with(&path, &t, 2).unwrap();
         let mut got = Vec::new();
-        for_each_record::<Error>(&[path.clone()], &[schema::TIME], &mut |_, r| {
+        for_each_record::<Error>(std::slice::from_ref(&path), &[schema::TIME], &mut |_, r| {
             got.push((r.id, r.columns[0].clone()));
             Ok(())
         })

@@ -116,8 +116,8 @@ pub fn same(a_path: &Path, a: &SystemSource, b_path: &Path, b: &SystemSource) ->
 }
 
 /// Declares the unit of every column `system` defines: its parameters (as written in the
-/// description), its stored channels and the magnitude weight `phi_<dof>` of every DOF (N, or
-/// N m for a pitch).
+/// description), its stored channels, the magnitude weight `phi_<dof>` of every DOF (N, or
+/// N m for a pitch) and its index columns (the railway family's when it binds them, its own).
 pub fn declare_units(system: &System) -> Result<()> {
     let mut pairs: Vec<(String, String)> = Vec::new();
     for p in &system.parameters {
@@ -135,8 +135,8 @@ pub fn declare_units(system: &System) -> Result<()> {
         };
         pairs.push((phi_column(&d.name), unit.to_owned()));
     }
-    for ix in &system.indices {
-        pairs.push((ix.name.clone(), ix.unit.clone()));
+    for ix in pino_indices::IndexSet::of(system).columns(system) {
+        pairs.push((ix.name, ix.unit));
     }
     crate::units::declare(pairs.iter().map(|(n, u)| (n.as_str(), u.as_str())))
 }

@@ -14,10 +14,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::schema::{
-    self, ACCELERATION_SUFFIX, CONTACT_FORCES, ETA_UNDER_WHEEL, PARAMETERS, RAIL_UNDER_WHEEL,
-    VEHICLE_DOFS, VELOCITY_SUFFIX,
-};
+use crate::schema;
 
 /// Arrow field-metadata key of a column's unit.
 pub const UNIT_KEY: &str = "unit";
@@ -29,12 +26,6 @@ pub const DIMENSIONLESS: &str = "-";
 /// `unit` column.
 pub const PER_ROW: &str = "{unit}";
 
-/// Units of the 14 sampled parameters, in [`PARAMETERS`] order.
-const PARAMETER_UNITS: [&str; 14] = [
-    "kg", "kg m^2", "kg", "kg m^2", "kg", "N/m", "N s/m", "N/m", "N s/m", "m", "m", "km/h", "N/m",
-    "N s/m",
-];
-
 /// Columns that are not signals of the model: keys, labels, scores and bookkeeping.
 const NAMED: &[(&str, &str)] = &[
     // Keys and labels of every artifact.
@@ -43,15 +34,14 @@ const NAMED: &[(&str, &str)] = &[
     (schema::TIME, "s"),
     (schema::TRACK_X, "m"),
     (schema::TRACK_ETA, "m"),
+    (schema::PROFILE, DIMENSIONLESS),
     // simulate: failures.parquet.
     ("reason", DIMENSIONLESS),
     // simulate: provenance.parquet (one row per constant, the unit in its own column).
     ("name", DIMENSIONLESS),
     ("value", PER_ROW),
     (UNIT_KEY, DIMENSIONLESS),
-    // The constants of provenance.parquet (`name` values), for its `unit` column.
-    ("gravity", "m/s^2"),
-    ("wheel_radius", "m"),
+    // The run controls of provenance.parquet (`name` values), for its `unit` column.
     ("dt", "s"),
     ("duration", "s"),
     ("output_every", DIMENSIONLESS),
@@ -95,8 +85,8 @@ const NAMED: &[(&str, &str)] = &[
     // sample-params' ranges.parquet: a parameter's sampling range, in the row's `unit`.
     ("min", PER_ROW),
     ("max", PER_ROW),
-    // indices: beside the index columns ([`INDICES`]) of indices.parquet and predict
-    // --indices; evaluate's indices_errors.parquet (one row per index and algorithm).
+    // indices: beside the index columns (declared by the description) of indices.parquet and
+    // predict --indices; evaluate's indices_errors.parquet (one row per index and algorithm).
     ("window_s", "s"),
     ("pass", DIMENSIONLESS),
     ("failed", DIMENSIONLESS),
@@ -110,30 +100,8 @@ const NAMED: &[(&str, &str)] = &[
     ("correlation", DIMENSIONLESS),
 ];
 
-/// The engineering indices (`docs/indices.md`), each also with the suffix [`EXACT_SUFFIX`]
-/// (the solver's value beside the surrogate's, `indices_samples.parquet`).
-const INDICES: &[(&str, &str)] = &[
-    ("peak_wheel_rail_force_kn", "kN"),
-    ("wheel_load_reduction_rate", DIMENSIONLESS),
-    ("car_body_acc_peak_centre_ms2", "m/s^2"),
-    ("car_body_acc_peak_front_ms2", "m/s^2"),
-    ("car_body_acc_peak_rear_ms2", "m/s^2"),
-    ("car_body_acc_rms_centre_ms2", "m/s^2"),
-    ("car_body_acc_rms_front_ms2", "m/s^2"),
-    ("car_body_acc_rms_rear_ms2", "m/s^2"),
-    ("sperling_wz_centre", DIMENSIONLESS),
-    ("sperling_wz_front", DIMENSIONLESS),
-    ("sperling_wz_rear", DIMENSIONLESS),
-    ("bogie_acc_peak_front_ms2", "m/s^2"),
-    ("bogie_acc_peak_rear_ms2", "m/s^2"),
-    ("rail_deflection_peak_mm", "mm"),
-];
-
-/// Suffix of the exact (solver) value of an index beside the predicted one.
-const EXACT_SUFFIX: &str = "_exact";
-
 /// Units declared by this process for the columns of its system description (parameters,
-/// channels, magnitude weights): `name -> unit`, consulted before the fixed tables.
+/// channels, magnitude weights, indices): `name -> unit`, consulted before the fixed table.
 static DECLARED: std::sync::RwLock<BTreeMap<String, &'static str>> =
     std::sync::RwLock::new(BTreeMap::new());
 
@@ -143,11 +111,7 @@ static DECLARED: std::sync::RwLock<BTreeMap<String, &'static str>> =
 pub fn declare<'a>(pairs: impl IntoIterator<Item = (&'a str, &'a str)>) -> crate::Result<()> {
     let mut map = DECLARED.write().unwrap_or_else(|e| e.into_inner());
     for (name, u) in pairs {
-        let fixed = NAMED
-            .iter()
-            .chain(INDICES)
-            .find(|(n, _)| *n == name)
-            .map(|(_, u)| *u);
+        let fixed = NAMED.iter().find(|(n, _)| *n == name).map(|(_, u)| *u);
         match map.get(name).copied().or(fixed) {
             Some(old) if old != u => {
                 return Err(crate::Error::Origin(format!(
@@ -163,141 +127,71 @@ pub fn declare<'a>(pairs: impl IntoIterator<Item = (&'a str, &'a str)>) -> crate
     Ok(())
 }
 
-/// The unit of column `name` of any pino-mbd artifact, `None` for a column no artifact has.
+/// The unit of column `name` of any pino-mbd artifact, `None` for a column no artifact has:
+/// the bookkeeping columns of the fixed table, and the columns of the system description this
+/// process declared ([`declare`], [`crate::system::declare_units`]).
 ///
 /// ```
-/// use pino_data::units::unit;
-/// assert_eq!(unit("p_1"), Some("N"));
-/// assert_eq!(unit("beta_c_v"), Some("rad/s"));
-/// assert_eq!(unit("phi_2"), Some("N m"));
+/// use pino_data::units::{declare, unit};
+/// declare([("z_s", "m"), ("phi_z_s", "N")]).unwrap();
+/// assert_eq!(unit("z_s"), Some("m"));
+/// assert_eq!(unit("sample_id"), Some("-"));
 /// assert_eq!(unit("no_such_column"), None);
 /// ```
 pub fn unit(name: &str) -> Option<&'static str> {
     if let Some(&u) = DECLARED.read().unwrap_or_else(|e| e.into_inner()).get(name) {
         return Some(u);
     }
-    if let Some(&(_, u)) = NAMED.iter().find(|(n, _)| *n == name) {
-        return Some(u);
-    }
-    let index = name.strip_suffix(EXACT_SUFFIX).unwrap_or(name);
-    if let Some(&(_, u)) = INDICES.iter().find(|(n, _)| *n == index) {
-        return Some(u);
-    }
-    if let Some(j) = PARAMETERS.iter().position(|p| *p == name) {
-        return Some(PARAMETER_UNITS[j]);
-    }
-    if RAIL_UNDER_WHEEL.contains(&name) || ETA_UNDER_WHEEL.contains(&name) {
-        return Some("m");
-    }
-    if CONTACT_FORCES.contains(&name) {
-        return Some("N");
-    }
-    // The vehicle DOFs and their derivatives: m or rad, per s, per s^2.
-    let (dof, per) = if let Some(d) = name.strip_suffix(VELOCITY_SUFFIX) {
-        (d, "/s")
-    } else if let Some(d) = name.strip_suffix(ACCELERATION_SUFFIX) {
-        (d, "/s^2")
-    } else {
-        (name, "")
-    };
-    if VEHICLE_DOFS.contains(&dof) {
-        return Some(match (is_angle(dof), per) {
-            (false, "") => "m",
-            (false, "/s") => "m/s",
-            (false, _) => "m/s^2",
-            (true, "") => "rad",
-            (true, "/s") => "rad/s",
-            (true, _) => "rad/s^2",
-        });
-    }
-    // Magnitude weights phi_1..phi_10: the residual of equation i, a force (N) for a
-    // vertical DOF, a moment (N m) for a pitch DOF.
-    let i: usize = name.strip_prefix("phi_")?.parse().ok()?;
-    let dof = VEHICLE_DOFS.get(i.checked_sub(1)?)?;
-    Some(if is_angle(dof) { "N m" } else { "N" })
-}
-
-/// Pitch DOFs (`beta_*`) are angles; the others are vertical displacements.
-fn is_angle(dof: &str) -> bool {
-    dof.starts_with("beta")
+    NAMED.iter().find(|(n, _)| *n == name).map(|(_, u)| *u)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// Every column of the public schema has a unit, and the SI one of the spec.
+    /// The bookkeeping columns carry their units; a declared column its declared one; a
+    /// second declaration with another unit is refused naming both.
     #[test]
-    fn every_public_column_has_its_unit() {
-        for c in schema::simulation_columns() {
-            assert!(unit(&c).is_some(), "{c}");
-        }
-        for c in schema::phi_columns() {
-            assert!(unit(&c).is_some(), "{c}");
-        }
-        for p in PARAMETERS {
-            assert!(unit(p).is_some(), "{p}");
-        }
-        let cases = [
+    fn fixed_and_declared_units() {
+        for (c, u) in [
             ("t", "s"),
-            ("z_c", "m"),
-            ("beta_t1", "rad"),
-            ("z_w3_v", "m/s"),
-            ("beta_c_v", "rad/s"),
-            ("z_t2_a", "m/s^2"),
-            ("beta_t2_a", "rad/s^2"),
-            ("z_r4", "m"),
-            ("eta_2", "m"),
-            ("p_3", "N"),
-            ("phi_1", "N"),
-            ("phi_2", "N m"),
-            ("phi_6", "N m"),
-            ("phi_10", "N"),
-            ("m_c", "kg"),
-            ("j_t", "kg m^2"),
-            ("c_f", "N s/m"),
-            ("v_kmh", "km/h"),
             ("sample_id", "-"),
-            ("peak_wheel_rail_force_kn", "kN"),
-            ("peak_wheel_rail_force_kn_exact", "kN"),
             ("rms_error", PER_ROW),
-        ];
-        for (c, u) in cases {
+            ("dt", "s"),
+        ] {
             assert_eq!(unit(c), Some(u), "{c}");
         }
+        declare([("units_test_z", "m"), ("units_test_phi", "N m")]).unwrap();
+        assert_eq!(unit("units_test_z"), Some("m"));
+        assert_eq!(unit("units_test_phi"), Some("N m"));
+        declare([("units_test_z", "m")]).unwrap();
+        let e = declare([("units_test_z", "rad")]).unwrap_err().to_string();
+        assert!(
+            e.contains(
+                "column `units_test_z` is declared with unit `rad` but already has unit `m`"
+            ),
+            "{e}"
+        );
+        let e = declare([("t", "ms")]).unwrap_err().to_string();
+        assert!(
+            e.contains("`t` is declared with unit `ms` but already has unit `s`"),
+            "{e}"
+        );
     }
 
     #[test]
     fn unknown_names_have_no_unit() {
-        for c in [
-            "",
-            "phi_0",
-            "phi_11",
-            "phi_x",
-            "z_r1_v",
-            "p_1_a",
-            "z_c_v_v",
-            "beta",
-            "P_1",
-            "t_exact",
-            "z_c_exact",
-        ] {
+        for c in ["", "z_c", "phi_1", "p_1", "units_test_unknown", "t_exact"] {
             assert_eq!(unit(c), None, "{c}");
         }
     }
 
     #[test]
     fn the_table_names_each_column_once() {
-        let mut names: Vec<&str> = NAMED.iter().chain(INDICES).map(|(n, _)| *n).collect();
+        let mut names: Vec<&str> = NAMED.iter().map(|(n, _)| *n).collect();
         names.sort_unstable();
         let n = names.len();
         names.dedup();
         assert_eq!(names.len(), n);
-        for n in names {
-            assert!(
-                !PARAMETERS.contains(&n) && !VEHICLE_DOFS.contains(&n),
-                "{n}"
-            );
-        }
     }
 }

@@ -17,6 +17,8 @@ fn table() -> Table {
 
 #[test]
 fn declared_origin_is_in_every_file() {
+    // A system's column: its unit comes from the description, declared by the process.
+    pino_data::units::declare([("p_1", "N")]).unwrap();
     let params = serde_json::json!({"duration": 0.5, "start": "equilibrium"});
     set_origin(Origin::stage_unit("simulate", 1, 2, &params)).unwrap();
     // The same origin again is fine, another one is refused.

@@ -50,7 +50,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         startup_fraction: 0.0,
         time_stride: 1,
     };
-    let info = || DatasetInfo::from_dirs(std::slice::from_ref(&dir));
+    let info = || -> Result<DatasetInfo, Box<dyn std::error::Error>> {
+        Ok(DatasetInfo::from_dirs(std::slice::from_ref(&dir))?)
+    };
     let dev = Device::Cpu;
     let t0 = Instant::now();
     match mode {

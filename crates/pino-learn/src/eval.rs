@@ -82,6 +82,17 @@ pub struct EvalOptions {
     pub compare_with_paper: bool,
 }
 
+/// The dataset an evaluation scores: its records, `params.parquet` and the simulation shards.
+#[derive(Debug, Clone, Copy)]
+pub struct EvalData<'a> {
+    /// The description and run controls the dataset was simulated with.
+    pub info: &'a DatasetInfo,
+    /// The dataset's `params.parquet` (splits and parameters).
+    pub params_file: &'a Path,
+    /// Every shard's `simulation.parquet`.
+    pub simulation_files: &'a [PathBuf],
+}
+
 /// One channel's error.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChannelError {
@@ -709,15 +720,18 @@ pub struct Evaluation {
 /// the description against the solver. Only the scored split is read from the simulation
 /// files; every model must have been trained on the dataset's description.
 pub fn evaluate(
-    info: &DatasetInfo,
-    params_file: &Path,
-    simulation_files: &[PathBuf],
+    data: &EvalData<'_>,
     model_dirs: &[PathBuf],
     out: &Path,
     opts: &EvalOptions,
     device: &Device,
     progress: &mut dyn FnMut(usize, &str),
 ) -> Result<Evaluation> {
+    let EvalData {
+        info,
+        params_file,
+        simulation_files,
+    } = *data;
     let split = scored_split(params_file)?;
     let system = &info.system;
     let layout = Layout::of(system);

@@ -314,7 +314,7 @@ fn read_profiles(
 
 /// The column of a profile file naming each row's profile (written by `irregularity` when a
 /// description has several).
-pub const PROFILE_COLUMN: &str = "profile";
+pub const PROFILE_COLUMN: &str = pino_data::schema::PROFILE;
 
 /// A trained model loaded for prediction.
 pub struct Predictor {

@@ -216,16 +216,16 @@ impl SampleEquations {
             zero.set_column(map, col, 1.0);
             eq.residuals_with(&zero.view(), &vec![0.0; n_nl], &mut scratch, &mut r);
             zero.set_column(map, col, 0.0);
-            for i in 0..q {
-                jacobian[i][col] = r[i] - base[i];
+            for ((row, ri), bi) in jacobian.iter_mut().zip(&r).zip(&base) {
+                row[col] = ri - bi;
             }
         }
         for j in 0..n_nl {
             let mut f = vec![0.0; n_nl];
             f[j] = 1.0;
             eq.residuals_with(&zero.view(), &f, &mut scratch, &mut r);
-            for i in 0..q {
-                jacobian[i][cols + j] = r[i] - base[i];
+            for ((row, ri), bi) in jacobian.iter_mut().zip(&r).zip(&base) {
+                row[cols + j] = ri - bi;
             }
         }
         Ok(Self {

@@ -179,14 +179,17 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     };
     let system = Arc::new(spec.system.compile().map_err(|e| bad(e.to_string()))?);
     pino_data::system::declare_units(&system)?;
+    // A sampling plan has all three splits (as every pipeline's data); a synthetic dataset may
+    // leave out the test split (the validation fallback of `evaluate`): the plan then holds one
+    // test id that is not written. Ids before it are drawn and split alike either way.
     let sizes = SplitSizes {
         seed: spec.seed,
         n_train: spec.n_train,
         n_validation: spec.n_validation,
-        n_test: spec.n_test,
+        n_test: spec.n_test.max(1),
     };
     let plan = SamplingPlan::new(sizes, &system).map_err(|e| bad(e.to_string()))?;
-    let n = plan.num_samples();
+    let n = spec.n_train + spec.n_validation + spec.n_test;
     let names = system.sampled_names();
     let draws: Vec<Vec<f64>> = (0..n).map(|id| plan.draw(id)).collect();
     let mut params = Table::default();

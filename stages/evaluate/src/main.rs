@@ -8,7 +8,7 @@
 //! training-curve PNGs and `plots.md`.
 use anyhow::{bail, Context, Result};
 use pino_learn::data::DatasetInfo;
-use pino_learn::eval::{evaluate, EvalOptions, EvalParams};
+use pino_learn::eval::{evaluate, EvalData, EvalOptions, EvalParams};
 use pino_learn::spectral::Transform;
 use stage_kit::StageContext;
 
@@ -45,10 +45,13 @@ fn run() -> Result<()> {
         compare_with_paper: p.compare_with_paper,
     };
     let progress = ctx.progress(models.len() as u64);
+    let data = EvalData {
+        info: &info,
+        params_file: params,
+        simulation_files: &sims,
+    };
     let ev = evaluate(
-        &info,
-        params,
-        &sims,
+        &data,
         &models,
         &ctx.output,
         &opts,

@@ -96,7 +96,7 @@ fn run() -> Result<String> {
             let mut table = Table::default();
             if labelled {
                 table.push(
-                    "profile",
+                    schema::PROFILE,
                     Column::Str(vec![name.to_string(); n * group.len()]),
                 )?;
             }

@@ -203,13 +203,13 @@ fn owned_profiles(
     let mut profiles: BTreeMap<(usize, i64), XEta> = BTreeMap::new();
     let mut cols = vec![schema::SAMPLE_ID, schema::TRACK_X, schema::TRACK_ETA];
     if labels.len() > 1 {
-        cols.push("profile");
+        cols.push(schema::PROFILE);
     }
     for file in files {
         for_each_batch(file, Some(&cols), |t| {
             let (ids, xs, etas) = (t.i64(cols[0])?, t.f64(cols[1])?, t.f64(cols[2])?);
             let which = if labels.len() > 1 {
-                Some(t.str("profile")?)
+                Some(t.str(schema::PROFILE)?)
             } else {
                 None
             };

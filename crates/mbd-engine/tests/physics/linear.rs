@@ -73,7 +73,17 @@ fn spring_contacts(text: &str) -> String {
             "{hertz_g}  k_c: {{unit: N/m, expr: \"1.5 * ({CONTACT_LOAD_FACTOR} * W)^(1/3) / hertz_g\"}}\n"
         ),
     );
-    text = replace_once(&text, "p_1, p_2, p_3, p_4]", "f_1, f_2, f_3, f_4]");
+    // The springs' forces are `f_<element>`: the stored columns and the railway binding follow.
+    text = replace_once(
+        &text,
+        "eta_4, p_1, p_2, p_3, p_4]",
+        "eta_4, f_1, f_2, f_3, f_4]",
+    );
+    text = replace_once(
+        &text,
+        "contact_forces: [p_1, p_2, p_3, p_4]",
+        "contact_forces: [f_1, f_2, f_3, f_4]",
+    );
     for j in 1..=4 {
         text = replace_once(
             &text,

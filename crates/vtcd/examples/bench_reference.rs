@@ -2,7 +2,7 @@
 //! (N_f = 900, N_M = 450, dt = 1e-4), single-threaded, nominal vehicle, irregularity on.
 //!
 //! ```text
-//! RAYON_NUM_THREADS=1 cargo run --release -p vtcd --example bench_simulate -- [duration_s] [runs] [start]
+//! RAYON_NUM_THREADS=1 cargo run --release -p vtcd --example bench_reference -- [duration_s] [runs] [start]
 //! ```
 //! `start` is `equilibrium` (default) or `rest`; the equilibrium start's static solve is timed
 //! on its own too.
