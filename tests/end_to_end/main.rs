@@ -156,3 +156,49 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         output_text(&second)
     );
 }
+
+/// Every stage file of a workspace's store (none when nothing ran).
+fn stored_objects(ws: &Path) -> usize {
+    std::fs::read_dir(ws.join("artifacts/objects")).map_or(0, |d| d.count())
+}
+
+/// A bad description, or a time step above the stability bound over the box of sampling
+/// ranges, stops `pipeline run` during planning: exit 2, the checker's message (file, line and
+/// the offending name; both time steps), and nothing runs.
+#[test]
+fn a_bad_description_or_time_step_stops_the_run_before_anything_runs() {
+    let ws = pino_mbd_tests::product_workspace("pipeline.yaml");
+    let path = ws.path().join("systems/vtcd.yaml");
+    let good = std::fs::read_to_string(&path).unwrap();
+    let line = good
+        .lines()
+        .position(|l| l.starts_with("  s1: {kind: spring_damper"))
+        .expect("the secondary suspension s1")
+        + 1;
+    std::fs::write(
+        &path,
+        good.replacen("to: t1, k: k_s,", "to: t1, k: k_ss,", 1),
+    )
+    .unwrap();
+    let o = pipeline(ws.path(), &["run"]);
+    let text = output_text(&o);
+    assert_eq!(o.status.code(), Some(2), "{text}");
+    assert!(
+        text.contains(&format!("systems/vtcd.yaml:{line}:")) && text.contains("`k_ss`"),
+        "{text}"
+    );
+    assert_eq!(stored_objects(ws.path()), 0, "nothing ran: {text}");
+
+    std::fs::write(&path, &good).unwrap();
+    let o = pipeline_cmd(ws.path(), &["simulate.dt=1.0e-3"])
+        .arg("run")
+        .output()
+        .expect("pipeline runs");
+    let text = output_text(&o);
+    assert_eq!(o.status.code(), Some(2), "{text}");
+    assert!(
+        text.contains("stage `simulate`") && text.contains("0.001") && text.contains("bound"),
+        "{text}"
+    );
+    assert_eq!(stored_objects(ws.path()), 0, "nothing ran: {text}");
+}

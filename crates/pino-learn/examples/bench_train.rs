@@ -108,7 +108,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         bw * 1e3,
         a * 1e3
     );
-    // Inference as `evaluate` runs it (`eval::predict_samples`: batches side by side).
+    // Inference as `evaluate` runs it (`infer::predict_samples`: batches side by side).
     // The 40 validation records are cycled up to the requested count (same cost per sample).
     let n_infer: usize = arg(9, "40").parse()?;
     let infer_batch: usize = arg(10, "8").parse()?;
@@ -117,7 +117,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect();
     let mut inf = Vec::new();
     for _ in 0..3 {
-        let (_, wall) = pino_learn::eval::predict_samples(
+        let (_, wall) = pino_learn::infer::predict_samples(
             &model,
             &items,
             &val,

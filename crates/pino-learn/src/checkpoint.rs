@@ -388,7 +388,7 @@ pub fn load_checkpoint(
                 tensor: format!("adam moment of {name}"),
                 found: vec![],
                 expected: var.dims().to_vec(),
-                config: json.meta.model.to_string(),
+                config: json.meta.model.to_string().into(),
             })?;
             if t.dims() != var.dims() {
                 return Err(Error::ModelMismatch {
@@ -396,7 +396,7 @@ pub fn load_checkpoint(
                     tensor: format!("adam moment of {name}"),
                     found: t.dims().to_vec(),
                     expected: var.dims().to_vec(),
-                    config: json.meta.model.to_string(),
+                    config: json.meta.model.to_string().into(),
                 });
             }
             *slot = t.clone();

@@ -28,24 +28,25 @@
 //! Modules: [`layout`] (channels from the description), [`config`] (algorithms, sizes),
 //! [`data`] (Parquet -> samples, streamed), [`store`] (sample series in memory or spilled),
 //! [`norm`], [`spectral`], [`model`], [`residual`] and [`loss`], [`weights`] (ODE magnitude
-//! weights), [`optim`] (Adam, step decay), [`checkpoint`], [`train`], [`eval`] (Table 4; its
-//! files and plots are written by the `report` crate), [`indices_eval`] (the description's
-//! engineering indices of a prediction), [`predict`], and [`synthetic`] (small consistent
-//! datasets for tests and benchmarks).
+//! weights), [`optim`] (Adam, step decay), [`checkpoint`], [`train`], [`infer`] (batched
+//! inference) and [`synthetic`] (small consistent datasets for tests and benchmarks).
+//!
+//! This crate is the neural-operator engine: it knows no particular system, only what a
+//! description says. What an engineer reads of a trained model (Table 4, per-channel errors,
+//! the engineering indices against the solver, predictions of designs) is the `pino-eval`
+//! crate's.
 #![warn(missing_docs)]
 
 pub mod checkpoint;
 pub mod config;
 pub mod data;
-pub mod eval;
-pub mod indices_eval;
+pub mod infer;
 pub mod kernels;
 pub mod layout;
 pub mod loss;
 pub mod model;
 pub mod norm;
 pub mod optim;
-pub mod predict;
 pub mod residual;
 pub mod spectral;
 pub mod store;
@@ -86,7 +87,7 @@ pub enum Error {
     /// The data layer failed (missing column, unreadable file, ...).
     #[error(transparent)]
     Data(#[from] pino_data::Error),
-    /// Writing a report file (CSV, Markdown, PNG) failed.
+    /// Writing a report file (CSV, Markdown, PNG) failed (evaluation and prediction, `pino-eval`).
     #[error(transparent)]
     Report(#[from] report::Error),
     /// candle failed.
@@ -140,8 +141,8 @@ pub enum Error {
         found: Vec<usize>,
         /// The shape the configuration needs.
         expected: Vec<usize>,
-        /// The configuration, as text.
-        config: String,
+        /// The configuration, as text (boxed: keeps every `Result` of this crate small).
+        config: Box<str>,
     },
     /// A model file holds a tensor its configuration does not have (another depth, ...).
     #[error("{path}: tensor `{tensor}` is not part of the configuration {config} (a model file from another configuration?)")]
@@ -168,7 +169,8 @@ pub enum Error {
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, Error>;
 
-pub(crate) fn io_err(path: &std::path::Path, source: std::io::Error) -> Error {
+/// An [`Error::Io`] on `path`.
+pub fn io_err(path: &std::path::Path, source: std::io::Error) -> Error {
     Error::Io {
         path: path.to_owned(),
         source,

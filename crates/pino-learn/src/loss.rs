@@ -174,6 +174,7 @@ impl LossContext {
             std: self.norm.outputs.std.clone(),
             dt: self.dt,
             weights,
+            forward: Default::default(),
         };
         Ok(Some(u_n.contiguous()?.apply_op1(op)?.to_dtype(DType::F64)?))
     }

@@ -118,7 +118,7 @@ impl Fno {
                 tensor: name.clone(),
                 found: vec![],
                 expected: shape.clone(),
-                config: config.to_string(),
+                config: config.to_string().into(),
             })?;
             if t.dims() != shape.as_slice() {
                 return Err(Error::ModelMismatch {
@@ -126,7 +126,7 @@ impl Fno {
                     tensor: name,
                     found: t.dims().to_vec(),
                     expected: shape,
-                    config: config.to_string(),
+                    config: config.to_string().into(),
                 });
             }
             vars.push((

@@ -195,6 +195,9 @@ pub struct SampleEquations {
     eq: Equations,
     /// `[Q, C + N]`: the linear state's columns, then the nonlinear forces.
     jacobian: Vec<Vec<f64>>,
+    /// The same rows without their zeros, `(column, value)` in column order: an equation
+    /// reads a few of the state's columns (the backward pass runs over these).
+    jacobian_nonzeros: Vec<Vec<(usize, f64)>>,
     /// The residual at the zero state with zero nonlinear forces (loads, preloads).
     offset: Vec<f64>,
 }
@@ -228,9 +231,20 @@ impl SampleEquations {
                 row[cols + j] = ri - bi;
             }
         }
+        let jacobian_nonzeros = jacobian
+            .iter()
+            .map(|row| {
+                row.iter()
+                    .enumerate()
+                    .filter(|(_, v)| **v != 0.0)
+                    .map(|(c, v)| (c, *v))
+                    .collect()
+            })
+            .collect();
         Ok(Self {
             eq,
             jacobian,
+            jacobian_nonzeros,
             offset: base,
         })
     }
@@ -276,9 +290,54 @@ pub struct OdeLoss {
     pub dt: f64,
     /// Residual weights.
     pub weights: OdeWeights,
+    /// Left by the forward pass for the backward pass of the same batch.
+    pub forward: ForwardCache,
+}
+
+/// What the forward pass of an [`OdeLoss`] leaves for its backward pass: every residual
+/// `[B, T-2, Q]` and every nonlinear element's deflection `[B, T-2, N]` at the interior points,
+/// so the backward pass does not evaluate the equations again (they are half of its cost).
+#[derive(Debug, Default)]
+pub struct ForwardCache(std::sync::Mutex<Option<Evaluated>>);
+
+/// The residuals and nonlinear deflections of a prediction (see [`ForwardCache`]).
+#[derive(Debug)]
+struct Evaluated {
+    residuals: Vec<f64>,
+    deflections: Vec<f64>,
 }
 
 impl OdeLoss {
+    /// The weighted sum of `|R|` over a prediction `[b, t, c]`, with every residual and every
+    /// nonlinear element's deflection at the interior points.
+    fn evaluate(&self, u: &[f32], b: usize, t: usize, c: usize) -> (f64, Evaluated) {
+        let q = self.map.equations.len();
+        let mut total = 0.0f64;
+        let mut s = State::new(&self.map);
+        let mut residuals = Vec::with_capacity(b * (t - 2) * q);
+        let mut deflections = Vec::new();
+        let mut r = vec![0.0; q];
+        for k in 0..b {
+            let eq = &self.samples[k].eq;
+            let mut scratch = eq.scratch();
+            let w: Vec<f64> = (0..q).map(|i| self.weight(k, i)).collect();
+            for n in 1..t - 1 {
+                self.state(u, k, t, c, n, &mut s);
+                eq.residuals(&s.view(), &mut scratch, &mut r);
+                total += r.iter().zip(&w).map(|(r, w)| r.abs() * w).sum::<f64>();
+                residuals.extend_from_slice(&r);
+                deflections.extend(eq.nonlinear().iter().map(|&e| eq.element(&scratch, e).1));
+            }
+        }
+        (
+            total,
+            Evaluated {
+                residuals,
+                deflections,
+            },
+        )
+    }
+
     /// The physical state of sample `k` at interior point `n` from `u` (rows of `c`
     /// channels, `t` points per sample).
     fn state(&self, u: &[f32], k: usize, t: usize, c: usize, n: usize, s: &mut State) {
@@ -354,19 +413,8 @@ impl CustomOp1 for OdeLoss {
         let (b, t, c) = dims(layout.shape(), &self.map)?;
         let u = crate::kernels::cpu_f32(storage, layout, "fused ODE loss", "prediction")?;
         let q = self.map.equations.len();
-        let mut total = 0.0f64;
-        let mut s = State::new(&self.map);
-        let mut r = vec![0.0; q];
-        for k in 0..b {
-            let eq = &self.samples[k].eq;
-            let mut scratch = eq.scratch();
-            let w: Vec<f64> = (0..q).map(|i| self.weight(k, i)).collect();
-            for n in 1..t - 1 {
-                self.state(u, k, t, c, n, &mut s);
-                eq.residuals(&s.view(), &mut scratch, &mut r);
-                total += r.iter().zip(&w).map(|(r, w)| r.abs() * w).sum::<f64>();
-            }
-        }
+        let (total, evaluated) = self.evaluate(u, b, t, c);
+        *self.forward.0.lock().unwrap_or_else(|e| e.into_inner()) = Some(evaluated);
         let mean = total / (b * (t - 2) * q) as f64;
         Ok((CpuStorage::F32(vec![mean as f32]), Shape::from(())))
     }
@@ -383,41 +431,52 @@ impl CustomOp1 for OdeLoss {
         let scale = upstream / (b * (t - 2) * q) as f64;
         let (d, p) = (self.map.dofs, self.map.point.len());
         let cols = self.map.columns();
+        let cached = self
+            .forward
+            .0
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take();
         let grad = crate::kernels::with_host(arg, |u| {
             let mut g = vec![0.0f64; u.len()];
-            let mut s = State::new(&self.map);
-            let mut r = vec![0.0; q];
+            // The forward pass's residuals and deflections (evaluated again when this op's
+            // backward runs without its forward, as a graph may).
+            let evaluated = match cached {
+                Some(e) if e.residuals.len() == b * (t - 2) * q => e,
+                _ => self.evaluate(u, b, t, c).1,
+            };
             for k in 0..b {
                 let se = &self.samples[k];
                 let eq = &se.eq;
-                let mut scratch = eq.scratch();
                 let terms: Vec<Vec<(StateEntry, f64)>> = eq
                     .nonlinear()
                     .iter()
                     .map(|&e| eq.deflection_terms(e))
                     .collect();
                 let base = k * t * c;
+                let n_nl = eq.nonlinear().len();
+                let mut dx = vec![0.0f64; cols + n_nl];
+                let (mut dz, mut dw) = (vec![0.0f64; d], vec![0.0f64; p]);
                 for n in 1..t - 1 {
-                    self.state(u, k, t, c, n, &mut s);
-                    eq.residuals(&s.view(), &mut scratch, &mut r);
-                    // dL/dR, then dL/d(state, f) = J^T dL/dR.
-                    let dr: Vec<f64> = (0..q)
-                        .map(|i| scale * self.weight(k, i) * r[i].signum())
-                        .collect();
-                    let mut dx = vec![0.0f64; cols + eq.nonlinear().len()];
-                    for (i, row) in se.jacobian.iter().enumerate() {
-                        if dr[i] != 0.0 {
-                            for (dd, j) in dx.iter_mut().zip(row) {
-                                *dd += dr[i] * j;
+                    let point = k * (t - 2) + n - 1;
+                    let r = &evaluated.residuals[point * q..(point + 1) * q];
+                    let defl = &evaluated.deflections[point * n_nl..(point + 1) * n_nl];
+                    // dL/dR, then dL/d(state, f) = J^T dL/dR over the Jacobian's nonzeros
+                    // (row by row, as the dense product: the same sums).
+                    dx.fill(0.0);
+                    for (i, row) in se.jacobian_nonzeros.iter().enumerate() {
+                        let dr = scale * self.weight(k, i) * r[i].signum();
+                        if dr != 0.0 {
+                            for &(col, j) in row {
+                                dx[col] += dr * j;
                             }
                         }
                     }
                     // Nonlinear forces back onto the state of their deflections.
-                    let mut dz: Vec<f64> = dx[..d].to_vec();
-                    let mut dw: Vec<f64> = dx[3 * d..3 * d + p].to_vec();
+                    dz.copy_from_slice(&dx[..d]);
+                    dw.copy_from_slice(&dx[3 * d..3 * d + p]);
                     for (j, &e) in eq.nonlinear().iter().enumerate() {
-                        let (_, defl) = eq.element(&scratch, e);
-                        let ge = chain(eq.law(e), defl, dx[cols + j]);
+                        let ge = chain(eq.law(e), defl[j], dx[cols + j]);
                         for &(entry, coef) in &terms[j] {
                             match entry {
                                 StateEntry::Dof(i) => dz[i] += ge * coef,

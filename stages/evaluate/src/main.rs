@@ -7,8 +7,8 @@
 //! engineering indices of the description against the solver (`indices_*`), prediction and
 //! training-curve PNGs and `plots.md`.
 use anyhow::{bail, Context, Result};
+use pino_eval::eval::{evaluate, EvalData, EvalOptions, EvalParams};
 use pino_learn::data::DatasetInfo;
-use pino_learn::eval::{evaluate, EvalData, EvalOptions, EvalParams};
 use pino_learn::spectral::Transform;
 use stage_kit::StageContext;
 
@@ -22,7 +22,7 @@ fn run() -> Result<()> {
         // names (the dataset does not exist yet).
         let (_, system) = pino_data::system::load(&p.system_values)?;
         let layout = pino_learn::layout::Layout::of(&system);
-        pino_learn::eval::plot_channels(&p.plot_channels, &layout, &system)
+        pino_eval::eval::plot_channels(&p.plot_channels, &layout, &system)
             .with_context(|| format!("stage `{}`: parameter `plot_channels`", ctx.stage))?;
         stage_kit::summary("parameters valid");
         return Ok(());

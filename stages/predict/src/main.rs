@@ -20,8 +20,8 @@
 //! (exit 2).
 use anyhow::{Context, Result};
 use clap::Parser;
+use pino_eval::predict::{parse_sweep, Predictor, ProfileChoice, OUTSIDE_COLUMN};
 use pino_learn::config::DeviceKind;
-use pino_learn::predict::{parse_sweep, Predictor, ProfileChoice, OUTSIDE_COLUMN};
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -162,7 +162,7 @@ fn run() -> Result<()> {
     }
     let flags: Vec<String> = outside
         .iter()
-        .map(|o| pino_learn::predict::outside_flag(o))
+        .map(|o| pino_eval::predict::outside_flag(o))
         .collect();
     pino_data::metadata::set_origin(origin(&args, space.names(), &sets, &run_config))?;
     let started = std::time::Instant::now();

@@ -2,7 +2,7 @@
 //! --indices`), at the default model size.
 //!
 //! ```text
-//! cargo run --release -p pino-learn --example bench_predict -- [designs] [batch] [model_dir]
+//! cargo run --release -p pino-eval --example bench_predict -- [designs] [batch] [model_dir]
 //! ```
 //! Without `model_dir`, builds an untrained model of the laptop default size (width 32, 128
 //! modes, projection 64, depth 3, 25 % padding) on a synthetic 2-s record at 1 kHz (2000
@@ -12,10 +12,10 @@
 //! the indices), designs per second, and the solver's time for the same designs from its
 //! measured cost (BENCHMARKS.md: 0.09 s of one core per simulated second).
 use candle_core::Device;
+use pino_eval::predict::{parse_sweep, Predictor, ProfileChoice};
 use pino_learn::checkpoint::save_model;
 use pino_learn::config::{TrainParams, WindowConfig};
 use pino_learn::model::Fno;
-use pino_learn::predict::{parse_sweep, Predictor, ProfileChoice};
 use pino_learn::spectral::Transform;
 use pino_learn::synthetic::{write_dataset, SyntheticSpec};
 use pino_learn::train::model_meta;

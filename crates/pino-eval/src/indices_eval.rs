@@ -19,18 +19,18 @@
 //! error, mean and worst relative error (%), Pearson correlation), `indices_samples.parquet`
 //! (per algorithm and sample: predicted and exact) and `indices_scatter_<index>.png`.
 
-use crate::checkpoint::ModelMeta;
-use crate::config::WindowConfig;
-use crate::data::{Prepared, Split};
 use crate::eval::{alg_label, exact_physical, to_physical, Physical};
-use crate::layout::Layout;
-use crate::residual::ChannelMap;
-use crate::{write_atomic, Error, Result};
 use mbd_system::system::Quantity;
 use mbd_system::System;
 use pino_data::{schema, write_parquet, Column, Table};
 use pino_indices::system::IndexInfo;
 use pino_indices::{IndexConfig, IndexParams, IndexSet};
+use pino_learn::checkpoint::ModelMeta;
+use pino_learn::config::WindowConfig;
+use pino_learn::data::{Prepared, Split};
+use pino_learn::layout::Layout;
+use pino_learn::residual::ChannelMap;
+use pino_learn::{write_atomic, Error, Result};
 use report::csv::write_csv;
 use report::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
 use std::collections::{BTreeMap, BTreeSet};
@@ -76,7 +76,8 @@ impl IndexInputs {
     pub fn of(system: &System, layout: &Layout) -> Result<Self> {
         let set = IndexSet::of(system);
         let map = ChannelMap::new(system, layout);
-        let nominal = crate::residual::sample_equations(system, &system.nominal(), Vec::new())?;
+        let nominal =
+            pino_learn::residual::sample_equations(system, &system.nominal(), Vec::new())?;
         let output = |name: &str| layout.outputs.iter().position(|o| o == name);
         let mut sources = Vec::new();
         let mut underivable = Vec::new();
@@ -314,7 +315,7 @@ fn sample_columns(
                 Source::Deflection(el) => {
                     let eq = match &equations {
                         Some(eq) => eq,
-                        None => equations.insert(crate::residual::sample_equations(
+                        None => equations.insert(pino_learn::residual::sample_equations(
                             system,
                             params,
                             Vec::new(),
@@ -765,9 +766,9 @@ fn scatter(path: &Path, j: usize, c: &IndexInfo, models: &[ModelIndices]) -> Res
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::TrainParams;
-    use crate::synthetic::{write_dataset, SyntheticSpec};
-    use crate::train::model_meta;
+    use pino_learn::config::TrainParams;
+    use pino_learn::synthetic::{write_dataset, SyntheticSpec};
+    use pino_learn::train::model_meta;
 
     #[test]
     fn forces_offset_by_5_kn_move_the_peak_force_by_5_kn_and_files_are_written() {
@@ -780,7 +781,7 @@ mod tests {
             ..Default::default()
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
-        let system = crate::synthetic::vehicle_track_system();
+        let system = pino_learn::synthetic::vehicle_track_system();
         let layout = Layout::of(&system);
         let (m, t, w) = TrainParams::small(4).configs(&layout).unwrap();
         let ds = files.load(&w, false).unwrap();

@@ -16,22 +16,23 @@
 //! excitation. Speed: simulated seconds (scored samples x window length) per wall second of
 //! forward passes.
 
-use crate::checkpoint::{load_model, ModelMeta};
-use crate::config::WindowConfig;
-use crate::data::{
-    load_split, make_batch, splits_present, Batch, Dataset, DatasetInfo, Prepared, Split,
-};
 use crate::indices_eval::{
     model_indices, truth_indices, write_indices, IndexInputs, ModelIndices, StoredColumns,
 };
-use crate::layout::Layout;
-use crate::loss::{rel_l2_per_sample, LossContext};
-use crate::model::Fno;
-use crate::norm::Normalisation;
-use crate::spectral::Transform;
-use crate::train::read_history;
-use crate::{write_atomic, Error, Result};
 use candle_core::{DType, Device, Tensor};
+use pino_learn::checkpoint::{load_model, ModelMeta};
+use pino_learn::config::WindowConfig;
+use pino_learn::data::{
+    load_split, make_batch, splits_present, Batch, Dataset, DatasetInfo, Prepared, Split,
+};
+use pino_learn::infer::predict_samples;
+use pino_learn::layout::Layout;
+use pino_learn::loss::{rel_l2_per_sample, LossContext};
+use pino_learn::model::Fno;
+use pino_learn::norm::Normalisation;
+use pino_learn::spectral::Transform;
+use pino_learn::train::read_history;
+use pino_learn::{write_atomic, Error, Result};
 
 /// Name of Table 4's truth row.
 pub const TRUTH_NAME: &str = "truth (exact solutions, central differences)";
@@ -39,10 +40,9 @@ use pino_data::{write_parquet, Column, Table};
 use report::csv::write_csv;
 use report::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
-fn d_device() -> crate::config::DeviceKind {
-    crate::config::DeviceKind::Cpu
+fn d_device() -> pino_learn::config::DeviceKind {
+    pino_learn::config::DeviceKind::Cpu
 }
 
 /// The `evaluate` stage's parameters as they appear in pipeline.yaml (all required but the
@@ -60,7 +60,7 @@ pub struct EvalParams {
     pub compare_with_paper: bool,
     /// "cpu" or "cuda".
     #[serde(default = "d_device")]
-    pub device: crate::config::DeviceKind,
+    pub device: pino_learn::config::DeviceKind,
     /// Overrides of the description's values, as the data stages take them (read in check
     /// mode, where the description the command names stands in for the dataset's record).
     #[serde(default)]
@@ -282,43 +282,6 @@ fn score_split(
     Ok(out)
 }
 
-/// Predicts the z-scored outputs `[T, O]` of every sample in `idx`, returning them with the
-/// wall time of the forward passes.
-pub fn predict_samples(
-    model: &Fno,
-    items: &Prepared,
-    idx: &[usize],
-    t_points: usize,
-    batch_size: usize,
-    device: &Device,
-) -> Result<(Vec<Vec<f32>>, f64)> {
-    use rayon::prelude::*;
-    let t0 = Instant::now();
-    // Batches are independent: on the CPU they run side by side (each forward pass is
-    // parallel inside too); results do not depend on the order or the thread count.
-    let chunks: Vec<&[usize]> = idx.chunks(batch_size.max(1)).collect();
-    let predictor = model.predictor()?;
-    let run = |chunk: &&[usize]| -> Result<Vec<f32>> {
-        let batch = make_batch(items, chunk, t_points, device)?;
-        let u = predictor.predict(&batch.x)?;
-        Ok(u.flatten_all()?.to_vec1()?)
-    };
-    let flats: Vec<Vec<f32>> = if device.is_cpu() {
-        chunks.par_iter().map(run).collect::<Result<_>>()?
-    } else {
-        chunks.iter().map(run).collect::<Result<_>>()?
-    };
-    let wall = t0.elapsed().as_secs_f64();
-    let out = flats
-        .iter()
-        .flat_map(|flat| {
-            flat.chunks(t_points * items.layout().n_outputs())
-                .map(<[f32]>::to_vec)
-        })
-        .collect();
-    Ok((out, wall))
-}
-
 /// Relative L2 per sample, RMS error and RMS exact (in `scale` units), worst sample, and
 /// the mean peak error `|max_t pred - max_t exact|` as % of each sample's `w` (forces).
 struct Accum {
@@ -462,7 +425,7 @@ fn channel_errors(
         }
     }
     // Displacement-implied forces (kN): each Hertz contact's law at the predicted deflection.
-    let map = crate::residual::ChannelMap::new(system, layout);
+    let map = pino_learn::residual::ChannelMap::new(system, layout);
     let e = layout.n_excitations();
     for (el, element) in system.elements.iter().enumerate() {
         let force_name = format!("p_{}", element.name);
@@ -475,7 +438,7 @@ fn channel_errors(
         let mut acc = Accum::new();
         let mut complete = true;
         for (k, &i) in idx.iter().enumerate() {
-            let eq = crate::residual::sample_equations(system, items.params(i), Vec::new())?;
+            let eq = pino_learn::residual::sample_equations(system, items.params(i), Vec::new())?;
             let Some(deflection) = map.deflection(&eq, el) else {
                 complete = false;
                 break;
@@ -617,10 +580,10 @@ fn plot_training_curves(path: &Path, results: &[ModelResult]) -> Result<bool> {
         legend.push((color, alg_label(&r.meta)));
         let x: Vec<f64> = h.iter().map(|row| row.epoch as f64).collect();
         for (k, f) in [
-            |r: &crate::checkpoint::HistoryRow| r.loss_total,
-            |r: &crate::checkpoint::HistoryRow| r.val_solution,
-            |r: &crate::checkpoint::HistoryRow| r.val_first,
-            |r: &crate::checkpoint::HistoryRow| r.val_second,
+            |r: &pino_learn::checkpoint::HistoryRow| r.loss_total,
+            |r: &pino_learn::checkpoint::HistoryRow| r.val_solution,
+            |r: &pino_learn::checkpoint::HistoryRow| r.val_first,
+            |r: &pino_learn::checkpoint::HistoryRow| r.val_second,
         ]
         .into_iter()
         .enumerate()
@@ -1157,14 +1120,14 @@ fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOption
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::TrainParams;
-    use crate::synthetic::{write_dataset, SyntheticSpec};
-    use crate::train::model_meta;
     use pino_data::read_parquet;
+    use pino_learn::config::TrainParams;
+    use pino_learn::synthetic::{write_dataset, SyntheticSpec};
+    use pino_learn::train::model_meta;
 
     struct Fixture {
         _dir: tempfile::TempDir,
-        files: crate::synthetic::SyntheticFiles,
+        files: pino_learn::synthetic::SyntheticFiles,
         ds: Dataset,
         items: Prepared,
         meta: ModelMeta,
@@ -1182,7 +1145,7 @@ mod tests {
             ..Default::default()
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
-        let layout = crate::synthetic::vehicle_track_layout();
+        let layout = pino_learn::synthetic::vehicle_track_layout();
         let (m, t, w) = TrainParams::small(4).configs(&layout).unwrap();
         let ds = files.load(&w, false).unwrap();
         let meta = model_meta(&ds, m, t, w).unwrap();
@@ -1227,7 +1190,7 @@ mod tests {
                 let z = t.f64(dof).unwrap();
                 let v = t.f64(&format!("{dof}_v")).unwrap();
                 let a = t.f64(&format!("{dof}_a")).unwrap();
-                let zs = |x: f64, s: &crate::norm::ChannelStats| (x - s.mean[c]) / s.std[c];
+                let zs = |x: f64, s: &pino_learn::norm::ChannelStats| (x - s.mean[c]) / s.std[c];
                 for n in 1..rows.len() - 1 {
                     let (p, m, q) = (z[rows[n - 1]], z[rows[n]], z[rows[n + 1]]);
                     let fd1 = zs((q - p) / (2.0 * dt), &norm.velocities);
@@ -1359,7 +1322,7 @@ mod tests {
                 a: ex.a[d..(t - 1) * d].to_vec(),
             });
         }
-        let system = crate::synthetic::vehicle_track_system();
+        let system = pino_learn::synthetic::vehicle_track_system();
         let ch = channel_errors(&fx.items, &fx.test, &preds, &fx.meta, &system).unwrap();
         let row = |name: &str| ch.iter().find(|c| c.channel == name).unwrap();
         // The static contact force W = (m_c + 2 m_t + 4 m_w) g / 8 of each sample.

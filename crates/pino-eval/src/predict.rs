@@ -20,22 +20,22 @@
 //! over ranges. [`Predictor`] runs them in batches (side by side on the CPU) and computes the
 //! description's engineering indices ([`Predictor::indices`], as `evaluate` rebuilds them from
 //! a prediction). Designs outside the model's training ranges
-//! ([`crate::checkpoint::TrainingRanges`]) are reported by [`Predictor::outside_training`].
+//! ([`pino_learn::checkpoint::TrainingRanges`]) are reported by [`Predictor::outside_training`].
 
-use crate::checkpoint::{load_model, ModelMeta, OutOfRange};
-use crate::data::input_block;
 use crate::eval::{to_physical, Physical};
 use crate::indices_eval::{eval_config, IndexInputs, SampleIndices};
-use crate::layout::Layout;
-use crate::model::Fno;
-use crate::spectral::Transform;
-use crate::{Error, Result};
 use candle_core::{Device, Tensor};
 use mbd_engine::{Excitations, Profile, RunConfig};
 use mbd_system::system::Quantity;
 use mbd_system::System;
 use pino_data::{schema, Column, Table};
 use pino_indices::IndexConfig;
+use pino_learn::checkpoint::{load_model, ModelMeta, OutOfRange};
+use pino_learn::data::input_block;
+use pino_learn::layout::Layout;
+use pino_learn::model::Fno;
+use pino_learn::spectral::Transform;
+use pino_learn::{Error, Result};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -344,7 +344,7 @@ impl Predictor {
     /// Loads `model.safetensors` + `model.json` from `model_dir`.
     pub fn load(model_dir: &Path, device: &Device) -> Result<Self> {
         let (model, meta) = load_model(model_dir, Transform::for_device(device), device)?;
-        let meta_path = model_dir.join(crate::checkpoint::MODEL_META);
+        let meta_path = model_dir.join(pino_learn::checkpoint::MODEL_META);
         let system = Arc::new(meta.compile_system(&meta_path)?);
         if Layout::of(&system) != meta.layout {
             return Err(fmt_err(
@@ -807,8 +807,8 @@ pub fn parse_sweep(space: &DesignSpace, text: &str, origin: &Path) -> Result<Vec
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::TrainParams;
-    use crate::synthetic::{vehicle_track_system, write_dataset, SyntheticSpec};
+    use pino_learn::config::TrainParams;
+    use pino_learn::synthetic::{vehicle_track_system, write_dataset, SyntheticSpec};
 
     fn space() -> DesignSpace {
         DesignSpace::of(vehicle_track_system())
@@ -853,6 +853,37 @@ mod tests {
             err.contains("set 1") && err.contains("mass") && err.contains("> 0"),
             "{err}"
         );
+    }
+
+    /// A parameter file written for one system, given to a model of another, is refused
+    /// naming the file, the parameter and the model's own parameters (both ways).
+    #[test]
+    fn a_design_of_another_system_is_refused_by_name() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../systems/quarter-car.yaml"
+        );
+        let text = std::fs::read_to_string(path).unwrap();
+        let quarter = mbd_system::load_str(&text, "systems/quarter-car.yaml", &Default::default())
+            .unwrap_or_else(|d| panic!("{d}"));
+        let quarter = DesignSpace::of(Arc::new(quarter));
+        let o = Path::new("vehicle-track-design.yaml");
+        // `k_s` is a parameter of both; `k_f` (the fastener) only of the vehicle-track model.
+        let err = quarter
+            .parse_sets("- {k_s: 4.0e5, k_f: 4.0e7}\n", o)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("vehicle-track-design.yaml")
+                && err.contains("unknown parameter `k_f`")
+                && err.contains("allowed: m_s"),
+            "{err}"
+        );
+        let err = space()
+            .parse_sets("- {k_t: 2.0e5}\n", o)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("unknown parameter `k_t`"), "{err}");
     }
 
     #[test]
@@ -914,7 +945,7 @@ mod tests {
     #[test]
     fn training_ranges_flag_designs_outside() {
         let system = vehicle_track_system();
-        let r = crate::checkpoint::TrainingRanges::of(&system);
+        let r = pino_learn::checkpoint::TrainingRanges::of(&system);
         let sp = space();
         let nominal = sp.nominal();
         assert!(r.outside(&nominal).is_empty());
@@ -943,7 +974,7 @@ mod tests {
             ..Default::default()
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
-        let layout = crate::synthetic::vehicle_track_layout();
+        let layout = pino_learn::synthetic::vehicle_track_layout();
         let mut p = TrainParams::small(1);
         p.epochs = 1;
         let (m, t, w) = p.configs(&layout).unwrap();
@@ -951,7 +982,7 @@ mod tests {
         let out = dir.path().join("model");
         std::fs::create_dir_all(&out).unwrap();
         let dev = Device::Cpu;
-        crate::train::train_to_dir(
+        pino_learn::train::train_to_dir(
             &ds,
             (m, t, w),
             Transform::Fused,
@@ -964,7 +995,7 @@ mod tests {
         let predictor = Predictor::load(&out, &dev).unwrap();
         let meta = &predictor.meta;
         let (test_ds, items) = files
-            .load_split(&w, crate::data::Split::Test, &meta.norm)
+            .load_split(&w, pino_learn::data::Split::Test, &meta.norm)
             .unwrap();
         let id = items.id(0);
         let design = items.params(0).to_vec();
@@ -997,11 +1028,12 @@ mod tests {
         for (a, b) in test_ds.t.iter().zip(meta.grid.times()) {
             assert!((a - b).abs() <= 1e-12, "{a} {b}");
         }
-        let model = crate::checkpoint::load_model(&out, Transform::Fused, &dev)
+        let model = pino_learn::checkpoint::load_model(&out, Transform::Fused, &dev)
             .unwrap()
             .0;
         let (evaluated, _) =
-            crate::eval::predict_samples(&model, &items, &[0], items.t_points(), 1, &dev).unwrap();
+            pino_learn::infer::predict_samples(&model, &items, &[0], items.t_points(), 1, &dev)
+                .unwrap();
         assert_eq!(pred[0].physical.u, to_physical(&evaluated[0], meta).u);
         // The time-history table: interior rows, outputs, rates and excitations by name.
         let table = predictor

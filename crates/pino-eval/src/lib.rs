@@ -1,0 +1,23 @@
+//! What an engineer reads of a trained model, for any described system: the model against the
+//! solver and the model on new designs. The neural-operator engine itself (layout, model,
+//! losses, training, inference) is `pino-learn`; this crate knows which channels, groups and
+//! indices a description declares and turns predictions into what people read.
+//!
+//! - [`eval`]: Table 4 on the test split (solutions, first and second derivatives of the DOFs,
+//!   the force outputs) with the truth row, per-channel errors in the description's units,
+//!   plots of channels chosen by name, the engineering indices against the solver; the files of
+//!   the `evaluate` stage (written through the `report` crate).
+//! - [`indices_eval`]: the description's engineering indices of a prediction (the railway
+//!   family bound by name, or the description's simple indices), from the predicted outputs and
+//!   central-difference rates.
+//! - [`predict`]: designs by parameter name (sets, grids, random sweeps) through a trained
+//!   model, with the training ranges checked and the excitations regenerated or read; the
+//!   `predict` command's library.
+//!
+//! Errors are the engine's ([`pino_learn::Error`]): each names the file, field or tensor at
+//! fault.
+#![warn(missing_docs)]
+
+pub mod eval;
+pub mod indices_eval;
+pub mod predict;
