@@ -1055,10 +1055,12 @@ fn the_readme_description_is_the_shipped_quarter_car() {
 #[test]
 fn weights_without_noise_are_each_descriptions_residual_floor() {
     let vtcd_track = json!({"n_f": 150, "n_m": 75});
-    for (name, values, length, duration, x0, floor) in [
-        ("vtcd", vtcd_track, 120.0, 0.2, 5.0, 1e-9),
-        ("quarter-car", json!({}), 200.0, 0.3, 5.0, 1e-9),
-        ("bridge", json!({}), 120.0, 0.5, 0.0, 5e-2),
+    // (description, overrides, profile length, duration, x0, floor of the clean residual
+    // over the static force, whether 2 % noise stands far above it)
+    for (name, values, length, duration, x0, floor, noise_above_floor) in [
+        ("vtcd", vtcd_track, 120.0, 0.2, 5.0, 1e-9, true),
+        ("quarter-car", json!({}), 200.0, 0.3, 5.0, 1e-9, true),
+        ("bridge", json!({}), 120.0, 0.5, 0.0, 5e-2, false),
     ] {
         let dir = tempfile::tempdir().unwrap();
         let path = system_path(name);
@@ -1117,7 +1119,7 @@ fn weights_without_noise_are_each_descriptions_residual_floor() {
                     "{name} sample {id} {c}: clean residual {clean} vs scale {scale}"
                 );
                 assert!(
-                    floor > 1e-6 || (noised > 1e3 * clean && noised > 1e-5 * scale),
+                    !noise_above_floor || (noised > 1e3 * clean && noised > 1e-5 * scale),
                     "{name} sample {id} {c}: noised {noised}, clean {clean}"
                 );
             }

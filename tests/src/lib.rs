@@ -197,10 +197,10 @@ pub fn workspace_root() -> PathBuf {
         .to_path_buf()
 }
 
-/// The resolved parameters of `stage` (first matrix expansion) in the workspace's pipeline
-/// file `file` (relative to the workspace root), as the orchestrator hands them to the stage:
-/// `${constants.NAME}` references substituted.
-pub fn stage_params(file: &str, stage: &str) -> serde_json::Value {
+/// The definition of `stage` in the workspace's pipeline file `file` (relative to the
+/// workspace root), loaded by the orchestrator's own loader: `${constants.NAME}` references
+/// substituted in its command and parameters.
+pub fn stage_spec(file: &str, stage: &str) -> orchestrator::spec::Stage {
     let root = workspace_root();
     let p = orchestrator::spec::Pipeline::load(
         &root,
@@ -210,25 +210,19 @@ pub fn stage_params(file: &str, stage: &str) -> serde_json::Value {
     .unwrap_or_else(|e| panic!("{file}: {e}"));
     p.stage(stage)
         .unwrap_or_else(|| panic!("{file}: no stage `{stage}`"))
-        .expansions[0]
-        .params
         .clone()
 }
 
-/// The resolved command of `stage` in the workspace's pipeline file `file`: `cmd[0]` as
-/// written, then its arguments with `${constants.NAME}` substituted (the description path).
+/// The resolved parameters of `stage` (first matrix expansion) in the pipeline file `file`, as
+/// the orchestrator hands them to the stage.
+pub fn stage_params(file: &str, stage: &str) -> serde_json::Value {
+    stage_spec(file, stage).expansions[0].params.clone()
+}
+
+/// The resolved command of `stage` in the pipeline file `file`: `cmd[0]` as written, then its
+/// arguments (the description path).
 pub fn stage_cmd(file: &str, stage: &str) -> Vec<String> {
-    let root = workspace_root();
-    let p = orchestrator::spec::Pipeline::load(
-        &root,
-        &root.join(file),
-        &orchestrator::spec::LoadOptions::default(),
-    )
-    .unwrap_or_else(|e| panic!("{file}: {e}"));
-    p.stage(stage)
-        .unwrap_or_else(|| panic!("{file}: no stage `{stage}`"))
-        .cmd
-        .clone()
+    stage_spec(file, stage).cmd
 }
 
 /// Path of the shipped system description `systems/<name>.yaml` (`vtcd`, `quarter-car`,
