@@ -10,6 +10,7 @@ mod bad_input;
 mod cache;
 mod concurrency;
 mod failure;
+mod progress;
 mod shards_and_matrix;
 mod slurm;
 mod store;

@@ -13,8 +13,9 @@
 //! started (it will recompute or re-find what it needs). Without the lock, an object that a
 //! run has just committed or taken from the run-cache, but not yet recorded, could be deleted
 //! under it. Like `run`, `gc` waits for the lock (or fails with `--no-wait`), and it deletes
-//! the debris of killed runs (`tmp/`, `trash/`) as `run` does at its start. Resumable state in
-//! `scratch/` is left alone: it belongs to units that have not committed yet.
+//! the debris of killed runs (`tmp/`, `trash/`, `running/`) as `run` does at its start.
+//! Resumable state in `scratch/` is left alone: it belongs to units that have not committed
+//! yet.
 
 use crate::runlock::RunLock;
 use crate::store::{list_files, Manifest, Store};

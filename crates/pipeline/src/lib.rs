@@ -17,7 +17,8 @@
 //! protocol ([`exec`]; the stage side is the `stage-kit` crate). Outputs enter the store only
 //! complete (tmp directory, hash, manifest, rename); one run at a time holds a kernel `flock`
 //! ([`runlock`]), which dies with its holder; [`gc`] removes, under the same lock, the
-//! objects that no lock-record entry needs. Exit status: 0 success, 1 a stage failed,
+//! objects that no lock-record entry needs. The progress of running units is kept in files that
+//! other processes read ([`progress`]; `pipeline status` shows it). Exit status: 0 success, 1 a stage failed,
 //! 2 bad input (nothing run).
 #![warn(missing_docs)]
 
@@ -31,6 +32,7 @@ pub mod gc;
 pub mod hash;
 pub mod locate;
 pub mod plan;
+pub mod progress;
 pub mod run;
 pub mod runlock;
 pub mod spec;

@@ -8,11 +8,14 @@
 //! earlier identities), otherwise the stage runs in `tmp/` and its output is committed. A
 //! failed unit caches nothing; units downstream of it are skipped, independent units go on.
 //! The lock record is rewritten (atomically) after every unit that changes it, so a killed
-//! run keeps everything it finished. Where a unit's process runs (this machine or a Slurm
-//! job) is the [`crate::executor`]'s business; verification and commit happen here for both.
+//! run keeps everything it finished. Every running unit's progress is also kept in a file
+//! under `artifacts/running/` for other processes ([`crate::progress`]). Where a unit's
+//! process runs (this machine or a Slurm job) is the [`crate::executor`]'s business;
+//! verification and commit happen here for both.
 
 use crate::executor::{Executor, ExecutorKind, Job, Ticket};
 use crate::plan::{code_of, entry_for, units_of, Code, Unit};
+use crate::progress::Board;
 use crate::spec::Pipeline;
 use crate::store::{Cached, LockEntry, LockRecord, Manifest, Store, PROTOCOL_VERSION};
 use crate::ui::{fmt_duration, table, Ui};
@@ -130,6 +133,7 @@ struct Ctx<'a> {
     ui: &'a Ui,
     codes: &'a HashMap<usize, Code>,
     executor: &'a Executor,
+    board: &'a Board,
 }
 
 fn safe_name(key: &str) -> String {
@@ -221,6 +225,8 @@ fn compute(
         )?,
     }
     let view = cx.ui.start(&u.key);
+    // Removed when this function returns, however the unit ended.
+    let record = cx.board.start(&u.key, &stage.name);
     let t0 = Instant::now();
     let job = Job {
         unit: &u.key,
@@ -232,9 +238,10 @@ fn compute(
         shard: u.shard,
         sharded: stage.shards > 1,
     };
-    let outcome = cx
-        .executor
-        .execute(&placed, ticket, &job, &|pl| view.progress(pl))?;
+    let outcome = cx.executor.execute(&placed, ticket, &job, &|pl| {
+        view.progress(pl);
+        record.update(pl);
+    })?;
     let took = t0.elapsed();
     if outcome.success {
         match cx.store.commit(
@@ -304,6 +311,8 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
     store.create_dirs()?;
     let _lock = RunLock::acquire_for_workspace(&store.root, opts.wait, ui)?;
     store.clean_debris()?;
+    // Declared after the lock, so dropped (its records removed) before the lock is released.
+    let board = Board::open(&store.root, &p.key)?;
     executor.start();
     let mut rec = store.read_lock_record()?;
     let mut entries = rec.pipelines.get(&p.key).cloned().unwrap_or_default();
@@ -344,6 +353,7 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
         ui,
         codes: &codes,
         executor: &executor,
+        board: &board,
     };
     let jobs = executor.parallelism(opts.jobs);
     let mut save_error = None;

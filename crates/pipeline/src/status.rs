@@ -5,10 +5,13 @@
 //! in the run-cache), and compares it with the lock record. A stale unit's reason is the
 //! difference between its recorded entry and its current one: code, command, parameter
 //! (old -> new), input, shard layout, or a cached output that is missing or corrupted. A unit
-//! whose Slurm job is queued or running shows as `submitted` with the job id.
+//! whose Slurm job is queued or running shows as `submitted` with the job id. A unit that a
+//! live `pipeline run` is computing shows as `running` with its last progress
+//! ([`crate::progress`]), whatever its state before.
 
 use crate::executor::slurm;
 use crate::plan::{code_of, entry_for, units_of};
+use crate::progress::{self, RunningUnit};
 use crate::spec::Pipeline;
 use crate::store::{Cached, LockEntry, Store};
 use crate::ui::table;
@@ -70,10 +73,37 @@ pub struct UnitState {
     pub stage: usize,
     /// Index of its matrix expansion.
     pub expansion: usize,
-    /// `fresh`, `stale`, `never run` or `submitted`.
+    /// `fresh`, `stale`, `never run`, `submitted` or `running`.
     pub state: &'static str,
-    /// Why (for stale units), the job (submitted), or empty.
+    /// Why (for stale units), the job (submitted), the progress (running: `42/100 (loss
+    /// 0.3)`), or empty.
     pub detail: String,
+    /// The live progress record while a `pipeline run` computes the unit.
+    pub progress: Option<RunningUnit>,
+}
+
+/// The units of pipeline `p` that a live run is computing, by unit key. Best effort: a
+/// status view does not fail because progress cannot be read.
+fn live_units(p: &Pipeline, store: &Store) -> BTreeMap<String, RunningUnit> {
+    progress::running(&store.root)
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|r| r.pipeline == p.key)
+        .map(|r| (r.unit.clone(), r))
+        .collect()
+}
+
+/// A unit's state and detail once its progress record is known: `running` wins, except that
+/// a Slurm job still waiting for its first progress line stays `submitted` (with its job).
+fn with_progress(
+    state: &'static str,
+    detail: String,
+    record: Option<&RunningUnit>,
+) -> (&'static str, String) {
+    match record {
+        Some(r) if state != "submitted" || r.has_progress() => ("running", r.describe()),
+        _ => (state, detail),
+    }
 }
 
 /// The status table of every unit, plus a count line.
@@ -99,6 +129,7 @@ pub fn unit_states(p: &Pipeline) -> Result<Vec<UnitState>> {
     let rec = store.read_lock_record()?;
     let empty = BTreeMap::new();
     let recorded = rec.pipelines.get(&p.key).unwrap_or(&empty);
+    let live = live_units(p, &store);
     // Unit key -> output hash, for units whose current output is known.
     let mut known: BTreeMap<String, String> = BTreeMap::new();
     let mut rows = Vec::new();
@@ -164,12 +195,15 @@ pub fn unit_states(p: &Pipeline) -> Result<Vec<UnitState>> {
                     }
                 }
             };
+            let progress = live.get(&u.key).cloned();
+            let (state, detail) = with_progress(state, detail, progress.as_ref());
             rows.push(UnitState {
                 key: u.key,
                 stage: si,
                 expansion: u.expansion,
                 state,
                 detail,
+                progress,
             });
         }
     }
@@ -275,4 +309,49 @@ pub fn dag(p: &Pipeline, dot: bool) -> String {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(done: u64, total: u64, message: &str) -> RunningUnit {
+        RunningUnit {
+            unit: "train[algorithm=5]".into(),
+            stage: "train".into(),
+            pipeline: "pipeline.yaml".into(),
+            pid: 1,
+            host: "h".into(),
+            started: 0,
+            updated: 0,
+            done,
+            total,
+            message: message.into(),
+        }
+    }
+
+    #[test]
+    fn a_live_record_makes_a_unit_running() {
+        let r = record(42, 100, "2.0 s/epoch");
+        for state in ["fresh", "stale", "never run", "submitted"] {
+            assert_eq!(
+                with_progress(state, "why".into(), Some(&r)),
+                ("running", "42/100 (2.0 s/epoch)".to_owned())
+            );
+        }
+        assert_eq!(
+            with_progress("stale", "why".into(), None),
+            ("stale", "why".to_owned())
+        );
+        // A Slurm job that has not reported anything yet is still just submitted.
+        let queued = record(0, 0, "started");
+        assert_eq!(
+            with_progress("submitted", "pending on Slurm: job 7".into(), Some(&queued)),
+            ("submitted", "pending on Slurm: job 7".to_owned())
+        );
+        assert_eq!(
+            with_progress("never run", String::new(), Some(&queued)),
+            ("running", "started".to_owned())
+        );
+    }
 }

@@ -14,6 +14,7 @@
 //! pipeline.lock.json                lock record: pipeline file -> unit -> current identity
 //! hash-cache.json                   (path, stamp) -> blake3, see `hash`
 //! run.lock                          the run lock (flock), holding the holder's PID as text
+//! running/<hash>-<unit>.json        progress of a unit being computed (see `progress`)
 //! ```
 //!
 //! Commit protocol (crash safety): a stage writes into `tmp/<identity>-<pid>/out`; after it
@@ -321,9 +322,10 @@ impl Store {
         Ok(())
     }
 
-    /// Deletes debris of killed runs (`tmp/`, `trash/`). Call only under the run lock.
+    /// Deletes debris of killed runs (`tmp/`, `trash/`, the progress records of `running/`).
+    /// Call only under the run lock.
     pub fn clean_debris(&self) -> Result<()> {
-        for d in ["tmp", "trash"] {
+        for d in ["tmp", "trash", crate::progress::RUNNING_DIR] {
             let p = self.root.join(d);
             remove_tree(&p)?;
             std::fs::create_dir_all(&p).map_err(|e| Error::io(&p, e))?;

@@ -7,7 +7,9 @@
 //! (progress steps), `summary` (the `::summary` text), `gated` / `gated_shards` (while the
 //! file named by env `TEST_STAGE_GATE` exists, wait: lets a test hold a stage mid-run),
 //! `fail_first_attempts` (count attempts in the unit's scratch directory and fail until this
-//! many have failed; the output then records how many earlier attempts the scratch kept).
+//! many have failed; the output then records how many earlier attempts the scratch kept),
+//! `hold_at` (report that many of `steps` done, with the message `held here`, then wait while
+//! the gate file exists: a unit held mid-run with known progress).
 //! If env `TEST_STAGE_LOG` names a file, `start UNIT` and `end UNIT` lines are appended to it,
 //! so tests can count which units really ran.
 
@@ -102,7 +104,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(k) = earlier_attempts {
         text.push_str(&format!("earlier attempts {k}\n"));
     }
-    for _ in 0..steps {
+    let mut done = 0;
+    if let Some(k) = get("hold_at").and_then(|v| v.as_u64()) {
+        // Printed directly: `Progress` rate-limits lines, and this one must not be dropped.
+        let k = k.min(steps);
+        println!("{} {k} {steps} held here", stage_kit::PROGRESS_PREFIX);
+        std::io::stdout().flush()?;
+        log(&format!("held {unit}"));
+        if let Some(gate) = std::env::var_os("TEST_STAGE_GATE") {
+            while Path::new(&gate).exists() {
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+        }
+        done = k;
+        progress.inc(k);
+    }
+    for _ in done..steps {
         progress.inc(1);
     }
     let file = get("file")
