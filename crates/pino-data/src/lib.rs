@@ -41,7 +41,8 @@ mod table;
 pub mod units;
 
 pub use parquet_io::{
-    for_each_batch, read_parquet, read_parquet_files, row_count, write_parquet, write_parquet_with,
+    for_each_batch, read_parquet, read_parquet_files, row_count, write_parquet, write_parquet_from,
+    write_parquet_with,
 };
 pub use stream::StreamWriter;
 pub use table::{Column, Table};

@@ -125,7 +125,10 @@ pub(crate) fn column_units(path: &Path, table: &Table) -> Result<Vec<(String, &'
 }
 
 /// The file's key-value metadata for columns with `units`, sorted by key.
-pub(crate) fn file_metadata(units: &[(String, &str)]) -> BTreeMap<String, String> {
+pub(crate) fn file_metadata(
+    units: &[(String, &str)],
+    origin: Option<&Origin>,
+) -> BTreeMap<String, String> {
     let map: serde_json::Map<String, serde_json::Value> = units
         .iter()
         .map(|(n, u)| (n.clone(), serde_json::Value::from(*u)))
@@ -137,7 +140,7 @@ pub(crate) fn file_metadata(units: &[(String, &str)]) -> BTreeMap<String, String
             serde_json::Value::Object(map).to_string(),
         ),
     ]);
-    if let Some(o) = origin() {
+    if let Some(o) = origin {
         kv.insert(STAGE_KEY.to_owned(), o.stage.clone());
         kv.insert(UNIT_KEY.to_owned(), o.unit.clone());
         kv.insert(PARAMS_KEY.to_owned(), o.params.clone());

@@ -43,7 +43,23 @@ pub fn write_parquet(path: &Path, table: &Table) -> Result<()> {
 /// Writes `table` to `path` atomically with `row_group_rows` rows per row group (a
 /// per-sample row group, for instance, lets readers skip samples cheaply).
 pub fn write_parquet_with(path: &Path, table: &Table, row_group_rows: usize) -> Result<()> {
-    let schema = arrow_schema(path, table)?;
+    write_table(path, table, row_group_rows, metadata::origin())
+}
+
+/// Writes `table` to `path` atomically as [`write_parquet`] does, naming `origin` instead of
+/// the process's declared one: for a long-lived process (the design explorer) whose every
+/// file comes from a different request.
+pub fn write_parquet_from(path: &Path, table: &Table, origin: &metadata::Origin) -> Result<()> {
+    write_table(path, table, DEFAULT_ROW_GROUP, Some(origin))
+}
+
+fn write_table(
+    path: &Path,
+    table: &Table,
+    row_group_rows: usize,
+    origin: Option<&metadata::Origin>,
+) -> Result<()> {
+    let schema = arrow_schema(path, table, origin)?;
     let arrays = arrow_arrays(table);
     let batch = if arrays.is_empty() {
         RecordBatch::new_empty(schema.clone())
@@ -71,7 +87,11 @@ pub(crate) fn data_type(col: &Column) -> DataType {
 
 /// The Arrow schema of a table written to `path` (every column non-nullable): each field
 /// with its `unit`, the schema with the file's key-value metadata ([`crate::metadata`]).
-pub(crate) fn arrow_schema(path: &Path, table: &Table) -> Result<SchemaRef> {
+pub(crate) fn arrow_schema(
+    path: &Path,
+    table: &Table,
+    origin: Option<&metadata::Origin>,
+) -> Result<SchemaRef> {
     let units = metadata::column_units(path, table)?;
     let fields: Vec<Field> = table
         .columns()
@@ -82,7 +102,7 @@ pub(crate) fn arrow_schema(path: &Path, table: &Table) -> Result<SchemaRef> {
                 .with_metadata(Metadata::new().with(UNIT_KEY, *unit))
         })
         .collect();
-    let kv = metadata::file_metadata(&units);
+    let kv = metadata::file_metadata(&units, origin);
     Ok(Arc::new(Schema::new_with_metadata(fields, kv)))
 }
 

@@ -37,7 +37,7 @@ impl StreamWriter {
     /// Starts `path` with the column names and types of `template` (its rows are not
     /// written; an empty table is the usual template).
     pub fn create(path: &Path, template: &Table) -> Result<Self> {
-        let schema = arrow_schema(path, template)?;
+        let schema = arrow_schema(path, template, crate::metadata::origin())?;
         // One row group per `write` call: the writer never splits one on its own.
         let props = writer_properties(usize::MAX, &schema);
         let (tmp, file) = atomic_file::TempFile::create(path).map_err(atomic)?;

@@ -58,3 +58,21 @@ fn declared_origin_is_in_every_file() {
         assert_eq!(m.column_units[2], ("p_1".to_owned(), Some("N".to_owned())));
     }
 }
+
+#[test]
+fn a_file_written_for_a_request_names_its_own_origin_beside_the_process() {
+    pino_data::units::declare([("p_1", "N")]).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("r.parquet");
+    let params = serde_json::json!({"design": {"k_s": 4.0e5}, "excitation": {"kind": "seed"}});
+    let origin = Origin::stage_unit("explore", 0, 1, &params);
+    pino_data::write_parquet_from(&path, &table(), &origin).unwrap();
+    let kv = read_metadata(&path).unwrap().key_value;
+    assert_eq!(kv[STAGE_KEY], "explore");
+    assert_eq!(kv[UNIT_KEY], "explore");
+    assert_eq!(kv[PARAMS_KEY], params.to_string());
+    assert_eq!(
+        pino_data::read_parquet(&path, None).unwrap().columns(),
+        table().columns()
+    );
+}

@@ -129,6 +129,11 @@ impl IndexInputs {
         &self.columns
     }
 
+    /// The limit of each index column (`None`: none); a value passes at or below it.
+    pub fn limits(&self, system: &System, cfg: &IndexConfig) -> Vec<Option<f64>> {
+        self.set.column_limits(system, cfg)
+    }
+
     /// Whether every index can be computed from a prediction (and there is one).
     pub fn computable(&self) -> bool {
         !self.set.is_empty() && self.underivable.is_empty()
@@ -215,6 +220,19 @@ impl StoredColumns {
             columns: columns.into_iter().map(str::to_owned).collect(),
             by_id,
         })
+    }
+
+    /// The stored columns of one sample already cut to the model's window (a solve made
+    /// outside a dataset): `values[c]` is the series of `inputs`' stored column `c`.
+    pub fn of_sample(inputs: &IndexInputs, id: i64, values: Vec<Vec<f64>>) -> Self {
+        Self {
+            columns: inputs
+                .stored_columns()
+                .into_iter()
+                .map(str::to_owned)
+                .collect(),
+            by_id: BTreeMap::from([(id, values)]),
+        }
     }
 
     fn get(&self, id: i64, name: &str) -> Option<&[f64]> {

@@ -213,12 +213,7 @@ pub fn profiles(
     settings: Option<&mbd_dataset::ProfileParams>,
     choice: Option<&ProfileChoice>,
 ) -> Result<Vec<Option<Profile>>> {
-    let generated: Vec<&str> = system
-        .profiles
-        .iter()
-        .filter(|p| matches!(p, mbd_system::system::Profile::Generated { .. }))
-        .map(|p| p.name())
-        .collect();
+    let generated = generated_names(system);
     if generated.is_empty() {
         return Ok(vec![None; system.profiles.len()]);
     }
@@ -258,6 +253,41 @@ pub fn profiles(
     }
 }
 
+fn generated_names(system: &System) -> Vec<&str> {
+    system
+        .profiles
+        .iter()
+        .filter(|p| matches!(p, mbd_system::system::Profile::Generated { .. }))
+        .map(|p| p.name())
+        .collect()
+}
+
+/// The profiles of each of samples `ids` from profile files (the `irregularity` artifact),
+/// read once; see [`ProfileChoice::File`].
+pub fn profiles_of_samples(
+    system: &System,
+    files: &[std::path::PathBuf],
+    ids: &[i64],
+) -> Result<BTreeMap<i64, Vec<Option<Profile>>>> {
+    let generated = generated_names(system);
+    if generated.is_empty() {
+        return Ok(ids
+            .iter()
+            .map(|&id| (id, vec![None; system.profiles.len()]))
+            .collect());
+    }
+    let t = pino_data::read_parquet_files(files, None)?;
+    let path = files.first().map_or(Path::new("profiles"), |p| p.as_path());
+    ids.iter()
+        .map(|&id| {
+            Ok((
+                id,
+                profiles_of_table(system, &t, path, Some(id), &generated)?,
+            ))
+        })
+        .collect()
+}
+
 fn read_profiles(
     system: &System,
     path: &Path,
@@ -265,6 +295,16 @@ fn read_profiles(
     generated: &[&str],
 ) -> Result<Vec<Option<Profile>>> {
     let t = pino_data::read_parquet(path, None)?;
+    profiles_of_table(system, &t, path, sample_id, generated)
+}
+
+fn profiles_of_table(
+    system: &System,
+    t: &Table,
+    path: &Path,
+    sample_id: Option<i64>,
+    generated: &[&str],
+) -> Result<Vec<Option<Profile>>> {
     let x = t.f64(schema::TRACK_X)?;
     let eta = t.f64(schema::TRACK_ETA)?;
     let names = t.str(PROFILE_COLUMN).ok();

@@ -188,6 +188,24 @@ impl IndexSet {
         Ok((out, railway))
     }
 
+    /// The limit of each column of [`IndexSet::columns`] (`None`: no limit): a value passes
+    /// when it is at most its limit, as [`IndexSet::failed`] judges it (the Sperling limit
+    /// holds at each car-body point).
+    pub fn column_limits(&self, system: &System, cfg: &IndexConfig) -> Vec<Option<f64>> {
+        let mut out = Vec::new();
+        if self.railway.is_some() {
+            let l = &cfg.limits;
+            out.extend(INDEX_COLUMNS.iter().map(|c| match c.name {
+                "peak_wheel_rail_force_kn" => l.peak_wheel_rail_force_kn,
+                "wheel_load_reduction_rate" => l.wheel_load_reduction_rate,
+                n if n.starts_with("sperling_wz") => l.sperling_wz,
+                _ => None,
+            }));
+        }
+        out.extend(self.simple.iter().map(|(i, _)| system.indices[*i].limit));
+        out
+    }
+
     /// The names of the limits a record's values exceed: the railway family's limits
     /// (`cfg.limits`) and each simple index's own.
     pub fn failed(

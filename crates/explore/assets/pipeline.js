@@ -1,0 +1,129 @@
+/*
+ * pino-mbd "pipeline at a glance" — the read-only page /pipeline of `explore`.
+ *
+ * Polls GET /api/pipeline every 2 s and shows: the units of the pipeline file with their
+ * state (fresh, stale, never run, submitted, running; a colour per state), the detail and a
+ * progress bar while a unit reports progress; Table 4 of the latest `evaluate` (its first row
+ * is the header); the evaluate plots as images from GET /api/pipeline/plot/NAME.
+ *
+ * Test hooks: body[data-state] = loading | idle (after each answer drawn), body[data-polls]
+ * counts the answers drawn, window.pipelineState = the last answer.
+ * Plain ES2020, no inline scripts, no eval.
+ */
+'use strict';
+
+(() => {
+  const POLL_MS = 2000;
+  const $ = (sel) => document.querySelector(sel);
+  let polls = 0;
+  let lastTable4 = '';
+  let lastPlots = '';
+  window.pipelineState = null;
+
+  function el(tag, attrs = {}, ...children) {
+    const node = document.createElement(tag);
+    for (const [k, v] of Object.entries(attrs)) {
+      if (v == null || v === false) continue;
+      if (k === 'class') node.className = v;
+      else if (k === 'dataset') Object.assign(node.dataset, v);
+      else if (k in node && typeof v !== 'string') node[k] = v;
+      else node.setAttribute(k, v === true ? '' : v);
+    }
+    for (const c of children) if (c != null && c !== false) node.append(c instanceof Node ? c : String(c));
+    return node;
+  }
+
+  /** `never run` -> `state-never-run`; unknown states get `state-other` too. */
+  function stateClass(state) {
+    const known = ['fresh', 'stale', 'never run', 'submitted', 'running'];
+    const slug = String(state || '').toLowerCase().replace(/[^a-z0-9]+/g, '-');
+    return known.includes(String(state)) ? `state state-${slug}` : `state state-other state-${slug}`;
+  }
+
+  function progressCell(progress) {
+    if (!progress) return el('td', { class: 'progress-cell' }, '');
+    const { done, total, message } = progress;
+    const bar = el('progress', { max: String(total > 0 ? total : 1), value: String(done || 0) });
+    const text = `${done ?? 0}/${total ?? '?'}${message ? ` · ${message}` : ''}`;
+    return el('td', { class: 'progress-cell' },
+      el('div', { class: 'progress' }, bar, el('span', { class: 'progress-text' }, text)));
+  }
+
+  function renderUnits(units) {
+    const rows = (units || []).map((u) => el('tr', { dataset: { unit: u.key, state: u.state } },
+      el('td', { class: 'name' }, u.key),
+      el('td', {}, u.stage || ''),
+      el('td', {}, el('span', { class: stateClass(u.state) }, u.state)),
+      el('td', { class: 'detail' }, u.detail || ''),
+      progressCell(u.progress)));
+    $('#units tbody').replaceChildren(...rows);
+    $('#units-empty').hidden = rows.length > 0;
+  }
+
+  function renderTable4(table4) {
+    const key = JSON.stringify(table4 || null);
+    if (key === lastTable4) return;
+    lastTable4 = key;
+    const table = $('#table4');
+    if (!table4 || !table4.length) {
+      table.tHead.replaceChildren();
+      table.tBodies[0].replaceChildren();
+      $('#table4-empty').hidden = false;
+      return;
+    }
+    $('#table4-empty').hidden = true;
+    const [header, ...rows] = table4;
+    const isNum = (c) => typeof c === 'number'
+      || (typeof c === 'string' && c.trim() !== '' && !Number.isNaN(Number(c)));
+    // A column is right-aligned when every row holds a number there (the first is a label).
+    const numeric = header.map((_, j) => j > 0 && rows.length > 0 && rows.every((r) => isNum(r[j])));
+    table.tHead.replaceChildren(el('tr', {}, ...header.map((h, j) =>
+      el('th', { class: numeric[j] ? 'num' : '' }, h))));
+    table.tBodies[0].replaceChildren(...rows.map((r) =>
+      el('tr', {}, ...r.map((c, j) => el('td', { class: numeric[j] ? 'num' : '' }, c == null ? '' : c)))));
+  }
+
+  function renderPlots(plots) {
+    const key = JSON.stringify(plots || []);
+    if (key === lastPlots) return;
+    lastPlots = key;
+    const host = $('#plots');
+    host.replaceChildren(...(plots || []).map((name) => {
+      const src = `/api/pipeline/plot/${encodeURIComponent(name)}`;
+      return el('figure', {},
+        el('a', { href: src, target: '_blank', rel: 'noopener' }, el('img', { src, alt: name, loading: 'lazy' })),
+        el('figcaption', {}, name));
+    }));
+    $('#plots-empty').hidden = (plots || []).length > 0;
+  }
+
+  async function poll() {
+    try {
+      const res = await fetch('/api/pipeline', { credentials: 'same-origin' });
+      if (!res.ok) {
+        let msg = `HTTP ${res.status}`;
+        try { const j = await res.json(); if (j && j.error) msg = j.error; } catch (_) { /* not JSON */ }
+        throw new Error(msg);
+      }
+      const answer = await res.json();
+      window.pipelineState = answer;
+      $('#pipeline-file').textContent = answer.file || '—';
+      renderUnits(answer.units);
+      renderTable4(answer.evaluate ? answer.evaluate.table4 : null);
+      renderPlots(answer.evaluate ? answer.evaluate.plots : []);
+      $('#updated').textContent = new Date().toLocaleTimeString();
+      $('#error').hidden = true;
+      polls += 1;
+      document.body.dataset.polls = String(polls);
+    } catch (err) {
+      $('.error-message').textContent = `GET /api/pipeline: ${err.message || err}`;
+      $('#error').hidden = false;
+    } finally {
+      document.body.dataset.state = 'idle';
+      setTimeout(poll, POLL_MS);
+    }
+  }
+
+  if (document.readyState === 'loading') document.addEventListener('DOMContentLoaded', poll);
+  else poll();
+})();

@@ -1,0 +1,210 @@
+//! The pipeline at a glance and finding a model through the orchestrator's record.
+//!
+//! Both read the workspace exactly as `pipeline status` and `pipeline show` do (the same library
+//! calls): the units' states with their reasons and the progress of running ones, Table 4 and
+//! the plots of the latest `evaluate`, and the output directories of the model and its dataset.
+//! Read-only: nothing here runs a stage or writes the store.
+
+use orchestrator::spec::Pipeline;
+use orchestrator::status::{show, unit_states};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// The algorithm whose model `explore` opens by default (Table 3's PINO-MBD with direct
+/// derivatives, the most accurate of the paper).
+pub const DEFAULT_ALGORITHM: i64 = 5;
+
+/// Where the model and its dataset live.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Located {
+    /// The expansion that trained it (`train[algorithm=5]`).
+    pub unit: String,
+    /// The model directory.
+    pub model_dir: PathBuf,
+    /// The dataset's files.
+    pub dataset: crate::session::DatasetFiles,
+}
+
+fn files_named(files: &[PathBuf], name: &str) -> Vec<PathBuf> {
+    files
+        .iter()
+        .filter(|p| p.file_name().is_some_and(|n| n == name))
+        .cloned()
+        .collect()
+}
+
+/// The current model of `algorithm` of pipeline `p` and its dataset: the expansion whose
+/// `algorithm` parameter equals it, and the `params.parquet` and `irregularity.parquet` of the
+/// stages upstream of it.
+pub fn locate(p: &Pipeline, algorithm: i64) -> Result<Located, String> {
+    let found = p.stages.iter().find_map(|s| {
+        s.expansions
+            .iter()
+            .find(|e| e.params.get("algorithm").and_then(|v| v.as_i64()) == Some(algorithm))
+            .map(|e| (s, e.name.clone()))
+    });
+    let Some((stage, unit)) = found else {
+        return Err(format!(
+            "{}: no stage expansion trains algorithm {algorithm}; give the model with --model DIR",
+            p.file
+        ));
+    };
+    let files: Vec<PathBuf> = show(p, &unit)
+        .map_err(|e| {
+            format!(
+                "{}: no current model of `{unit}` ({e}); run `pipeline -f {} run` first, or give --model DIR",
+                p.file, p.file
+            )
+        })?
+        .lines()
+        .map(PathBuf::from)
+        .collect();
+    let model_dir = files_named(&files, "model.safetensors")
+        .first()
+        .and_then(|f| f.parent().map(Path::to_path_buf))
+        .ok_or_else(|| format!("{}: `{unit}` wrote no model.safetensors", p.file))?;
+    // Every stage upstream of the training stage, nearest first.
+    let mut upstream: Vec<String> = stage.inputs.values().cloned().collect();
+    let mut k = 0;
+    while k < upstream.len() {
+        if let Some(s) = p.stages.iter().find(|s| s.name == upstream[k]) {
+            for u in s.inputs.values() {
+                if !upstream.contains(u) {
+                    upstream.push(u.clone());
+                }
+            }
+        }
+        k += 1;
+    }
+    let mut dataset = crate::session::DatasetFiles::default();
+    for name in &upstream {
+        let Ok(text) = show(p, name) else { continue };
+        let files: Vec<PathBuf> = text.lines().map(PathBuf::from).collect();
+        dataset.params.extend(files_named(&files, "params.parquet"));
+        dataset
+            .profiles
+            .extend(files_named(&files, "irregularity.parquet"));
+    }
+    dataset.params.dedup();
+    dataset.profiles.dedup();
+    Ok(Located {
+        unit,
+        model_dir,
+        dataset,
+    })
+}
+
+/// A unit as the page shows it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct UnitView {
+    /// Unit key.
+    pub key: String,
+    /// Its stage.
+    pub stage: String,
+    /// `fresh`, `stale`, `never run`, `submitted` or `running`.
+    pub state: String,
+    /// Why (stale), the job (submitted), or the progress text.
+    pub detail: String,
+    /// Progress of a running unit.
+    pub progress: Option<Progress>,
+}
+
+/// Progress of a running unit.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Progress {
+    /// Steps done.
+    pub done: u64,
+    /// Steps in all (0: not known yet).
+    pub total: u64,
+    /// The stage's message.
+    pub message: String,
+}
+
+/// The latest evaluation.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Evaluation {
+    /// Table 4, the header first.
+    pub table4: Option<Vec<Vec<String>>>,
+    /// Plot file names.
+    pub plots: Vec<String>,
+}
+
+/// The page's data.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Glance {
+    /// The pipeline file.
+    pub file: String,
+    /// Every unit in pipeline order.
+    pub units: Vec<UnitView>,
+    /// The latest `evaluate`, when it has run.
+    pub evaluate: Option<Evaluation>,
+}
+
+/// The evaluate stage of `p` (the one named `evaluate`).
+const EVALUATE: &str = "evaluate";
+
+fn evaluate_files(p: &Pipeline) -> Option<Vec<PathBuf>> {
+    p.index(EVALUATE)?;
+    show(p, EVALUATE)
+        .ok()
+        .map(|t| t.lines().map(PathBuf::from).collect())
+}
+
+/// The pipeline at a glance.
+pub fn glance(p: &Pipeline) -> Result<Glance, String> {
+    let units = unit_states(p)
+        .map_err(|e| e.to_string())?
+        .into_iter()
+        .map(|u| UnitView {
+            stage: p.stages[u.stage].name.clone(),
+            progress: u.progress.map(|g| Progress {
+                done: g.done,
+                total: g.total,
+                message: g.message,
+            }),
+            key: u.key,
+            state: u.state.to_owned(),
+            detail: u.detail,
+        })
+        .collect();
+    let evaluate = evaluate_files(p).map(|files| Evaluation {
+        table4: files_named(&files, "table4.csv")
+            .first()
+            .and_then(|f| read_csv(f).ok()),
+        plots: plot_names(&files),
+    });
+    Ok(Glance {
+        file: p.file.clone(),
+        units,
+        evaluate,
+    })
+}
+
+fn plot_names(files: &[PathBuf]) -> Vec<String> {
+    files
+        .iter()
+        .filter(|f| f.extension().is_some_and(|e| e == "png"))
+        .filter_map(|f| f.file_name()?.to_str().map(str::to_owned))
+        .collect()
+}
+
+/// The path of the latest evaluation's plot `name` (only names the evaluation lists).
+pub fn plot_path(p: &Pipeline, name: &str) -> Option<PathBuf> {
+    evaluate_files(p)?
+        .into_iter()
+        .filter(|f| f.extension().is_some_and(|e| e == "png"))
+        .find(|f| f.file_name().is_some_and(|n| n == name))
+}
+
+fn read_csv(path: &Path) -> Result<Vec<Vec<String>>, String> {
+    let mut r = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .from_path(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    r.records()
+        .map(|rec| {
+            rec.map(|r| r.iter().map(str::to_owned).collect())
+                .map_err(|e| format!("{}: {e}", path.display()))
+        })
+        .collect()
+}

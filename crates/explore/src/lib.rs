@@ -1,0 +1,21 @@
+//! The design explorer behind the `explore` binary (`docs/explore.md`): a trained model of any
+//! described system opened for design work, served as a web page and a JSON API.
+//!
+//! - [`session`]: the model session: summary, prediction, sweep, exact solve, keyed by the
+//!   description's names; [`solve`]: the solver run and its comparison with the prediction;
+//! - [`request`]: requests parsed and validated, errors naming the field and the allowed range;
+//! - [`download`]: the design and curve files, each with the model's identity and excitation;
+//! - [`glance`]: the pipeline at a glance and the model found through the orchestrator's record;
+//! - [`client`]: the blocking HTTP client of the load benchmark and the tests;
+//! - [`server`]: axum routes, host and token checks, the solve gate; [`assets`]: the embedded
+//!   page.
+#![warn(missing_docs)]
+
+pub mod assets;
+pub mod client;
+pub mod download;
+pub mod glance;
+pub mod request;
+pub mod server;
+pub mod session;
+pub mod solve;

@@ -1,0 +1,403 @@
+//! The explorer API's requests, parsed from JSON and validated before any work: a design (the
+//! model's parameters by name; missing names take the nominal values), an excitation (a test
+//! sample of the dataset or a generated profile from a seed) and the sweep's axis. Every refusal
+//! is an [`ApiError`] naming the field and what is allowed, never a panic: the body is read as
+//! untyped JSON first, so a wrong type, an unknown key, a non-number or an infinite value each
+//! get their own message.
+
+use serde::Serialize;
+use serde_json::{Map, Value};
+
+/// An error answer: the HTTP status and the JSON body `{error, field, allowed}`.
+#[derive(Debug, Clone, PartialEq, Serialize, thiserror::Error)]
+#[error("{error}")]
+pub struct ApiError {
+    /// HTTP status (400 bad input, 429 busy, 500 a fault of the server).
+    #[serde(skip)]
+    pub status: u16,
+    /// What went wrong.
+    pub error: String,
+    /// The request field at fault (`design.k_pz`, `steps`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub field: Option<String>,
+    /// What the field allows.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub allowed: Option<String>,
+    /// For 429: seconds after which to retry.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub retry_after_s: Option<u64>,
+}
+
+impl ApiError {
+    /// A 400 for `field`.
+    pub fn bad(
+        field: impl Into<String>,
+        error: impl Into<String>,
+        allowed: impl Into<String>,
+    ) -> Self {
+        Self {
+            status: 400,
+            error: error.into(),
+            field: Some(field.into()),
+            allowed: Some(allowed.into()),
+            retry_after_s: None,
+        }
+    }
+
+    /// A 429: the solver queue is full.
+    pub fn busy(retry_after_s: u64) -> Self {
+        Self {
+            status: 429,
+            error: "the solver is busy: too many solves running or queued".into(),
+            field: None,
+            allowed: None,
+            retry_after_s: Some(retry_after_s),
+        }
+    }
+
+    /// A 500: a fault of the server, not of the request.
+    pub fn internal(error: impl std::fmt::Display) -> Self {
+        Self {
+            status: 500,
+            error: error.to_string(),
+            field: None,
+            allowed: None,
+            retry_after_s: None,
+        }
+    }
+}
+
+/// Where the profiles under the system come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum Excitation {
+    /// The profile of a test sample of the dataset (the one its simulation used).
+    Test {
+        /// Its sample id.
+        sample_id: i64,
+    },
+    /// Generated as the `irregularity` stage generates them, with the dataset's settings.
+    Seed {
+        /// Seed of the random phases.
+        seed: u64,
+        /// Sample id of the stream.
+        id: u64,
+    },
+}
+
+/// A design and its excitation (the body of predict, solve and the downloads).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DesignRequest {
+    /// Every parameter's value, in the model's order.
+    pub design: Vec<f64>,
+    /// The excitation; `None`: the model's default.
+    pub excitation: Option<Excitation>,
+}
+
+/// A one-parameter sweep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepRequest {
+    /// The base design and excitation.
+    pub base: DesignRequest,
+    /// Index of the swept parameter.
+    pub parameter: usize,
+    /// First and last value (inclusive).
+    pub from: f64,
+    /// Last value.
+    pub to: f64,
+    /// Number of designs.
+    pub steps: usize,
+    /// How many of them also go through the solver.
+    pub solve_points: usize,
+}
+
+/// What the parser needs to know of the model: parameter names, nominal values and training
+/// ranges, and the request limits.
+#[derive(Debug, Clone)]
+pub struct RequestRules {
+    /// Parameter names in value order.
+    pub names: Vec<String>,
+    /// Nominal values.
+    pub nominal: Vec<f64>,
+    /// Training range of each parameter.
+    pub ranges: Vec<[f64; 2]>,
+    /// Most designs in one sweep.
+    pub sweep_max_designs: usize,
+    /// Most solver points in one sweep.
+    pub sweep_max_solve_points: usize,
+}
+
+fn object<'a>(v: &'a Value, field: &str) -> Result<&'a Map<String, Value>, ApiError> {
+    v.as_object().ok_or_else(|| {
+        ApiError::bad(
+            field,
+            format!("`{field}` must be a JSON object"),
+            "an object",
+        )
+    })
+}
+
+fn only_keys(obj: &Map<String, Value>, field: &str, keys: &[&str]) -> Result<(), ApiError> {
+    match obj.keys().find(|k| !keys.contains(&k.as_str())) {
+        Some(k) => {
+            let at = if field.is_empty() {
+                k.clone()
+            } else {
+                format!("{field}.{k}")
+            };
+            Err(ApiError::bad(
+                at,
+                format!("unknown field `{k}`"),
+                format!("fields: {}", keys.join(", ")),
+            ))
+        }
+        None => Ok(()),
+    }
+}
+
+/// A finite number at `field`.
+fn number(v: &Value, field: &str) -> Result<f64, ApiError> {
+    match v.as_f64() {
+        Some(x) if x.is_finite() => Ok(x),
+        _ => Err(ApiError::bad(
+            field,
+            format!("`{field}` = {v} is not a finite number"),
+            "a finite number",
+        )),
+    }
+}
+
+/// A non-negative integer at `field`, in `lo..=hi`.
+fn integer(v: &Value, field: &str, lo: u64, hi: u64) -> Result<u64, ApiError> {
+    match v.as_u64() {
+        Some(x) if (lo..=hi).contains(&x) => Ok(x),
+        _ => Err(ApiError::bad(
+            field,
+            format!("`{field}` = {v} is out of range"),
+            format!("an integer in {lo}..={hi}"),
+        )),
+    }
+}
+
+/// Parses a request body as a JSON object.
+pub fn body(bytes: &[u8]) -> Result<Value, ApiError> {
+    let v: Value = serde_json::from_slice(bytes).map_err(|e| {
+        ApiError::bad(
+            "body",
+            format!("the body is not valid JSON: {e}"),
+            "a JSON object",
+        )
+    })?;
+    object(&v, "body")?;
+    Ok(v)
+}
+
+impl RequestRules {
+    fn design(&self, v: Option<&Value>) -> Result<Vec<f64>, ApiError> {
+        let mut design = self.nominal.clone();
+        let Some(v) = v else {
+            return Ok(design);
+        };
+        for (name, value) in object(v, "design")? {
+            let field = format!("design.{name}");
+            let Some(k) = self.names.iter().position(|n| n == name) else {
+                return Err(ApiError::bad(
+                    field,
+                    format!("unknown parameter `{name}`"),
+                    format!("parameters: {}", self.names.join(", ")),
+                ));
+            };
+            design[k] = number(value, &field)?;
+        }
+        Ok(design)
+    }
+
+    fn excitation(&self, v: Option<&Value>) -> Result<Option<Excitation>, ApiError> {
+        let Some(v) = v.filter(|v| !v.is_null()) else {
+            return Ok(None);
+        };
+        let obj = object(v, "excitation")?;
+        let kind = obj.get("kind").and_then(Value::as_str).unwrap_or("");
+        match kind {
+            "test" => {
+                only_keys(obj, "excitation", &["kind", "sample_id"])?;
+                let id = obj.get("sample_id").unwrap_or(&Value::Null);
+                let id = integer(id, "excitation.sample_id", 0, i64::MAX as u64)?;
+                Ok(Some(Excitation::Test {
+                    sample_id: id as i64,
+                }))
+            }
+            "seed" => {
+                only_keys(obj, "excitation", &["kind", "seed", "id"])?;
+                let get = |k: &str| {
+                    integer(
+                        obj.get(k).unwrap_or(&Value::from(0)),
+                        &format!("excitation.{k}"),
+                        0,
+                        u64::MAX,
+                    )
+                };
+                Ok(Some(Excitation::Seed {
+                    seed: get("seed")?,
+                    id: get("id")?,
+                }))
+            }
+            other => Err(ApiError::bad(
+                "excitation.kind",
+                format!("unknown excitation kind `{other}`"),
+                "\"test\" (with sample_id) or \"seed\" (with seed, id)",
+            )),
+        }
+    }
+
+    /// A design request: `{design, excitation}`.
+    pub fn design_request(&self, v: &Value) -> Result<DesignRequest, ApiError> {
+        let obj = object(v, "body")?;
+        only_keys(obj, "", &["design", "excitation"])?;
+        Ok(DesignRequest {
+            design: self.design(obj.get("design"))?,
+            excitation: self.excitation(obj.get("excitation"))?,
+        })
+    }
+
+    /// A sweep request: `{design, excitation, parameter, from, to, steps, solve_points}`.
+    pub fn sweep_request(&self, v: &Value) -> Result<SweepRequest, ApiError> {
+        let obj = object(v, "body")?;
+        only_keys(
+            obj,
+            "",
+            &[
+                "design",
+                "excitation",
+                "parameter",
+                "from",
+                "to",
+                "steps",
+                "solve_points",
+            ],
+        )?;
+        let base = DesignRequest {
+            design: self.design(obj.get("design"))?,
+            excitation: self.excitation(obj.get("excitation"))?,
+        };
+        let allowed = format!("one of {}", self.names.join(", "));
+        let name = obj
+            .get("parameter")
+            .and_then(Value::as_str)
+            .ok_or_else(|| {
+                ApiError::bad(
+                    "parameter",
+                    "`parameter` (the swept parameter's name) is missing",
+                    allowed.clone(),
+                )
+            })?;
+        let parameter = self.names.iter().position(|n| n == name).ok_or_else(|| {
+            ApiError::bad("parameter", format!("unknown parameter `{name}`"), allowed)
+        })?;
+        let [lo, hi] = self.ranges[parameter];
+        let end = |k: &str, default: f64| obj.get(k).map_or(Ok(default), |v| number(v, k));
+        let steps = obj.get("steps").map_or(Ok(100), |v| {
+            integer(v, "steps", 2, self.sweep_max_designs as u64)
+        })? as usize;
+        let solve_points = obj.get("solve_points").map_or(Ok(0), |v| {
+            integer(
+                v,
+                "solve_points",
+                0,
+                self.sweep_max_solve_points.min(steps) as u64,
+            )
+        })? as usize;
+        Ok(SweepRequest {
+            base,
+            parameter,
+            from: end("from", lo)?,
+            to: end("to", hi)?,
+            steps,
+            solve_points,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn rules() -> RequestRules {
+        RequestRules {
+            names: vec!["k".into(), "c".into()],
+            nominal: vec![1.0, 2.0],
+            ranges: vec![[0.5, 2.0], [1.0, 3.0]],
+            sweep_max_designs: 400,
+            sweep_max_solve_points: 8,
+        }
+    }
+
+    fn refused(v: Value) -> ApiError {
+        rules().design_request(&v).unwrap_err()
+    }
+
+    #[test]
+    fn missing_parameters_take_nominal_values_and_outside_values_are_accepted() {
+        let r = rules()
+            .design_request(&json!({"design": {"c": 9.5}}))
+            .unwrap();
+        assert_eq!(r.design, vec![1.0, 9.5]);
+        assert_eq!(r.excitation, None);
+        let r = rules()
+            .design_request(&json!({"excitation": {"kind": "seed", "seed": 3, "id": 4}}))
+            .unwrap();
+        assert_eq!(r.excitation, Some(Excitation::Seed { seed: 3, id: 4 }));
+    }
+
+    #[test]
+    fn each_bad_field_is_named_with_what_it_allows() {
+        let e = refused(json!({"design": {"m": 1.0}}));
+        assert_eq!((e.status, e.field.as_deref()), (400, Some("design.m")));
+        assert!(e.allowed.unwrap().contains("k, c"));
+        let e = refused(json!({"design": {"k": "NaN"}}));
+        assert_eq!(e.field.as_deref(), Some("design.k"));
+        assert_eq!(e.allowed.as_deref(), Some("a finite number"));
+        let e = refused(json!({"design": [1, 2]}));
+        assert_eq!(e.field.as_deref(), Some("design"));
+        let e = refused(json!({"design": {}, "colour": 1}));
+        assert_eq!(e.field.as_deref(), Some("colour"));
+        let e = refused(json!({"excitation": {"kind": "test", "sample_id": -1}}));
+        assert_eq!(e.field.as_deref(), Some("excitation.sample_id"));
+        let e = refused(json!({"excitation": {"kind": "wind"}}));
+        assert_eq!(e.field.as_deref(), Some("excitation.kind"));
+        // JSON has no NaN or infinity: such bodies are malformed.
+        for text in [
+            "{\"design\": {\"k\": NaN}}",
+            "{\"design\": {\"k\": 1e999}}",
+            "{",
+            "[]",
+        ] {
+            let e = body(text.as_bytes()).unwrap_err();
+            assert_eq!(
+                (e.status, e.field.as_deref()),
+                (400, Some("body")),
+                "{text}"
+            );
+        }
+    }
+
+    #[test]
+    fn sweeps_default_to_the_training_range_and_are_bounded() {
+        let s = rules().sweep_request(&json!({"parameter": "c"})).unwrap();
+        assert_eq!((s.parameter, s.from, s.to, s.steps), (1, 1.0, 3.0, 100));
+        let e = rules()
+            .sweep_request(&json!({"parameter": "c", "steps": 100000}))
+            .unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("steps"));
+        assert_eq!(e.allowed.as_deref(), Some("an integer in 2..=400"));
+        let e = rules()
+            .sweep_request(&json!({"parameter": "c", "steps": 4, "solve_points": 5}))
+            .unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("solve_points"));
+        let e = rules()
+            .sweep_request(&json!({"parameter": "x"}))
+            .unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("parameter"));
+    }
+}

@@ -1,0 +1,690 @@
+//! The HTTP server: axum on tokio, the embedded pages and the JSON API of `docs/explore.md`.
+//!
+//! - Every request passes `guard`: its `Host` must be one the server answers to (DNS
+//!   rebinding), and beyond loopback it must carry the token (a cookie set by the page's first
+//!   load with `?token=`, or `Authorization: Bearer`). Answers carry a strict Content Security
+//!   Policy and no CORS headers, so other origins cannot read them.
+//! - Bodies are limited ([`BODY_LIMIT`]); model work runs on the blocking pool, so the async
+//!   workers keep accepting while a prediction or a solve computes.
+//! - Solves pass a [`SolveGate`]: at most `workers` run and `queue` wait; beyond, 429 with
+//!   `Retry-After`. A solve whose client disconnects is cancelled: hyper drops the handler's
+//!   future, whose `CancelOnDrop` guard sets the engine's stop flag.
+
+use crate::download;
+use crate::glance;
+use crate::request::{self, ApiError, DesignRequest};
+use crate::session::{Explorer, Response};
+use crate::solve::{relative_error, relative_l2};
+use axum::body::{Body, Bytes};
+use axum::extract::{DefaultBodyLimit, Path, Query, Request, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response as HttpResponse};
+use axum::routing::{get, post};
+use axum::Router;
+use orchestrator::spec::Pipeline;
+use serde_json::{json, Value};
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+use tokio::sync::Semaphore;
+
+/// Largest request body (bytes).
+pub const BODY_LIMIT: usize = 64 * 1024;
+
+/// Name of the token cookie.
+const TOKEN_COOKIE: &str = "explore_token";
+
+/// Who may talk to the server.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Access {
+    /// `Host` header values answered (lower case, with port).
+    pub hosts: Vec<String>,
+    /// Any host (with the right port) is answered: bound to every interface, the token guards.
+    pub any_host_on_port: Option<u16>,
+    /// The token required on every request, beyond loopback.
+    pub token: Option<String>,
+}
+
+impl Access {
+    /// The access rules of a server bound at `addr`: loopback needs no token; any other
+    /// address needs `token`. `extra` are more host names (`--allow-host`, with or without
+    /// port).
+    pub fn new(addr: SocketAddr, token: Option<String>, extra: &[String]) -> Self {
+        let port = addr.port();
+        let ip = match addr {
+            SocketAddr::V4(a) => a.ip().to_string(),
+            SocketAddr::V6(a) => format!("[{}]", a.ip()),
+        };
+        let mut hosts = vec![format!("{ip}:{port}"), format!("localhost:{port}")];
+        if addr.ip().is_loopback() {
+            hosts.push(format!("127.0.0.1:{port}"));
+            hosts.push(format!("[::1]:{port}"));
+        }
+        for h in extra {
+            let h = h.to_ascii_lowercase();
+            if h.rsplit_once(':')
+                .is_some_and(|(_, p)| p.parse::<u16>().is_ok())
+                && !h.ends_with(']')
+            {
+                hosts.push(h);
+            } else {
+                hosts.push(format!("{h}:{port}"));
+            }
+        }
+        let mut seen = std::collections::BTreeSet::new();
+        hosts.retain(|h| seen.insert(h.clone()));
+        Self {
+            hosts,
+            any_host_on_port: addr.ip().is_unspecified().then_some(port),
+            token: if addr.ip().is_loopback() { None } else { token },
+        }
+    }
+
+    fn host_allowed(&self, host: &str) -> bool {
+        let host = host.to_ascii_lowercase();
+        if self.hosts.contains(&host) {
+            return true;
+        }
+        self.any_host_on_port.is_some_and(|p| {
+            host.rsplit_once(':')
+                .is_some_and(|(_, hp)| hp == p.to_string())
+        })
+    }
+
+    fn token_ok(&self, headers: &HeaderMap, query: Option<&str>) -> bool {
+        let Some(token) = &self.token else {
+            return true;
+        };
+        let eq = |a: &str| {
+            a.len() == token.len()
+                && a.bytes()
+                    .zip(token.bytes())
+                    .fold(0, |d, (x, y)| d | (x ^ y))
+                    == 0
+        };
+        let bearer = headers
+            .get(header::AUTHORIZATION)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.strip_prefix("Bearer "));
+        let cookie = headers
+            .get_all(header::COOKIE)
+            .iter()
+            .filter_map(|v| v.to_str().ok())
+            .flat_map(|v| v.split(';'))
+            .filter_map(|c| c.trim().strip_prefix(TOKEN_COOKIE)?.strip_prefix('='))
+            .any(eq);
+        cookie || bearer.is_some_and(eq) || query_token(query).is_some_and(eq)
+    }
+}
+
+fn query_token(query: Option<&str>) -> Option<&str> {
+    query?.split('&').find_map(|kv| kv.strip_prefix("token="))
+}
+
+/// At most `workers` solves run and `queue` wait.
+pub struct SolveGate {
+    admitted: AtomicUsize,
+    capacity: usize,
+    running: Semaphore,
+    /// Solves finished.
+    pub completed: AtomicU64,
+    /// Solves cancelled because their client went away.
+    pub cancelled: AtomicU64,
+}
+
+impl SolveGate {
+    /// A gate for `workers` running and `queue` waiting solves.
+    pub fn new(workers: usize, queue: usize) -> Self {
+        Self {
+            admitted: AtomicUsize::new(0),
+            capacity: workers.max(1) + queue,
+            running: Semaphore::new(workers.max(1)),
+            completed: AtomicU64::new(0),
+            cancelled: AtomicU64::new(0),
+        }
+    }
+
+    fn admit(self: &Arc<Self>) -> Result<Admitted, ApiError> {
+        if self.admitted.fetch_add(1, Ordering::SeqCst) >= self.capacity {
+            self.admitted.fetch_sub(1, Ordering::SeqCst);
+            return Err(ApiError::busy(1));
+        }
+        Ok(Admitted(self.clone()))
+    }
+}
+
+/// A place in the gate, given back on drop.
+struct Admitted(Arc<SolveGate>);
+
+impl Drop for Admitted {
+    fn drop(&mut self) {
+        self.0.admitted.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// Sets the flag when dropped unless disarmed: the handler's future dropped before the solve
+/// finished means the client went away.
+struct CancelOnDrop {
+    flag: Arc<AtomicBool>,
+    gate: Arc<SolveGate>,
+    armed: bool,
+}
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        if self.armed {
+            self.flag.store(true, Ordering::Relaxed);
+            self.gate.cancelled.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// The server's state.
+pub struct App {
+    /// The model session.
+    pub explorer: Arc<Explorer>,
+    /// The pipeline, when the model came from one.
+    pub pipeline: Option<Arc<Pipeline>>,
+    /// Access rules.
+    pub access: Access,
+    /// The solve gate.
+    pub solves: Arc<SolveGate>,
+}
+
+type Shared = Arc<App>;
+
+fn error_response(e: ApiError) -> HttpResponse {
+    let status = StatusCode::from_u16(e.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
+    let mut r = (status, axum::Json(&e)).into_response();
+    if let Some(s) = e.retry_after_s {
+        r.headers_mut()
+            .insert(header::RETRY_AFTER, HeaderValue::from(s));
+    }
+    r
+}
+
+fn json_ok(v: Value) -> HttpResponse {
+    axum::Json(v).into_response()
+}
+
+/// Runs `f` on the blocking pool.
+async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| ApiError::internal(format!("worker failed: {e}")))?
+}
+
+/// Every request: host, token, then the security headers on the answer.
+async fn guard(State(app): State<Shared>, req: Request, next: Next) -> HttpResponse {
+    let host = req
+        .headers()
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok())
+        .unwrap_or("");
+    if !app.access.host_allowed(host) {
+        return error_response(ApiError {
+            status: 403,
+            error: format!("host `{host}` is not served here"),
+            field: Some("Host".into()),
+            allowed: Some(app.access.hosts.join(", ")),
+            retry_after_s: None,
+        });
+    }
+    let query = req.uri().query().map(str::to_owned);
+    if !app.access.token_ok(req.headers(), query.as_deref()) {
+        return error_response(ApiError {
+            status: 403,
+            error: "a token is required: open the URL explore printed (with ?token=)".into(),
+            field: Some("token".into()),
+            allowed: None,
+            retry_after_s: None,
+        });
+    }
+    let set_cookie = app.access.token.is_some() && query_token(query.as_deref()).is_some();
+    let mut r = next.run(req).await;
+    let h = r.headers_mut();
+    h.insert(
+        header::CONTENT_SECURITY_POLICY,
+        HeaderValue::from_static(
+            "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; connect-src 'self'; frame-ancestors 'none'",
+        ),
+    );
+    h.insert(
+        header::X_CONTENT_TYPE_OPTIONS,
+        HeaderValue::from_static("nosniff"),
+    );
+    h.insert(
+        header::REFERRER_POLICY,
+        HeaderValue::from_static("no-referrer"),
+    );
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    if set_cookie {
+        if let Some(t) = &app.access.token {
+            if let Ok(v) = HeaderValue::from_str(&format!(
+                "{TOKEN_COOKIE}={t}; HttpOnly; SameSite=Strict; Path=/"
+            )) {
+                h.insert(header::SET_COOKIE, v);
+            }
+        }
+    }
+    r
+}
+
+fn asset(name: &str) -> HttpResponse {
+    match crate::assets::get(name) {
+        Some(a) => ([(header::CONTENT_TYPE, a.content_type)], a.bytes).into_response(),
+        None => not_found(),
+    }
+}
+
+fn not_found() -> HttpResponse {
+    error_response(ApiError {
+        status: 404,
+        error: "no such page or endpoint (see docs/explore.md)".into(),
+        field: None,
+        allowed: None,
+        retry_after_s: None,
+    })
+}
+
+/// The answer of a prediction or a solve.
+fn response_json(ex: &Explorer, r: &Response) -> Value {
+    let channels: serde_json::Map<String, Value> = ex
+        .channels()
+        .iter()
+        .zip(&r.channels)
+        .map(|(c, v)| (c.name.clone(), json!(v)))
+        .collect();
+    let indices: Vec<Value> = ex
+        .index_names()
+        .iter()
+        .zip(&r.indices)
+        .zip(ex.index_limits())
+        .map(|((name, v), limit)| json!({"name": name, "value": v, "pass": limit.map(|l| *v <= l)}))
+        .collect();
+    json!({
+        "t": r.t,
+        "channels": channels,
+        "indices": indices,
+        "pass": r.failed.is_empty(),
+        "failed": r.failed,
+    })
+}
+
+fn parse(app: &App, body: &Bytes) -> Result<DesignRequest, ApiError> {
+    app.explorer.rules().design_request(&request::body(body)?)
+}
+
+async fn predict(State(app): State<Shared>, body: Bytes) -> HttpResponse {
+    let started = Instant::now();
+    let req = match parse(&app, &body) {
+        Ok(r) => r,
+        Err(e) => return error_response(e),
+    };
+    let ex = app.explorer.clone();
+    let r = blocking(move || {
+        let r = ex.predict(&req)?;
+        let mut v = response_json(&ex, &r);
+        v["design"] = Value::Object(ex.design_map(&req.design));
+        v["outside"] = json!(ex.outside(&req.design));
+        v["excitation"] = json!(ex.excitation_used(req.excitation));
+        Ok(v)
+    })
+    .await;
+    match r {
+        Ok(mut v) => {
+            v["elapsed_ms"] = json!(started.elapsed().as_secs_f64() * 1e3);
+            json_ok(v)
+        }
+        Err(e) => error_response(e),
+    }
+}
+
+/// Runs `f` as a solve: admitted by the gate, cancelled when the client goes away.
+async fn gated<T: Send + 'static>(
+    app: &App,
+    f: impl FnOnce(&AtomicBool) -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
+    let _place = app.solves.admit()?;
+    let _permit = app
+        .solves
+        .running
+        .acquire()
+        .await
+        .map_err(ApiError::internal)?;
+    let flag = Arc::new(AtomicBool::new(false));
+    let mut guard = CancelOnDrop {
+        flag: flag.clone(),
+        gate: app.solves.clone(),
+        armed: true,
+    };
+    let r = blocking(move || f(&flag)).await;
+    guard.armed = false;
+    app.solves.completed.fetch_add(1, Ordering::Relaxed);
+    r
+}
+
+async fn solve(State(app): State<Shared>, body: Bytes) -> HttpResponse {
+    let started = Instant::now();
+    let req = match parse(&app, &body) {
+        Ok(r) => r,
+        Err(e) => return error_response(e),
+    };
+    let ex = app.explorer.clone();
+    let r = gated(&app, move |cancel| {
+        let (pred, exact, solve_ms) = ex.solve(&req, cancel)?;
+        let mut v = response_json(&ex, &exact);
+        let errors: serde_json::Map<String, Value> = ex
+            .channels()
+            .iter()
+            .enumerate()
+            .map(|(k, c)| {
+                (
+                    c.name.clone(),
+                    json!(relative_l2(&pred.channels[k], &exact.channels[k])),
+                )
+            })
+            .collect();
+        let index_errors: serde_json::Map<String, Value> = ex
+            .index_names()
+            .into_iter()
+            .enumerate()
+            .map(|(k, name)| {
+                (
+                    name,
+                    json!(relative_error(pred.indices[k], exact.indices[k])),
+                )
+            })
+            .collect();
+        v["design"] = Value::Object(ex.design_map(&req.design));
+        v["outside"] = json!(ex.outside(&req.design));
+        v["excitation"] = json!(ex.excitation_used(req.excitation));
+        v["errors"] = Value::Object(errors);
+        v["index_errors"] = Value::Object(index_errors);
+        v["solve_ms"] = json!(solve_ms);
+        Ok(v)
+    })
+    .await;
+    match r {
+        Ok(mut v) => {
+            v["elapsed_ms"] = json!(started.elapsed().as_secs_f64() * 1e3);
+            json_ok(v)
+        }
+        Err(e) => error_response(e),
+    }
+}
+
+async fn sweep(State(app): State<Shared>, body: Bytes) -> HttpResponse {
+    let started = Instant::now();
+    let req = match request::body(&body).and_then(|v| app.explorer.rules().sweep_request(&v)) {
+        Ok(r) => r,
+        Err(e) => return error_response(e),
+    };
+    let ex = app.explorer.clone();
+    let names = ex.index_names();
+    let predicted = {
+        let (ex, req) = (ex.clone(), req.clone());
+        blocking(move || ex.sweep(&req)).await
+    };
+    let (designs, ix) = match predicted {
+        Ok(x) => x,
+        Err(e) => return error_response(e),
+    };
+    let values: Vec<f64> = designs.iter().map(|d| d[req.parameter]).collect();
+    let mut solved = Vec::new();
+    if req.solve_points > 0 {
+        let picks: Vec<usize> = (0..req.solve_points)
+            .map(|k| {
+                if req.solve_points == 1 {
+                    designs.len() / 2
+                } else {
+                    k * (designs.len() - 1) / (req.solve_points - 1)
+                }
+            })
+            .collect();
+        let (ex2, designs2, excitation) = (ex.clone(), designs.clone(), req.base.excitation);
+        let r = gated(&app, move |cancel| {
+            picks
+                .iter()
+                .map(|&k| Ok((k, ex2.solve_indices(&designs2[k], excitation, cancel)?)))
+                .collect::<Result<Vec<_>, ApiError>>()
+        })
+        .await;
+        match r {
+            Ok(points) => {
+                for (k, v) in points {
+                    let m: serde_json::Map<String, Value> = names
+                        .iter()
+                        .cloned()
+                        .zip(v.into_iter().map(|x| json!(x)))
+                        .collect();
+                    solved.push(json!({"value": values[k], "indices": m}));
+                }
+            }
+            Err(e) => return error_response(e),
+        }
+    }
+    let indices: serde_json::Map<String, Value> = names
+        .iter()
+        .enumerate()
+        .map(|(k, n)| {
+            (
+                n.clone(),
+                json!(ix.iter().map(|s| s.values[k]).collect::<Vec<_>>()),
+            )
+        })
+        .collect();
+    let outside: Vec<bool> = designs.iter().map(|d| !ex.outside(d).is_empty()).collect();
+    json_ok(json!({
+        "parameter": ex.rules().names[req.parameter],
+        "values": values,
+        "indices": indices,
+        "outside": outside,
+        "solved": solved,
+        "elapsed_ms": started.elapsed().as_secs_f64() * 1e3,
+    }))
+}
+
+async fn download_design(State(app): State<Shared>, body: Bytes) -> HttpResponse {
+    match parse(&app, &body).and_then(|req| download::design_yaml(&app.explorer, &req)) {
+        Ok(text) => attachment("application/yaml", "design.yaml", text.into_bytes()),
+        Err(e) => error_response(e),
+    }
+}
+
+#[derive(serde::Deserialize)]
+struct CurvesQuery {
+    format: Option<String>,
+}
+
+async fn download_curves(
+    State(app): State<Shared>,
+    Query(q): Query<CurvesQuery>,
+    body: Bytes,
+) -> HttpResponse {
+    let format = q.format.unwrap_or_else(|| "csv".into());
+    if format != "csv" && format != "parquet" {
+        return error_response(ApiError::bad(
+            "format",
+            format!("unknown format `{format}`"),
+            "csv or parquet",
+        ));
+    }
+    let req = match parse(&app, &body) {
+        Ok(r) => r,
+        Err(e) => return error_response(e),
+    };
+    let ex = app.explorer.clone();
+    let csv = format == "csv";
+    let r = blocking(move || {
+        let r = ex.predict(&req)?;
+        if csv {
+            download::curves_csv(&ex, &req, &r).map(String::into_bytes)
+        } else {
+            download::curves_parquet(&ex, &req, &r)
+        }
+    })
+    .await;
+    match (r, csv) {
+        (Ok(bytes), true) => attachment("text/csv; charset=utf-8", "curves.csv", bytes),
+        (Ok(bytes), false) => attachment("application/vnd.apache.parquet", "curves.parquet", bytes),
+        (Err(e), _) => error_response(e),
+    }
+}
+
+fn attachment(content_type: &'static str, name: &str, bytes: Vec<u8>) -> HttpResponse {
+    let disposition = format!("attachment; filename=\"{name}\"");
+    (
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static(content_type)),
+            (
+                header::CONTENT_DISPOSITION,
+                HeaderValue::from_str(&disposition)
+                    .unwrap_or(HeaderValue::from_static("attachment")),
+            ),
+        ],
+        Body::from(bytes),
+    )
+        .into_response()
+}
+
+async fn pipeline_view(State(app): State<Shared>) -> HttpResponse {
+    let Some(p) = app.pipeline.clone() else {
+        return json_ok(json!({"file": null, "units": [], "evaluate": null}));
+    };
+    match blocking(move || glance::glance(&p).map_err(ApiError::internal)).await {
+        Ok(g) => json_ok(json!(g)),
+        Err(e) => error_response(e),
+    }
+}
+
+async fn pipeline_plot(State(app): State<Shared>, Path(name): Path<String>) -> HttpResponse {
+    let Some(p) = app.pipeline.clone() else {
+        return not_found();
+    };
+    let found = blocking(move || Ok(glance::plot_path(&p, &name))).await;
+    match found {
+        Ok(Some(path)) => match std::fs::read(&path) {
+            Ok(bytes) => ([(header::CONTENT_TYPE, "image/png")], bytes).into_response(),
+            Err(e) => error_response(ApiError::internal(format!("{}: {e}", path.display()))),
+        },
+        Ok(None) => not_found(),
+        Err(e) => error_response(e),
+    }
+}
+
+async fn health(State(app): State<Shared>) -> HttpResponse {
+    let g = &app.solves;
+    json_ok(json!({
+        "ok": true,
+        "solves_waiting_or_running": g.admitted.load(Ordering::SeqCst),
+        "solves_completed": g.completed.load(Ordering::Relaxed),
+        "solves_cancelled": g.cancelled.load(Ordering::Relaxed),
+    }))
+}
+
+/// The router of `app`.
+pub fn router(app: Shared) -> Router {
+    Router::new()
+        .route("/", get(|| async { asset("index.html") }))
+        .route("/pipeline", get(|| async { asset("pipeline.html") }))
+        .route("/favicon.ico", get(|| async { asset("favicon.svg") }))
+        .route(
+            "/assets/{name}",
+            get(|Path(name): Path<String>| async move { asset(&name) }),
+        )
+        .route(
+            "/api/model",
+            get(|State(app): State<Shared>| async move { json_ok(app.explorer.summary()) }),
+        )
+        .route("/api/health", get(health))
+        .route("/api/predict", post(predict))
+        .route("/api/sweep", post(sweep))
+        .route("/api/solve", post(solve))
+        .route("/api/download/design", post(download_design))
+        .route("/api/download/curves", post(download_curves))
+        .route("/api/pipeline", get(pipeline_view))
+        .route("/api/pipeline/plot/{name}", get(pipeline_plot))
+        .fallback(|| async { not_found() })
+        .layer(DefaultBodyLimit::max(BODY_LIMIT))
+        .layer(middleware::from_fn_with_state(app.clone(), guard))
+        .with_state(app)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn headers(pairs: &[(&'static str, &str)]) -> HeaderMap {
+        let mut h = HeaderMap::new();
+        for (n, v) in pairs {
+            h.append(*n, HeaderValue::from_str(v).unwrap());
+        }
+        h
+    }
+
+    #[test]
+    fn loopback_answers_only_its_own_names_and_needs_no_token() {
+        let a = Access::new("127.0.0.1:8750".parse().unwrap(), Some("t".into()), &[]);
+        for ok in [
+            "127.0.0.1:8750",
+            "localhost:8750",
+            "LOCALHOST:8750",
+            "[::1]:8750",
+        ] {
+            assert!(a.host_allowed(ok), "{ok}");
+        }
+        for bad in [
+            "evil.example:8750",
+            "127.0.0.1:8751",
+            "localhost",
+            "",
+            "127.0.0.1.evil:8750",
+        ] {
+            assert!(!a.host_allowed(bad), "{bad}");
+        }
+        assert_eq!(a.token, None);
+        assert!(a.token_ok(&HeaderMap::new(), None));
+    }
+
+    #[test]
+    fn beyond_loopback_the_token_is_required_by_cookie_bearer_or_query() {
+        let a = Access::new(
+            "10.0.0.5:9000".parse().unwrap(),
+            Some("abc".into()),
+            &["lab-pc".into()],
+        );
+        assert!(a.host_allowed("10.0.0.5:9000") && a.host_allowed("lab-pc:9000"));
+        assert!(!a.host_allowed("127.0.0.1:9000"));
+        assert!(!a.token_ok(&HeaderMap::new(), None));
+        assert!(a.token_ok(&headers(&[("cookie", "x=1; explore_token=abc")]), None));
+        assert!(a.token_ok(&headers(&[("authorization", "Bearer abc")]), None));
+        assert!(a.token_ok(&HeaderMap::new(), Some("a=1&token=abc")));
+        for wrong in [
+            "explore_token=abd",
+            "explore_token=ab",
+            "explore_tokenx=abc",
+        ] {
+            assert!(!a.token_ok(&headers(&[("cookie", wrong)]), None), "{wrong}");
+        }
+        let any = Access::new("0.0.0.0:9000".parse().unwrap(), Some("abc".into()), &[]);
+        assert!(any.host_allowed("192.168.1.20:9000") && !any.host_allowed("192.168.1.20:9001"));
+    }
+
+    #[test]
+    fn the_gate_admits_workers_plus_queue_and_frees_places_on_drop() {
+        let gate = Arc::new(SolveGate::new(1, 1));
+        let a = gate.admit().unwrap();
+        let b = gate.admit().unwrap();
+        let busy = gate.admit().map(|_| ()).unwrap_err();
+        assert_eq!((busy.status, busy.retry_after_s), (429, Some(1)));
+        drop(a);
+        let _c = gate.admit().unwrap();
+        drop(b);
+        assert_eq!(gate.admitted.load(Ordering::SeqCst), 1);
+    }
+}

@@ -1,0 +1,740 @@
+//! The explorer's model session: one trained model (and, when known, its dataset) with every
+//! answer of the API computed from it by name: the summary (parameters with units, nominal
+//! values and training ranges; channels by group; indices with limits; test samples), the
+//! prediction of a design, a one-parameter sweep, the exact solve beside the prediction and the
+//! downloads. Nothing here knows a particular system: names, units, groups and limits come from
+//! the model's description and layout (`model.json`).
+//!
+//! Times and rows: a prediction's curves are the interior points of the model's window
+//! (`n = 1..T-2`, where its central-difference derivatives exist): the rows `predict --out`
+//! writes, so the page shows exactly what the command gives. The exact solve runs the
+//! `simulate` stage's engine with the dataset's run controls and is cut to the same rows.
+
+use crate::request::{ApiError, DesignRequest, Excitation, RequestRules, SweepRequest};
+use crate::solve::{self, Exact};
+use mbd_engine::{Profile, RunConfig};
+use pino_eval::indices_eval::SampleIndices;
+use pino_eval::predict::{Predictor, ProfileChoice, SetPrediction};
+use pino_indices::IndexConfig;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
+
+/// Errors of opening a model.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The model or its dataset could not be read.
+    #[error(transparent)]
+    Learn(#[from] pino_learn::Error),
+    /// Reading the dataset's files.
+    #[error(transparent)]
+    Data(#[from] pino_data::Error),
+    /// Anything else, with its context.
+    #[error("{0}")]
+    Other(String),
+}
+
+/// The request limits of a session.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Limits {
+    /// Most designs in one sweep.
+    pub sweep_max_designs: usize,
+    /// Most solver points in one sweep.
+    pub sweep_max_solve_points: usize,
+    /// Longest simulated duration a solve may run (s).
+    pub solve_max_duration_s: f64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            sweep_max_designs: 400,
+            sweep_max_solve_points: 8,
+            solve_max_duration_s: 30.0,
+        }
+    }
+}
+
+/// Where a model's dataset lives (the `sample-params` and `irregularity` outputs).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DatasetFiles {
+    /// `params.parquet` file(s).
+    pub params: Vec<PathBuf>,
+    /// `irregularity.parquet` file(s) (empty for a system without generated profiles).
+    pub profiles: Vec<PathBuf>,
+}
+
+/// A channel's family on the page.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Group {
+    /// Solutions (displacements, rotations).
+    Displacement,
+    /// The rigid DOFs' first derivatives.
+    Velocity,
+    /// Their second derivatives.
+    Acceleration,
+    /// Element forces.
+    Force,
+    /// The profiles under the elements.
+    Excitation,
+}
+
+/// Where a channel's values sit in a prediction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Slot {
+    Output(usize),
+    Velocity(usize),
+    Acceleration(usize),
+    Excitation(usize),
+}
+
+/// One channel of the summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Channel {
+    /// Column name (the simulation's).
+    pub name: String,
+    /// Unit.
+    pub unit: String,
+    /// Family.
+    pub group: Group,
+    #[serde(skip)]
+    pub(crate) slot: Slot,
+}
+
+/// A test sample of the dataset: its design and its profiles.
+#[derive(Debug, Clone)]
+pub struct TestSample {
+    /// Sample id.
+    pub id: i64,
+    /// Its parameters (model order).
+    pub design: Vec<f64>,
+    profiles: Profiles,
+}
+
+/// The model's identity as downloads and the summary carry it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelIdentity {
+    /// The model directory.
+    pub dir: String,
+    /// blake3 of `model.json` and `model.safetensors` (hex).
+    pub identity: String,
+    /// Algorithm of Table 3.
+    pub algorithm: i64,
+    /// The system's name.
+    pub system: String,
+}
+
+/// The curves and indices of one design (prediction or solve).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Response {
+    /// Interior times of the window (s).
+    pub t: Vec<f64>,
+    /// Per summary channel, its values at `t`.
+    pub channels: Vec<Vec<f64>>,
+    /// Index values (summary order); empty when the model computes none.
+    pub indices: Vec<f64>,
+    /// Indices over their limits.
+    pub failed: Vec<String>,
+}
+
+/// The points of each profile of the system (`None`: analytic or level), shared.
+type Profiles = Arc<Vec<Option<Profile>>>;
+
+/// How many generated profile sets are kept for reuse.
+const PROFILE_CACHE: usize = 8;
+
+/// A model opened for exploration.
+pub struct Explorer {
+    predictor: Predictor,
+    identity: ModelIdentity,
+    run: RunConfig,
+    index_cfg: IndexConfig,
+    index_limits: Vec<Option<f64>>,
+    channels: Vec<Channel>,
+    rules: RequestRules,
+    units: Vec<String>,
+    test: Vec<TestSample>,
+    dataset: DatasetFiles,
+    generated: Vec<String>,
+    cache: Mutex<Vec<((u64, u64), Profiles)>>,
+    limits: Limits,
+}
+
+fn internal(e: impl std::fmt::Display) -> ApiError {
+    ApiError::internal(e)
+}
+
+impl Explorer {
+    /// Opens the model in `model_dir` (and its dataset, when given) on the CPU.
+    pub fn open(model_dir: &Path, dataset: DatasetFiles, limits: Limits) -> Result<Self, Error> {
+        let device = candle_core::Device::Cpu;
+        let predictor = Predictor::load(model_dir, &device)?;
+        let system = predictor.system().clone();
+        pino_data::system::declare_units(&system)?;
+        let meta = &predictor.meta;
+        let run = predictor.run_config(None)?;
+        let index_cfg = predictor.index_config()?;
+        let index_limits = predictor.index_inputs().limits(&system, &index_cfg);
+        let layout = &meta.layout;
+        let mut channels = Vec::new();
+        let mut push = |name: &str, group, slot| {
+            channels.push(Channel {
+                name: name.to_owned(),
+                unit: layout.unit(name).to_owned(),
+                group,
+                slot,
+            })
+        };
+        for (i, name) in layout.outputs.iter().enumerate() {
+            let group = if i < layout.solutions {
+                Group::Displacement
+            } else {
+                Group::Force
+            };
+            push(name, group, Slot::Output(i));
+        }
+        for (j, name) in layout.velocities().iter().enumerate() {
+            push(name, Group::Velocity, Slot::Velocity(j));
+        }
+        for (j, name) in layout.accelerations().iter().enumerate() {
+            push(name, Group::Acceleration, Slot::Acceleration(j));
+        }
+        for (e, name) in layout.excitations.iter().enumerate() {
+            push(name, Group::Excitation, Slot::Excitation(e));
+        }
+        let names = predictor.space.names().to_vec();
+        let ranges = names
+            .iter()
+            .map(|n| {
+                let r = &meta.training_ranges;
+                match r.names.iter().position(|x| x == n) {
+                    Some(k) => [r.min[k], r.max[k]],
+                    None => [f64::NEG_INFINITY, f64::INFINITY],
+                }
+            })
+            .collect();
+        let units = names
+            .iter()
+            .map(|n| {
+                system
+                    .parameter(n)
+                    .map_or("-", |p| system.parameters[p].unit.as_str())
+                    .to_owned()
+            })
+            .collect();
+        let rules = RequestRules {
+            nominal: predictor.space.nominal(),
+            names,
+            ranges,
+            sweep_max_designs: limits.sweep_max_designs,
+            sweep_max_solve_points: limits.sweep_max_solve_points,
+        };
+        let generated = system
+            .profiles
+            .iter()
+            .filter(|p| matches!(p, mbd_system::system::Profile::Generated { .. }))
+            .map(|p| p.name().to_owned())
+            .collect();
+        let identity = ModelIdentity {
+            dir: model_dir.display().to_string(),
+            identity: model_identity(model_dir)?,
+            algorithm: meta.train.algorithm.id(),
+            system: system.name.clone(),
+        };
+        let test = test_samples(&predictor, &rules.names, &dataset)?;
+        Ok(Self {
+            predictor,
+            identity,
+            run,
+            index_cfg,
+            index_limits,
+            channels,
+            rules,
+            units,
+            test,
+            dataset,
+            generated,
+            cache: Mutex::new(Vec::new()),
+            limits,
+        })
+    }
+
+    /// The parser of this model's requests.
+    pub fn rules(&self) -> &RequestRules {
+        &self.rules
+    }
+
+    /// The model's identity.
+    pub fn identity(&self) -> &ModelIdentity {
+        &self.identity
+    }
+
+    /// The channels, in the order of [`Response::channels`].
+    pub fn channels(&self) -> &[Channel] {
+        &self.channels
+    }
+
+    /// The test samples of the dataset (empty without one).
+    pub fn test_samples(&self) -> &[TestSample] {
+        &self.test
+    }
+
+    /// The request limits.
+    pub fn limits(&self) -> Limits {
+        self.limits
+    }
+
+    /// The default excitation: the first test sample, else seed 1 id 0.
+    pub fn default_excitation(&self) -> Excitation {
+        match self.test.first() {
+            Some(s) => Excitation::Test { sample_id: s.id },
+            None => Excitation::Seed { seed: 1, id: 0 },
+        }
+    }
+
+    /// The summary (`GET /api/model`).
+    pub fn summary(&self) -> serde_json::Value {
+        let meta = &self.predictor.meta;
+        let r = &self.rules;
+        let parameters: Vec<_> = (0..r.names.len())
+            .map(|k| {
+                serde_json::json!({
+                    "name": r.names[k],
+                    "unit": self.units[k],
+                    "nominal": r.nominal[k],
+                    "min": r.ranges[k][0],
+                    "max": r.ranges[k][1],
+                })
+            })
+            .collect();
+        let indices: Vec<_> = self
+            .predictor
+            .index_inputs()
+            .columns()
+            .iter()
+            .zip(&self.index_limits)
+            .filter(|_| self.predictor.index_inputs().computable())
+            .map(|(c, limit)| {
+                serde_json::json!({
+                    "name": c.name,
+                    "unit": c.unit,
+                    "definition": c.definition,
+                    "limit": limit.map(|v| serde_json::json!({"kind": "max", "value": v})),
+                })
+            })
+            .collect();
+        let tests: Vec<_> = self
+            .test
+            .iter()
+            .map(|s| serde_json::json!({"sample_id": s.id, "design": self.design_map(&s.design)}))
+            .collect();
+        serde_json::json!({
+            "system": self.identity.system,
+            "model": self.identity,
+            "parameters": parameters,
+            "channels": self.channels,
+            "indices": indices,
+            "indices_note": if self.predictor.index_inputs().computable() { String::new() } else { self.predictor.index_inputs().why_not() },
+            "excitation": {
+                "generated_profiles": self.generated,
+                "test_samples": tests,
+                "default": self.default_excitation(),
+            },
+            "time": {"t0": meta.grid.t0, "dt": meta.grid.dt, "points": meta.grid.t_points},
+            "limits": self.limits,
+        })
+    }
+
+    /// A design as a JSON object by name.
+    pub fn design_map(&self, design: &[f64]) -> serde_json::Map<String, serde_json::Value> {
+        self.rules
+            .names
+            .iter()
+            .zip(design)
+            .map(|(n, v)| (n.clone(), serde_json::Value::from(*v)))
+            .collect()
+    }
+
+    /// The parameters of `design` outside the training ranges, as JSON.
+    pub fn outside(&self, design: &[f64]) -> Vec<serde_json::Value> {
+        self.predictor.outside_training(&[design.to_vec()])[0]
+            .iter()
+            .map(|o| {
+                serde_json::json!({"name": o.name, "value": o.value, "min": o.range[0], "max": o.range[1]})
+            })
+            .collect()
+    }
+
+    /// The profiles of an excitation (the default when `None`).
+    pub fn profiles(&self, ex: Option<Excitation>) -> Result<Profiles, ApiError> {
+        if self.generated.is_empty() {
+            return Ok(Arc::new(vec![None; self.predictor.system().profiles.len()]));
+        }
+        match ex.unwrap_or_else(|| self.default_excitation()) {
+            Excitation::Test { sample_id } => self
+                .test
+                .iter()
+                .find(|s| s.id == sample_id)
+                .map(|s| s.profiles.clone())
+                .ok_or_else(|| {
+                    let ids: Vec<String> = self.test.iter().map(|s| s.id.to_string()).collect();
+                    ApiError::bad(
+                        "excitation.sample_id",
+                        format!("no test sample {sample_id} in the model's dataset"),
+                        if ids.is_empty() {
+                            "none: this model was opened without its dataset; use {\"kind\": \"seed\"}".to_owned()
+                        } else {
+                            format!("test sample ids: {}", ids.join(", "))
+                        },
+                    )
+                }),
+            Excitation::Seed { seed, id } => {
+                let key = (seed, id);
+                if let Some((_, p)) = self.cache.lock().map_err(internal)?.iter().find(|(k, _)| *k == key) {
+                    return Ok(p.clone());
+                }
+                let p = self
+                    .predictor
+                    .profiles(Some(&ProfileChoice::Generated { seed, id }))
+                    .map_err(|e| ApiError::bad("excitation", e.to_string(), "a seed the dataset's generator accepts"))?;
+                let p = Arc::new(p);
+                let mut cache = self.cache.lock().map_err(internal)?;
+                if cache.len() >= PROFILE_CACHE {
+                    cache.remove(0);
+                }
+                cache.push((key, p.clone()));
+                Ok(p)
+            }
+        }
+    }
+
+    /// Refuses a design outside the description's domains (a negative mass).
+    fn check(&self, design: &[f64]) -> Result<(), ApiError> {
+        self.predictor
+            .space
+            .check(design, "design")
+            .map(|_| ())
+            .map_err(|e| match e {
+                pino_learn::Error::OutOfRange {
+                    field,
+                    value,
+                    allowed,
+                } => ApiError::bad(
+                    field.clone(),
+                    format!("`{field}` = {value} is out of range"),
+                    allowed,
+                ),
+                other => ApiError::bad(
+                    "design",
+                    other.to_string(),
+                    "a design the description accepts",
+                ),
+            })
+    }
+
+    fn predict_raw(
+        &self,
+        designs: &[Vec<f64>],
+        profiles: &[Option<Profile>],
+    ) -> Result<Vec<SetPrediction>, ApiError> {
+        for d in designs {
+            self.check(d)?;
+        }
+        self.predictor
+            .forward(0, designs, profiles, &self.run)
+            .map_err(|e| ApiError::bad("excitation", e.to_string(), "profiles that cover the run"))
+    }
+
+    fn indices_of(
+        &self,
+        design: &[f64],
+        p: &SetPrediction,
+    ) -> Result<Option<SampleIndices>, ApiError> {
+        let inputs = self.predictor.index_inputs();
+        if !inputs.computable() {
+            return Ok(None);
+        }
+        let meta = &self.predictor.meta;
+        inputs
+            .sample(
+                self.predictor.system(),
+                &meta.layout,
+                design,
+                0,
+                &p.physical,
+                None,
+                &p.eta,
+                meta.grid.dt,
+                &self.index_cfg,
+            )
+            .map(Some)
+            .map_err(internal)
+    }
+
+    /// The interior rows of a prediction, per channel.
+    fn curves(&self, p: &SetPrediction) -> (Vec<f64>, Vec<Vec<f64>>) {
+        let meta = &self.predictor.meta;
+        let layout = &meta.layout;
+        let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
+        let times = meta.grid.times();
+        let rows = 1..times.len() - 1;
+        let ph = &p.physical;
+        let channels = self
+            .channels
+            .iter()
+            .map(|c| {
+                rows.clone()
+                    .map(|n| match c.slot {
+                        Slot::Output(i) => ph.u[n * o + i],
+                        Slot::Velocity(j) => ph.v[(n - 1) * d + j],
+                        Slot::Acceleration(j) => ph.a[(n - 1) * d + j],
+                        Slot::Excitation(j) => p.eta[n * e + j],
+                    })
+                    .collect()
+            })
+            .collect();
+        (times[rows].to_vec(), channels)
+    }
+
+    /// Predicts one design.
+    pub fn predict(&self, req: &DesignRequest) -> Result<Response, ApiError> {
+        let profiles = self.profiles(req.excitation)?;
+        let p = self
+            .predict_raw(std::slice::from_ref(&req.design), &profiles)?
+            .pop()
+            .ok_or_else(|| internal("no prediction"))?;
+        let (t, channels) = self.curves(&p);
+        let ix = self.indices_of(&req.design, &p)?;
+        Ok(Response {
+            t,
+            channels,
+            failed: ix.as_ref().map_or_else(Vec::new, |ix| ix.failed.clone()),
+            indices: ix.map_or_else(Vec::new, |ix| ix.values),
+        })
+    }
+
+    /// The designs of a sweep.
+    pub fn sweep_designs(&self, req: &SweepRequest) -> Vec<Vec<f64>> {
+        (0..req.steps)
+            .map(|k| {
+                let mut d = req.base.design.clone();
+                let f = k as f64 / (req.steps - 1) as f64;
+                d[req.parameter] = if k + 1 == req.steps {
+                    req.to
+                } else {
+                    req.from + f * (req.to - req.from)
+                };
+                d
+            })
+            .collect()
+    }
+
+    /// The index values of every design of a sweep through the surrogate (batches side by side
+    /// on the CPU), and which designs leave the training ranges.
+    pub fn sweep(
+        &self,
+        req: &SweepRequest,
+    ) -> Result<(Vec<Vec<f64>>, Vec<SampleIndices>), ApiError> {
+        let designs = self.sweep_designs(req);
+        if !self.predictor.index_inputs().computable() {
+            return Err(ApiError::bad(
+                "parameter",
+                format!(
+                    "this model computes no index: {}",
+                    self.predictor.index_inputs().why_not()
+                ),
+                "a model whose description defines indices",
+            ));
+        }
+        for d in &designs {
+            self.check(d)?;
+        }
+        let profiles = self.profiles(req.base.excitation)?;
+        let batch = designs
+            .len()
+            .div_ceil(rayon::current_num_threads().max(1))
+            .max(1);
+        let ix = self
+            .predictor
+            .indices(&designs, &profiles, &self.run, &self.index_cfg, batch)
+            .map_err(|e| {
+                ApiError::bad("excitation", e.to_string(), "profiles that cover the run")
+            })?;
+        Ok((designs, ix))
+    }
+
+    /// The exact solve of a design beside its prediction; stops early (an error) when `cancel`
+    /// is set.
+    pub fn solve(
+        &self,
+        req: &DesignRequest,
+        cancel: &AtomicBool,
+    ) -> Result<(Response, Response, f64), ApiError> {
+        if self.run.duration > self.limits.solve_max_duration_s {
+            return Err(ApiError::bad(
+                "design",
+                format!(
+                    "the model's runs are {} s long, over this server's solve limit",
+                    self.run.duration
+                ),
+                format!(
+                    "runs up to {} s (--solve-max-duration)",
+                    self.limits.solve_max_duration_s
+                ),
+            ));
+        }
+        let predicted = self.predict(req)?;
+        let profiles = self.profiles(req.excitation)?;
+        let started = std::time::Instant::now();
+        let exact: Exact =
+            solve::exact(&self.predictor, &self.run, &req.design, &profiles, cancel)?;
+        let solve_ms = started.elapsed().as_secs_f64() * 1e3;
+        let meta = &self.predictor.meta;
+        let p = SetPrediction {
+            physical: exact.physical.clone(),
+            eta: exact.eta.clone(),
+        };
+        let ix = if self.predictor.index_inputs().computable() {
+            let stored = pino_eval::indices_eval::StoredColumns::of_sample(
+                self.predictor.index_inputs(),
+                0,
+                exact.stored.clone(),
+            );
+            Some(
+                self.predictor
+                    .index_inputs()
+                    .sample(
+                        self.predictor.system(),
+                        &meta.layout,
+                        &req.design,
+                        0,
+                        &exact.physical,
+                        Some(&stored),
+                        &exact.eta,
+                        meta.grid.dt,
+                        &self.index_cfg,
+                    )
+                    .map_err(internal)?,
+            )
+        } else {
+            None
+        };
+        let (t, channels) = solve::exact_curves(&self.channels, meta, &p);
+        let solved = Response {
+            t,
+            channels,
+            failed: ix.as_ref().map_or_else(Vec::new, |ix| ix.failed.clone()),
+            indices: ix.map_or_else(Vec::new, |ix| ix.values),
+        };
+        Ok((predicted, solved, solve_ms))
+    }
+
+    /// The indices of one design through the solver (the sweep's solver points).
+    pub fn solve_indices(
+        &self,
+        design: &[f64],
+        excitation: Option<Excitation>,
+        cancel: &AtomicBool,
+    ) -> Result<Vec<f64>, ApiError> {
+        let req = DesignRequest {
+            design: design.to_vec(),
+            excitation,
+        };
+        Ok(self.solve(&req, cancel)?.1.indices)
+    }
+
+    /// Index columns (name, unit) in value order; empty when the model computes none.
+    pub fn index_names(&self) -> Vec<String> {
+        let inputs = self.predictor.index_inputs();
+        if !inputs.computable() {
+            return Vec::new();
+        }
+        inputs.columns().iter().map(|c| c.name.clone()).collect()
+    }
+
+    /// The limit of each index (summary order).
+    pub fn index_limits(&self) -> &[Option<f64>] {
+        &self.index_limits
+    }
+
+    /// The `predict` command line that reproduces a design file with this excitation.
+    pub fn predict_command(&self, ex: Option<Excitation>, design_file: &str) -> String {
+        let mut cmd = format!(
+            "predict --model {} --params {design_file}",
+            self.identity.dir
+        );
+        if !self.generated.is_empty() {
+            match ex.unwrap_or_else(|| self.default_excitation()) {
+                Excitation::Test { sample_id } => {
+                    let file = self
+                        .dataset
+                        .profiles
+                        .first()
+                        .map_or("irregularity.parquet".to_owned(), |p| {
+                            p.display().to_string()
+                        });
+                    cmd.push_str(&format!(" --profile {file} --profile-id {sample_id}"));
+                }
+                Excitation::Seed { seed, id } => {
+                    cmd.push_str(&format!(" --seed {seed} --profile-id {id}"));
+                }
+            }
+        }
+        cmd + " --out predictions.parquet"
+    }
+
+    /// The excitation actually used (the default resolved).
+    pub fn excitation_used(&self, ex: Option<Excitation>) -> Option<Excitation> {
+        (!self.generated.is_empty()).then(|| ex.unwrap_or_else(|| self.default_excitation()))
+    }
+}
+
+/// blake3 over `model.json` and `model.safetensors`, hex.
+fn model_identity(dir: &Path) -> Result<String, Error> {
+    let mut h = blake3::Hasher::new();
+    for name in [pino_learn::checkpoint::MODEL_META, "model.safetensors"] {
+        let path = dir.join(name);
+        let bytes = std::fs::read(&path)
+            .map_err(|e| Error::Other(format!("reading {}: {e}", path.display())))?;
+        h.update(name.as_bytes());
+        h.update(&(bytes.len() as u64).to_le_bytes());
+        h.update(&bytes);
+    }
+    Ok(h.finalize().to_hex().to_string())
+}
+
+/// The test split of the dataset, with each sample's profiles.
+fn test_samples(
+    predictor: &Predictor,
+    names: &[String],
+    dataset: &DatasetFiles,
+) -> Result<Vec<TestSample>, Error> {
+    if dataset.params.is_empty() {
+        return Ok(Vec::new());
+    }
+    let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+    let table = pino_data::records::read_params(&dataset.params, &refs)?;
+    let rows: Vec<usize> = (0..table.ids.len())
+        .filter(|&r| table.splits[r] == pino_data::schema::SPLIT_TEST)
+        .collect();
+    let ids: Vec<i64> = rows.iter().map(|&r| table.ids[r]).collect();
+    let system = predictor.system();
+    let mut profiles: BTreeMap<i64, Vec<Option<Profile>>> = match dataset.profiles.as_slice() {
+        [] => ids
+            .iter()
+            .map(|&id| (id, vec![None; system.profiles.len()]))
+            .collect(),
+        files => pino_eval::predict::profiles_of_samples(system, files, &ids)?,
+    };
+    Ok(rows
+        .into_iter()
+        .map(|r| TestSample {
+            id: table.ids[r],
+            design: table.values[r].clone(),
+            profiles: Arc::new(profiles.remove(&table.ids[r]).unwrap_or_default()),
+        })
+        .collect())
+}

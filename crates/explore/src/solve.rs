@@ -1,0 +1,177 @@
+//! "Solve exactly": one design through the `simulate` stage's engine ([`mbd_engine::Engine`])
+//! with the dataset's run controls and the same profiles as its prediction, cut to the model's
+//! window (the rows whose times equal the window's), and compared with the prediction channel
+//! by channel (relative L2 error) and index by index.
+//!
+//! The run is cancellable: the engine checks a flag at every output step, so a solve whose
+//! client went away stops within one output interval.
+
+use crate::request::ApiError;
+use crate::session::{Channel, Slot};
+use mbd_engine::{Engine, Profile, RunConfig};
+use pino_eval::eval::Physical;
+use pino_eval::predict::{Predictor, SetPrediction};
+use pino_learn::checkpoint::ModelMeta;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// The solver's values over the model's window: outputs `[T, O]`, velocities and accelerations
+/// `[T, D]` at every window point, excitations `[T, E]`, and the stored columns the indices
+/// read beside them (each `T` long).
+#[derive(Debug, Clone)]
+pub struct Exact {
+    /// Outputs and exact derivatives.
+    pub physical: Physical,
+    /// Excitations.
+    pub eta: Vec<f64>,
+    /// The index inputs' stored columns.
+    pub stored: Vec<Vec<f64>>,
+}
+
+/// The error of a solve stopped by its cancel flag.
+pub const CANCELLED: &str = "cancelled";
+
+/// Runs `design` with `profiles` and cuts the trajectory to the model's window.
+pub fn exact(
+    predictor: &Predictor,
+    run: &RunConfig,
+    design: &[f64],
+    profiles: &[Option<Profile>],
+    cancel: &AtomicBool,
+) -> Result<Exact, ApiError> {
+    let system = predictor.system().clone();
+    let meta = &predictor.meta;
+    let model = predictor
+        .space
+        .check(design, "design")
+        .map_err(|e| ApiError::bad("design", e.to_string(), "a design the description accepts"))?;
+    let engine = Engine::new(system.clone(), model, run, profiles.to_vec())
+        .map_err(|e| ApiError::bad("design", e.to_string(), "a design the solver accepts"))?;
+    let traj = engine.run_cancellable(Some(cancel)).map_err(|f| {
+        if cancel.load(Ordering::Relaxed) {
+            ApiError::bad("design", CANCELLED, "a client that waits for its answer")
+        } else {
+            ApiError::bad(
+                "design",
+                format!("the solver failed for this design: {}", f.reason),
+                "a design whose response stays finite",
+            )
+        }
+    })?;
+    let rows = window_rows(&traj.t, meta)?;
+    let column = |name: &str| -> Result<Vec<f64>, ApiError> {
+        let c = system.channel(name).ok_or_else(|| {
+            ApiError::internal(format!("`{name}` is not a channel of the system"))
+        })?;
+        Ok(rows.iter().map(|&r| traj.columns[c][r]).collect())
+    };
+    let interleave = |names: &[String]| -> Result<Vec<f64>, ApiError> {
+        let cols: Vec<Vec<f64>> = names.iter().map(|n| column(n)).collect::<Result<_, _>>()?;
+        Ok((0..rows.len())
+            .flat_map(|n| cols.iter().map(move |c| c[n]))
+            .collect())
+    };
+    let layout = &meta.layout;
+    let stored = predictor
+        .index_inputs()
+        .stored_columns()
+        .into_iter()
+        .map(column)
+        .collect::<Result<_, _>>()?;
+    Ok(Exact {
+        physical: Physical {
+            u: interleave(&layout.outputs)?,
+            v: interleave(&layout.velocities())?,
+            a: interleave(&layout.accelerations())?,
+        },
+        eta: interleave(&layout.excitations)?,
+        stored,
+    })
+}
+
+/// The trajectory row of each of the window's times.
+fn window_rows(t: &[f64], meta: &ModelMeta) -> Result<Vec<usize>, ApiError> {
+    let (first, step) = match t {
+        [a, b, ..] => (*a, b - a),
+        _ => return Err(ApiError::internal("the solver stored fewer than two rows")),
+    };
+    meta.grid
+        .times()
+        .iter()
+        .map(|&tw| {
+            let r = ((tw - first) / step).round();
+            let ok = r >= 0.0 && (r as usize) < t.len() && (t[r as usize] - tw).abs() <= 1e-6 * step;
+            ok.then_some(r as usize).ok_or_else(|| {
+                ApiError::internal(format!(
+                    "the model's window time {tw} s is not an output time of the solver's run (rows every {step} s from {first} s)"
+                ))
+            })
+        })
+        .collect()
+}
+
+/// The exact curves at the interior rows, per channel (derivatives at every window point).
+pub(crate) fn exact_curves(
+    channels: &[Channel],
+    meta: &ModelMeta,
+    p: &SetPrediction,
+) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let layout = &meta.layout;
+    let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
+    let times = meta.grid.times();
+    let rows = 1..times.len() - 1;
+    let ph = &p.physical;
+    let curves = channels
+        .iter()
+        .map(|c| {
+            rows.clone()
+                .map(|n| match c.slot {
+                    Slot::Output(i) => ph.u[n * o + i],
+                    Slot::Velocity(j) => ph.v[n * d + j],
+                    Slot::Acceleration(j) => ph.a[n * d + j],
+                    Slot::Excitation(j) => p.eta[n * e + j],
+                })
+                .collect()
+        })
+        .collect();
+    (times[rows].to_vec(), curves)
+}
+
+/// `||pred - exact|| / ||exact||` (0 when both vanish, infinite when only the exact does).
+pub fn relative_l2(pred: &[f64], exact: &[f64]) -> f64 {
+    let num: f64 = pred.iter().zip(exact).map(|(p, e)| (p - e) * (p - e)).sum();
+    let den: f64 = exact.iter().map(|e| e * e).sum();
+    match (num == 0.0, den == 0.0) {
+        (true, _) => 0.0,
+        (false, true) => f64::INFINITY,
+        _ => (num / den).sqrt(),
+    }
+}
+
+/// `(pred - exact) / |exact|`.
+pub fn relative_error(pred: f64, exact: f64) -> f64 {
+    if pred == exact {
+        0.0
+    } else {
+        (pred - exact) / exact.abs()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn relative_errors_are_scale_free_and_handle_zeros() {
+        assert_eq!(relative_l2(&[1.0, 2.0], &[1.0, 2.0]), 0.0);
+        let e = relative_l2(&[3.0, 4.0], &[0.0, 5.0]);
+        assert!((e - (9.0f64 + 1.0).sqrt() / 5.0).abs() < 1e-15);
+        assert_eq!(
+            relative_l2(&[2e3, 4e3], &[1e3, 2e3]),
+            relative_l2(&[2.0, 4.0], &[1.0, 2.0])
+        );
+        assert_eq!(relative_l2(&[0.0], &[0.0]), 0.0);
+        assert!(relative_l2(&[1.0], &[0.0]).is_infinite());
+        assert_eq!(relative_error(110.0, -100.0), 2.1);
+        assert_eq!(relative_error(0.0, 0.0), 0.0);
+    }
+}

@@ -1,0 +1,204 @@
+//! `explore`: the design explorer (docs/explore.md), a web page on which an engineer moves a
+//! trained model's parameters and sees its responses, indices and the exact solver's verdict.
+//!
+//! ```text
+//! explore [-C DIR] [-f pipeline.yaml] [--algorithm 5]            # the workspace's current model
+//! explore --model DIR [--params params.parquet --profiles irregularity.parquet]
+//!         [--bind 127.0.0.1:8750] [--token T] [--allow-host NAME]...
+//!         [--solve-workers 1] [--solve-queue 4] [--solve-max-duration 30] [--sweep-max 400]
+//! ```
+//! Prints `explore: serving ... on http://ADDR/` (the real port for `--bind HOST:0`) and serves
+//! until interrupted.
+use anyhow::{bail, Context, Result};
+use clap::Parser;
+use pino_explore::glance::{locate, DEFAULT_ALGORITHM};
+use pino_explore::server::{router, Access, App, SolveGate};
+use pino_explore::session::{DatasetFiles, Explorer, Limits};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+#[derive(Parser)]
+#[command(
+    name = "explore",
+    about = "Serve the design explorer of a trained PINO-MBD model"
+)]
+struct Args {
+    /// Workspace root (default: the current directory).
+    #[arg(short = 'C', long = "workspace", value_name = "DIR")]
+    workspace: Option<PathBuf>,
+    /// Pipeline file whose model (and pipeline at a glance) to serve, relative to the workspace.
+    #[arg(short = 'f', long = "file", default_value = "pipeline.yaml")]
+    file: PathBuf,
+    /// Directory of the stage binaries (as `pipeline --bin-dir`; identities hash them).
+    #[arg(long, value_name = "DIR")]
+    bin_dir: Option<PathBuf>,
+    /// Override a pipeline parameter as `pipeline --set` does (STAGE.KEY=VALUE): the same
+    /// overrides the run was made with find its units fresh.
+    #[arg(long = "set", value_name = "STAGE.KEY=VALUE")]
+    sets: Vec<String>,
+    /// The algorithm whose model the pipeline file's record names.
+    #[arg(long, default_value_t = DEFAULT_ALGORITHM)]
+    algorithm: i64,
+    /// A model directory (model.safetensors + model.json) instead of the pipeline's.
+    #[arg(long, value_name = "DIR")]
+    model: Option<PathBuf>,
+    /// With --model: the dataset's `params.parquet` (test samples and their designs).
+    #[arg(long, requires = "model", value_name = "FILE")]
+    params: Vec<PathBuf>,
+    /// With --model: the dataset's `irregularity.parquet` (the test samples' profiles).
+    #[arg(long, requires = "model", value_name = "FILE")]
+    profiles: Vec<PathBuf>,
+    /// Address to serve on; port 0 takes any free port.
+    #[arg(long, default_value = "127.0.0.1:8750")]
+    bind: SocketAddr,
+    /// Token required beyond loopback (default: a random one, printed in the URL).
+    #[arg(long)]
+    token: Option<String>,
+    /// More `Host` names to answer to (DNS-rebinding protection answers only the bound
+    /// address and localhost otherwise).
+    #[arg(long = "allow-host", value_name = "NAME")]
+    allow_hosts: Vec<String>,
+    /// Solves run at once.
+    #[arg(long, default_value_t = 1)]
+    solve_workers: usize,
+    /// Solves waiting beyond those; more are answered 429.
+    #[arg(long, default_value_t = 4)]
+    solve_queue: usize,
+    /// Longest simulated run a solve may take (s).
+    #[arg(long, default_value_t = Limits::default().solve_max_duration_s)]
+    solve_max_duration: f64,
+    /// Most designs in one sweep.
+    #[arg(long, default_value_t = Limits::default().sweep_max_designs)]
+    sweep_max: usize,
+}
+
+fn random_token() -> Result<String> {
+    use std::io::Read;
+    let mut bytes = [0u8; 16];
+    std::fs::File::open("/dev/urandom")
+        .and_then(|mut f| f.read_exact(&mut bytes))
+        .context("reading /dev/urandom for a token (give one with --token)")?;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+async fn run(args: Args) -> Result<()> {
+    if !(args.solve_max_duration.is_finite() && args.solve_max_duration > 0.0) {
+        bail!(
+            "--solve-max-duration {}: allowed a positive number of seconds",
+            args.solve_max_duration
+        );
+    }
+    if !(2..=100_000).contains(&args.sweep_max) {
+        bail!("--sweep-max {}: allowed 2..=100000", args.sweep_max);
+    }
+    let workspace = args.workspace.clone().unwrap_or_else(|| PathBuf::from("."));
+    let file = workspace.join(&args.file);
+    let opts = orchestrator::spec::LoadOptions {
+        bin_dir: args.bin_dir.clone().or_else(|| {
+            std::env::var_os("PINO_BIN_DIR")
+                .filter(|v| !v.is_empty())
+                .map(PathBuf::from)
+        }),
+        sets: args.sets.clone(),
+    };
+    // The pipeline file: where the model comes from (without --model) and the glance page.
+    let pipeline = if args.model.is_none() || file.is_file() {
+        Some(
+            orchestrator::spec::Pipeline::load(&workspace, &file, &opts)
+                .with_context(|| format!("loading {}", file.display()))?,
+        )
+    } else {
+        None
+    };
+    let (model_dir, dataset, what) = match (&args.model, &pipeline) {
+        (Some(dir), _) => (
+            dir.clone(),
+            DatasetFiles {
+                params: args.params.clone(),
+                profiles: args.profiles.clone(),
+            },
+            dir.display().to_string(),
+        ),
+        (None, Some(p)) => {
+            let found = locate(p, args.algorithm).map_err(anyhow::Error::msg)?;
+            (
+                found.model_dir,
+                found.dataset,
+                format!("{} of {}", found.unit, p.file),
+            )
+        }
+        (None, None) => bail!("no model: give --model DIR or a pipeline file with -f"),
+    };
+    let limits = Limits {
+        solve_max_duration_s: args.solve_max_duration,
+        sweep_max_designs: args.sweep_max,
+        ..Limits::default()
+    };
+    eprintln!("explore: opening {what} ...");
+    let explorer = Explorer::open(&model_dir, dataset, limits)
+        .with_context(|| format!("opening the model {}", model_dir.display()))?;
+    let listener = tokio::net::TcpListener::bind(args.bind)
+        .await
+        .with_context(|| format!("binding {}", args.bind))?;
+    let addr = listener.local_addr().context("reading the bound address")?;
+    let token = if addr.ip().is_loopback() {
+        None
+    } else {
+        eprintln!(
+            "explore: warning: serving on {addr}, beyond this machine's loopback: anyone who can reach it and has the token can use the model and the solver"
+        );
+        Some(match &args.token {
+            Some(t) => t.clone(),
+            None => random_token()?,
+        })
+    };
+    let access = Access::new(addr, token.clone(), &args.allow_hosts);
+    let app = Arc::new(App {
+        explorer: Arc::new(explorer),
+        pipeline: pipeline.map(Arc::new),
+        access,
+        solves: Arc::new(SolveGate::new(args.solve_workers, args.solve_queue)),
+    });
+    let shown = if addr.ip().is_unspecified() {
+        format!("localhost:{}", addr.port())
+    } else {
+        addr.to_string()
+    };
+    let url = match &token {
+        Some(t) => format!("http://{shown}/?token={t}"),
+        None => format!("http://{shown}/"),
+    };
+    println!(
+        "explore: serving the {} model ({what}) on {url}",
+        app.explorer.identity().system
+    );
+    use std::io::Write;
+    std::io::stdout().flush().ok();
+    axum::serve(listener, router(app))
+        .with_graceful_shutdown(async {
+            let _ = tokio::signal::ctrl_c().await;
+        })
+        .await
+        .context("serving")
+}
+
+fn main() {
+    pino_learn::candle_single_threaded_by_default();
+    pino_learn::tune_allocator();
+    let args = Args::parse();
+    let rt = match tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("explore: starting the runtime: {e}");
+            std::process::exit(1);
+        }
+    };
+    if let Err(e) = rt.block_on(run(args)) {
+        eprintln!("explore: {e:#}");
+        std::process::exit(1);
+    }
+}

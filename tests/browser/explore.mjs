@@ -1,0 +1,359 @@
+#!/usr/bin/env node
+// The design explorer in a real browser: Chromium (Debian's, driven by the pinned
+// playwright-core) does what a user would do on the page `explore` serves, screenshots each
+// step, and writes what it saw for tests/explore/browser.rs to check against the real
+// `predict` and `simulate` outputs.
+//
+//   node tests/browser/explore.mjs URL OUTDIR      (or EXPLORE_URL, EXPLORE_OUT)
+//
+// Writes into OUTDIR: step-N-NAME.png (full-page screenshots), design.yaml (the downloaded
+// design) and results.json. Env: CHROMIUM (default /usr/bin/chromium); EXPLORE_BENCH=1 also
+// measures slider release -> redrawn plots (window.explorerMetrics) over EXPLORE_BENCH_MOVES
+// (default 30) slider moves and prints p50/p99. Exits nonzero with the reason on any failure,
+// a missing browser or Playwright included: it never skips.
+
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+
+const url = process.argv[2] || process.env.EXPLORE_URL;
+const outDir = process.argv[3] || process.env.EXPLORE_OUT;
+const chromiumPath = process.env.CHROMIUM || '/usr/bin/chromium';
+const bench = process.env.EXPLORE_BENCH === '1';
+const benchMoves = Number(process.env.EXPLORE_BENCH_MOVES || 30);
+
+const TIMEOUT_MS = 120_000;
+const ARGS = ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+  '--disable-background-networking', '--disable-component-update', '--disable-sync'];
+
+function fail(msg) {
+  console.error(`explore.mjs: FAILED: ${msg}`);
+  process.exit(1);
+}
+
+if (!url || !outDir) fail('usage: node tests/browser/explore.mjs URL OUTDIR (or EXPLORE_URL, EXPLORE_OUT)');
+if (!fs.existsSync(chromiumPath)) {
+  fail(`no Chromium at ${chromiumPath}: install Debian's chromium (apt-get install chromium), `
+    + 'or point CHROMIUM at a Chromium binary');
+}
+
+let chromium;
+try {
+  ({ chromium } = await import('playwright-core'));
+} catch (e) {
+  fail(`playwright-core is not installed (${e.message.split('\n')[0]}): run \`npm ci --prefix tests/browser\``);
+}
+
+fs.mkdirSync(outDir, { recursive: true });
+const results = { url, chromium: chromiumPath, steps: [], consoleErrors: [] };
+const profileDir = fs.mkdtempSync(path.join(os.tmpdir(), 'pino-explore-chromium-'));
+let context = null;
+
+/** Throws (with the page's error box, when shown) unless `cond`. */
+function check(cond, msg) {
+  if (!cond) throw new Error(msg);
+}
+
+async function main() {
+  try {
+    context = await chromium.launchPersistentContext(profileDir, {
+      executablePath: chromiumPath,
+      headless: true,
+      args: ARGS,
+      viewport: { width: 1400, height: 1000 },
+      acceptDownloads: true,
+      timeout: 60_000,
+    });
+  } catch (e) {
+    throw new Error(`Chromium (${chromiumPath}) did not start: ${e.message}\n`
+      + "install Debian's chromium (apt-get install chromium)");
+  }
+  context.setDefaultTimeout(TIMEOUT_MS);
+  const page = context.pages()[0] || await context.newPage();
+  results.browserVersion = context.browser() ? context.browser().version() : null;
+
+  // Console errors fail the run, except the browser's own line for a request the page
+  // purposely sent that was refused (400: invalid input, 429: solver busy).
+  page.on('console', (msg) => {
+    if (msg.type() !== 'error') return;
+    const text = msg.text();
+    if (/Failed to load resource: the server responded with a status of (400|429)\b/.test(text)) return;
+    results.consoleErrors.push(text);
+  });
+  page.on('pageerror', (err) => results.consoleErrors.push(`uncaught: ${err.message}`));
+
+  let stepNo = 0;
+  async function step(name, fn) {
+    stepNo += 1;
+    const t0 = Date.now();
+    const file = `step-${stepNo}-${name}.png`;
+    try {
+      await fn();
+    } catch (e) {
+      await page.screenshot({ path: path.join(outDir, file.replace('.png', '-FAILED.png')), fullPage: true })
+        .catch(() => {});
+      throw new Error(`step ${stepNo} (${name}): ${e.message}${await errorBox()}`);
+    }
+    await page.screenshot({ path: path.join(outDir, file), fullPage: true });
+    results.steps.push({ name, screenshot: file, ms: Date.now() - t0 });
+    console.log(`explore.mjs: step ${stepNo} ${name} ok (${Date.now() - t0} ms) -> ${file}`);
+  }
+
+  async function errorBox() {
+    const text = await page.evaluate(() => {
+      const box = document.querySelector('#error');
+      return box && !box.hidden ? box.textContent.replace(/\s+/g, ' ').trim() : '';
+    }).catch(() => '');
+    return text ? `\nthe page shows an error: ${text}` : '';
+  }
+
+  async function expectNoError() {
+    const text = await errorBox();
+    check(!text, `unexpected error box${text}`);
+  }
+
+  const counter = (name) => page.evaluate((n) => Number(document.body.dataset[n] || 0), name);
+
+  /** Waits until body[data-NAME] reaches `n` and the page is idle. */
+  async function waitCounter(name, n) {
+    await page.waitForFunction(([k, v]) => Number(document.body.dataset[k] || 0) >= v
+      && document.body.dataset.state === 'idle', [name, n], { timeout: TIMEOUT_MS });
+  }
+
+  /** What every chart plots: {GROUP: {labels: [...], data: [[x...], [y...]...]}}. */
+  const plotted = () => page.evaluate(() => {
+    const out = {};
+    for (const [key, u] of Object.entries(window.explorerCharts || {})) {
+      out[key] = {
+        labels: u.series.map((s) => s.label),
+        data: u.data.map((col) => Array.from(col)),
+      };
+    }
+    return out;
+  });
+
+  const state = () => page.evaluate(() => JSON.parse(JSON.stringify({
+    design: window.explorerState.design,
+    excitation: window.explorerState.excitation,
+  })));
+
+  /** Drags the slider of `param` to `fraction` of its track, as a mouse would. */
+  async function dragSlider(param, fraction) {
+    const slider = page.locator(`.param[data-param="${param}"] input[type=range]`);
+    await slider.scrollIntoViewIfNeeded();
+    const box = await slider.boundingBox();
+    check(box, `the slider of ${param} is not visible`);
+    const cur = await slider.evaluate((s) => (Number(s.value) - Number(s.min)) / (Number(s.max) - Number(s.min)));
+    const y = box.y + box.height / 2;
+    // The thumb travels between half a thumb (about 8 px) from either end.
+    const at = (f) => box.x + 8 + f * (box.width - 16);
+    await page.mouse.move(at(cur), y);
+    await page.mouse.down();
+    await page.mouse.move(at(fraction), y, { steps: 6 });
+    await page.mouse.up();
+  }
+
+  /** Types `value` into the number field of `param` and leaves it, as a user would. */
+  async function typeValue(param, value) {
+    const n = await counter('predictions');
+    const field = page.locator(`.param[data-param="${param}"] input[type=number]`);
+    await field.scrollIntoViewIfNeeded();
+    await field.click({ clickCount: 3 });
+    await field.fill(String(value));
+    await field.press('Tab');
+    await waitCounter('predictions', n + 1);
+    await expectNoError();
+  }
+
+  // ---- 1. the page loads the model: one row per parameter ------------------------------
+  let summary;
+  await step('loaded', async () => {
+    await page.goto(url, { waitUntil: 'load' });
+    await waitCounter('predictions', 1);
+    await expectNoError();
+    summary = await page.evaluate(() => window.explorerState.summary);
+    check(summary && Array.isArray(summary.parameters), 'window.explorerState.summary has no parameters');
+    results.parameters = await page.$$eval('#params .param', (rows) => rows.map((r) => r.dataset.param));
+    results.parameterLabels = await page.$$eval('#params .param .param-name', (ls) => ls.map((l) => l.textContent));
+    check(results.parameters.length > 0, 'no parameter rows');
+    const charts = await plotted();
+    check(Object.keys(charts).length > 0, 'no chart drawn after the first prediction');
+  });
+
+  // ---- 2. choose the test sample: the design becomes the sample's ------------------------
+  await step('test-sample', async () => {
+    const samples = (summary.excitation && summary.excitation.test_samples) || [];
+    check(samples.length > 0, 'the model summary lists no test sample');
+    const sample = samples[0];
+    const n = await counter('predictions');
+    await page.selectOption('select#excitation', `test:${sample.sample_id}`);
+    await waitCounter('predictions', n + 1);
+    await expectNoError();
+    const s = await state();
+    check(s.excitation && s.excitation.kind === 'test' && s.excitation.sample_id === sample.sample_id,
+      `excitation is ${JSON.stringify(s.excitation)}, not test sample ${sample.sample_id}`);
+    for (const [k, v] of Object.entries(sample.design || {})) {
+      check(s.design[k] === v, `after choosing test sample ${sample.sample_id}, ${k} = ${s.design[k]}, not the sample's ${v}`);
+    }
+    results.sample = { sample_id: sample.sample_id, design: sample.design };
+  });
+
+  // ---- 3. "Solve exactly": the solver's curves overlay the prediction --------------------
+  await step('solve', async () => {
+    const n = await counter('solves');
+    const before = await state();
+    await page.click('#solve');
+    await waitCounter('solves', n + 1);
+    await expectNoError();
+    const charts = await plotted();
+    const overlaid = Object.values(charts).some((c) => c.labels.some((l) => / \(solver\)$/.test(l)));
+    check(overlaid, 'no "(solver)" series in the charts after the solve');
+    const answer = await page.evaluate(() => {
+      const s = window.explorerState.solve;
+      return s && { design: s.design, excitation: s.excitation, solve_ms: s.solve_ms, errors: s.errors };
+    });
+    check(answer, 'window.explorerState.solve is empty after the solve');
+    const status = await page.textContent('#solve-status');
+    results.solve = { design: before.design, excitation: before.excitation, answer, status, charts };
+  });
+
+  // ---- 4. move a slider: the curves change ----------------------------------------------
+  const sliderParam = summary.parameters[0].name;
+  await step('slider', async () => {
+    const before = await plotted();
+    const designBefore = (await state()).design;
+    const n = await counter('predictions');
+    const p = summary.parameters[0];
+    const cur = (designBefore[p.name] - p.min) / (p.max - p.min);
+    await dragSlider(p.name, cur < 0.5 ? 0.85 : 0.15);
+    await waitCounter('predictions', n + 1);
+    await expectNoError();
+    const after = await plotted();
+    const s = await state();
+    check(s.design[p.name] !== designBefore[p.name],
+      `dragging the ${p.name} slider left the design at ${designBefore[p.name]}`);
+    const shown = Number(await page.inputValue(`.param[data-param="${p.name}"] input[type=number]`));
+    check(shown === s.design[p.name], `the ${p.name} field shows ${shown}, the design has ${s.design[p.name]}`);
+    // The curves changed (the first series of each chart is a prediction).
+    let changed = false;
+    for (const [g, c] of Object.entries(after)) {
+      if (g === 'sweep' || !before[g]) continue;
+      const a = c.data[1];
+      const b = before[g].data[1];
+      if (a.some((v, i) => v !== b[i])) changed = true;
+    }
+    check(changed, `no plotted curve changed after moving ${p.name} from ${designBefore[p.name]} to ${s.design[p.name]}`);
+    const overlay = Object.values(after).some((c) => c.labels.some((l) => / \(solver\)$/.test(l)));
+    check(!overlay, 'the solver overlay of the previous design is still shown');
+    results.slider = {
+      param: p.name, from: designBefore[p.name], to: s.design[p.name],
+      design: s.design, excitation: s.excitation, changed, charts: after,
+    };
+  });
+
+  // ---- 5. type a value outside the training range: the flag ------------------------------
+  await step('outside', async () => {
+    const p = summary.parameters[Math.min(1, summary.parameters.length - 1)];
+    const value = Number((p.max + 0.5 * (p.max - p.min)).toPrecision(6));
+    const previous = (await state()).design[p.name];
+    await typeValue(p.name, value);
+    const banner = page.locator('#outside-banner');
+    check(await banner.isVisible(), `#outside-banner is hidden after typing ${p.name} = ${value}`);
+    const rowFlag = page.locator(`.param[data-param="${p.name}"] .outside-flag`);
+    check(await rowFlag.isVisible(), `the ${p.name} row shows no outside flag`);
+    const s = await state();
+    const outside = await page.evaluate(() => window.explorerState.prediction.outside);
+    results.outside = {
+      param: p.name, value, previous, design: s.design,
+      banner: (await banner.textContent()).trim(),
+      row_flag: (await rowFlag.textContent()).trim(),
+      row_class_outside: await page.locator(`.param[data-param="${p.name}"]`).evaluate((r) => r.classList.contains('outside')),
+      answer_outside: outside,
+    };
+  });
+
+  // ---- 6. back inside the range (the flag goes), then a sweep ----------------------------
+  await step('sweep', async () => {
+    await typeValue(results.outside.param, results.outside.previous);
+    check(!(await page.locator('#outside-banner').isVisible()),
+      `#outside-banner still shows after typing ${results.outside.param} = ${results.outside.previous} back`);
+    const p = summary.parameters[summary.parameters.length - 1];
+    const steps = 9;
+    const solvePoints = 2;
+    await page.locator('#sweep').scrollIntoViewIfNeeded();
+    await page.selectOption('#sweep-param', p.name);
+    await page.fill('#sweep-steps', String(steps));
+    await page.fill('#sweep-solve-points', String(solvePoints));
+    const n = await counter('sweeps');
+    await page.click('#run-sweep');
+    await waitCounter('sweeps', n + 1);
+    await expectNoError();
+    const answer = await page.evaluate(() => window.explorerState.sweep);
+    const charts = await plotted();
+    check(charts.sweep, 'no sweep chart drawn');
+    results.sweep = {
+      request: {
+        parameter: p.name, steps, solve_points: solvePoints,
+        from: Number(await page.inputValue('#sweep-from')), to: Number(await page.inputValue('#sweep-to')),
+        index: await page.inputValue('#sweep-index'),
+      },
+      answer,
+      chart: charts.sweep,
+      status: await page.textContent('#sweep-status'),
+    };
+  });
+
+  // ---- 7. download the design (predict --params reads it back: browser.rs) ---------------
+  await step('download', async () => {
+    await page.locator('#download-design').scrollIntoViewIfNeeded();
+    const [download] = await Promise.all([
+      page.waitForEvent('download', { timeout: TIMEOUT_MS }),
+      page.click('#download-design'),
+    ]);
+    check(download.suggestedFilename() === 'design.yaml',
+      `the download is named ${download.suggestedFilename()}, not design.yaml`);
+    const failure = await download.failure();
+    check(!failure, `the download failed: ${failure}`);
+    await download.saveAs(path.join(outDir, 'design.yaml'));
+    await expectNoError();
+    const s = await state();
+    const charts = await plotted();
+    delete charts.sweep;
+    results.download = { file: 'design.yaml', design: s.design, excitation: s.excitation, charts };
+  });
+
+  // ---- benchmark: slider release -> redrawn plots (EXPLORE_BENCH=1) ----------------------
+  if (bench) {
+    const p = summary.parameters[0];
+    const start = await page.evaluate(() => window.explorerMetrics.predictToRedrawMs.length);
+    for (let i = 0; i < benchMoves; i++) {
+      const n = await counter('predictions');
+      await dragSlider(p.name, 0.1 + 0.8 * ((i * 7) % benchMoves) / benchMoves);
+      await waitCounter('predictions', n + 1);
+    }
+    const ms = await page.evaluate((k) => window.explorerMetrics.predictToRedrawMs.slice(k), start);
+    const sorted = [...ms].sort((a, b) => a - b);
+    const q = (f) => sorted[Math.min(sorted.length - 1, Math.ceil(f * sorted.length) - 1)];
+    results.bench = { moves: benchMoves, samples: ms.length, p50_ms: q(0.5), p99_ms: q(0.99), max_ms: sorted[sorted.length - 1], ms };
+    console.log(`explore.mjs: bench: slider release -> redrawn plots over ${ms.length} moves of ${p.name}: `
+      + `p50 ${q(0.5).toFixed(1)} ms, p99 ${q(0.99).toFixed(1)} ms, max ${sorted[sorted.length - 1].toFixed(1)} ms`);
+  }
+
+  check(results.consoleErrors.length === 0, `console errors on the page:\n  ${results.consoleErrors.join('\n  ')}`);
+}
+
+let code = 0;
+try {
+  await main();
+} catch (e) {
+  console.error(`explore.mjs: FAILED: ${e.message}`);
+  if (results.consoleErrors.length) console.error(`console errors:\n  ${results.consoleErrors.join('\n  ')}`);
+  results.failure = e.message;
+  code = 1;
+} finally {
+  fs.writeFileSync(path.join(outDir, 'results.json'), JSON.stringify(results, null, 1));
+  if (context) await context.close().catch(() => {});
+  fs.rmSync(profileDir, { recursive: true, force: true });
+}
+if (code === 0) console.log(`explore.mjs: all steps passed; results in ${path.join(outDir, 'results.json')}`);
+process.exit(code);

@@ -1,0 +1,158 @@
+//! The design explorer end to end: the real `pipeline` makes a small model of the default
+//! pipeline (the TINY overrides of the end-to-end test), the real `explore` binary serves it,
+//! and the tests talk to it as a script would (`api`: validation, the numbers against
+//! `predict` and `simulate`, the solve gate, cancellation, host and token checks) and as a user
+//! would, in a real browser (`browser`: Chromium driven by Playwright).
+
+use pino_explore::client::Client;
+use pino_mbd_tests::{output_text, TempWorkspace, TINY};
+use std::io::BufRead;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+mod api;
+mod browser;
+
+/// A workspace in which the default pipeline ran with the TINY overrides and then `extra`.
+pub struct Trained {
+    /// The workspace.
+    pub ws: TempWorkspace,
+    /// The `--set` overrides of the run.
+    pub sets: Vec<String>,
+}
+
+impl Trained {
+    /// Runs the pipeline (`pipeline run`) in a fresh copy of the product.
+    pub fn new(extra: &[&str]) -> Self {
+        let ws = pino_mbd_tests::product_workspace("pipeline.yaml");
+        let sets: Vec<String> = TINY.iter().chain(extra).map(|s| s.to_string()).collect();
+        let o = self::pipeline(ws.path(), &sets, &["run", "-j", "2"]);
+        assert!(o.status.success(), "{}", output_text(&o));
+        Self { ws, sets }
+    }
+
+    /// The files of `stage`'s current output.
+    pub fn show(&self, stage: &str) -> Vec<PathBuf> {
+        let o = pipeline(self.ws.path(), &self.sets, &["show", stage]);
+        assert!(o.status.success(), "{}", output_text(&o));
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .map(PathBuf::from)
+            .collect()
+    }
+
+    /// The one file named `name` of `stage`'s output.
+    pub fn file(&self, stage: &str, name: &str) -> PathBuf {
+        let files = self.show(stage);
+        files
+            .iter()
+            .find(|p| p.file_name().is_some_and(|n| n == name))
+            .unwrap_or_else(|| panic!("{stage} wrote no {name}: {files:?}"))
+            .clone()
+    }
+
+    /// Starts `explore` on this workspace's algorithm-5 model, on a free loopback port unless
+    /// `extra` binds elsewhere.
+    pub fn serve(&self, extra: &[&str]) -> Served {
+        let mut cmd = Command::new(pino_mbd_tests::bin("explore"));
+        cmd.arg("-C")
+            .arg(self.ws.path())
+            .arg("--bin-dir")
+            .arg(pino_mbd_tests::pipeline_bin_dir("pipeline.yaml"))
+            .env_remove("PINO_BIN_DIR");
+        for s in &self.sets {
+            cmd.arg("--set").arg(s);
+        }
+        if !extra.contains(&"--bind") {
+            cmd.args(["--bind", "127.0.0.1:0"]);
+        }
+        cmd.args(extra);
+        Served::start(cmd)
+    }
+}
+
+fn pipeline(ws: &Path, sets: &[String], args: &[&str]) -> std::process::Output {
+    let mut cmd = Command::new(pino_mbd_tests::bin("pipeline"));
+    cmd.current_dir(ws)
+        .arg("--bin-dir")
+        .arg(pino_mbd_tests::pipeline_bin_dir("pipeline.yaml"))
+        .env_remove("PINO_BIN_DIR");
+    for s in sets {
+        cmd.arg("--set").arg(s);
+    }
+    cmd.args(args).output().expect("pipeline runs")
+}
+
+/// A running `explore`, killed on drop.
+pub struct Served {
+    child: Child,
+    /// Its address.
+    pub addr: SocketAddr,
+    /// The URL it printed.
+    pub url: String,
+}
+
+impl Served {
+    /// Spawns `cmd` and waits (up to two minutes) for the URL line.
+    pub fn start(mut cmd: Command) -> Self {
+        let mut child = cmd
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("explore starts");
+        let stdout = child.stdout.take().expect("piped");
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in std::io::BufReader::new(stdout)
+                .lines()
+                .map_while(Result::ok)
+            {
+                let _ = tx.send(line);
+            }
+        });
+        let line = match rx.recv_timeout(Duration::from_secs(120)) {
+            Ok(line) => line,
+            Err(_) => {
+                let _ = child.kill();
+                panic!(
+                    "explore printed no URL: {:?}",
+                    child.wait_with_output().ok()
+                )
+            }
+        };
+        let url = line
+            .split_whitespace()
+            .find(|w| w.starts_with("http://"))
+            .unwrap_or_else(|| panic!("no URL in {line:?}"))
+            .to_owned();
+        let host = url
+            .trim_start_matches("http://")
+            .split('/')
+            .next()
+            .unwrap_or_default();
+        let addr: SocketAddr = std::net::ToSocketAddrs::to_socket_addrs(host)
+            .unwrap_or_else(|e| panic!("{host}: {e}"))
+            .find(SocketAddr::is_ipv4)
+            .unwrap_or_else(|| panic!("{host}: no IPv4 address"));
+        Self { child, addr, url }
+    }
+
+    /// A client of this server.
+    pub fn client(&self) -> Client {
+        Client::new(self.addr)
+    }
+
+    /// Whether the process is still running.
+    pub fn alive(&mut self) -> bool {
+        matches!(self.child.try_wait(), Ok(None))
+    }
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
