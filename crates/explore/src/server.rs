@@ -315,6 +315,16 @@ fn response_json(ex: &Explorer, r: &Response) -> Value {
     })
 }
 
+/// The answer of a prediction or a solve of `req`: the curves and indices, the full design,
+/// the parameters outside the training ranges and the excitation used.
+fn answer(ex: &Explorer, req: &DesignRequest, r: &Response) -> Value {
+    let mut v = response_json(ex, r);
+    v["design"] = Value::Object(ex.design_map(&req.design));
+    v["outside"] = json!(ex.outside(&req.design));
+    v["excitation"] = json!(ex.excitation_used(req.excitation));
+    v
+}
+
 fn parse(app: &App, body: &Bytes) -> Result<DesignRequest, ApiError> {
     app.explorer.rules().design_request(&request::body(body)?)
 }
@@ -328,11 +338,7 @@ async fn predict(State(app): State<Shared>, body: Bytes) -> HttpResponse {
     let ex = app.explorer.clone();
     let r = blocking(move || {
         let r = ex.predict(&req)?;
-        let mut v = response_json(&ex, &r);
-        v["design"] = Value::Object(ex.design_map(&req.design));
-        v["outside"] = json!(ex.outside(&req.design));
-        v["excitation"] = json!(ex.excitation_used(req.excitation));
-        Ok(v)
+        Ok(answer(&ex, &req, &r))
     })
     .await;
     match r {
@@ -377,7 +383,7 @@ async fn solve(State(app): State<Shared>, body: Bytes) -> HttpResponse {
     let ex = app.explorer.clone();
     let r = gated(&app, move |cancel| {
         let (pred, exact, solve_ms) = ex.solve(&req, cancel)?;
-        let mut v = response_json(&ex, &exact);
+        let mut v = answer(&ex, &req, &exact);
         let errors: serde_json::Map<String, Value> = ex
             .channels()
             .iter()
@@ -400,9 +406,6 @@ async fn solve(State(app): State<Shared>, body: Bytes) -> HttpResponse {
                 )
             })
             .collect();
-        v["design"] = Value::Object(ex.design_map(&req.design));
-        v["outside"] = json!(ex.outside(&req.design));
-        v["excitation"] = json!(ex.excitation_used(req.excitation));
         v["errors"] = Value::Object(errors);
         v["index_errors"] = Value::Object(index_errors);
         v["solve_ms"] = json!(solve_ms);

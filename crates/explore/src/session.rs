@@ -11,7 +11,7 @@
 //! `simulate` stage's engine with the dataset's run controls and is cut to the same rows.
 
 use crate::request::{ApiError, DesignRequest, Excitation, RequestRules, SweepRequest};
-use crate::solve::{self, Exact};
+use crate::solve::{self, Exact, Rates};
 use mbd_engine::{Profile, RunConfig};
 use pino_eval::indices_eval::SampleIndices;
 use pino_eval::predict::{Predictor, ProfileChoice, SetPrediction};
@@ -476,27 +476,7 @@ impl Explorer {
 
     /// The interior rows of a prediction, per channel.
     fn curves(&self, p: &SetPrediction) -> (Vec<f64>, Vec<Vec<f64>>) {
-        let meta = &self.predictor.meta;
-        let layout = &meta.layout;
-        let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
-        let times = meta.grid.times();
-        let rows = 1..times.len() - 1;
-        let ph = &p.physical;
-        let channels = self
-            .channels
-            .iter()
-            .map(|c| {
-                rows.clone()
-                    .map(|n| match c.slot {
-                        Slot::Output(i) => ph.u[n * o + i],
-                        Slot::Velocity(j) => ph.v[(n - 1) * d + j],
-                        Slot::Acceleration(j) => ph.a[(n - 1) * d + j],
-                        Slot::Excitation(j) => p.eta[n * e + j],
-                    })
-                    .collect()
-            })
-            .collect();
-        (times[rows].to_vec(), channels)
+        solve::curves(&self.channels, &self.predictor.meta, p, Rates::Interior)
     }
 
     /// Predicts one design.
@@ -622,7 +602,7 @@ impl Explorer {
         } else {
             None
         };
-        let (t, channels) = solve::exact_curves(&self.channels, meta, &p);
+        let (t, channels) = solve::curves(&self.channels, meta, &p, Rates::EveryPoint);
         let solved = Response {
             t,
             channels,

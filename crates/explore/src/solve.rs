@@ -109,14 +109,28 @@ fn window_rows(t: &[f64], meta: &ModelMeta) -> Result<Vec<usize>, ApiError> {
         .collect()
 }
 
-/// The exact curves at the interior rows, per channel (derivatives at every window point).
-pub(crate) fn exact_curves(
+/// Which window points a [`SetPrediction`]'s velocities and accelerations cover.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Rates {
+    /// The interior points `1..T-1` (a prediction's central differences).
+    Interior,
+    /// Every point (the solver's exact rates).
+    EveryPoint,
+}
+
+/// The curves of `p` at the window's interior rows (`n = 1..T-2`), per channel.
+pub(crate) fn curves(
     channels: &[Channel],
     meta: &ModelMeta,
     p: &SetPrediction,
+    rates: Rates,
 ) -> (Vec<f64>, Vec<Vec<f64>>) {
     let layout = &meta.layout;
     let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
+    let first_rate_row = match rates {
+        Rates::Interior => 1,
+        Rates::EveryPoint => 0,
+    };
     let times = meta.grid.times();
     let rows = 1..times.len() - 1;
     let ph = &p.physical;
@@ -124,11 +138,14 @@ pub(crate) fn exact_curves(
         .iter()
         .map(|c| {
             rows.clone()
-                .map(|n| match c.slot {
-                    Slot::Output(i) => ph.u[n * o + i],
-                    Slot::Velocity(j) => ph.v[n * d + j],
-                    Slot::Acceleration(j) => ph.a[n * d + j],
-                    Slot::Excitation(j) => p.eta[n * e + j],
+                .map(|n| {
+                    let r = n - first_rate_row;
+                    match c.slot {
+                        Slot::Output(i) => ph.u[n * o + i],
+                        Slot::Velocity(j) => ph.v[r * d + j],
+                        Slot::Acceleration(j) => ph.a[r * d + j],
+                        Slot::Excitation(j) => p.eta[n * e + j],
+                    }
                 })
                 .collect()
         })
