@@ -339,6 +339,21 @@ async function main() {
       + `p50 ${q(0.5).toFixed(1)} ms, p99 ${q(0.99).toFixed(1)} ms, max ${sorted[sorted.length - 1].toFixed(1)} ms`);
   }
 
+  // ---- 8. the pipeline at a glance: every unit fresh, Table 4 and the plots shown --------
+  await step('pipeline', async () => {
+    await page.goto(new URL('/pipeline', url).toString());
+    await page.waitForSelector('body[data-polls]', { timeout: TIMEOUT_MS });
+    const units = await page.$$eval('tr[data-unit]', (rows) => rows.map((r) => [r.dataset.unit, r.dataset.state]));
+    check(units.length > 0, 'the pipeline page lists no unit');
+    const notFresh = units.filter(([, state]) => state !== 'fresh');
+    check(notFresh.length === 0, `units not fresh on the pipeline page: ${JSON.stringify(notFresh)}`);
+    const table4Rows = await page.$$eval('#table4 tbody tr', (rows) => rows.length);
+    check(table4Rows > 0, 'the pipeline page shows no Table 4');
+    const plots = await page.$$eval('img', (imgs) => imgs.map((i) => [i.getAttribute('src'), i.complete && i.naturalWidth > 0]));
+    check(plots.length > 0 && plots.every(([, ok]) => ok), `evaluate plots not shown: ${JSON.stringify(plots)}`);
+    results.pipeline = { units, table4_rows: table4Rows, plots: plots.length };
+  });
+
   check(results.consoleErrors.length === 0, `console errors on the page:\n  ${results.consoleErrors.join('\n  ')}`);
 }
 

@@ -79,7 +79,8 @@ fn a_user_explores_designs_in_a_real_browser() {
             "slider",
             "outside",
             "sweep",
-            "download"
+            "download",
+            "pipeline"
         ]
     );
 
