@@ -14,24 +14,11 @@
 
 (() => {
   const POLL_MS = 2000;
-  const $ = (sel) => document.querySelector(sel);
+  const { $, el } = window.pinoDom;
   let polls = 0;
   let lastTable4 = '';
   let lastPlots = '';
   window.pipelineState = null;
-
-  function el(tag, attrs = {}, ...children) {
-    const node = document.createElement(tag);
-    for (const [k, v] of Object.entries(attrs)) {
-      if (v == null || v === false) continue;
-      if (k === 'class') node.className = v;
-      else if (k === 'dataset') Object.assign(node.dataset, v);
-      else if (k in node && typeof v !== 'string') node[k] = v;
-      else node.setAttribute(k, v === true ? '' : v);
-    }
-    for (const c of children) if (c != null && c !== false) node.append(c instanceof Node ? c : String(c));
-    return node;
-  }
 
   /** `never run` -> `state-never-run`; unknown states get `state-other` too. */
   function stateClass(state) {

@@ -29,6 +29,7 @@ pub const ASSETS: &[Asset] = &[
     asset!("pipeline.html", "text/html; charset=utf-8"),
     asset!("app.js", "text/javascript; charset=utf-8"),
     asset!("pipeline.js", "text/javascript; charset=utf-8"),
+    asset!("dom.js", "text/javascript; charset=utf-8"),
     asset!("style.css", "text/css; charset=utf-8"),
     asset!("favicon.svg", "image/svg+xml"),
     asset!("uPlot.iife.min.js", "text/javascript; charset=utf-8"),

@@ -325,6 +325,17 @@ fn answer(ex: &Explorer, req: &DesignRequest, r: &Response) -> Value {
     v
 }
 
+/// The JSON answer `r` with the request's wall time (`elapsed_ms`), or its error.
+fn timed(started: Instant, r: Result<Value, ApiError>) -> HttpResponse {
+    match r {
+        Ok(mut v) => {
+            v["elapsed_ms"] = json!(started.elapsed().as_secs_f64() * 1e3);
+            json_ok(v)
+        }
+        Err(e) => error_response(e),
+    }
+}
+
 fn parse(app: &App, body: &Bytes) -> Result<DesignRequest, ApiError> {
     app.explorer.rules().design_request(&request::body(body)?)
 }
@@ -341,13 +352,7 @@ async fn predict(State(app): State<Shared>, body: Bytes) -> HttpResponse {
         Ok(answer(&ex, &req, &r))
     })
     .await;
-    match r {
-        Ok(mut v) => {
-            v["elapsed_ms"] = json!(started.elapsed().as_secs_f64() * 1e3);
-            json_ok(v)
-        }
-        Err(e) => error_response(e),
-    }
+    timed(started, r)
 }
 
 /// Runs `f` as a solve: admitted by the gate, cancelled when the client goes away.
@@ -412,13 +417,7 @@ async fn solve(State(app): State<Shared>, body: Bytes) -> HttpResponse {
         Ok(v)
     })
     .await;
-    match r {
-        Ok(mut v) => {
-            v["elapsed_ms"] = json!(started.elapsed().as_secs_f64() * 1e3);
-            json_ok(v)
-        }
-        Err(e) => error_response(e),
-    }
+    timed(started, r)
 }
 
 async fn sweep(State(app): State<Shared>, body: Bytes) -> HttpResponse {

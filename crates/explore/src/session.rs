@@ -11,9 +11,9 @@
 //! `simulate` stage's engine with the dataset's run controls and is cut to the same rows.
 
 use crate::request::{ApiError, DesignRequest, Excitation, RequestRules, SweepRequest};
-use crate::solve::{self, Exact, Rates};
+use crate::solve::{self, Rates};
 use mbd_engine::{Profile, RunConfig};
-use pino_eval::indices_eval::SampleIndices;
+use pino_eval::indices_eval::{SampleIndices, StoredColumns};
 use pino_eval::predict::{Predictor, ProfileChoice, SetPrediction};
 use pino_indices::IndexConfig;
 use serde::Serialize;
@@ -310,13 +310,15 @@ impl Explorer {
                 })
             })
             .collect();
-        let indices: Vec<_> = self
-            .predictor
-            .index_inputs()
-            .columns()
+        let inputs = self.predictor.index_inputs();
+        let columns = if inputs.computable() {
+            inputs.columns()
+        } else {
+            &[]
+        };
+        let indices: Vec<_> = columns
             .iter()
             .zip(&self.index_limits)
-            .filter(|_| self.predictor.index_inputs().computable())
             .map(|(c, limit)| {
                 serde_json::json!({
                     "name": c.name,
@@ -448,10 +450,13 @@ impl Explorer {
             .map_err(|e| ApiError::bad("excitation", e.to_string(), "profiles that cover the run"))
     }
 
+    /// The indices of `design` from its values `p` (a prediction, or the solver's with its
+    /// `stored` columns); `None` when the model computes none.
     fn indices_of(
         &self,
         design: &[f64],
         p: &SetPrediction,
+        stored: Option<&StoredColumns>,
     ) -> Result<Option<SampleIndices>, ApiError> {
         let inputs = self.predictor.index_inputs();
         if !inputs.computable() {
@@ -465,7 +470,7 @@ impl Explorer {
                 design,
                 0,
                 &p.physical,
-                None,
+                stored,
                 &p.eta,
                 meta.grid.dt,
                 &self.index_cfg,
@@ -474,9 +479,23 @@ impl Explorer {
             .map_err(internal)
     }
 
-    /// The interior rows of a prediction, per channel.
-    fn curves(&self, p: &SetPrediction) -> (Vec<f64>, Vec<Vec<f64>>) {
-        solve::curves(&self.channels, &self.predictor.meta, p, Rates::Interior)
+    /// The answer of `design` from its values `p`: the curves at the interior rows and the
+    /// indices.
+    fn response(
+        &self,
+        design: &[f64],
+        p: &SetPrediction,
+        rates: Rates,
+        stored: Option<&StoredColumns>,
+    ) -> Result<Response, ApiError> {
+        let ix = self.indices_of(design, p, stored)?;
+        let (t, channels) = solve::curves(&self.channels, &self.predictor.meta, p, rates);
+        Ok(Response {
+            t,
+            channels,
+            failed: ix.as_ref().map_or_else(Vec::new, |ix| ix.failed.clone()),
+            indices: ix.map_or_else(Vec::new, |ix| ix.values),
+        })
     }
 
     /// Predicts one design.
@@ -486,14 +505,7 @@ impl Explorer {
             .predict_raw(std::slice::from_ref(&req.design), &profiles)?
             .pop()
             .ok_or_else(|| internal("no prediction"))?;
-        let (t, channels) = self.curves(&p);
-        let ix = self.indices_of(&req.design, &p)?;
-        Ok(Response {
-            t,
-            channels,
-            failed: ix.as_ref().map_or_else(Vec::new, |ix| ix.failed.clone()),
-            indices: ix.map_or_else(Vec::new, |ix| ix.values),
-        })
+        self.response(&req.design, &p, Rates::Interior, None)
     }
 
     /// The designs of a sweep.
@@ -547,12 +559,19 @@ impl Explorer {
     }
 
     /// The exact solve of a design beside its prediction; stops early (an error) when `cancel`
-    /// is set.
+    /// is set. Returns the prediction, the solve and the solver's time (ms).
     pub fn solve(
         &self,
         req: &DesignRequest,
         cancel: &AtomicBool,
     ) -> Result<(Response, Response, f64), ApiError> {
+        let predicted = self.predict(req)?;
+        let (solved, solve_ms) = self.exact(req, cancel)?;
+        Ok((predicted, solved, solve_ms))
+    }
+
+    /// The solver's answer for a design and the solver's time (ms).
+    fn exact(&self, req: &DesignRequest, cancel: &AtomicBool) -> Result<(Response, f64), ApiError> {
         if self.run.duration > self.limits.solve_max_duration_s {
             return Err(ApiError::bad(
                 "design",
@@ -566,50 +585,13 @@ impl Explorer {
                 ),
             ));
         }
-        let predicted = self.predict(req)?;
         let profiles = self.profiles(req.excitation)?;
         let started = std::time::Instant::now();
-        let exact: Exact =
-            solve::exact(&self.predictor, &self.run, &req.design, &profiles, cancel)?;
+        let exact = solve::exact(&self.predictor, &self.run, &req.design, &profiles, cancel)?;
         let solve_ms = started.elapsed().as_secs_f64() * 1e3;
-        let meta = &self.predictor.meta;
-        let p = SetPrediction {
-            physical: exact.physical.clone(),
-            eta: exact.eta.clone(),
-        };
-        let ix = if self.predictor.index_inputs().computable() {
-            let stored = pino_eval::indices_eval::StoredColumns::of_sample(
-                self.predictor.index_inputs(),
-                0,
-                exact.stored.clone(),
-            );
-            Some(
-                self.predictor
-                    .index_inputs()
-                    .sample(
-                        self.predictor.system(),
-                        &meta.layout,
-                        &req.design,
-                        0,
-                        &exact.physical,
-                        Some(&stored),
-                        &exact.eta,
-                        meta.grid.dt,
-                        &self.index_cfg,
-                    )
-                    .map_err(internal)?,
-            )
-        } else {
-            None
-        };
-        let (t, channels) = solve::curves(&self.channels, meta, &p, Rates::EveryPoint);
-        let solved = Response {
-            t,
-            channels,
-            failed: ix.as_ref().map_or_else(Vec::new, |ix| ix.failed.clone()),
-            indices: ix.map_or_else(Vec::new, |ix| ix.values),
-        };
-        Ok((predicted, solved, solve_ms))
+        let stored = StoredColumns::of_sample(self.predictor.index_inputs(), 0, exact.stored);
+        let solved = self.response(&req.design, &exact.values, Rates::EveryPoint, Some(&stored))?;
+        Ok((solved, solve_ms))
     }
 
     /// The indices of one design through the solver (the sweep's solver points).
@@ -623,7 +605,7 @@ impl Explorer {
             design: design.to_vec(),
             excitation,
         };
-        Ok(self.solve(&req, cancel)?.1.indices)
+        Ok(self.exact(&req, cancel)?.0.indices)
     }
 
     /// Index columns (name, unit) in value order; empty when the model computes none.

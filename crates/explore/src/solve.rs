@@ -15,14 +15,12 @@ use pino_learn::checkpoint::ModelMeta;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The solver's values over the model's window: outputs `[T, O]`, velocities and accelerations
-/// `[T, D]` at every window point, excitations `[T, E]`, and the stored columns the indices
-/// read beside them (each `T` long).
+/// `[T, D]` at every window point and excitations `[T, E]` (in a prediction's form), and the
+/// stored columns the indices read beside them (each `T` long).
 #[derive(Debug, Clone)]
 pub struct Exact {
-    /// Outputs and exact derivatives.
-    pub physical: Physical,
-    /// Excitations.
-    pub eta: Vec<f64>,
+    /// Outputs, exact derivatives, excitations.
+    pub values: SetPrediction,
     /// The index inputs' stored columns.
     pub stored: Vec<Vec<f64>>,
 }
@@ -78,12 +76,14 @@ pub fn exact(
         .map(column)
         .collect::<Result<_, _>>()?;
     Ok(Exact {
-        physical: Physical {
-            u: interleave(&layout.outputs)?,
-            v: interleave(&layout.velocities())?,
-            a: interleave(&layout.accelerations())?,
+        values: SetPrediction {
+            physical: Physical {
+                u: interleave(&layout.outputs)?,
+                v: interleave(&layout.velocities())?,
+                a: interleave(&layout.accelerations())?,
+            },
+            eta: interleave(&layout.excitations)?,
         },
-        eta: interleave(&layout.excitations)?,
         stored,
     })
 }

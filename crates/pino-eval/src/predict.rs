@@ -278,12 +278,17 @@ pub fn profiles_of_samples(
     }
     let t = pino_data::read_parquet_files(files, None)?;
     let path = files.first().map_or(Path::new("profiles"), |p| p.as_path());
-    ids.iter()
-        .map(|&id| {
-            Ok((
-                id,
-                profiles_of_table(system, &t, path, Some(id), &generated)?,
-            ))
+    // The rows of each sample, in one pass over the file.
+    let mut rows: BTreeMap<i64, Vec<usize>> = ids.iter().map(|&id| (id, Vec::new())).collect();
+    for (r, id) in t.i64(schema::SAMPLE_ID)?.iter().enumerate() {
+        if let Some(rows) = rows.get_mut(id) {
+            rows.push(r);
+        }
+    }
+    rows.into_iter()
+        .map(|(id, rows)| {
+            let p = profiles_of_rows(system, &t, path, &rows, Some(id), &generated)?;
+            Ok((id, p))
         })
         .collect()
 }
@@ -295,14 +300,26 @@ fn read_profiles(
     generated: &[&str],
 ) -> Result<Vec<Option<Profile>>> {
     let t = pino_data::read_parquet(path, None)?;
-    profiles_of_table(system, &t, path, sample_id, generated)
+    let ids = t.i64(schema::SAMPLE_ID).ok();
+    let id = match (ids, sample_id) {
+        (Some(_), Some(id)) => Some(id),
+        (Some(ids), None) => ids.first().copied(),
+        (None, _) => None,
+    };
+    let rows: Vec<usize> = (0..t.num_rows())
+        .filter(|&r| ids.is_none_or(|ids| Some(ids[r]) == id))
+        .collect();
+    profiles_of_rows(system, &t, path, &rows, id, generated)
 }
 
-fn profiles_of_table(
+/// The generated profiles of one sample from its `rows` of a profile table (`id` names it in
+/// messages).
+fn profiles_of_rows(
     system: &System,
     t: &Table,
     path: &Path,
-    sample_id: Option<i64>,
+    rows: &[usize],
+    id: Option<i64>,
     generated: &[&str],
 ) -> Result<Vec<Option<Profile>>> {
     let x = t.f64(schema::TRACK_X)?;
@@ -319,12 +336,6 @@ fn profiles_of_table(
             ),
         ));
     }
-    let ids = t.i64(schema::SAMPLE_ID).ok();
-    let id = match (ids, sample_id) {
-        (Some(_), Some(id)) => Some(id),
-        (Some(ids), None) => ids.first().copied(),
-        (None, _) => None,
-    };
     system
         .profiles
         .iter()
@@ -332,8 +343,9 @@ fn profiles_of_table(
             if !matches!(p, mbd_system::system::Profile::Generated { .. }) {
                 return Ok(None);
             }
-            let rows: Vec<usize> = (0..x.len())
-                .filter(|&r| ids.is_none_or(|ids| Some(ids[r]) == id))
+            let rows: Vec<usize> = rows
+                .iter()
+                .copied()
                 .filter(|&r| names.is_none_or(|n| n[r] == p.name()))
                 .collect();
             if rows.is_empty() {
