@@ -23,14 +23,26 @@ fi
 source .ci/cuda-env.sh
 nvcc --version | tail -n 2
 
-cargo build --release --locked -p train -p evaluate -p predict --features cuda
-cargo test --release --locked -p pino-learn --features cuda --test cuda_parity --no-run
+# What is built: by default the release binaries a GPU machine runs (README, "GPU"), in
+# target/cuda. CI sets PINO_CUDA_CHECK=dev: the same crates in the dev profile in the tests'
+# own target/ (after the tests), so every dependency the CPU build compiled is reused and only
+# the crates that change with the feature are rebuilt (BENCHMARKS.md, "CI"). That leaves
+# CUDA-linked train/calibrate/evaluate/predict in target/debug: the next plain `cargo build`
+# relinks the CPU ones.
+if [ "${PINO_CUDA_CHECK:-release}" = dev ]; then
+    export CARGO_TARGET_DIR=target
+    profile=() out=debug
+else
+    profile=(--release) out=release
+fi
+cargo build "${profile[@]}" --locked -p train -p calibrate -p evaluate -p predict --features cuda
+cargo test "${profile[@]}" --locked -p pino-learn --features cuda --test cuda_parity --no-run
 
 # The binaries must want the driver by its soname (the stub is link-time only).
-for bin in train evaluate predict; do
-    if ! readelf -d "$CARGO_TARGET_DIR/release/$bin" | grep -q 'NEEDED.*\[libcuda\.so\.1\]'; then
+for bin in train calibrate evaluate predict; do
+    if ! readelf -d "$CARGO_TARGET_DIR/$out/$bin" | grep -q 'NEEDED.*\[libcuda\.so\.1\]'; then
         echo "error: $bin does not link libcuda.so.1" >&2
         exit 1
     fi
 done
-echo "GPU build OK: $CARGO_TARGET_DIR/release/{train,evaluate,predict} (not run: no GPU in CI)"
+echo "GPU build OK: $CARGO_TARGET_DIR/$out/{train,calibrate,evaluate,predict} (not run: no GPU in CI)"

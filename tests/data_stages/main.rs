@@ -891,18 +891,40 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
     // The `params:` blocks of every pipeline file go through YAML -> JSON (as the orchestrator
     // passes them, constants substituted) into the stages' checked types, against the
     // description the file names, and hold the intended values.
-    for (file, system_file, n_train, n_validation, n_test) in [
-        ("pipeline.yaml", "systems/vtcd.yaml", 800, 100, 100),
-        ("configs/paper.yaml", "systems/vtcd.yaml", 20000, 2000, 2000),
-        ("configs/long.yaml", "systems/vtcd.yaml", 4800, 200, 200),
+    for (file, system_file, n_train, n_validation, n_test, n_calibration) in [
+        ("pipeline.yaml", "systems/vtcd.yaml", 800, 100, 100, 200),
+        (
+            "configs/paper.yaml",
+            "systems/vtcd.yaml",
+            20000,
+            2000,
+            2000,
+            2000,
+        ),
+        (
+            "configs/long.yaml",
+            "systems/vtcd.yaml",
+            4800,
+            200,
+            200,
+            200,
+        ),
         (
             "configs/quarter-car.yaml",
             "systems/quarter-car.yaml",
             800,
             100,
             100,
+            1000,
         ),
-        ("configs/bridge.yaml", "systems/bridge.yaml", 800, 100, 100),
+        (
+            "configs/bridge.yaml",
+            "systems/bridge.yaml",
+            800,
+            100,
+            100,
+            1000,
+        ),
     ] {
         let params = |stage: &str| pino_mbd_tests::stage_params(file, stage);
         // Every stage that reads the description names the same file, which exists and
@@ -927,10 +949,22 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
             serde_json::from_value(p).unwrap_or_else(|e| panic!("{file}: sample-params: {e}"));
         let plan = mbd_dataset::SamplingPlan::new(split, &described).unwrap();
         assert_eq!(
-            (split.n_train, split.n_validation, split.n_test),
-            (n_train, n_validation, n_test),
+            (
+                split.n_train,
+                split.n_validation,
+                split.n_test,
+                split.n_calibration
+            ),
+            (n_train, n_validation, n_test, n_calibration),
             "{file}"
         );
+        // The calibration stage's settings parse and are valid; evaluate reads its output.
+        let calibrate: pino_eval::calibration::build::CalibrateParams =
+            serde_json::from_value(params("calibrate"))
+                .unwrap_or_else(|e| panic!("{file}: calibrate: {e}"));
+        calibrate
+            .validate()
+            .unwrap_or_else(|e| panic!("{file}: calibrate: {e}"));
         assert_eq!(plan.ranges(), described.ranges().as_slice(), "{file}");
 
         let (p, _) = split_values(params("irregularity"));

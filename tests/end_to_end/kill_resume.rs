@@ -19,13 +19,14 @@ const SEED: u64 = 0x6b69_6c6c;
 /// More epochs than the other end-to-end test, so kills land between checkpoints.
 const EPOCHS: &str = "train.epochs=6";
 /// Stages whose outputs are compared (all of them).
-const STAGES: [&str; 7] = [
+const STAGES: [&str; 8] = [
     "sample-params",
     "irregularity",
     "simulate",
     "indices",
     "weights",
     "train",
+    "calibrate",
     "evaluate",
 ];
 

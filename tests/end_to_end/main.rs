@@ -1,6 +1,6 @@
 //! The whole product, end to end: the real `pipeline.yaml` (every stage, as a user runs it)
 //! driven by the real `pipeline` binary on the real stage binaries, shrunk through `--set`
-//! to seconds of work: 7 samples (4 train, 2 validation, 1 test) of 0.5 s on a 120 m track,
+//! to seconds of work: 17 samples (4 train, 2 validation, 1 test, 10 calibration) of 0.5 s on a 120 m track,
 //! tiny networks, 2 epochs.
 //!
 //! What it proves: the stages agree on the artifact contract (file names, columns, input
@@ -56,6 +56,9 @@ fn named<'a>(files: &'a [PathBuf], name: &str) -> Vec<&'a PathBuf> {
         .collect()
 }
 
+/// Samples of the TINY run: 4 train, 2 validation, 1 test, 10 calibration.
+const SAMPLES: i64 = 17;
+
 #[test]
 fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     let ws = pino_mbd_tests::product_workspace("pipeline.yaml");
@@ -90,7 +93,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         }
     }
     ids.sort();
-    assert_eq!(ids, (0..7).collect::<Vec<i64>>());
+    assert_eq!(ids, (0..SAMPLES).collect::<Vec<i64>>());
 
     // phi for the four training samples, positive and finite.
     let weights = show(ws.path(), "weights", &[]);
@@ -126,7 +129,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     let t = read_parquet(named(&ix, "indices.parquet")[0], None).unwrap();
     assert_eq!(
         t.i64(schema::SAMPLE_ID).unwrap(),
-        (0..7).collect::<Vec<i64>>().as_slice()
+        (0..SAMPLES).collect::<Vec<i64>>().as_slice()
     );
     for c in pino_indices::INDEX_COLUMNS {
         assert!(
@@ -146,6 +149,16 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         named(&eval, "indices_scatter_peak_wheel_rail_force_kn.png").len(),
         1
     );
+
+    // One calibration per model on the ten calibration samples; evaluate reports their
+    // coverage on the test split for every model.
+    let cals = show(ws.path(), "calibrate", &[]);
+    assert_eq!(named(&cals, "calibration.json").len(), 5, "{cals:?}");
+    let cov = read_parquet(named(&eval, "coverage.parquet")[0], None).unwrap();
+    let mut algs: Vec<i64> = cov.i64("algorithm").unwrap().to_vec();
+    algs.dedup();
+    assert_eq!(algs, [1, 2, 3, 4, 5]);
+    assert!(cov.i64("n_calibration").unwrap().iter().all(|&n| n == 10));
 
     // Same inputs: nothing to do.
     let second = pipeline(ws.path(), &["run"]);

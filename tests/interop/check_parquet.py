@@ -168,6 +168,19 @@ EXPECTED = {
          ("worst_sample_id", I64, "-"), ("worst_rel_l2_pct", F64, "%"),
          ("peak_error_pct_w", F64, "%")],
     ),
+    # The calibrated intervals on the test split (docs/uncertainty.md).
+    "coverage.parquet": (
+        "evaluate",
+        [("algorithm", I64, "-"), ("kind", STR, "-"), ("quantity", STR, "-"), ("unit", STR, "-"),
+         ("normaliser", STR, "-"), ("chosen", I64, "-"), ("level", F64, "-"),
+         ("n_calibration", I64, "-"), ("n_test", I64, "-"), ("coverage", F64, "-"),
+         ("mean_width", F64, "{unit}"), ("width_over_std", F64, "-")],
+    ),
+    "coverage_conditional.parquet": (
+        "evaluate",
+        [("algorithm", I64, "-"), ("kind", STR, "-"), ("quantity", STR, "-"), ("level", F64, "-"),
+         ("group", STR, "-"), ("bin", STR, "-"), ("n", I64, "-"), ("coverage", F64, "-")],
+    ),
     # The indices (docs/indices.md) own their columns: checked by PARTIAL below.
     "indices.parquet": ("indices", None),
     "indices_errors.parquet": ("evaluate", None),
@@ -302,7 +315,7 @@ def recompute(arts, say):
 
     # params: the split sizes (DuckDB) and every parameter inside its range (polars).
     counts = dict(duckdb.sql(f"SELECT split, count(*) FROM read_parquet({lit(params.path)}) GROUP BY split").fetchall())
-    want = {s: pp[f"n_{s}"] for s in ["train", "validation", "test"] if pp[f"n_{s}"] > 0}
+    want = {s: pp.get(f"n_{s}", 0) for s in ["train", "validation", "test", "calibration"] if pp.get(f"n_{s}", 0) > 0}
     check(counts == want, f"{params.path}: split sizes {counts} != the parameters' {want}")
     df = pl.read_parquet(params.path)
     for name, r in pp.get("ranges", {}).items():
@@ -440,6 +453,20 @@ def recompute(arts, say):
         check(sid in peaks, f"{ix.path}: sample {sid} is not in the simulation")
         close(value, peaks[sid], 1e-12, f"{ix.path}: peak_wheel_rail_force_kn of sample {sid}")
     say(f"indices: peak wheel-rail force of {len(got)} samples (window from {start} of each record)")
+
+    # coverage: a higher level never covers less nor is narrower (DuckDB window over levels);
+    # coverages are fractions of the scored test samples.
+    cov = one(arts, "coverage.parquet")
+    bad = duckdb.sql(
+        f"SELECT algorithm, kind, quantity, normaliser, level, coverage, mean_width, n_test FROM ("
+        f"SELECT *, lag(coverage) OVER w AS c0, lag(mean_width) OVER w AS w0 FROM read_parquet({lit(cov.path)}) "
+        f"WINDOW w AS (PARTITION BY algorithm, kind, quantity, normaliser ORDER BY level)) "
+        f"WHERE coverage < c0 OR mean_width < w0 OR abs(coverage * n_test - round(coverage * n_test)) > 1e-9 "
+        f"OR n_test != {scored}"
+    ).fetchall()
+    check(not bad, f"{cov.path}: rows break monotonicity in the level or the test count: {bad[:3]}")
+    n_cov = duckdb.sql(f"SELECT count(*) FROM read_parquet({lit(cov.path)})").fetchall()[0][0]
+    say(f"coverage: {n_cov} rows monotone in the level, fractions of the {scored} test samples")
 
     # predict: one block of rows per parameter set, on a uniform time grid (polars).
     for a in arts["predict"]:

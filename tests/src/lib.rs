@@ -326,6 +326,7 @@ pub const TINY: &[&str] = &[
     "sample-params.n_train=4",
     "sample-params.n_validation=2",
     "sample-params.n_test=1",
+    "sample-params.n_calibration=10",
     "irregularity.length=120.0",
     "simulate.duration=0.5",
     "constants.system_values.n_f=200",

@@ -680,7 +680,7 @@ fn test_samples(
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let table = pino_data::records::read_params(&dataset.params, &refs)?;
     let rows: Vec<usize> = (0..table.ids.len())
-        .filter(|&r| table.splits[r] == pino_data::schema::SPLIT_TEST)
+        .filter(|&r| table.splits[r] == mbd_dataset::Split::Test.as_str())
         .collect();
     let ids: Vec<i64> = rows.iter().map(|&r| table.ids[r]).collect();
     let system = predictor.system();

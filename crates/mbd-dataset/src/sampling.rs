@@ -2,8 +2,11 @@
 //! independently and uniformly on its range, `x = lo + (hi - lo) u`, `u ~ U[0, 1)`.
 //!
 //! Sample ids `0..n_train` are the training split, the next `n_validation` ids the validation
-//! split and the `n_test` ids after those the test split (held out from every choice of
-//! settings); adding test samples leaves the training and validation draws unchanged. Sample
+//! split, the `n_test` ids after those the test split (held out from every choice of
+//! settings) and the `n_calibration` ids after those the calibration split (held-out solver
+//! runs that only the conformal calibration reads: never training, early stopping or the
+//! choice of settings); adding test or calibration samples leaves every earlier draw
+//! unchanged. Sample
 //! `id` takes its values, in the description's order of sampled parameters, from
 //! `SampleStream::new(seed, Purpose::Parameters, id)`: they depend only on `(seed, id)`, not on
 //! the order, the thread or the shard that draws them.
@@ -25,27 +28,59 @@ pub struct SplitSizes {
     pub n_validation: u64,
     /// Test samples, at least 1.
     pub n_test: u64,
+    /// Calibration samples (ids after the test split), 0 or more; 0: no calibration, and
+    /// nothing downstream claims a coverage.
+    #[serde(default)]
+    pub n_calibration: u64,
 }
 
-/// Which split a sample belongs to.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+impl SplitSizes {
+    /// The four counts in id order, with their pipeline names.
+    fn counts(&self) -> [(Split, &'static str, u64); 4] {
+        [
+            (Split::Train, "n_train", self.n_train),
+            (Split::Validation, "n_validation", self.n_validation),
+            (Split::Test, "n_test", self.n_test),
+            (Split::Calibration, "n_calibration", self.n_calibration),
+        ]
+    }
+}
+
+/// Which split a sample belongs to (the `split` column of `params.parquet`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Split {
     /// Training sample.
     Train,
-    /// Validation sample.
+    /// Validation sample (model selection, per-epoch reports).
     Validation,
-    /// Test sample: held out for the final report.
+    /// Test sample: held out for the final report (Table 4).
     Test,
+    /// Calibration sample: a held-out solver run for the conformal intervals only.
+    Calibration,
 }
 
 impl Split {
+    /// Every split, in id order.
+    pub const ALL: [Split; 4] = [
+        Split::Train,
+        Split::Validation,
+        Split::Test,
+        Split::Calibration,
+    ];
+
     /// The label written in the `split` column.
     pub fn as_str(self) -> &'static str {
         match self {
             Split::Train => "train",
             Split::Validation => "validation",
             Split::Test => "test",
+            Split::Calibration => "calibration",
         }
+    }
+
+    /// The split of a `split` label, `None` for any other text.
+    pub fn from_label(label: &str) -> Option<Split> {
+        Split::ALL.into_iter().find(|s| s.as_str() == label)
     }
 }
 
@@ -59,12 +94,8 @@ pub struct SamplingPlan {
 impl SamplingPlan {
     /// Checks the counts (each >= 1, total an i64) and takes the ranges of `system`.
     pub fn new(sizes: SplitSizes, system: &System) -> Result<Self> {
-        for (field, n) in [
-            ("n_train", sizes.n_train),
-            ("n_validation", sizes.n_validation),
-            ("n_test", sizes.n_test),
-        ] {
-            if n == 0 {
+        for (split, field, n) in sizes.counts() {
+            if n == 0 && split != Split::Calibration {
                 return Err(Error::OutOfRange {
                     name: field.to_owned(),
                     value: 0.0,
@@ -73,13 +104,13 @@ impl SamplingPlan {
             }
         }
         let total = sizes
-            .n_train
-            .checked_add(sizes.n_validation)
-            .and_then(|t| t.checked_add(sizes.n_test));
+            .counts()
+            .iter()
+            .try_fold(0u64, |t, &(_, _, n)| t.checked_add(n));
         if total.is_none_or(|t| t > i64::MAX as u64) {
             return Err(Error::OutOfRange {
-                name: "n_train + n_validation + n_test".to_owned(),
-                value: sizes.n_train as f64 + sizes.n_validation as f64 + sizes.n_test as f64,
+                name: "n_train + n_validation + n_test + n_calibration".to_owned(),
+                value: sizes.counts().iter().map(|&(_, _, n)| n as f64).sum(),
                 allowed: format!("<= {} (sample ids are i64)", i64::MAX),
             });
         }
@@ -91,7 +122,7 @@ impl SamplingPlan {
 
     /// Total number of samples.
     pub fn num_samples(&self) -> u64 {
-        self.sizes.n_train + self.sizes.n_validation + self.sizes.n_test
+        self.sizes.counts().iter().map(|&(_, _, n)| n).sum()
     }
 
     /// The sizes.
@@ -104,16 +135,20 @@ impl SamplingPlan {
         &self.ranges
     }
 
-    /// The split of sample `id`.
+    /// The split of sample `id` (an id past the end falls in the last non-empty split).
     pub fn split(&self, id: u64) -> Split {
-        let s = &self.sizes;
-        if id < s.n_train {
-            Split::Train
-        } else if id < s.n_train + s.n_validation {
-            Split::Validation
-        } else {
-            Split::Test
+        let mut end = 0;
+        let mut last = Split::Train;
+        for (split, _, n) in self.sizes.counts() {
+            end += n;
+            if n > 0 {
+                last = split;
+            }
+            if id < end {
+                return split;
+            }
         }
+        last
     }
 
     /// The sampled parameters of sample `id`, in the description's order:
@@ -134,6 +169,15 @@ mod tests {
     const TEXT: &str = "format: 1\nname: t\nparameters:\n  m: {unit: kg, nominal: 2, range: [1, 3]}\n  k: {unit: N/m, nominal: 800, range: {factor: [0.5, 1.5]}}\nbodies:\n  b: {mass: m, dofs: [z]}\nelements:\n  s: {kind: spring_damper, from: b, to: ground, k: k}\n";
 
     fn plan(n_train: u64, n_validation: u64, n_test: u64) -> Result<SamplingPlan> {
+        plan_with_calibration(n_train, n_validation, n_test, 0)
+    }
+
+    fn plan_with_calibration(
+        n_train: u64,
+        n_validation: u64,
+        n_test: u64,
+        n_calibration: u64,
+    ) -> Result<SamplingPlan> {
         let system = mbd_system::load_str(TEXT, "t.yaml", &Default::default()).unwrap();
         SamplingPlan::new(
             SplitSizes {
@@ -141,6 +185,7 @@ mod tests {
                 n_train,
                 n_validation,
                 n_test,
+                n_calibration,
             },
             &system,
         )
@@ -184,6 +229,38 @@ mod tests {
             a.draw(4),
             [s.uniform_in(1.0, 3.0), s.uniform_in(400.0, 1200.0)]
         );
+    }
+
+    /// Calibration ids follow the test split; adding them changes no earlier draw or split.
+    #[test]
+    fn calibration_ids_follow_the_test_split() {
+        let without = plan(3, 2, 1).unwrap();
+        let with = plan_with_calibration(3, 2, 1, 4).unwrap();
+        assert_eq!(with.num_samples(), 10);
+        let labels: Vec<&str> = (0..10).map(|id| with.split(id).as_str()).collect();
+        assert_eq!(
+            &labels[5..],
+            [
+                "test",
+                "calibration",
+                "calibration",
+                "calibration",
+                "calibration"
+            ]
+        );
+        for id in 0..6 {
+            assert_eq!(with.split(id), without.split(id));
+            assert_eq!(with.draw(id), without.draw(id));
+        }
+        assert_eq!(
+            without.split(6),
+            Split::Test,
+            "past the end: the last non-empty split"
+        );
+        for split in Split::ALL {
+            assert_eq!(Split::from_label(split.as_str()), Some(split));
+        }
+        assert_eq!(Split::from_label("holdout"), None);
     }
 
     #[test]

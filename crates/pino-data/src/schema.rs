@@ -4,14 +4,9 @@
 
 /// Sample identifier column (Int64), present in every per-sample artifact.
 pub const SAMPLE_ID: &str = "sample_id";
-/// Split label column (Utf8): [`SPLIT_TRAIN`], [`SPLIT_VALIDATION`] or [`SPLIT_TEST`].
+/// Split label column (Utf8): `train`, `validation`, `test` or `calibration`, the labels of
+/// `mbd_dataset::Split` (their one home, with what each split is for).
 pub const SPLIT: &str = "split";
-/// Split label of training samples.
-pub const SPLIT_TRAIN: &str = "train";
-/// Split label of validation samples.
-pub const SPLIT_VALIDATION: &str = "validation";
-/// Split label of test samples (held out from every choice; Table 4 is scored on them).
-pub const SPLIT_TEST: &str = "test";
 /// Time column (s).
 pub const TIME: &str = "t";
 /// Position along the track of an irregularity profile (m).

@@ -98,6 +98,25 @@ const NAMED: &[(&str, &str)] = &[
     ("mean_rel_error_pct", "%"),
     ("worst_rel_error_pct", "%"),
     ("correlation", DIMENSIONLESS),
+    // evaluate: coverage.parquet and coverage_conditional.parquet (the calibration's intervals
+    // on the test split, docs/uncertainty.md).
+    ("kind", DIMENSIONLESS),
+    ("quantity", DIMENSIONLESS),
+    ("normaliser", DIMENSIONLESS),
+    ("chosen", DIMENSIONLESS),
+    ("level", DIMENSIONLESS),
+    ("n_calibration", DIMENSIONLESS),
+    ("n_test", DIMENSIONLESS),
+    ("coverage", DIMENSIONLESS),
+    ("mean_width", PER_ROW),
+    ("width_over_std", DIMENSIONLESS),
+    ("group", DIMENSIONLESS),
+    ("bin", DIMENSIONLESS),
+    ("n", DIMENSIONLESS),
+    // predict --indices with a calibration: the level, the design's difficulty and verdicts.
+    ("extrapolated", DIMENSIONLESS),
+    ("relative_residual", DIMENSIONLESS),
+    ("verdict", DIMENSIONLESS),
 ];
 
 /// Units declared by this process for the columns of its system description (parameters,

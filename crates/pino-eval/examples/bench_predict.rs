@@ -2,7 +2,7 @@
 //! --indices`), at the default model size.
 //!
 //! ```text
-//! cargo run --release -p pino-eval --example bench_predict -- [designs] [batch] [model_dir]
+//! cargo run --release -p pino-eval --example bench_predict -- [designs] [batch] [model_dir] [calibration]
 //! ```
 //! Without `model_dir`, builds an untrained model of the laptop default size (width 32, 128
 //! modes, projection 64, depth 3, 25 % padding) on a synthetic 2-s record at 1 kHz (2000
@@ -10,7 +10,10 @@
 //! Draws `designs` (default 10 000) random parameter sets inside the training ranges, and
 //! reports the wall time of `Predictor::indices` (forward passes, central differences and
 //! the indices), designs per second, and the solver's time for the same designs from its
-//! measured cost (BENCHMARKS.md: 0.09 s of one core per simulated second).
+//! measured cost (BENCHMARKS.md: 0.09 s of one core per simulated second). With a
+//! `calibration` (the `calibrate` stage's output for `model_dir`), also the time of the same
+//! designs with their intervals and verdicts at 0.9 (`Predictor::answers`), the two alternated
+//! three times, medians reported.
 use candle_core::Device;
 use pino_eval::predict::{parse_sweep, Predictor, ProfileChoice};
 use pino_learn::checkpoint::save_model;
@@ -56,7 +59,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             dir
         }
     };
-    let predictor = Predictor::load(&model_dir, &dev)?;
+    let mut predictor = Predictor::load(&model_dir, &dev)?;
+    let calibrated = match a.get(3) {
+        Some(path) => {
+            predictor.load_calibration(std::path::Path::new(path))?;
+            true
+        }
+        None => false,
+    };
     let meta = &predictor.meta;
     let ranges = meta.training_ranges.clone();
     let mut yaml = format!("random:\n  seed: 7\n  count: {designs}\n  ranges:\n");
@@ -93,6 +103,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         rayon::current_num_threads(),
         designs as f64 / wall
     );
+    if calibrated {
+        let (mut plain, mut with) = (Vec::new(), Vec::new());
+        for _ in 0..3 {
+            let t0 = Instant::now();
+            predictor.indices(&sets, &profiles, &run, &cfg, batch)?;
+            plain.push(t0.elapsed().as_secs_f64());
+            let t0 = Instant::now();
+            predictor.answers(&sets, &profiles, &run, &cfg, batch, 0.9)?;
+            with.push(t0.elapsed().as_secs_f64());
+        }
+        let median = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (p, w) = (median(&mut plain), median(&mut with));
+        println!(
+            "with intervals (alternated x3, medians): {p:.3} s -> {w:.3} s, +{:.1} % ({:.2} ms per design)",
+            100.0 * (w / p - 1.0),
+            1e3 * (w - p) / designs as f64
+        );
+    }
     let solver_core_s = 0.09 * simulated * designs as f64;
     println!(
         "solver for the same designs (0.09 core-s per simulated s, BENCHMARKS.md): {solver_core_s:.0} core-s = {:.0} s on 2 cores",

@@ -16,6 +16,10 @@
 //! excitation. Speed: simulated seconds (scored samples x window length) per wall second of
 //! forward passes.
 
+use crate::calibration::coverage::{split_coverage, ConditionalRow, CoverageRow};
+use crate::calibration::report::write_coverage;
+use crate::calibration::scored::Run;
+use crate::calibration::{Calibration, ModelIdentity};
 use crate::indices_eval::{
     model_indices, truth_indices, write_indices, IndexInputs, ModelIndices, StoredColumns,
 };
@@ -80,6 +84,9 @@ pub struct EvalOptions {
     pub transform: Transform,
     /// Whether Table 4 carries the paper's figures.
     pub compare_with_paper: bool,
+    /// The `calibrate` stage's output (or one `calibration.json`), when the models are
+    /// calibrated: their coverage on the scored split is reported.
+    pub calibration: Option<PathBuf>,
 }
 
 /// The dataset an evaluation scores: its records, `params.parquet` and the simulation shards.
@@ -491,7 +498,7 @@ fn plot_sample(
 ) -> Result<()> {
     let (s, _) = exact_physical(items, i, &meta.norm)?;
     let id = items.id(i);
-    let split = ds.samples[i].split.label();
+    let split = ds.samples[i].split.as_str();
     let t = ds.t_points();
     let (o, d) = (meta.layout.n_outputs(), meta.layout.n_dofs());
     let mut panels = Vec::new();
@@ -704,6 +711,7 @@ pub fn evaluate(
     // Engineering indices of every model (and the truth row) against the solver.
     let index_inputs = IndexInputs::of(system, &layout)?;
     let mut index_sets: Vec<ModelIndices> = Vec::new();
+    let mut coverage = CoverageReport::default();
     // One load per (window, statistics): models trained on the same data share it.
     let mut cache: Vec<(
         WindowConfig,
@@ -760,7 +768,7 @@ pub fn evaluate(
         if idx.is_empty() {
             return Err(Error::Dataset {
                 path: params_file.to_owned(),
-                message: format!("no simulated sample of split `{}`", split.label()),
+                message: format!("no simulated sample of split `{}`", split.as_str()),
             });
         }
         let ctx = LossContext {
@@ -815,6 +823,15 @@ pub fn evaluate(
                 &plot_channels,
             )?;
         }
+        if let Some(path) = &opts.calibration {
+            let run = Run {
+                model: &model,
+                meta: &meta,
+                batch: opts.batch_size,
+                device,
+            };
+            coverage.add(path, dir, system, run, &index_inputs, items, stored)?;
+        }
         let simulated = idx.len() as f64 * ds.t_points() as f64 * ds.dt;
         let peak = peak_force_error(&channels, &meta.layout);
         results.push(ModelResult {
@@ -839,6 +856,9 @@ pub fn evaluate(
     results.sort_by_key(|r| r.meta.train.algorithm.id());
     index_sets.sort_by_key(|m| m.algorithm);
     write_indices(out, split, &index_inputs, &layout, &index_sets)?;
+    if opts.calibration.is_some() {
+        coverage.write(out)?;
+    }
     let evaluation = Evaluation {
         split,
         models: results,
@@ -848,9 +868,46 @@ pub fn evaluate(
     Ok(evaluation)
 }
 
+/// The calibrated models' coverage on the scored split, gathered model by model.
+#[derive(Default)]
+struct CoverageReport {
+    calibrations: Vec<Calibration>,
+    rows: Vec<CoverageRow>,
+    conditional: Vec<ConditionalRow>,
+}
+
+impl CoverageReport {
+    /// Adds the coverage of the model in `dir` (its calibration found under `path`).
+    #[allow(clippy::too_many_arguments)]
+    fn add(
+        &mut self,
+        path: &Path,
+        dir: &Path,
+        system: &mbd_system::System,
+        run: Run<'_>,
+        inputs: &IndexInputs,
+        items: &Prepared,
+        stored: &StoredColumns,
+    ) -> Result<()> {
+        let calibration = Calibration::load(path, &ModelIdentity::of(dir)?)?;
+        let (rows, conditional) = split_coverage(system, run, inputs, items, stored, &calibration)?;
+        self.rows.extend(rows);
+        self.conditional.extend(conditional);
+        self.calibrations.push(calibration);
+        Ok(())
+    }
+
+    fn write(mut self, out: &Path) -> Result<()> {
+        self.calibrations.sort_by_key(|c| c.model.algorithm);
+        self.rows.sort_by_key(|r| r.algorithm);
+        self.conditional.sort_by_key(|r| r.algorithm);
+        write_coverage(out, &self.calibrations, &self.rows, &self.conditional)
+    }
+}
+
 fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOptions) -> Result<()> {
     let results = &ev.models;
-    let split = ev.split.label();
+    let split = ev.split.as_str();
     let fallback = ev.split != Split::Test;
     // Rows: the truth (algorithm 0) first, then the models.
     struct Row {

@@ -594,7 +594,7 @@ pub fn write_indices(
     t.push("unit", Column::Str(unit.clone()))?;
     t.push(
         "split",
-        Column::Str(alg.iter().map(|_| split.label().to_owned()).collect()),
+        Column::Str(alg.iter().map(|_| split.as_str().to_owned()).collect()),
     )?;
     let f = |g: &dyn Fn(&IndexError) -> f64| Column::F64(stats.iter().map(g).collect());
     t.push("exact_mean", f(&|s| s.exact_mean))?;
@@ -619,7 +619,7 @@ pub fn write_indices(
          Algorithm 0 is the truth row: the exact displacements through the same reconstruction \
          (the floor of every model).\n\n\
          | index | unit | exact mean |",
-        split.label(),
+        split.as_str(),
         inputs.describe(layout).join("; ")
     );
     for m in models {

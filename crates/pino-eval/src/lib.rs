@@ -3,6 +3,9 @@
 //! losses, training, inference) is `pino-learn`; this crate knows which channels, groups and
 //! indices a description declares and turns predictions into what people read.
 //!
+//! - [`calibration`]: conformal calibration of a model on held-out solver runs (the
+//!   `calibrate` stage), the intervals, bands and three-valued verdicts it gives an answer,
+//!   and its coverage on the test split.
 //! - [`eval`]: Table 4 on the test split (solutions, first and second derivatives of the DOFs,
 //!   the force outputs) with the truth row, per-channel errors in the description's units,
 //!   plots of channels chosen by name, the engineering indices against the solver; the files of
@@ -18,6 +21,7 @@
 //! fault.
 #![warn(missing_docs)]
 
+pub mod calibration;
 pub mod eval;
 pub mod indices_eval;
 pub mod predict;

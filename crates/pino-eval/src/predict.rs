@@ -22,6 +22,8 @@
 //! a prediction). Designs outside the model's training ranges
 //! ([`pino_learn::checkpoint::TrainingRanges`]) are reported by [`Predictor::outside_training`].
 
+use crate::calibration::difficulty::ResidualProbe;
+use crate::calibration::{CalibratedAnswer, Calibration, ModelIdentity};
 use crate::eval::{to_physical, Physical};
 use crate::indices_eval::{eval_config, IndexInputs, SampleIndices};
 use candle_core::{Device, Tensor};
@@ -380,6 +382,18 @@ pub struct Predictor {
     excitation_elements: Vec<usize>,
     indices: IndexInputs,
     device: Device,
+    identity: ModelIdentity,
+    calibration: Option<Calibration>,
+    probe: Option<ResidualProbe>,
+}
+
+/// One design's answer: its indices, and what a calibration adds to them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DesignAnswer {
+    /// The predicted indices with their point verdict.
+    pub indices: SampleIndices,
+    /// Intervals, bands and three-valued verdicts, when the model is calibrated.
+    pub calibrated: Option<CalibratedAnswer>,
 }
 
 /// One design's prediction in physical units: outputs `[T, O]`, interior velocities and
@@ -422,12 +436,101 @@ impl Predictor {
         Ok(Self {
             model,
             space: DesignSpace::of(system.clone()),
+            probe: ResidualProbe::new(&system, &meta.layout),
             system,
             excitation_elements,
             indices,
             meta,
             device: device.clone(),
+            identity: ModelIdentity::of(model_dir)?,
+            calibration: None,
         })
+    }
+
+    /// The model's identity (the hashes of its files).
+    pub fn identity(&self) -> &ModelIdentity {
+        &self.identity
+    }
+
+    /// Reads the model's calibration from `path` (a `calibration.json` or the `calibrate`
+    /// stage's output): refused when missing, corrupt, of another model, or when its
+    /// quantities are not this model's indices and channels.
+    pub fn load_calibration(&mut self, path: &Path) -> Result<&Calibration> {
+        let cal = Calibration::load(path, &self.identity)?;
+        if cal.has_intervals() {
+            let names = |v: Vec<&str>| v.join(", ");
+            let indices: Vec<&str> = self
+                .indices
+                .columns()
+                .iter()
+                .map(|c| c.name.as_str())
+                .collect();
+            let cal_indices: Vec<&str> = cal.indices.iter().map(|q| q.name.as_str()).collect();
+            let channels = crate::calibration::scored::band_channels(&self.meta.layout);
+            let chans: Vec<&str> = channels.iter().map(|c| c.name.as_str()).collect();
+            let cal_chans: Vec<&str> = cal
+                .channels
+                .iter()
+                .map(|c| c.quantity.name.as_str())
+                .collect();
+            let computable = self.indices.computable();
+            if (computable && indices != cal_indices) || chans != cal_chans {
+                return Err(fmt_err(
+                    path,
+                    format!(
+                        "the calibration's quantities (indices {}; channels {}) are not the model's (indices {}; channels {})",
+                        names(cal_indices),
+                        names(cal_chans),
+                        names(if computable { indices } else { Vec::new() }),
+                        names(chans)
+                    ),
+                ));
+            }
+        }
+        Ok(self.calibration.insert(cal))
+    }
+
+    /// The loaded calibration.
+    pub fn calibration(&self) -> Option<&Calibration> {
+        self.calibration.as_ref()
+    }
+
+    /// The calibrated answer of one prediction `p` of design `design` with index values
+    /// `values` at `coverage` (with the channels' bands when `bands`); `None` without a
+    /// calibration that has intervals.
+    pub fn calibrated(
+        &self,
+        design: &[f64],
+        p: &SetPrediction,
+        values: &[f64],
+        coverage: f64,
+        bands: bool,
+    ) -> Result<Option<CalibratedAnswer>> {
+        let Some(cal) = self.calibration.as_ref().filter(|c| c.has_intervals()) else {
+            return Ok(None);
+        };
+        let at = cal.at(coverage)?;
+        let d = cal.difficulty(
+            &self.system,
+            self.probe.as_ref(),
+            design,
+            &p.physical,
+            &p.eta,
+            self.meta.grid.dt,
+        )?;
+        let limits = if values.is_empty() || cal.indices.is_empty() {
+            Vec::new()
+        } else {
+            self.indices.limits(&self.system, &self.index_config()?)
+        };
+        let values = if cal.indices.is_empty() {
+            &[][..]
+        } else {
+            values
+        };
+        let extrapolated = !self.meta.training_ranges.outside(design).is_empty();
+        at.answer(&d, values, &limits, extrapolated, bands)
+            .map(Some)
     }
 
     /// The model's system.
@@ -554,19 +657,28 @@ impl Predictor {
         Ok(parts.into_iter().flatten().collect())
     }
 
-    /// The time histories of every design (module doc) as one table.
+    /// The time histories of every design (module doc) as one table; with a calibration and
+    /// `coverage`, each channel's band `<channel>_lo`, `<channel>_hi` beside (the outputs and
+    /// rates; excitations are exact inputs).
     pub fn histories(
         &self,
         sets: &[Vec<f64>],
         profiles: &[Option<Profile>],
         run: &RunConfig,
         batch: usize,
+        coverage: Option<f64>,
     ) -> Result<Table> {
         let layout = &self.meta.layout;
         let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
         let times = self.meta.grid.times();
         let tp = self.meta.grid.t_points;
-        let preds = self.batched(sets, profiles, run, batch, &|_, p| Ok(p.clone()))?;
+        let preds = self.batched(sets, profiles, run, batch, &|k, p| {
+            let bands = match coverage {
+                Some(c) => self.calibrated(&sets[k], p, &[], c, true)?,
+                None => None,
+            };
+            Ok((p.clone(), bands))
+        })?;
         let names: Vec<String> = layout
             .outputs
             .iter()
@@ -576,9 +688,13 @@ impl Predictor {
             .chain(layout.excitations.iter().cloned())
             .collect();
         let mut cols: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+        let banded = preds.iter().all(|(_, b)| b.is_some()) && !preds.is_empty();
+        let n_banded = o + 2 * d;
+        let mut lo: Vec<Vec<f64>> = vec![Vec::new(); if banded { n_banded } else { 0 }];
+        let mut hi = lo.clone();
         let mut set_col = Vec::new();
         let mut t_col = Vec::new();
-        for (s, pred) in preds.iter().enumerate() {
+        for (s, (pred, band)) in preds.iter().enumerate() {
             let ph = &pred.physical;
             for (n, &t) in times.iter().enumerate().take(tp - 1).skip(1) {
                 set_col.push(s as i64);
@@ -588,8 +704,13 @@ impl Predictor {
                     .chain(&ph.v[(n - 1) * d..n * d])
                     .chain(&ph.a[(n - 1) * d..n * d])
                     .chain(&pred.eta[n * e..(n + 1) * e]);
-                for (col, &x) in cols.iter_mut().zip(row) {
+                for (c, (col, &x)) in cols.iter_mut().zip(row).enumerate() {
                     col.push(x);
+                    if let (Some(b), true) = (band, c < n_banded && banded) {
+                        let h = b.bands[c][n - 1];
+                        lo[c].push(x - h);
+                        hi[c].push(x + h);
+                    }
                 }
             }
         }
@@ -598,6 +719,20 @@ impl Predictor {
         table.push(schema::TIME, Column::F64(t_col))?;
         for (name, values) in names.iter().zip(cols) {
             table.push(name, Column::F64(values))?;
+        }
+        if banded {
+            let units: Vec<(String, String)> = names[..n_banded]
+                .iter()
+                .flat_map(|n| {
+                    let u = layout.unit(n).to_owned();
+                    [(format!("{n}_lo"), u.clone()), (format!("{n}_hi"), u)]
+                })
+                .collect();
+            pino_data::units::declare(units.iter().map(|(n, u)| (n.as_str(), u.as_str())))?;
+            for ((name, l), h) in names.iter().zip(lo).zip(hi) {
+                table.push(&format!("{name}_lo"), Column::F64(l))?;
+                table.push(&format!("{name}_hi"), Column::F64(h))?;
+            }
         }
         Ok(table)
     }
@@ -613,6 +748,22 @@ impl Predictor {
         &self.indices
     }
 
+    /// Refuses indices when the description defines none or they read a column the model
+    /// cannot give.
+    fn check_indices(&self) -> Result<()> {
+        if self.indices.computable() {
+            return Ok(());
+        }
+        Err(fmt_err(
+            Path::new("--indices"),
+            format!(
+                "the system `{}` has no index this model can compute: {}",
+                self.system.name,
+                self.indices.why_not()
+            ),
+        ))
+    }
+
     /// The engineering indices of every design, rebuilt from its prediction as `evaluate`
     /// rebuilds them (the interior points of the window); batches of `batch` sets. Refused
     /// when the description defines none or reads a column the model cannot give.
@@ -624,16 +775,7 @@ impl Predictor {
         cfg: &IndexConfig,
         batch: usize,
     ) -> Result<Vec<SampleIndices>> {
-        if !self.indices.computable() {
-            return Err(fmt_err(
-                Path::new("--indices"),
-                format!(
-                    "the system `{}` has no index this model can compute: {}",
-                    self.system.name,
-                    self.indices.why_not()
-                ),
-            ));
-        }
+        self.check_indices()?;
         let (layout, dt) = (&self.meta.layout, self.meta.grid.dt);
         self.batched(sets, profiles, run, batch, &|k, p| {
             self.indices.sample(
@@ -650,44 +792,150 @@ impl Predictor {
         })
     }
 
+    /// Every design's indices and, with a calibration, their intervals and three-valued
+    /// verdicts at `coverage` (batches of `batch` sets, as [`Predictor::indices`]).
+    pub fn answers(
+        &self,
+        sets: &[Vec<f64>],
+        profiles: &[Option<Profile>],
+        run: &RunConfig,
+        cfg: &IndexConfig,
+        batch: usize,
+        coverage: f64,
+    ) -> Result<Vec<DesignAnswer>> {
+        self.check_indices()?;
+        let (layout, dt) = (&self.meta.layout, self.meta.grid.dt);
+        self.batched(sets, profiles, run, batch, &|k, p| {
+            let indices = self.indices.sample(
+                &self.system,
+                layout,
+                &sets[k],
+                k as i64,
+                &p.physical,
+                None,
+                &p.eta,
+                dt,
+                cfg,
+            )?;
+            let calibrated = self.calibrated(&sets[k], p, &indices.values, coverage, false)?;
+            Ok(DesignAnswer {
+                indices,
+                calibrated,
+            })
+        })
+    }
+
     /// The indices table of `predict`: `set`, the design's parameters, the indices of the
-    /// description, `window_s`, `pass`, `failed`, and [`OUTSIDE_COLUMN`].
+    /// description, `window_s`, `pass`, `failed`, and [`OUTSIDE_COLUMN`]; with calibrated
+    /// answers also `coverage`, `extrapolated`, `relative_residual` (when the model has
+    /// equations), `<index>_lo` and `<index>_hi` of every index, `<index>_verdict` of every
+    /// index with a limit and the combined `verdict` (`pass`, `uncertain`, `fail`).
     pub fn indices_table(
         &self,
         sets: &[Vec<f64>],
-        indices: &[SampleIndices],
+        answers: &[DesignAnswer],
         outside: &[Vec<OutOfRange>],
     ) -> Result<Table> {
         let mut t = Table::default();
         t.push("set", Column::I64((0..sets.len() as i64).collect()))?;
         self.space.push_columns(&mut t, sets)?;
-        for (k, c) in self.indices.columns().iter().enumerate() {
+        let columns = self.indices.columns();
+        for (k, c) in columns.iter().enumerate() {
             t.push(
                 &c.name,
-                Column::F64(indices.iter().map(|ix| ix.values[k]).collect()),
+                Column::F64(answers.iter().map(|a| a.indices.values[k]).collect()),
             )?;
         }
         t.push(
             pino_indices::WINDOW_COLUMN,
-            Column::F64(indices.iter().map(|ix| ix.window_s).collect()),
+            Column::F64(answers.iter().map(|a| a.indices.window_s).collect()),
         )?;
         t.push(
             pino_indices::PASS_COLUMN,
             Column::I64(
-                indices
+                answers
                     .iter()
-                    .map(|ix| ix.failed.is_empty() as i64)
+                    .map(|a| a.indices.failed.is_empty() as i64)
                     .collect(),
             ),
         )?;
         t.push(
             pino_indices::FAILED_COLUMN,
-            Column::Str(indices.iter().map(|ix| ix.failed.join(",")).collect()),
+            Column::Str(answers.iter().map(|a| a.indices.failed.join(",")).collect()),
         )?;
         t.push(
             OUTSIDE_COLUMN,
             Column::Str(outside.iter().map(|o| outside_flag(o)).collect()),
         )?;
+        let calibrated: Option<Vec<&CalibratedAnswer>> =
+            answers.iter().map(|a| a.calibrated.as_ref()).collect();
+        let Some(cal) = calibrated.filter(|c| !c.is_empty() && !c[0].indices.is_empty()) else {
+            return Ok(t);
+        };
+        t.push(
+            "coverage",
+            Column::F64(cal.iter().map(|c| c.coverage).collect()),
+        )?;
+        t.push(
+            "extrapolated",
+            Column::I64(cal.iter().map(|c| c.extrapolated as i64).collect()),
+        )?;
+        if cal[0].relative_residual.is_some() {
+            t.push(
+                "relative_residual",
+                Column::F64(
+                    cal.iter()
+                        .map(|c| c.relative_residual.unwrap_or(f64::NAN))
+                        .collect(),
+                ),
+            )?;
+        }
+        let units: Vec<(String, String)> = columns
+            .iter()
+            .flat_map(|c| {
+                [
+                    (format!("{}_lo", c.name), c.unit.clone()),
+                    (format!("{}_hi", c.name), c.unit.clone()),
+                    (
+                        format!("{}_verdict", c.name),
+                        pino_data::units::DIMENSIONLESS.to_owned(),
+                    ),
+                ]
+            })
+            .collect();
+        pino_data::units::declare(units.iter().map(|(n, u)| (n.as_str(), u.as_str())))?;
+        for (k, c) in columns.iter().enumerate() {
+            t.push(
+                &format!("{}_lo", c.name),
+                Column::F64(cal.iter().map(|a| a.indices[k].lo).collect()),
+            )?;
+            t.push(
+                &format!("{}_hi", c.name),
+                Column::F64(cal.iter().map(|a| a.indices[k].hi).collect()),
+            )?;
+        }
+        for (k, c) in columns.iter().enumerate() {
+            if cal[0].verdicts[k].is_some() {
+                t.push(
+                    &format!("{}_verdict", c.name),
+                    Column::Str(
+                        cal.iter()
+                            .map(|a| a.verdicts[k].map_or("", |v| v.as_str()).to_owned())
+                            .collect(),
+                    ),
+                )?;
+            }
+        }
+        if cal[0].verdict.is_some() {
+            t.push(
+                "verdict",
+                Column::Str(
+                    cal.iter()
+                        .map(|a| a.verdict.map_or("", |v| v.as_str()).to_owned())
+                        .collect(),
+                ),
+            )?;
+        }
         Ok(t)
     }
 }
@@ -1089,7 +1337,7 @@ mod tests {
         assert_eq!(pred[0].physical.u, to_physical(&evaluated[0], meta).u);
         // The time-history table: interior rows, outputs, rates and excitations by name.
         let table = predictor
-            .histories(std::slice::from_ref(&design), &profiles, &run, 4)
+            .histories(std::slice::from_ref(&design), &profiles, &run, 4, None)
             .unwrap();
         assert_eq!(table.num_rows(), meta.grid.t_points - 2);
         for name in layout.outputs.iter().chain(&layout.excitations) {
@@ -1099,11 +1347,13 @@ mod tests {
         // Indices of the prediction with the design's columns.
         let cfg = predictor.index_config().unwrap();
         let ix = predictor
-            .indices(std::slice::from_ref(&design), &profiles, &run, &cfg, 4)
+            .answers(std::slice::from_ref(&design), &profiles, &run, &cfg, 4, 0.9)
             .unwrap();
+        assert!(ix[0].calibrated.is_none(), "no calibration loaded");
         let it = predictor
             .indices_table(std::slice::from_ref(&design), &ix, &[vec![]])
             .unwrap();
+        assert!(it.f64("peak_wheel_rail_force_kn_lo").is_err());
         assert_eq!(it.f64("m_c").unwrap()[0], design[0]);
         assert!(it.f64("peak_wheel_rail_force_kn").unwrap()[0].is_finite());
         // A profile too short for the run is refused.

@@ -36,26 +36,21 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// Which split a sample belongs to.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub enum Split {
-    /// Training.
-    Train,
-    /// Validation (model selection, per-epoch reports).
-    Validation,
-    /// Test (held out from every choice; Table 4).
-    Test,
+pub use mbd_dataset::Split;
+
+/// The splits training reads: training and validation (the test and calibration splits stay
+/// unseen by every choice the training makes).
+fn trained_on(s: Split) -> bool {
+    matches!(s, Split::Train | Split::Validation)
 }
 
-impl Split {
-    /// The label in `params.parquet`.
-    pub fn label(self) -> &'static str {
-        match self {
-            Split::Train => schema::SPLIT_TRAIN,
-            Split::Validation => schema::SPLIT_VALIDATION,
-            Split::Test => schema::SPLIT_TEST,
-        }
-    }
+/// The message of an unknown split label.
+fn unknown_split(label: &str) -> String {
+    let allowed: Vec<String> = Split::ALL
+        .iter()
+        .map(|s| format!("`{}`", s.as_str()))
+        .collect();
+    format!("split `{label}`, allowed {}", allowed.join(", "))
 }
 
 /// One sample's identity: everything but its time series.
@@ -140,19 +135,8 @@ pub fn read_params(path: &Path, layout: &Layout) -> Result<Vec<(i64, Split, Vec<
         .collect::<pino_data::Result<_>>()?;
     let mut out = Vec::with_capacity(ids.len());
     for (r, (&id, split)) in ids.iter().zip(splits).enumerate() {
-        let split = match split.as_str() {
-            schema::SPLIT_TRAIN => Split::Train,
-            schema::SPLIT_VALIDATION => Split::Validation,
-            schema::SPLIT_TEST => Split::Test,
-            other => {
-                return Err(dataset_err(
-                    path,
-                    format!(
-                        "sample {id}: split `{other}`, allowed `train`, `validation` or `test`"
-                    ),
-                ))
-            }
-        };
+        let split = Split::from_label(split)
+            .ok_or_else(|| dataset_err(path, format!("sample {id}: {}", unknown_split(split))))?;
         out.push((id, split, values.iter().map(|v| v[r]).collect()));
     }
     Ok(out)
@@ -457,7 +441,7 @@ pub fn load_dataset(
         simulation_files,
         weights_file,
         window,
-        &|s| s != Split::Test,
+        &|s| trained_on(s),
         &mut |s, t, w| {
             if s.split == Split::Train {
                 any_train = true;
@@ -752,7 +736,7 @@ pub fn prepare(ds: &Dataset, norm: &Normalisation) -> Result<Prepared> {
         &ds.simulation_files,
         None,
         &ds.window,
-        &|s| s != Split::Test,
+        &|s| trained_on(s),
         &mut |s, _, w| {
             if wanted.contains(&s.id) {
                 b.add(s, w)?;
@@ -878,15 +862,7 @@ fn splits_of(params_file: &Path) -> Result<Vec<Split>> {
     t.str(schema::SPLIT)?
         .iter()
         .map(|label| {
-            [Split::Train, Split::Validation, Split::Test]
-                .into_iter()
-                .find(|s| s.label() == label)
-                .ok_or_else(|| {
-                    dataset_err(
-                        params_file,
-                        format!("split `{label}`, allowed `train`, `validation` or `test`"),
-                    )
-                })
+            Split::from_label(label).ok_or_else(|| dataset_err(params_file, unknown_split(label)))
         })
         .collect()
 }
@@ -996,7 +972,9 @@ mod tests {
         let err = read_params(&f.params, &layout).unwrap_err().to_string();
         assert!(
             err.contains("params.parquet")
-                && err.contains("split `holdout`, allowed `train`, `validation` or `test`"),
+                && err.contains(
+                    "split `holdout`, allowed `train`, `validation`, `test`, `calibration`"
+                ),
             "{err}"
         );
     }

@@ -37,6 +37,8 @@ pub struct SyntheticSpec {
     pub n_validation: u64,
     /// Test samples (the ids after validation).
     pub n_test: u64,
+    /// Calibration samples (the ids after the test ones; needs a test split).
+    pub n_calibration: u64,
     /// Record duration (s).
     pub duration: f64,
     /// Seed of parameters, profiles and weights.
@@ -97,6 +99,7 @@ impl Default for SyntheticSpec {
             n_train: 8,
             n_validation: 2,
             n_test: 1,
+            n_calibration: 0,
             duration: 0.3,
             seed: 1,
             noise_ratio: 0.02,
@@ -182,14 +185,20 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     // A sampling plan has all three splits (as every pipeline's data); a synthetic dataset may
     // leave out the test split (the validation fallback of `evaluate`): the plan then holds one
     // test id that is not written. Ids before it are drawn and split alike either way.
+    if spec.n_test == 0 && spec.n_calibration > 0 {
+        return Err(bad(
+            "a synthetic calibration split needs a test split (its ids follow the test ids)".into(),
+        ));
+    }
     let sizes = SplitSizes {
         seed: spec.seed,
         n_train: spec.n_train,
         n_validation: spec.n_validation,
         n_test: spec.n_test.max(1),
+        n_calibration: spec.n_calibration,
     };
     let plan = SamplingPlan::new(sizes, &system).map_err(|e| bad(e.to_string()))?;
-    let n = spec.n_train + spec.n_validation + spec.n_test;
+    let n = spec.n_train + spec.n_validation + spec.n_test + spec.n_calibration;
     let names = system.sampled_names();
     let draws: Vec<Vec<f64>> = (0..n).map(|id| plan.draw(id)).collect();
     let mut params = Table::default();

@@ -3,7 +3,9 @@
 //!
 //! Inputs: `params` (params.parquet), `dataset` (simulation.parquet shards with the system
 //! description's record), `models` (one directory per expansion of `train`, each trained on
-//! that description). Writes `table4.{parquet,csv,md}`, `channel_errors.{parquet,csv}`, the
+//! that description), `calibration` (optional: the `calibrate` stage's output; adds the
+//! coverage of every model's intervals, `coverage.{parquet,csv,md}` and
+//! `coverage_conditional.{parquet,csv}`). Writes `table4.{parquet,csv,md}`, `channel_errors.{parquet,csv}`, the
 //! engineering indices of the description against the solver (`indices_*`), prediction and
 //! training-curve PNGs and `plots.md`.
 use anyhow::{bail, Context, Result};
@@ -43,6 +45,7 @@ fn run() -> Result<()> {
         batch_size: p.batch_size.max(1),
         transform: Transform::for_device(&device),
         compare_with_paper: p.compare_with_paper,
+        calibration: calibration_dir(&ctx)?,
     };
     let progress = ctx.progress(models.len() as u64);
     let data = EvalData {
@@ -78,7 +81,7 @@ fn run() -> Result<()> {
         .fold(f64::INFINITY, f64::min);
     stage_kit::summary(&format!(
         "Table 4 on the {} split{} (solutions/first/second) {}; prediction >= {speed:.0} simulated s per wall s",
-        ev.split.label(),
+        ev.split.as_str(),
         if ev.split == pino_learn::data::Split::Test {
             ""
         } else {
@@ -87,6 +90,21 @@ fn run() -> Result<()> {
         rows.join(", ")
     ));
     Ok(())
+}
+
+/// The `calibrate` stage's output when the pipeline wires input `calibration` (optional: an
+/// uncalibrated pipeline is evaluated without coverage tables).
+fn calibration_dir(ctx: &StageContext) -> Result<Option<std::path::PathBuf>> {
+    if !ctx.input_names().any(|n| n == "calibration") {
+        return Ok(None);
+    }
+    match ctx.input_dirs("calibration")? {
+        [dir] => Ok(Some(dir.clone())),
+        dirs => bail!(
+            "input `calibration`: {} directories, expected the one output of the `calibrate` stage",
+            dirs.len()
+        ),
+    }
 }
 
 fn main() {

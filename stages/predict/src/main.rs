@@ -4,6 +4,7 @@
 //! predict --model DIR [--params sets.yaml | --sweep sweep.yaml] [--set NAME=VALUE ...]
 //!         [--profile profiles.parquet [--profile-id ID] | --seed N [--profile-id ID]]
 //!         [--out predictions.parquet] [--indices indices.parquet [--indices-only]]
+//!         [--calibration DIR|calibration.json [--coverage 0.9]]
 //!         [--strict] [--batch 16] [--x0 X] [--device cpu]
 //! ```
 //! Works for the model of any system description: the design parameters are the sampled
@@ -17,7 +18,13 @@
 //! (`--profile`, the `irregularity` artifact) or a seed to generate them with the dataset's
 //! settings (`--seed`). Every design outside the model's training ranges is flagged (column
 //! `outside_training_range`) and warned about on stderr; `--strict` refuses to predict any
-//! (exit 2).
+//! (exit 2). With `--calibration` (the `calibrate` stage's output or one model's
+//! `calibration.json`, docs/uncertainty.md) every answer carries its conformal interval at
+//! `--coverage`: `<index>_lo`, `<index>_hi` and a three-valued verdict per limit
+//! (`<index>_verdict`, `verdict`: pass, fail, or uncertain: ask the solver) in `--indices`,
+//! `<channel>_lo`, `<channel>_hi` bands in `--out`; designs outside the training ranges are
+//! `extrapolated` and never `pass`. A calibration of another model, a corrupt file or a level
+//! the calibration cannot support is refused before anything is written (exit 2).
 use anyhow::{Context, Result};
 use clap::Parser;
 use pino_eval::predict::{parse_sweep, Predictor, ProfileChoice, OUTSIDE_COLUMN};
@@ -67,6 +74,13 @@ struct Args {
     /// Only the indices: no time histories.
     #[arg(long, requires = "indices", conflicts_with = "out")]
     indices_only: bool,
+    /// The model's calibration: the `calibrate` stage's output directory (the model's own
+    /// file is found in it) or a `calibration.json`.
+    #[arg(long)]
+    calibration: Option<PathBuf>,
+    /// Coverage of the intervals, in (0, 1) and at most n / (n + 1) for n calibration samples.
+    #[arg(long, requires = "calibration")]
+    coverage: Option<f64>,
     /// Refuse (exit 2) any set outside the model's training ranges.
     #[arg(long)]
     strict: bool,
@@ -102,8 +116,9 @@ fn run() -> Result<()> {
     let read = |path: &PathBuf| {
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
     };
-    let predictor = Predictor::load(&args.model, &device)?;
+    let mut predictor = Predictor::load(&args.model, &device)?;
     pino_data::system::declare_units(predictor.system())?;
+    let coverage = calibration_level(&mut predictor, &args)?;
     let space = &predictor.space;
     let mut sets = match (&args.params, &args.sweep) {
         (Some(path), _) => space.parse_sets(&read(path)?, path)?,
@@ -168,7 +183,7 @@ fn run() -> Result<()> {
     let started = std::time::Instant::now();
     let mut wrote = Vec::new();
     if let (Some(out), false) = (&args.out, args.indices_only) {
-        let mut table = predictor.histories(&sets, &profiles, &run_config, args.batch)?;
+        let mut table = predictor.histories(&sets, &profiles, &run_config, args.batch, coverage)?;
         let per_row = (table.num_rows() / sets.len().max(1)).max(1);
         let rows: Vec<String> = flags
             .iter()
@@ -180,8 +195,9 @@ fn run() -> Result<()> {
     }
     if let Some(path) = &args.indices {
         let cfg = predictor.index_config()?;
-        let ix = predictor.indices(&sets, &profiles, &run_config, &cfg, args.batch)?;
-        let table = predictor.indices_table(&sets, &ix, &outside)?;
+        let level = coverage.unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
+        let answers = predictor.answers(&sets, &profiles, &run_config, &cfg, args.batch, level)?;
+        let table = predictor.indices_table(&sets, &answers, &outside)?;
         pino_data::write_parquet(path, &table)?;
         wrote.push(path.display().to_string());
     }
@@ -195,6 +211,30 @@ fn run() -> Result<()> {
         wrote.join(", ")
     );
     Ok(())
+}
+
+/// Loads `--calibration` and checks `--coverage` against it, before anything is predicted or
+/// written: the level of the intervals (`None`: the answers carry none, and stderr says why).
+/// Every refusal is [`Refused`] (exit 2).
+fn calibration_level(predictor: &mut Predictor, args: &Args) -> Result<Option<f64>> {
+    let Some(path) = &args.calibration else {
+        eprintln!(
+            "predict: note: no --calibration: the answers are point values without an error bar (pass the `calibrate` stage's output, docs/uncertainty.md)"
+        );
+        return Ok(None);
+    };
+    let refused = |e: pino_learn::Error| Refused(format!("--calibration {}: {e}", path.display()));
+    let cal = predictor.load_calibration(path).map_err(refused)?;
+    if let Some(why) = &cal.no_intervals {
+        eprintln!("predict: note: {}: no intervals: {why}", path.display());
+        return Ok(None);
+    }
+    let level = args
+        .coverage
+        .unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
+    cal.at(level)
+        .map_err(|e| Refused(format!("--coverage {level}: {e}")))?;
+    Ok(Some(level))
 }
 
 fn main() {

@@ -46,7 +46,12 @@ fn run() -> Result<String> {
         .iter()
         .zip(&params.splits)
         .zip(&params.values)
-        .map(|((&id, s), v)| (id, (s == schema::SPLIT_TRAIN, v.as_slice())))
+        .map(|((&id, s), v)| {
+            (
+                id,
+                (s == pino_learn::data::Split::Train.as_str(), v.as_slice()),
+            )
+        })
         .collect();
     let files = ctx.input_files("dataset", "simulation.parquet")?;
     if files.is_empty() {

@@ -1,0 +1,489 @@
+//! Fitting a calibration (the `calibrate` stage): the validation split fixes the channels'
+//! time scales, the residual reference levels and the error heads; then the calibration split
+//! gives the scores. Nothing of the calibration split is seen before its scores are taken, so
+//! they stay exchangeable with new designs of the same dataset design.
+//!
+//! Per model, three streaming passes (samples predicted in chunks, nothing of a split kept but
+//! per-sample numbers): validation (index errors, residuals, each channel's mean absolute
+//! error at each time), validation again (each channel's band error against the now fixed
+//! scale), calibration (the scores under every normaliser).
+
+use super::difficulty::{reference_levels, relative_residual};
+use super::scored::{band_channels, Named, Run, ScoredSample, Scorer};
+use super::{
+    Calibration, ChannelBand, DesignIdentity, HeadInput, ModelIdentity, Normaliser, QuantityScores,
+    CALIBRATION_FORMAT, REPORTED_LEVELS, RESIDUAL_FEATURE,
+};
+use crate::eval::EvalData;
+use crate::indices_eval::{IndexInputs, StoredColumns};
+use candle_core::Device;
+use pino_conformal::{sup_score, ErrorHead, ScoreSet};
+use pino_learn::checkpoint::{load_model, ModelMeta};
+use pino_learn::data::{load_split, Prepared, Split};
+use pino_learn::layout::Layout;
+use pino_learn::spectral::Transform;
+use pino_learn::{Error, Result};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The `calibrate` stage's settings.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrateParams {
+    /// The normaliser answers use.
+    pub normaliser: Normaliser,
+    /// What the error heads read (`parameters`, `residual`), in feature order.
+    pub head_inputs: Vec<HeadInput>,
+    /// Ridge penalty of the error heads (on standardised features).
+    pub ridge: f64,
+    /// Samples per forward pass.
+    pub batch_size: usize,
+    /// "cpu" or "cuda".
+    #[serde(default = "cpu")]
+    pub device: pino_learn::config::DeviceKind,
+}
+
+fn cpu() -> pino_learn::config::DeviceKind {
+    pino_learn::config::DeviceKind::Cpu
+}
+
+impl CalibrateParams {
+    /// Checks the ranges.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.ridge >= 0.0 && self.ridge.is_finite()) {
+            return Err(Error::OutOfRange {
+                field: "ridge".into(),
+                value: self.ridge.to_string(),
+                allowed: "a finite number >= 0".into(),
+            });
+        }
+        if self.head_inputs.is_empty() {
+            return Err(Error::OutOfRange {
+                field: "head_inputs".into(),
+                value: "[]".into(),
+                allowed: "a list of `parameters` and/or `residual`".into(),
+            });
+        }
+        if self.batch_size == 0 {
+            return Err(Error::OutOfRange {
+                field: "batch_size".into(),
+                value: "0".into(),
+                allowed: "an integer >= 1".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Half-width of the moving average smoothing a channel's error profile, as a fraction of
+/// the window (1 %: 20 points of a 2000-point window).
+pub const SMOOTHING_FRACTION: f64 = 0.01;
+
+/// Floor of a channel's time scale, as a fraction of the median of its smoothed profile: no
+/// time point gets a band narrower than this for having been lucky on the validation split.
+pub const SCALE_FLOOR_OF_MEDIAN: f64 = 0.1;
+
+/// The directory of one model's calibration in the stage's output.
+pub fn model_subdir(algorithm: i64) -> String {
+    format!("algorithm-{algorithm}")
+}
+
+/// Calibrates every model of `model_dirs` on `data`'s validation and calibration splits and
+/// writes `<out>/algorithm-<A>/calibration.json` for each (and returns them).
+pub fn calibrate(
+    data: &EvalData<'_>,
+    model_dirs: &[PathBuf],
+    out: &Path,
+    params: &CalibrateParams,
+    device: &Device,
+    progress: &mut dyn FnMut(usize, &str),
+) -> Result<Vec<Calibration>> {
+    params.validate()?;
+    let system = &data.info.system;
+    let layout = Layout::of(system);
+    let inputs = IndexInputs::of(system, &layout)?;
+    let transform = Transform::for_device(device);
+    let mut done = Vec::new();
+    let mut seen = BTreeMap::new();
+    for (m, dir) in model_dirs.iter().enumerate() {
+        let (model, meta) = load_model(dir, transform, device)?;
+        check_model(dir, &meta, data, &layout)?;
+        let identity = ModelIdentity::of(dir)?;
+        if let Some(other) = seen.insert(identity.algorithm, dir.clone()) {
+            return Err(Error::OutOfRange {
+                field: "models".into(),
+                value: format!("{} and {}", other.display(), dir.display()),
+                allowed: format!(
+                    "one model per algorithm (both are algorithm {})",
+                    identity.algorithm
+                ),
+            });
+        }
+        let load = |split: Split| -> Result<(Prepared, StoredColumns)> {
+            let (_, items) = load_split(
+                data.info,
+                data.params_file,
+                data.simulation_files,
+                &meta.window,
+                split,
+                &meta.norm,
+            )?;
+            let stored = if inputs.computable() {
+                let ids = (0..items.len()).map(|i| items.id(i)).collect();
+                StoredColumns::read(data.simulation_files, &inputs, &ids, &meta.window)?
+            } else {
+                StoredColumns::default()
+            };
+            Ok((items, stored))
+        };
+        let fit = load(Split::Validation)?;
+        let cal = load(Split::Calibration)?;
+        let run = Run {
+            model: &model,
+            meta: &meta,
+            batch: params.batch_size,
+            device,
+        };
+        let ctx = Fitting {
+            scorer: Scorer::new(system, run, &inputs)?,
+            params,
+        };
+        let design = DesignIdentity {
+            system_hash: data.info.source.hash(),
+            ranges: meta
+                .training_ranges
+                .names
+                .iter()
+                .zip(
+                    meta.training_ranges
+                        .min
+                        .iter()
+                        .zip(&meta.training_ranges.max),
+                )
+                .map(|(n, (&lo, &hi))| (n.clone(), [lo, hi]))
+                .collect(),
+        };
+        let calibration = ctx.calibration(identity, design, &layout, &inputs, &fit, &cal)?;
+        let sub = out.join(model_subdir(calibration.model.algorithm));
+        std::fs::create_dir_all(&sub).map_err(|e| Error::Io {
+            path: sub.clone(),
+            source: e,
+        })?;
+        calibration.write(&sub)?;
+        progress(
+            m + 1,
+            &format!(
+                "algorithm {}: {} calibration samples, normaliser {}",
+                calibration.model.algorithm,
+                calibration.n,
+                calibration.normaliser.as_str()
+            ),
+        );
+        done.push(calibration);
+    }
+    Ok(done)
+}
+
+/// A model must have been trained on the dataset's description and design.
+fn check_model(dir: &Path, meta: &ModelMeta, data: &EvalData<'_>, layout: &Layout) -> Result<()> {
+    let path = dir.join(pino_learn::checkpoint::MODEL_META);
+    if meta.system.hash() != data.info.source.hash() || meta.layout != *layout {
+        return Err(Error::Format {
+            path,
+            message: format!(
+                "the model was trained on another system description ({}) than the dataset's ({}): calibrate it on its own dataset",
+                meta.system.file, data.info.source.file
+            ),
+        });
+    }
+    let ranges = pino_learn::checkpoint::TrainingRanges::of(&data.info.system);
+    if ranges.names != meta.training_ranges.names
+        || ranges.min != meta.training_ranges.min
+        || ranges.max != meta.training_ranges.max
+    {
+        return Err(Error::Format {
+            path,
+            message: "the model's training ranges differ from the dataset's sampling ranges: its calibration samples would come from another design".into(),
+        });
+    }
+    Ok(())
+}
+
+/// One model's fit.
+struct Fitting<'a> {
+    scorer: Scorer<'a>,
+    params: &'a CalibrateParams,
+}
+
+/// Per-sample numbers of a split: index errors, channel band errors, difficulty.
+#[derive(Default)]
+struct SplitErrors {
+    params: Vec<Vec<f64>>,
+    /// `|y - f|` per sample and index.
+    index: Vec<Vec<f64>>,
+    /// `max_t |y - f| / scale(t)` per sample and channel.
+    channel: Vec<Vec<f64>>,
+    /// `rms_q` per sample, when the model has equations.
+    rms: Vec<Vec<f64>>,
+}
+
+impl SplitErrors {
+    fn add(&mut self, s: &ScoredSample, scales: &[Vec<f64>]) -> Result<()> {
+        self.params.push(s.params.clone());
+        self.index.push(
+            s.predicted_indices
+                .iter()
+                .zip(&s.exact_indices)
+                .map(|(f, y)| (y - f).abs())
+                .collect(),
+        );
+        let mut channel = Vec::with_capacity(scales.len());
+        for ((p, x), sc) in s.predicted.iter().zip(&s.exact).zip(scales) {
+            channel.push(sup_score(p, x, sc).map_err(|e| Error::Dataset {
+                path: PathBuf::from("calibrate"),
+                message: format!("sample {}: {e}", s.id),
+            })?);
+        }
+        self.channel.push(channel);
+        if let Some(r) = &s.residual_rms {
+            self.rms.push(r.clone());
+        }
+        Ok(())
+    }
+
+    fn len(&self) -> usize {
+        self.params.len()
+    }
+}
+
+impl Fitting<'_> {
+    fn each(
+        &self,
+        (items, stored): &(Prepared, StoredColumns),
+        f: &mut dyn FnMut(&ScoredSample) -> Result<()>,
+    ) -> Result<()> {
+        let idx: Vec<usize> = (0..items.len()).collect();
+        self.scorer.for_each(items, &idx, stored, f)
+    }
+
+    fn calibration(
+        &self,
+        model: ModelIdentity,
+        design: DesignIdentity,
+        layout: &Layout,
+        inputs: &IndexInputs,
+        fit: &(Prepared, StoredColumns),
+        cal: &(Prepared, StoredColumns),
+    ) -> Result<Calibration> {
+        let channels = band_channels(layout);
+        let index_names: Vec<Named> = if inputs.computable() {
+            inputs
+                .columns()
+                .iter()
+                .map(|c| Named {
+                    name: c.name.clone(),
+                    unit: c.unit.clone(),
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let mut features: Vec<String> = Vec::new();
+        for input in &self.params.head_inputs {
+            match input {
+                HeadInput::Parameters => {
+                    features.extend(design.ranges.iter().map(|(n, _)| n.clone()))
+                }
+                HeadInput::Residual if self.scorer.has_residual() => {
+                    features.push(RESIDUAL_FEATURE.into())
+                }
+                HeadInput::Residual => {}
+            }
+        }
+        let mut calibration = Calibration {
+            format: CALIBRATION_FORMAT.into(),
+            model,
+            design,
+            n: cal.0.len(),
+            no_intervals: None,
+            normaliser: self.params.normaliser,
+            levels: REPORTED_LEVELS.to_vec(),
+            head_inputs: self.params.head_inputs.clone(),
+            features,
+            residual_reference: None,
+            n_fit: fit.0.len(),
+            indices: Vec::new(),
+            channels: Vec::new(),
+        };
+        if cal.0.is_empty() {
+            calibration.no_intervals = Some(
+                "the dataset has no calibration split (sample-params.n_calibration = 0): answers carry no interval and no coverage is claimed".into(),
+            );
+            return Ok(calibration);
+        }
+        if fit.0.is_empty() {
+            return Err(Error::Dataset {
+                path: PathBuf::from("calibrate"),
+                message: "no simulated sample of split `validation`: the bands' time scales and the error heads are fitted on it".into(),
+            });
+        }
+        if self.params.normaliser == Normaliser::Residual && !self.scorer.has_residual() {
+            return Err(Error::OutOfRange {
+                field: "normaliser".into(),
+                value: "residual".into(),
+                allowed: "`none` or `error_head`: no DOF of this model has an equation with its outputs, so its predictions have no physics residual".into(),
+            });
+        }
+        // Pass 1: each channel's mean absolute error at each time over the validation split.
+        let mut sums: Vec<Vec<f64>> = Vec::new();
+        self.each(fit, &mut |s| {
+            if sums.is_empty() {
+                sums = s.predicted.iter().map(|c| vec![0.0; c.len()]).collect();
+            }
+            for ((acc, p), x) in sums.iter_mut().zip(&s.predicted).zip(&s.exact) {
+                for ((a, p), x) in acc.iter_mut().zip(p).zip(x) {
+                    *a += (x - p).abs();
+                }
+            }
+            Ok(())
+        })?;
+        let n_fit = fit.0.len() as f64;
+        let scales: Vec<Vec<f64>> = sums
+            .iter()
+            .map(|s| time_scale(&s.iter().map(|v| v / n_fit).collect::<Vec<_>>()))
+            .map(|s| s.into_iter().map(|v| v as f32 as f64).collect())
+            .collect();
+        // Pass 2: the validation errors against the fixed scales.
+        let mut val = SplitErrors::default();
+        self.each(fit, &mut |s| val.add(s, &scales))?;
+        let reference = (!val.rms.is_empty()).then(|| reference_levels(&val.rms));
+        calibration.residual_reference = reference.clone();
+        let g_of = |rms: &[Vec<f64>], k: usize| -> Option<f64> {
+            reference.as_ref().map(|r| relative_residual(&rms[k], r))
+        };
+        let val_difficulty: Vec<_> = (0..val.len())
+            .map(|k| calibration.difficulty_of(&val.params[k], g_of(&val.rms, k)))
+            .collect();
+        // Pass 3: the calibration split's errors.
+        let mut calib = SplitErrors::default();
+        self.each(cal, &mut |s| calib.add(s, &scales))?;
+        let cal_difficulty: Vec<_> = (0..calib.len())
+            .map(|k| calibration.difficulty_of(&calib.params[k], g_of(&calib.rms, k)))
+            .collect();
+        let feats: Vec<Vec<f64>> = val_difficulty.iter().map(|d| d.features.clone()).collect();
+        let quantity =
+            |name: &Named, val_err: Vec<f64>, errors: Vec<f64>| -> Result<QuantityScores> {
+                let head = match ErrorHead::fit(&feats, &val_err, self.params.ridge) {
+                    Ok(h) => Some(h),
+                    Err(e) if self.params.normaliser == Normaliser::ErrorHead => {
+                        return Err(Error::OutOfRange {
+                            field: format!("normaliser (`{}`)", name.name),
+                            value: "error_head".into(),
+                            allowed: format!("an error head fitted on the validation split: {e}"),
+                        })
+                    }
+                    Err(_) => None,
+                };
+                let mut q = QuantityScores {
+                    name: name.name.clone(),
+                    unit: name.unit.clone(),
+                    scores: BTreeMap::new(),
+                    head,
+                    quantiles: BTreeMap::new(),
+                };
+                for normaliser in Normaliser::ALL {
+                    let sigmas: Result<Vec<f64>> = cal_difficulty
+                        .iter()
+                        .map(|d| calibration.sigma(normaliser, &q, d))
+                        .collect();
+                    let Ok(sigmas) = sigmas else { continue };
+                    let scores = errors.iter().zip(&sigmas).map(|(e, s)| e / s).collect();
+                    let set = ScoreSet::new(scores).map_err(|e| Error::Dataset {
+                        path: PathBuf::from("calibrate"),
+                        message: format!("`{}` ({}): {e}", name.name, normaliser.as_str()),
+                    })?;
+                    q.scores.insert(normaliser, set);
+                }
+                if let Some(chosen) = q.scores.get(&calibration.normaliser) {
+                    for level in REPORTED_LEVELS {
+                        if let Ok(v) = chosen.quantile(level) {
+                            q.quantiles.insert(level.to_string(), v);
+                        }
+                    }
+                }
+                Ok(q)
+            };
+        let mut indices = Vec::with_capacity(index_names.len());
+        let column =
+            |rows: &[Vec<f64>], j: usize| -> Vec<f64> { rows.iter().map(|r| r[j]).collect() };
+        for (j, name) in index_names.iter().enumerate() {
+            indices.push(quantity(
+                name,
+                column(&val.index, j),
+                column(&calib.index, j),
+            )?);
+        }
+        let mut bands = Vec::with_capacity(channels.len());
+        for (c, name) in channels.iter().enumerate() {
+            bands.push(ChannelBand {
+                quantity: quantity(name, column(&val.channel, c), column(&calib.channel, c))?,
+                scale: scales[c].iter().map(|&v| v as f32).collect(),
+            });
+        }
+        calibration.indices = indices;
+        calibration.channels = bands;
+        Ok(calibration)
+    }
+}
+
+/// A channel's time scale from its mean absolute error profile: a centred moving average of
+/// half-width [`SMOOTHING_FRACTION`] of the window, floored at [`SCALE_FLOOR_OF_MEDIAN`] of
+/// its median (1 where the profile is zero: a channel predicted exactly).
+pub fn time_scale(mean_abs: &[f64]) -> Vec<f64> {
+    let n = mean_abs.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    let h = ((SMOOTHING_FRACTION * n as f64).round() as usize).max(1);
+    let mut prefix = Vec::with_capacity(n + 1);
+    prefix.push(0.0);
+    for v in mean_abs {
+        prefix.push(prefix.last().copied().unwrap_or(0.0) + v);
+    }
+    let smooth: Vec<f64> = (0..n)
+        .map(|t| {
+            let (a, b) = (t.saturating_sub(h), (t + h + 1).min(n));
+            (prefix[b] - prefix[a]) / (b - a) as f64
+        })
+        .collect();
+    let mut sorted = smooth.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[n / 2];
+    let floor = if median > 0.0 && median.is_finite() {
+        SCALE_FLOOR_OF_MEDIAN * median
+    } else {
+        1.0
+    };
+    smooth.into_iter().map(|v| v.max(floor)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_time_scale_is_smoothed_and_floored() {
+        let mut profile = vec![1.0; 200];
+        profile[100] = 101.0;
+        let s = time_scale(&profile);
+        // Half-width 2 (1 % of 200): the spike spreads over 5 points.
+        assert!((s[100] - 21.0).abs() < 1e-12 && (s[98] - 21.0).abs() < 1e-12);
+        assert_eq!(s[97], 1.0);
+        let mut dips = vec![1.0; 200];
+        for v in dips.iter_mut().take(50) {
+            *v = 0.0;
+        }
+        assert!(time_scale(&dips).iter().all(|&v| v >= 0.1));
+        assert!(time_scale(&[0.0; 10]).iter().all(|&v| v == 1.0));
+    }
+}
