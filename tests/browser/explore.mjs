@@ -132,6 +132,40 @@ async function main() {
     return out;
   });
 
+  /**
+   * The band pixels of every chart: pixels of its canvas whose colour is one band's fill alone
+   * (the channel's colour at window.explorerBandAlpha over the transparent canvas).
+   */
+  const bandPixels = () => page.evaluate(() => {
+    const alpha = Math.round(window.explorerBandAlpha * 255);
+    const out = {};
+    for (const [key, u] of Object.entries(window.explorerCharts || {})) {
+      const bands = u.explorerBands || [];
+      const canvas = u.ctx.canvas;
+      const img = u.ctx.getImageData(0, 0, canvas.width, canvas.height).data;
+      const colours = bands.map((b) => {
+        const n = parseInt(b.color.slice(1), 16);
+        return [(n >> 16) & 255, (n >> 8) & 255, n & 255];
+      });
+      let pixels = 0;
+      for (let i = 0; i < img.length; i += 4) {
+        if (Math.abs(img[i + 3] - alpha) > 3) continue;
+        if (colours.some((c) => Math.abs(img[i] - c[0]) <= 8 && Math.abs(img[i + 1] - c[1]) <= 8
+          && Math.abs(img[i + 2] - c[2]) <= 8)) pixels += 1;
+      }
+      out[key] = { bands: bands.map((b) => b.channel), pixels, canvas: [canvas.width, canvas.height] };
+    }
+    return out;
+  });
+
+  /** The indices table as shown: per index its interval text and verdict badge. */
+  const shownIntervals = () => page.$$eval('#indices tbody tr', (rows) => rows.map((r) => ({
+    index: r.dataset.index,
+    interval: (r.querySelector('td.interval') || {}).textContent || null,
+    verdict: (r.querySelector('td.verdict-cell .badge') || {}).textContent || null,
+    inside: (r.querySelector('td.solver .inside-mark') || {}).textContent || null,
+  })));
+
   const state = () => page.evaluate(() => JSON.parse(JSON.stringify({
     design: window.explorerState.design,
     excitation: window.explorerState.excitation,
@@ -198,7 +232,64 @@ async function main() {
     results.sample = { sample_id: sample.sample_id, design: sample.design };
   });
 
-  // ---- 3. "Solve exactly": the solver's curves overlay the prediction --------------------
+  // ---- 3. the calibrated bands, intervals and verdicts -----------------------------------
+  await step('bands', async () => {
+    check(await page.evaluate(() => document.body.dataset.calibrated) === 'true',
+      `the page found no calibration: ${await page.textContent('#calibration-note')}`);
+    const pred = await page.evaluate(() => window.explorerState.prediction);
+    check(pred.coverage === 0.9, `the first prediction's coverage is ${pred.coverage}, not 0.9`);
+    const pixels = await bandPixels();
+    const groups = Object.keys(pixels).filter((k) => k !== 'sweep' && k !== 'excitation');
+    check(groups.length > 0, 'no response chart');
+    for (const g of groups) {
+      check(pixels[g].bands.length > 0, `the ${g} chart draws no band`);
+      check(pixels[g].pixels > 200, `the ${g} chart shows only ${pixels[g].pixels} band pixels`);
+    }
+    const verdict = (await page.textContent('#interval-verdict')).trim();
+    check(/^at 90 %: (pass|uncertain|fail)/.test(verdict), `the verdict reads ${JSON.stringify(verdict)}`);
+    const rows = await shownIntervals();
+    check(rows.every((r) => r.interval && r.interval.startsWith('[')), `rows without an interval: ${JSON.stringify(rows)}`);
+    check(rows.some((r) => ['pass', 'uncertain', 'fail'].includes(r.verdict)), `no verdict badge: ${JSON.stringify(rows)}`);
+    const options = await page.$$eval('#coverage option', (os) => os.map((o) => ({
+      value: o.value, disabled: o.disabled, title: o.title,
+    })));
+    check(options.map((o) => o.value).join() === '0.8,0.9,0.95', `levels ${JSON.stringify(options)}`);
+    check(options[2].disabled && /not supported/.test(options[2].title),
+      `0.95 (10 calibration samples) is not disabled with its reason: ${JSON.stringify(options[2])}`);
+    results.bands = { pixels, verdict, rows, options, prediction_verdict: pred.verdict };
+  });
+
+  // ---- 4. switch the level: the bands and intervals follow --------------------------------
+  await step('level', async () => {
+    const before = await page.evaluate(() => window.explorerState.prediction);
+    const n = await counter('predictions');
+    await page.selectOption('#coverage', '0.8');
+    await waitCounter('predictions', n + 1);
+    await expectNoError();
+    const after = await page.evaluate(() => window.explorerState.prediction);
+    check(after.coverage === 0.8, `after choosing 0.8 the prediction's coverage is ${after.coverage}`);
+    const verdict = (await page.textContent('#interval-verdict')).trim();
+    check(verdict.startsWith('at 80 %'), `the verdict reads ${JSON.stringify(verdict)}`);
+    const rows = await shownIntervals();
+    const narrower = after.indices.filter((ix, k) => ix.hi - ix.lo < before.indices[k].hi - before.indices[k].lo);
+    check(narrower.length > 0, 'no interval narrowed from 0.9 to 0.8');
+    const shown = await page.evaluate(() => Object.fromEntries(Object.entries(window.explorerCharts)
+      .map(([k, u]) => [k, (u.explorerBands || []).map((b) => [b.channel, b.hi[0] - b.lo[0]])])));
+    const pixels = await bandPixels();
+    const groups = Object.keys(pixels).filter((k) => k !== 'sweep' && k !== 'excitation');
+    for (const g of groups) check(pixels[g].pixels > 200, `the ${g} chart shows only ${pixels[g].pixels} band pixels at 0.8`);
+    results.level = {
+      verdict, rows, pixels, shown, coverage: after.coverage,
+      widths_09: before.indices.map((ix) => ix.hi - ix.lo), widths_08: after.indices.map((ix) => ix.hi - ix.lo),
+    };
+    // Back to 0.9 for the following steps.
+    const m = await counter('predictions');
+    await page.selectOption('#coverage', '0.9');
+    await waitCounter('predictions', m + 1);
+    await expectNoError();
+  });
+
+  // ---- 5. "Solve exactly": the solver's curves overlay the prediction --------------------
   await step('solve', async () => {
     const n = await counter('solves');
     const before = await state();
@@ -214,10 +305,20 @@ async function main() {
     });
     check(answer, 'window.explorerState.solve is empty after the solve');
     const status = await page.textContent('#solve-status');
-    results.solve = { design: before.design, excitation: before.excitation, answer, status, charts };
+    // Inside / outside marks: per channel beside its error, per index beside the solver value.
+    const channelMarks = await page.$$eval('.channel .inside-mark', (ms) => ms.map((m) => m.textContent));
+    check(channelMarks.length > 0, 'no channel says whether the solver curve lies inside its band');
+    const rows = await shownIntervals();
+    check(rows.every((r) => r.inside), `indices without an inside mark: ${JSON.stringify(rows)}`);
+    const inside = await page.evaluate(() => window.explorerState.solve.index_inside);
+    for (const r of rows) {
+      check(r.inside.includes(inside[r.index] ? 'inside' : 'outside'),
+        `${r.index}: the page says ${r.inside}, the answer ${inside[r.index]}`);
+    }
+    results.solve = { design: before.design, excitation: before.excitation, answer, status, charts, channelMarks, rows };
   });
 
-  // ---- 4. move a slider: the curves change ----------------------------------------------
+  // ---- 6. move a slider: the curves change ----------------------------------------------
   const sliderParam = summary.parameters[0].name;
   await step('slider', async () => {
     const before = await plotted();
@@ -251,7 +352,7 @@ async function main() {
     };
   });
 
-  // ---- 5. type a value outside the training range: the flag ------------------------------
+  // ---- 7. type a value outside the training range: the flag ------------------------------
   await step('outside', async () => {
     const p = summary.parameters[Math.min(1, summary.parameters.length - 1)];
     const value = Number((p.max + 0.5 * (p.max - p.min)).toPrecision(6));
@@ -272,7 +373,7 @@ async function main() {
     };
   });
 
-  // ---- 6. back inside the range (the flag goes), then a sweep ----------------------------
+  // ---- 8. back inside the range (the flag goes), then a sweep ----------------------------
   await step('sweep', async () => {
     await typeValue(results.outside.param, results.outside.previous);
     check(!(await page.locator('#outside-banner').isVisible()),
@@ -291,6 +392,9 @@ async function main() {
     const answer = await page.evaluate(() => window.explorerState.sweep);
     const charts = await plotted();
     check(charts.sweep, 'no sweep chart drawn');
+    const pixels = await bandPixels();
+    check(pixels.sweep.bands.length === 1 && pixels.sweep.pixels > 100,
+      `the sweep's index curve shows no band: ${JSON.stringify(pixels.sweep)}`);
     results.sweep = {
       request: {
         parameter: p.name, steps, solve_points: solvePoints,
@@ -299,11 +403,12 @@ async function main() {
       },
       answer,
       chart: charts.sweep,
+      band_pixels: pixels.sweep,
       status: await page.textContent('#sweep-status'),
     };
   });
 
-  // ---- 7. download the design (predict --params reads it back: browser.rs) ---------------
+  // ---- 9. download the design (predict --params reads it back: browser.rs) ---------------
   await step('download', async () => {
     await page.locator('#download-design').scrollIntoViewIfNeeded();
     const [download] = await Promise.all([
@@ -339,7 +444,7 @@ async function main() {
       + `p50 ${q(0.5).toFixed(1)} ms, p99 ${q(0.99).toFixed(1)} ms, max ${sorted[sorted.length - 1].toFixed(1)} ms`);
   }
 
-  // ---- 8. the pipeline at a glance: every unit fresh, Table 4 and the plots shown --------
+  // ---- 10. the pipeline at a glance: every unit fresh, Table 4 and the plots shown --------
   await step('pipeline', async () => {
     await page.goto(new URL('/pipeline', url).toString());
     await page.waitForSelector('body[data-polls]', { timeout: TIMEOUT_MS });

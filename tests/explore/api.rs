@@ -127,6 +127,34 @@ fn every_bad_request_is_a_400_naming_its_field_and_the_server_keeps_serving() {
             "parameter",
         ),
         ("/api/download/curves?format=xlsx", b"{}".to_vec(), "format"),
+        // The level of the intervals: in (0, 1), a number, and one the calibration's 10
+        // samples support (at most 10/11).
+        ("/api/predict", br#"{"coverage": 1.5}"#.to_vec(), "coverage"),
+        ("/api/predict", br#"{"coverage": 0}"#.to_vec(), "coverage"),
+        (
+            "/api/predict",
+            br#"{"coverage": "0.9"}"#.to_vec(),
+            "coverage",
+        ),
+        (
+            "/api/predict",
+            br#"{"coverage": 0.95}"#.to_vec(),
+            "coverage",
+        ),
+        ("/api/solve", br#"{"coverage": 0.95}"#.to_vec(), "coverage"),
+        (
+            "/api/sweep",
+            br#"{"parameter": "k_p", "coverage": -0.1}"#.to_vec(),
+            "coverage",
+        ),
+        (
+            "/api/sweep",
+            br#"{"parameter": "k_p", "coverage": 0.95}"#.to_vec(),
+            "coverage",
+        ),
+        // The bands asked for: channels with a band (the excitations have none).
+        ("/api/predict", br#"{"bands": ["eta_1"]}"#.to_vec(), "bands"),
+        ("/api/predict", br#"{"bands": "z_c"}"#.to_vec(), "bands"),
     ];
     for (path, body, field) in cases {
         let a = c.request("POST", path, &body).unwrap();
@@ -177,6 +205,176 @@ fn every_bad_request_is_a_400_naming_its_field_and_the_server_keeps_serving() {
         .as_bool()
         .unwrap());
     assert!(served.alive());
+    calibrations_that_are_not_the_models_are_refused_at_startup(&trained);
+}
+
+/// `explore --model M --calibration X`: a calibration of another model, a corrupt file or a
+/// missing one exit 2 naming the file; without `--calibration` the answers say there is no
+/// error bar.
+fn calibrations_that_are_not_the_models_are_refused_at_startup(trained: &Trained) {
+    let model = trained.file("train[algorithm=5]", "model.json");
+    let model_dir = model.parent().unwrap();
+    let calibrations: Vec<_> = trained
+        .show("calibrate")
+        .into_iter()
+        .filter(|p| p.file_name().is_some_and(|n| n == "calibration.json"))
+        .collect();
+    let other = calibrations
+        .iter()
+        .find(|p| p.parent().unwrap().ends_with("algorithm-1"))
+        .unwrap_or_else(|| panic!("no calibration of algorithm 1: {calibrations:?}"));
+    let dir = tempfile::tempdir().unwrap();
+    let corrupt = dir.path().join("calibration.json");
+    std::fs::write(&corrupt, "{\"format\": ").unwrap();
+    let missing = dir.path().join("nope.json");
+    for (file, says) in [
+        (other.clone(), "another model"),
+        (corrupt.clone(), "not a calibration"),
+        (missing.clone(), "no such"),
+    ] {
+        let o = std::process::Command::new(pino_mbd_tests::bin("explore"))
+            .arg("--model")
+            .arg(model_dir)
+            .arg("--calibration")
+            .arg(&file)
+            .args(["--bind", "127.0.0.1:0"])
+            .output()
+            .unwrap();
+        let text = pino_mbd_tests::output_text(&o);
+        assert_eq!(o.status.code(), Some(2), "{}: {text}", file.display());
+        assert!(
+            text.contains(&file.display().to_string()) && text.contains(says),
+            "the message names {} and says {says:?}: {text}",
+            file.display()
+        );
+    }
+    // Its own calibration (the stage's output directory: the model's file is found in it).
+    let stage_dir = other.parent().unwrap().parent().unwrap();
+    let mut cmd = std::process::Command::new(pino_mbd_tests::bin("explore"));
+    cmd.arg("--model")
+        .arg(model_dir)
+        .arg("--calibration")
+        .arg(stage_dir)
+        .args(["--bind", "127.0.0.1:0"]);
+    let served = crate::Served::start(cmd);
+    let summary = served.client().get("/api/model").unwrap().json();
+    assert_eq!(
+        summary["calibration"]["n"], 10,
+        "{}",
+        summary["calibration"]
+    );
+    drop(served);
+    // Without one: no error bar, and why.
+    let mut cmd = std::process::Command::new(pino_mbd_tests::bin("explore"));
+    cmd.arg("--model")
+        .arg(model_dir)
+        .args(["--bind", "127.0.0.1:0"]);
+    let served = crate::Served::start(cmd);
+    let mut c = served.client();
+    let summary = c.get("/api/model").unwrap().json();
+    assert!(summary["calibration"].is_null(), "{summary}");
+    assert!(
+        summary["calibration_note"]
+            .as_str()
+            .is_some_and(|n| n.contains("no error bar")),
+        "{summary}"
+    );
+    let a = c
+        .post_json(
+            "/api/predict",
+            &json!({"excitation": {"kind": "seed", "seed": 1, "id": 0}}),
+        )
+        .unwrap();
+    assert_eq!(a.status, 200, "{}", String::from_utf8_lossy(&a.body));
+    let p = a.json();
+    assert!(p["coverage"].is_null() && p["verdict"].is_null(), "{p}");
+    assert!(p["bands"].as_object().unwrap().is_empty());
+    assert!(p["indices"][0]["lo"].is_null());
+    assert!(p["no_intervals"].as_str().unwrap().contains("no error bar"));
+}
+
+/// The width `hi - lo` of every index of a prediction.
+fn widths(p: &Value) -> Vec<f64> {
+    p["indices"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["hi"].as_f64().unwrap() - i["lo"].as_f64().unwrap())
+        .collect()
+}
+
+/// The calibrated parts of a prediction: every index inside its interval with a verdict per
+/// limit (never `pass` when extrapolated), every predicted channel inside its band.
+fn check_intervals(model: &Value, p: &Value, coverage: f64) {
+    assert_eq!(p["coverage"].as_f64(), Some(coverage), "{}", p["coverage"]);
+    let extrapolated = p["extrapolated"].as_bool().expect("extrapolated");
+    assert_eq!(extrapolated, !p["outside"].as_array().unwrap().is_empty());
+    let limits: BTreeMap<String, bool> = model["indices"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| {
+            (
+                i["name"].as_str().unwrap().to_owned(),
+                !i["limit"].is_null(),
+            )
+        })
+        .collect();
+    let mut verdicts = Vec::new();
+    for ix in p["indices"].as_array().unwrap() {
+        let name = ix["name"].as_str().unwrap();
+        let (v, lo, hi) = (
+            ix["value"].as_f64().unwrap(),
+            ix["lo"]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{name}: no lo: {ix}")),
+            ix["hi"].as_f64().unwrap(),
+        );
+        assert!(lo <= v && v <= hi, "{name}: {lo} <= {v} <= {hi}");
+        match ix["verdict"].as_str() {
+            Some(verdict) => {
+                assert!(limits[name], "{name} has no limit but a verdict");
+                assert!(
+                    ["pass", "uncertain", "fail"].contains(&verdict),
+                    "{verdict}"
+                );
+                assert!(
+                    !(extrapolated && verdict == "pass"),
+                    "{name}: extrapolated and pass"
+                );
+                verdicts.push(verdict.to_owned());
+            }
+            None => assert!(!limits[name], "{name} has a limit but no verdict"),
+        }
+    }
+    let combined = p["verdict"].as_str().expect("the combined verdict");
+    let expected = if verdicts.iter().any(|v| v == "fail") {
+        "fail"
+    } else if verdicts.iter().any(|v| v == "uncertain") {
+        "uncertain"
+    } else {
+        "pass"
+    };
+    assert_eq!(combined, expected, "{verdicts:?}");
+    let bands = p["bands"].as_object().unwrap();
+    let t = p["t"].as_array().unwrap().len();
+    for c in model["channels"].as_array().unwrap() {
+        let name = c["name"].as_str().unwrap();
+        let Some(b) = bands.get(name) else {
+            assert_eq!(c["group"], "excitation", "{name} has no band");
+            continue;
+        };
+        let (lo, hi, x) = (floats(&b["lo"]), floats(&b["hi"]), series(p, name));
+        assert_eq!((lo.len(), hi.len()), (t, t), "{name}");
+        for n in 0..t {
+            assert!(lo[n] <= x[n] && x[n] <= hi[n], "{name} row {n}");
+        }
+        assert!(
+            lo.iter().zip(&hi).any(|(l, h)| h > l),
+            "{name}: a zero-width band"
+        );
+    }
+    assert!(!bands.is_empty());
 }
 
 #[test]
@@ -248,6 +446,24 @@ fn predictions_equal_the_predict_command_and_solves_equal_the_simulation() {
         .unwrap();
     assert_eq!(a.status, 200, "{}", String::from_utf8_lossy(&a.body));
     let served_pred = a.json();
+    // The calibration of the pipeline's `calibrate` stage: 10 samples support 0.8 and 0.9.
+    let cal = &model["calibration"];
+    assert_eq!(cal["n"], 10, "{cal}");
+    let supported: Vec<(f64, bool)> = cal["levels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| {
+            (
+                l["level"].as_f64().unwrap(),
+                l["supported"].as_bool().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(supported, [(0.8, true), (0.9, true), (0.95, false)]);
+    assert!(cal["levels"][2]["why"].as_str().unwrap().contains("0.95"));
+    check_intervals(&model, &served_pred, 0.9);
+    assert_eq!(served_pred["extrapolated"], true);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("p.parquet");
     let o = std::process::Command::new(pino_mbd_tests::bin("predict"))
@@ -312,6 +528,86 @@ fn predictions_equal_the_predict_command_and_solves_equal_the_simulation() {
         )
         .unwrap()
         .json();
+    check_intervals(&model, &pred, 0.9);
+    assert_eq!(pred["extrapolated"], false);
+    // A lower level: every interval at most as wide, some narrower.
+    let at_08 = c
+        .post_json(
+            "/api/predict",
+            &json!({"design": test["design"], "excitation": excitation, "coverage": 0.8}),
+        )
+        .unwrap()
+        .json();
+    check_intervals(&model, &at_08, 0.8);
+    // Only the bands asked for (the page asks for the channels it plots), the same values.
+    let some = c
+        .post_json(
+            "/api/predict",
+            &json!({"design": test["design"], "excitation": excitation, "bands": ["z_c", "p_1"]}),
+        )
+        .unwrap()
+        .json();
+    let asked: Vec<&String> = some["bands"].as_object().unwrap().keys().collect();
+    assert_eq!(asked, ["p_1", "z_c"]);
+    assert_eq!(some["bands"]["z_c"], pred["bands"]["z_c"]);
+    assert_eq!(some["indices"], pred["indices"]);
+    let (w8, w9) = (widths(&at_08), widths(&pred));
+    assert!(w8.iter().zip(&w9).all(|(a, b)| a <= b), "{w8:?} {w9:?}");
+    assert!(w8.iter().zip(&w9).any(|(a, b)| a < b), "{w8:?} {w9:?}");
+    // The solve says whether the solver's curves and indices lie inside the prediction's.
+    assert_eq!(solved["coverage"].as_f64(), Some(0.9));
+    let inside = solved["inside"].as_object().unwrap();
+    let bands = pred["bands"].as_object().unwrap();
+    assert_eq!(inside.len(), bands.len(), "{inside:?}");
+    for (name, band) in bands {
+        let (lo, hi, x) = (
+            floats(&band["lo"]),
+            floats(&band["hi"]),
+            series(&solved, name),
+        );
+        let n_in = (0..x.len())
+            .filter(|&n| lo[n] <= x[n] && x[n] <= hi[n])
+            .count();
+        let f = inside[name]["fraction_inside"].as_f64().unwrap();
+        assert!(
+            (f - n_in as f64 / x.len() as f64).abs() <= 2.0 / x.len() as f64,
+            "{name}: {f} vs {n_in}/{}",
+            x.len()
+        );
+        assert_eq!(inside[name]["inside"].as_bool(), Some(f == 1.0), "{name}");
+    }
+    let index_inside = solved["index_inside"].as_object().unwrap();
+    for (p, s) in pred["indices"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(solved["indices"].as_array().unwrap())
+    {
+        let name = p["name"].as_str().unwrap();
+        let x = s["value"].as_f64().unwrap();
+        let within = p["lo"].as_f64().unwrap() <= x && x <= p["hi"].as_f64().unwrap();
+        assert_eq!(index_inside[name].as_bool(), Some(within), "{name}");
+    }
+    // The sweep's index curves carry their intervals.
+    let sw = c
+        .post_json(
+            "/api/sweep",
+            &json!({"design": test["design"], "excitation": excitation, "parameter": "k_p", "steps": 4, "coverage": 0.8}),
+        )
+        .unwrap();
+    assert_eq!(sw.status, 200, "{}", String::from_utf8_lossy(&sw.body));
+    let sw = sw.json();
+    assert_eq!(sw["coverage"].as_f64(), Some(0.8));
+    for (name, values) in sw["indices"].as_object().unwrap() {
+        let iv = &sw["intervals"][name];
+        let (lo, hi, v) = (floats(&iv["lo"]), floats(&iv["hi"]), floats(values));
+        assert_eq!((lo.len(), hi.len()), (4, 4), "{name}");
+        for k in 0..4 {
+            assert!(lo[k] <= v[k] && v[k] <= hi[k], "{name} design {k}");
+        }
+        assert_eq!(iv["verdict"].as_array().unwrap().len(), 4);
+    }
+    assert_eq!(sw["verdict"].as_array().unwrap().len(), 4);
     for name in &channels {
         let (p, x) = (series(&pred, name), series(&solved, name));
         let num: f64 = p.iter().zip(&x).map(|(a, b)| (a - b) * (a - b)).sum();

@@ -75,6 +75,8 @@ fn a_user_explores_designs_in_a_real_browser() {
         [
             "loaded",
             "test-sample",
+            "bands",
+            "level",
             "solve",
             "slider",
             "outside",
@@ -106,6 +108,29 @@ fn a_user_explores_designs_in_a_real_browser() {
         .map(|n| (n.as_str(), params.f64(n).unwrap()[row]))
         .collect();
     let test_excitation = serde_json::json!({"kind": "test", "sample_id": sample_id});
+
+    // The bands: visible on every response chart (pixels of the band's fill), the intervals and
+    // three-valued verdicts beside the indices; switching the level narrowed the intervals.
+    for (group, p) in obj(&r["bands"]["pixels"]) {
+        if group != "excitation" {
+            assert!(num(&p["pixels"]) > 200.0, "{group}: {p}");
+        }
+    }
+    let verdict = str_of(&r["bands"]["verdict"]);
+    assert!(
+        verdict.starts_with("at 90 %: ")
+            && verdict.contains(str_of(&r["bands"]["prediction_verdict"])),
+        "{verdict}"
+    );
+    let level = &r["level"];
+    assert_eq!(num(&level["coverage"]), 0.8);
+    assert!(str_of(&level["verdict"]).starts_with("at 80 %: "));
+    let (w9, w8) = (arr(&level["widths_09"]), arr(&level["widths_08"]));
+    assert!(w8.iter().zip(w9).all(|(a, b)| num(a) <= num(b)), "{level}");
+    assert_ne!(
+        r["bands"]["rows"], level["rows"],
+        "the intervals shown did not change with the level"
+    );
 
     // "Solve exactly" for the test sample's own design and profile: the dashed curves are the
     // `simulate` stage's output for that sample.

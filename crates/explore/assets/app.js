@@ -13,12 +13,20 @@
  *     the surrogate's errors; "Pin as A" keeps a design to compare the following ones with;
  *     the sweep (POST /api/sweep) plots one index against one parameter; downloads fetch the
  *     design YAML and the curves (CSV / Parquet).
+ *   - with a calibration (summary.calibration, docs/uncertainty.md): every plotted channel is
+ *     drawn with its band (shaded, the channel's colour), every index with its interval and
+ *     three-valued verdict (pass / uncertain / fail), the sweep's index curve with its band;
+ *     the level selector (0.8 / 0.9 / 0.95, the levels the calibration cannot support
+ *     disabled with the reason) re-requests the prediction and the sweep; after a solve,
+ *     each channel and index says whether the solver's answer lies inside.
  *
  * Hooks for browser tests:
  *   window.explorerState   = {summary, design, excitation, prediction, solve, sweep}
  *   window.explorerMetrics = {predictToRedrawMs: [...]}   (change event -> redraw done, ms)
  *   window.explorerCharts  = {GROUP: uPlot, sweep: uPlot}  (what is plotted: `u.data`, the
- *                            series labels `u.series[i].label`: CHANNEL, `CHANNEL (solver)`, `CHANNEL (A)`)
+ *                            series labels `u.series[i].label`: CHANNEL, `CHANNEL (solver)`, `CHANNEL (A)`;
+ *                            the shaded bands `u.explorerBands`: [{channel, color, fill, lo, hi}])
+ *   window.explorerBandAlpha: the opacity of a band's fill (its colour over white is known)
  *   body[data-state]       = loading | idle | predicting | solving | sweeping
  *   body[data-predictions], body[data-solves], body[data-sweeps]: counters bumped after drawing
  *
@@ -47,6 +55,10 @@
   const PALETTE = ['#1f77b4', '#d62728', '#2ca02c', '#9467bd', '#ff7f0e',
     '#17becf', '#8c564b', '#e377c2', '#7f7f7f', '#bcbd22'];
   const PIN_COLOR = '#9aa0a6';
+  // Opacity of the bands' fill (the channel's colour); the sweep's band is the surrogate's.
+  const BAND_ALPHA = 0.22;
+  const SWEEP_COLOR = '#1f77b4';
+  window.explorerBandAlpha = BAND_ALPHA;
 
   /** Everything the page knows; `window.explorerState` is a view of the API part of it. */
   const st = {
@@ -67,12 +79,14 @@
     counters: { predictions: 0, solves: 0, sweeps: 0 },
     groups: [],            // [{key, title, height, channels: [meta], selected: Set, el..., chart}]
     sweepChart: null,
+    coverage: null,        // level of the intervals sent with every request (null: no calibration)
   };
 
   window.explorerMetrics = { predictToRedrawMs: [] };
   window.explorerCharts = {};
   window.explorerState = {
     summary: null, design: null, excitation: null, prediction: null, solve: null, sweep: null,
+    coverage: null,
   };
 
   function publishState() {
@@ -83,6 +97,7 @@
     s.prediction = st.prediction;
     s.solve = st.solve;
     s.sweep = st.sweep;
+    s.coverage = st.coverage;
   }
 
   // ---------------------------------------------------------------------------------------
@@ -224,8 +239,22 @@
   function requestBody() {
     const body = { design: { ...st.design } };
     if (st.excitation) body.excitation = { ...st.excitation };
+    if (st.coverage != null) {
+      body.coverage = st.coverage;
+      // Only the plotted channels' bands travel (the excitations have none).
+      body.bands = st.groups.filter((g) => g.key !== 'excitation')
+        .flatMap((g) => g.channels.filter((c) => g.selected.has(c.name)).map((c) => c.name));
+    }
     return body;
   }
+
+  /** `#rrggbb` at opacity `alpha` as a CSS colour. */
+  function withAlpha(hex, alpha) {
+    const n = parseInt(hex.slice(1), 16);
+    return `rgba(${(n >> 16) & 255}, ${(n >> 8) & 255}, ${n & 255}, ${alpha})`;
+  }
+
+  const percent = (level) => `${Number((level * 100).toPrecision(4))} %`;
 
   // ---------------------------------------------------------------------------------------
   // Header
@@ -241,6 +270,57 @@
     const id = $('#model-identity');
     id.textContent = m.identity ? m.identity.slice(0, 12) : '—';
     id.title = m.identity || '';
+  }
+
+  // ---------------------------------------------------------------------------------------
+  // Level of the intervals
+  // ---------------------------------------------------------------------------------------
+
+  /** The level selector: the calibration's reported levels, unsupported ones disabled. */
+  function buildCoverage(summary) {
+    const select = $('#coverage');
+    const note = $('#calibration-note');
+    const cal = summary.calibration;
+    select.textContent = '';
+    if (!cal) {
+      select.append(el('option', { value: '' }, 'none'));
+      select.disabled = true;
+      st.coverage = null;
+      note.textContent = 'no error bar';
+      note.title = summary.calibration_note || 'no calibration';
+      $('#coverage-box').title = summary.calibration_note || 'no calibration';
+      document.body.dataset.calibrated = 'false';
+      return;
+    }
+    for (const l of cal.levels || []) {
+      select.append(el('option', {
+        value: String(l.level), disabled: !l.supported,
+        title: l.supported ? `${percent(l.level)} interval` : `not supported: ${l.why}`,
+      }, l.supported ? percent(l.level) : `${percent(l.level)} (needs more calibration samples)`));
+    }
+    const supported = (cal.levels || []).filter((l) => l.supported).map((l) => l.level);
+    if (!supported.length && cal.max_coverage > 0) {
+      // A calibration too small for every listed level: its highest, n / (n + 1).
+      select.append(el('option', { value: String(cal.max_coverage) }, `${percent(cal.max_coverage)} (n / (n + 1))`));
+      supported.push(cal.max_coverage);
+    }
+    const def = supported.includes(cal.default_coverage) ? cal.default_coverage
+      : supported.length ? supported[supported.length - 1] : null;
+    st.coverage = def;
+    select.disabled = def == null;
+    if (def != null) select.value = String(def);
+    note.textContent = `calibration: n = ${cal.n}, ${cal.normaliser}`;
+    note.title = cal.file || '';
+    document.body.dataset.calibrated = 'true';
+    select.addEventListener('change', () => {
+      const t0 = performance.now();
+      const v = Number(select.value);
+      if (!Number.isFinite(v)) return;
+      st.coverage = v;
+      publishState();
+      predict(t0);
+      if (st.sweep) runSweep();
+    });
   }
 
   // ---------------------------------------------------------------------------------------
@@ -509,6 +589,34 @@
     return el('span', { class: 'badge none' }, 'no limit');
   }
 
+  /** The three-valued verdict of an interval against its limit. */
+  function verdictBadge(verdict) {
+    if (!verdict) return el('span', { class: 'badge none' }, 'no limit');
+    const title = {
+      pass: 'the whole interval meets the limit',
+      uncertain: 'the interval straddles the limit: send the design to the solver',
+      fail: 'the whole interval is over the limit',
+    }[verdict] || '';
+    return el('span', { class: `badge ${verdict}`, title, dataset: { verdict } }, verdict);
+  }
+
+  /** ✓ inside / ✗ outside mark of a solver value against an interval. */
+  function insideMark(inside, text) {
+    return el('span', { class: `inside-mark ${inside ? 'in' : 'out'}`, dataset: { inside: String(inside) } },
+      inside ? `✓ ${text || 'inside'}` : `✗ ${text || 'outside'}`);
+  }
+
+  /** Whether the solve's index value lies inside the prediction's interval (null: unknown). */
+  function indexInside(pred, solve, name) {
+    const p = (pred.indices || []).find((x) => x.name === name);
+    const s = (solve.indices || []).find((x) => x.name === name);
+    if (!p || !s || p.lo == null || p.hi == null) return null;
+    if (solve.coverage === pred.coverage && solve.index_inside && name in solve.index_inside) {
+      return solve.index_inside[name];
+    }
+    return p.lo <= s.value && s.value <= p.hi;
+  }
+
   function renderIndices() {
     const table = $('#indices');
     const pred = st.prediction;
@@ -519,11 +627,15 @@
     const solveBy = byName(solve && solve.indices);
     const pinBy = byName(pinned && pinned.indices);
 
-    const head = ['index', 'unit', 'value', 'limit', 'status'];
+    const calibrated = !!(pred && pred.coverage != null);
+    const head = ['index', 'unit', 'value'];
+    if (calibrated) head.push(`interval (${percent(pred.coverage)})`);
+    head.push('limit', 'status');
+    if (calibrated) head.push('verdict');
     if (solve) head.push('solver', 'error %');
     if (pinned) head.push('A', 'Δ (B − A)');
     const thead = el('tr', {}, ...head.map((h, j) =>
-      el('th', { class: j >= 2 && h !== 'status' ? 'num' : '' }, h)));
+      el('th', { class: j >= 2 && h !== 'status' && h !== 'verdict' ? 'num' : '' }, h)));
     table.tHead.replaceChildren(thead);
 
     const rows = st.summary.indices.map((meta) => {
@@ -532,15 +644,25 @@
         el('td', { class: 'name', title: meta.definition || '' }, meta.name),
         el('td', { class: 'unit' }, meta.unit || ''),
         el('td', { class: 'value num' }, p ? fmt(p.value) : '—'),
-        el('td', { class: 'limit num' }, limitText(meta.limit)),
-        el('td', { class: 'status' }, badge(p ? p.pass : null)),
       ];
+      if (calibrated) {
+        cells.push(el('td', { class: 'interval num' },
+          p && p.lo != null ? `[${fmt(p.lo)}, ${fmt(p.hi)}]` : '—'));
+      }
+      cells.push(
+        el('td', { class: 'limit num' }, limitText(meta.limit)),
+        el('td', { class: 'status', title: 'the point value against the limit' }, badge(p ? p.pass : null)));
+      if (calibrated) {
+        cells.push(el('td', { class: 'verdict-cell' }, verdictBadge(p ? p.verdict : null)));
+      }
       if (solve) {
         const s = solveBy[meta.name];
         const e = solve.index_errors ? solve.index_errors[meta.name] : null;
+        const inside = calibrated ? indexInside(pred, solve, meta.name) : null;
         cells.push(
           el('td', { class: 'solver num' }, s ? fmt(s.value) : '—',
-            s && s.pass != null ? ' ' : null, s && s.pass != null ? badge(s.pass) : null),
+            s && s.pass != null ? ' ' : null, s && s.pass != null ? badge(s.pass) : null,
+            inside != null ? insideMark(inside) : null),
           el('td', { class: 'error num' }, fmtPercent(e, true)));
       }
       if (pinned) {
@@ -568,6 +690,30 @@
       verdict.classList.add('fail');
     }
     verdict.dataset.pass = pred ? String(!!pred.pass) : '';
+
+    // The three-valued verdict of the intervals.
+    const iv = $('#interval-verdict');
+    iv.className = 'verdict';
+    iv.textContent = '';
+    iv.title = '';
+    iv.dataset.verdict = '';
+    if (pred && pred.coverage != null) {
+      const v = pred.verdict;
+      const what = {
+        pass: 'pass', uncertain: 'uncertain: send to the solver', fail: 'fail',
+      }[v] || 'no limit';
+      iv.textContent = `at ${percent(pred.coverage)}: ${what}`;
+      if (v) iv.classList.add(v);
+      iv.dataset.verdict = v || '';
+      if (pred.extrapolated) {
+        iv.append(el('span', { class: 'extrapolated' }, '(extrapolated: no coverage claim)'));
+      }
+      iv.title = 'the calibrated intervals against the limits (docs/uncertainty.md)';
+    } else if (pred) {
+      iv.textContent = 'no error bar';
+      iv.classList.add('none');
+      iv.title = pred.no_intervals || (st.summary && st.summary.calibration_note) || '';
+    }
   }
 
   // ---------------------------------------------------------------------------------------
@@ -596,6 +742,10 @@
         box.addEventListener('change', () => {
           if (box.checked) group.selected.add(c.name); else group.selected.delete(c.name);
           renderChart(group);
+          // A newly plotted channel's band comes with the next prediction.
+          const pred = st.prediction;
+          if (box.checked && st.coverage != null && g.key !== 'excitation' && pred
+            && !(pred.bands && pred.bands[c.name])) predict();
         });
         picker.append(el('label', { class: 'channel', dataset: { channel: c.name } },
           box,
@@ -668,6 +818,7 @@
       if (pinned) plan.push({ kind: 'A', c });
     }
     const units = [...new Set(selected.map((c) => c.unit || ''))];
+    const scaleOf = (unit) => `y${units.indexOf(unit)}`;
     const structure = JSON.stringify(plan.map((s) => [s.kind, s.c.name]));
 
     const x = pred.t;
@@ -678,7 +829,20 @@
       else data.push(alignTo(x, pinned.prediction.t, pinned.prediction.channels[s.c.name]));
     }
 
+    // The bands of the plotted predictions (drawn under the curves by the drawAxes hook).
+    group.bands = [];
+    const bands = pred.bands || {};
+    for (const c of selected) {
+      const b = bands[c.name];
+      if (!b) continue;
+      group.bands.push({
+        channel: c.name, color: c.color, fill: withAlpha(c.color, BAND_ALPHA),
+        scale: scaleOf(c.unit || ''), lo: b.lo, hi: b.hi,
+      });
+    }
+
     if (group.chart && group.structure === structure) {
+      group.chart.explorerBands = group.bands;
       group.chart.setData(data);
       return;
     }
@@ -690,9 +854,11 @@
       return;
     }
 
-    const scaleOf = (unit) => `y${units.indexOf(unit)}`;
     const scales = { x: { time: false } };
-    units.forEach((u) => { scales[scaleOf(u)] = { auto: true }; });
+    units.forEach((u) => {
+      const key = scaleOf(u);
+      scales[key] = { auto: true, range: (_u, min, max) => bandRange(group.bands, key, min, max) };
+    });
     const axes = [{ label: 't [s]', values: tickValues }];
     units.forEach((u, i) => {
       const names = selected.filter((c) => (c.unit || '') === u).map((c) => c.name);
@@ -721,9 +887,52 @@
       series,
       cursor: { sync: { key: SYNC_KEY }, drag: { x: true, y: false } },
       legend: { live: true },
+      hooks: { drawAxes: [(u) => drawBands(u, group.bands, u.data[0])] },
     };
     group.chart = new uPlot(opts, data, group.chartEl);
+    group.chart.explorerBands = group.bands;
     window.explorerCharts[group.key] = group.chart;
+  }
+
+  /** The y range of scale `key`: the data's and every band's on it, padded as uPlot pads. */
+  function bandRange(bands, key, min, max) {
+    let lo = min;
+    let hi = max;
+    for (const b of bands || []) {
+      if (b.scale !== key) continue;
+      for (const v of b.lo) if (v != null && Number.isFinite(v) && (lo == null || v < lo)) lo = v;
+      for (const v of b.hi) if (v != null && Number.isFinite(v) && (hi == null || v > hi)) hi = v;
+    }
+    if (lo == null || hi == null) return [min, max];
+    return uPlot.rangeNum(lo, hi, 0.1, true);
+  }
+
+  /** Fills each band `{lo, hi, fill, scale}` between its two curves over `x`. */
+  function drawBands(u, bands, x) {
+    if (!bands || !bands.length || !x) return;
+    const ctx = u.ctx;
+    const { left, top, width, height } = u.bbox;
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(left, top, width, height);
+    ctx.clip();
+    for (const b of bands) {
+      const n = Math.min(x.length, b.lo.length, b.hi.length);
+      if (n < 2) continue;
+      ctx.beginPath();
+      for (let i = 0; i < n; i++) {
+        const px = u.valToPos(x[i], 'x', true);
+        const py = u.valToPos(b.hi[i], b.scale, true);
+        if (i === 0) ctx.moveTo(px, py); else ctx.lineTo(px, py);
+      }
+      for (let i = n - 1; i >= 0; i--) {
+        ctx.lineTo(u.valToPos(x[i], 'x', true), u.valToPos(b.lo[i], b.scale, true));
+      }
+      ctx.closePath();
+      ctx.fillStyle = b.fill;
+      ctx.fill();
+    }
+    ctx.restore();
   }
 
   function renderAllCharts() {
@@ -739,8 +948,30 @@
         const e = solve && solve.errors ? solve.errors[label.dataset.channel] : null;
         span.textContent = solve && e != null ? fmtPercent(e) : '';
         span.title = solve && e != null ? 'relative L2 error of the surrogate vs the solver' : '';
+        const f = solve ? channelInside(st.prediction, solve, label.dataset.channel) : null;
+        if (f != null) {
+          span.append(insideMark(f === 1, f === 1 ? 'inside the band' : `${fmtPercent(f)} inside the band`));
+          span.title += '; whether the solver curve lies inside the band';
+        }
       }
     }
+  }
+
+  /** The fraction of the solver curve's rows inside the prediction's band (null: no band). */
+  function channelInside(pred, solve, name) {
+    const b = pred && pred.bands && pred.bands[name];
+    if (!b) return null;
+    const given = solve.inside && solve.inside[name];
+    if (given && solve.coverage === pred.coverage) return given.fraction_inside;
+    const x = alignTo(pred.t, solve.t, solve.channels && solve.channels[name]);
+    let n = 0;
+    let inside = 0;
+    x.forEach((v, i) => {
+      if (v == null) return;
+      n += 1;
+      if (b.lo[i] <= v && v <= b.hi[i]) inside += 1;
+    });
+    return n ? inside / n : null;
   }
 
   /** Keeps every chart as wide as its card. */
@@ -1008,10 +1239,15 @@
     }
     const joined = tables.length > 1 ? uPlot.join(tables) : tables[0];
     const data = [joined[0], joined[1]];
+    const iv = sw.intervals && sw.intervals[indexName];
+    const sweepBands = iv ? [{
+      channel: indexName, color: SWEEP_COLOR, fill: withAlpha(SWEEP_COLOR, BAND_ALPHA), scale: 'y',
+      lo: iv.lo, hi: iv.hi, x: values,
+    }] : [];
 
     const series = [
       { label: withUnit(p.name, p.unit), value: legendValue },
-      { label: 'surrogate', stroke: '#1f77b4', width: 2, spanGaps: true, points: { show: false }, value: legendValue },
+      { label: 'surrogate', stroke: SWEEP_COLOR, width: 2, spanGaps: true, points: { show: false }, value: legendValue },
     ];
     if (solved.length) {
       // Markers only: no line between the solver's points.
@@ -1031,7 +1267,7 @@
     const opts = {
       width: chartWidth(node),
       height: SWEEP_HEIGHT,
-      scales: { x: { time: false } },
+      scales: { x: { time: false }, y: { auto: true, range: (_u, min, max) => bandRange(sweepBands, 'y', min, max) } },
       axes: [
         { label: withUnit(p.name, p.unit), values: tickValues },
         {
@@ -1041,12 +1277,19 @@
       ],
       series,
       cursor: { drag: { x: true, y: false } },
-      hooks: { drawClear: [outsideBands(values, sw.outside)] },
+      hooks: {
+        drawClear: [outsideBands(values, sw.outside)],
+        drawAxes: [(u) => drawBands(u, sweepBands, values)],
+      },
     };
     if (st.sweepChart) st.sweepChart.destroy();
     node.textContent = '';
     st.sweepChart = new uPlot(opts, data, node);
+    st.sweepChart.explorerBands = sweepBands;
     window.explorerCharts.sweep = st.sweepChart;
+    $('#sweep-band-hint').textContent = iv
+      ? `Band: the surrogate's ${percent(sw.coverage)} interval of ${indexName} at every design.`
+      : (sw.no_intervals ? 'No error bar on the sweep.' : '');
     const nOutside = (sw.outside || []).filter(Boolean).length;
     $('#sweep-hint').textContent = `The other parameters stay at the design of the request. `
       + (nOutside ? `Shaded: ${nOutside} of ${values.length} values outside the training range.`
@@ -1115,6 +1358,7 @@
     buildExcitation(summary);
     buildChartSections(summary);
     buildSweep(summary);
+    buildCoverage(summary);
     setDesign(nominalDesign());
     renderIndices();
     watchResize();

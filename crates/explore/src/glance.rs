@@ -23,6 +23,9 @@ pub struct Located {
     pub model_dir: PathBuf,
     /// The dataset's files.
     pub dataset: crate::session::DatasetFiles,
+    /// The model's calibration: the `calibration.json` of the stage that calibrates the
+    /// trained models (`calibrate`), or why none was found.
+    pub calibration: Result<PathBuf, String>,
 }
 
 fn files_named(files: &[PathBuf], name: &str) -> Vec<PathBuf> {
@@ -87,12 +90,69 @@ pub fn locate(p: &Pipeline, algorithm: i64) -> Result<Located, String> {
     }
     dataset.params.dedup();
     dataset.profiles.dedup();
+    let calibration = calibration_of(p, &stage.name, algorithm);
     Ok(Located {
         unit,
         model_dir,
         dataset,
+        calibration,
     })
 }
+
+/// The stage that calibrates the models of the training stage `train`: the one named
+/// `calibrate` when it reads them, else any stage reading them whose output holds a
+/// `calibration.json`. Its current output's file of `algorithm` (`algorithm-<A>/`) or, when
+/// the files are named otherwise, the output directory (the model's own file is then found in
+/// it by identity).
+fn calibration_of(p: &Pipeline, train: &str, algorithm: i64) -> Result<PathBuf, String> {
+    let mut readers: Vec<&orchestrator::spec::Stage> = p
+        .stages
+        .iter()
+        .filter(|s| s.inputs.values().any(|u| u == train))
+        .collect();
+    readers.sort_by_key(|s| s.name != CALIBRATE);
+    let mut why = format!(
+        "no error bar: {} has no stage that calibrates the models of `{train}` (a `{CALIBRATE}` stage)",
+        p.file
+    );
+    for s in readers {
+        let files: Vec<PathBuf> = match show(p, &s.name) {
+            Ok(text) => text.lines().map(PathBuf::from).collect(),
+            Err(e) => {
+                if s.name == CALIBRATE {
+                    why = format!(
+                        "no error bar: `{CALIBRATE}` of {} has no current output ({e}); run `pipeline -f {} run {CALIBRATE}`",
+                        p.file, p.file
+                    );
+                }
+                continue;
+            }
+        };
+        let found = files_named(&files, pino_eval::calibration::CALIBRATION_FILE);
+        let own = pino_eval::calibration::build::model_subdir(algorithm);
+        if let Some(f) = found.iter().find(|f| {
+            f.parent()
+                .and_then(|d| d.file_name())
+                .is_some_and(|n| n == own.as_str())
+        }) {
+            return Ok(f.clone());
+        }
+        if let Some(dir) = found.first().and_then(|f| f.parent()?.parent()) {
+            return Ok(dir.to_path_buf());
+        }
+        if s.name == CALIBRATE {
+            why = format!(
+                "no error bar: `{CALIBRATE}` of {} wrote no {}",
+                p.file,
+                pino_eval::calibration::CALIBRATION_FILE
+            );
+        }
+    }
+    Err(why)
+}
+
+/// The stage that calibrates the models, by its name in the shipped pipelines.
+const CALIBRATE: &str = "calibrate";
 
 /// A unit as the page shows it.
 #[derive(Debug, Clone, PartialEq, Serialize)]

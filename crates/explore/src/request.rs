@@ -92,6 +92,27 @@ pub struct DesignRequest {
     pub design: Vec<f64>,
     /// The excitation; `None`: the model's default.
     pub excitation: Option<Excitation>,
+    /// Coverage of the intervals (default [`DEFAULT_COVERAGE`]); ignored without a
+    /// calibration.
+    pub coverage: f64,
+    /// The channels whose bands the answer carries (`None`: every banded channel).
+    pub bands: Option<Vec<String>>,
+}
+
+/// The coverage of the intervals when a request names none.
+pub const DEFAULT_COVERAGE: f64 = pino_eval::calibration::DEFAULT_COVERAGE;
+
+/// Whether `n` calibration samples support `coverage` (in (0, 1)): the conformal rank
+/// `ceil((n + 1) c)` is at most `n` ([`pino_eval::calibration::conformal_rank`]); the refusal
+/// says what is allowed.
+pub fn coverage_supported(n: usize, coverage: f64) -> Result<(), String> {
+    match pino_eval::calibration::conformal_rank(n, coverage) {
+        Ok(_) => Ok(()),
+        Err(_) => Err(format!(
+            "a level the calibration's {n} samples support: at most n / (n + 1) = {:.4}",
+            pino_eval::calibration::max_coverage(n)
+        )),
+    }
 }
 
 /// A one-parameter sweep.
@@ -125,6 +146,11 @@ pub struct RequestRules {
     pub sweep_max_designs: usize,
     /// Most solver points in one sweep.
     pub sweep_max_solve_points: usize,
+    /// Calibration samples of the model's calibration, when its answers carry intervals
+    /// (`None`: a `coverage` in (0, 1) is accepted and no interval is computed).
+    pub calibration_n: Option<usize>,
+    /// The channels with a band (a request's `bands` names some of them).
+    pub band_channels: Vec<String>,
 }
 
 fn object<'a>(v: &'a Value, field: &str) -> Result<&'a Map<String, Value>, ApiError> {
@@ -250,17 +276,96 @@ impl RequestRules {
         }
     }
 
-    /// A design request: `{design, excitation}`.
-    pub fn design_request(&self, v: &Value) -> Result<DesignRequest, ApiError> {
-        let obj = object(v, "body")?;
-        only_keys(obj, "", &["design", "excitation"])?;
+    /// The coverage of the intervals: a number in (0, 1) the calibration supports; absent,
+    /// [`DEFAULT_COVERAGE`], or the highest level a calibration of fewer than 9 samples
+    /// supports (`n / (n + 1)`).
+    fn coverage(&self, v: Option<&Value>) -> Result<f64, ApiError> {
+        let Some(v) = v.filter(|v| !v.is_null()) else {
+            return Ok(match self.calibration_n {
+                Some(n) if n > 0 && coverage_supported(n, DEFAULT_COVERAGE).is_err() => {
+                    pino_eval::calibration::max_coverage(n)
+                }
+                _ => DEFAULT_COVERAGE,
+            });
+        };
+        let c = number(v, "coverage")?;
+        if !(c > 0.0 && c < 1.0) {
+            return Err(ApiError::bad(
+                "coverage",
+                format!("`coverage` = {c} is not a level in (0, 1)"),
+                "a level in (0, 1), such as 0.8, 0.9 or 0.95",
+            ));
+        }
+        if let Some(n) = self.calibration_n {
+            coverage_supported(n, c).map_err(|allowed| {
+                ApiError::bad(
+                    "coverage",
+                    format!(
+                        "`coverage` = {c} is above what the model's calibration supports ({n} calibration samples)"
+                    ),
+                    allowed,
+                )
+            })?;
+        }
+        Ok(c)
+    }
+
+    /// The channels whose bands to answer: absent or `true` every one, `false` or `[]` none,
+    /// or a list of channel names with a band.
+    fn bands(&self, v: Option<&Value>) -> Result<Option<Vec<String>>, ApiError> {
+        let allowed = || {
+            format!(
+                "true, false, or a list of channels with a band: {}",
+                if self.band_channels.is_empty() {
+                    "none (the model has no calibration)".to_owned()
+                } else {
+                    self.band_channels.join(", ")
+                }
+            )
+        };
+        match v {
+            None | Some(Value::Null) | Some(Value::Bool(true)) => Ok(None),
+            Some(Value::Bool(false)) => Ok(Some(Vec::new())),
+            Some(Value::Array(names)) => names
+                .iter()
+                .map(|n| match n.as_str() {
+                    Some(name) if self.band_channels.iter().any(|c| c == name) => {
+                        Ok(name.to_owned())
+                    }
+                    _ => Err(ApiError::bad(
+                        "bands",
+                        format!("`bands`: {n} is not a channel with a band"),
+                        allowed(),
+                    )),
+                })
+                .collect::<Result<Vec<_>, _>>()
+                .map(Some),
+            Some(other) => Err(ApiError::bad(
+                "bands",
+                format!("`bands` = {other} is neither a boolean nor a list of channels"),
+                allowed(),
+            )),
+        }
+    }
+
+    fn base(&self, obj: &Map<String, Value>) -> Result<DesignRequest, ApiError> {
         Ok(DesignRequest {
             design: self.design(obj.get("design"))?,
             excitation: self.excitation(obj.get("excitation"))?,
+            coverage: self.coverage(obj.get("coverage"))?,
+            bands: self.bands(obj.get("bands"))?,
         })
     }
 
-    /// A sweep request: `{design, excitation, parameter, from, to, steps, solve_points}`.
+    /// A design request: `{design, excitation, coverage, bands}`.
+    pub fn design_request(&self, v: &Value) -> Result<DesignRequest, ApiError> {
+        let obj = object(v, "body")?;
+        only_keys(obj, "", &["design", "excitation", "coverage", "bands"])?;
+        self.base(obj)
+    }
+
+    /// A sweep request: `{design, excitation, coverage, parameter, from, to, steps,
+    /// solve_points}`.
     pub fn sweep_request(&self, v: &Value) -> Result<SweepRequest, ApiError> {
         let obj = object(v, "body")?;
         only_keys(
@@ -269,6 +374,8 @@ impl RequestRules {
             &[
                 "design",
                 "excitation",
+                "coverage",
+                "bands",
                 "parameter",
                 "from",
                 "to",
@@ -276,10 +383,7 @@ impl RequestRules {
                 "solve_points",
             ],
         )?;
-        let base = DesignRequest {
-            design: self.design(obj.get("design"))?,
-            excitation: self.excitation(obj.get("excitation"))?,
-        };
+        let base = self.base(obj)?;
         let allowed = format!("one of {}", self.names.join(", "));
         let name = obj
             .get("parameter")
@@ -330,6 +434,8 @@ mod tests {
             ranges: vec![[0.5, 2.0], [1.0, 3.0]],
             sweep_max_designs: 400,
             sweep_max_solve_points: 8,
+            calibration_n: None,
+            band_channels: vec!["x".into()],
         }
     }
 
@@ -380,6 +486,54 @@ mod tests {
                 "{text}"
             );
         }
+    }
+
+    #[test]
+    fn the_coverage_is_a_level_in_0_1_that_the_calibration_supports() {
+        let r = rules().design_request(&json!({})).unwrap();
+        assert_eq!(r.coverage, DEFAULT_COVERAGE);
+        let r = rules().design_request(&json!({"coverage": 0.95})).unwrap();
+        assert_eq!(r.coverage, 0.95);
+        for bad in [json!(0.0), json!(1.0), json!(-0.5), json!(2), json!("0.9")] {
+            let e = refused(json!({ "coverage": bad }));
+            assert_eq!(
+                (e.status, e.field.as_deref()),
+                (400, Some("coverage")),
+                "{bad}"
+            );
+        }
+        // With 10 calibration samples: up to 10/11.
+        let with = RequestRules {
+            calibration_n: Some(10),
+            ..rules()
+        };
+        for ok in [0.8, 0.9, 10.0 / 11.0] {
+            assert!(
+                with.design_request(&json!({ "coverage": ok })).is_ok(),
+                "{ok}"
+            );
+        }
+        let e = with
+            .sweep_request(&json!({"parameter": "c", "coverage": 0.95}))
+            .unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("coverage"));
+        assert!(e.allowed.unwrap().contains("0.9091"));
+        assert!(coverage_supported(19, 0.95).is_ok());
+        // A calibration too small for the default: its highest level.
+        let small = RequestRules {
+            calibration_n: Some(3),
+            ..rules()
+        };
+        assert_eq!(small.design_request(&json!({})).unwrap().coverage, 0.75);
+        // The bands asked for: all by default, none, or some channels with a band.
+        let bands = |v: Value| rules().design_request(&json!({ "bands": v }));
+        assert_eq!(rules().design_request(&json!({})).unwrap().bands, None);
+        assert_eq!(bands(json!(false)).unwrap().bands, Some(vec![]));
+        assert_eq!(bands(json!(["x"])).unwrap().bands, Some(vec!["x".into()]));
+        for bad in [json!(["y"]), json!("x"), json!([1])] {
+            assert_eq!(bands(bad).unwrap_err().field.as_deref(), Some("bands"));
+        }
+        assert!(coverage_supported(0, 0.5).is_err());
     }
 
     #[test]

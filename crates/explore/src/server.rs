@@ -291,34 +291,105 @@ fn not_found() -> HttpResponse {
     })
 }
 
-/// The answer of a prediction or a solve.
-fn response_json(ex: &Explorer, r: &Response) -> Value {
+/// The answer of a prediction or a solve; a calibrated prediction adds each index's interval
+/// and verdict, the combined verdict, `coverage`, `extrapolated` and the bands of the channels
+/// `bands` names (every banded channel when `None`).
+fn response_json(ex: &Explorer, r: &Response, bands_of: Option<&[String]>) -> Value {
     let channels: serde_json::Map<String, Value> = ex
         .channels()
         .iter()
         .zip(&r.channels)
         .map(|(c, v)| (c.name.clone(), json!(v)))
         .collect();
+    let cal = r.calibrated.as_ref();
     let indices: Vec<Value> = ex
         .index_names()
         .iter()
         .zip(&r.indices)
         .zip(ex.index_limits())
-        .map(|((name, v), limit)| json!({"name": name, "value": v, "pass": limit.map(|l| *v <= l)}))
+        .enumerate()
+        .map(|(k, ((name, v), limit))| {
+            let interval = cal.and_then(|c| c.indices.get(k));
+            let verdict = cal.and_then(|c| c.verdicts.get(k).copied().flatten());
+            json!({
+                "name": name,
+                "value": v,
+                "pass": limit.map(|l| *v <= l),
+                "lo": interval.map(|i| i.lo),
+                "hi": interval.map(|i| i.hi),
+                "verdict": verdict.map(|v| v.as_str()),
+            })
+        })
         .collect();
+    let mut bands = serde_json::Map::new();
+    if let Some(c) = cal.filter(|c| !c.bands.is_empty()) {
+        for (k, ch) in ex.channels().iter().enumerate() {
+            let Some(h) = ex.band_index(k).and_then(|b| c.bands.get(b)) else {
+                continue;
+            };
+            if bands_of.is_some_and(|names| !names.contains(&ch.name)) {
+                continue;
+            }
+            let x = &r.channels[k];
+            let lo: Vec<f64> = x.iter().zip(h).map(|(x, h)| x - h).collect();
+            let hi: Vec<f64> = x.iter().zip(h).map(|(x, h)| x + h).collect();
+            bands.insert(ch.name.clone(), json!({"lo": lo, "hi": hi}));
+        }
+    }
     json!({
         "t": r.t,
         "channels": channels,
         "indices": indices,
         "pass": r.failed.is_empty(),
         "failed": r.failed,
+        "coverage": cal.map(|c| c.coverage),
+        "extrapolated": cal.map(|c| c.extrapolated),
+        "relative_residual": cal.and_then(|c| c.relative_residual),
+        "verdict": cal.and_then(|c| c.verdict).map(|v| v.as_str()),
+        "bands": bands,
+        "no_intervals": ex.calibration_note(),
     })
+}
+
+/// Where the solver's answer `exact` lies against the calibrated prediction `pred`: per
+/// banded channel whether the whole curve is inside the band and the fraction of rows inside,
+/// per index whether the solver's value is inside the interval (`{}` without intervals).
+fn inside_json(ex: &Explorer, pred: &Response, exact: &Response) -> (Value, Value) {
+    let Some(cal) = pred.calibrated.as_ref() else {
+        return (json!({}), json!({}));
+    };
+    let mut channels = serde_json::Map::new();
+    for (k, ch) in ex.channels().iter().enumerate() {
+        let Some(h) = ex.band_index(k).and_then(|b| cal.bands.get(b)) else {
+            continue;
+        };
+        let (p, x) = (&pred.channels[k], &exact.channels[k]);
+        let rows = p.len().min(x.len()).min(h.len());
+        let n_in = (0..rows)
+            .filter(|&n| p[n] - h[n] <= x[n] && x[n] <= p[n] + h[n])
+            .count();
+        channels.insert(
+            ch.name.clone(),
+            json!({
+                "inside": n_in == rows,
+                "fraction_inside": if rows == 0 { 1.0 } else { n_in as f64 / rows as f64 },
+            }),
+        );
+    }
+    let indices: serde_json::Map<String, Value> = ex
+        .index_names()
+        .into_iter()
+        .zip(&cal.indices)
+        .zip(&exact.indices)
+        .map(|((name, i), &x)| (name, json!(i.contains(x))))
+        .collect();
+    (Value::Object(channels), Value::Object(indices))
 }
 
 /// The answer of a prediction or a solve of `req`: the curves and indices, the full design,
 /// the parameters outside the training ranges and the excitation used.
 fn answer(ex: &Explorer, req: &DesignRequest, r: &Response) -> Value {
-    let mut v = response_json(ex, r);
+    let mut v = response_json(ex, r, req.bands.as_deref());
     v["design"] = Value::Object(ex.design_map(&req.design));
     v["outside"] = json!(ex.outside(&req.design));
     v["excitation"] = json!(ex.excitation_used(req.excitation));
@@ -413,6 +484,10 @@ async fn solve(State(app): State<Shared>, body: Bytes) -> HttpResponse {
             .collect();
         v["errors"] = Value::Object(errors);
         v["index_errors"] = Value::Object(index_errors);
+        let (inside, index_inside) = inside_json(&ex, &pred, &exact);
+        v["coverage"] = json!(pred.calibrated.as_ref().map(|c| c.coverage));
+        v["inside"] = inside;
+        v["index_inside"] = index_inside;
         v["solve_ms"] = json!(solve_ms);
         Ok(v)
     })
@@ -476,15 +551,38 @@ async fn sweep(State(app): State<Shared>, body: Bytes) -> HttpResponse {
         .map(|(k, n)| {
             (
                 n.clone(),
-                json!(ix.iter().map(|s| s.values[k]).collect::<Vec<_>>()),
+                json!(ix.iter().map(|s| s.indices.values[k]).collect::<Vec<_>>()),
             )
         })
         .collect();
+    // Each index curve's interval at every design, when calibrated.
+    let calibrated: Option<Vec<_>> = ix.iter().map(|a| a.calibrated.as_ref()).collect();
+    let calibrated = calibrated.filter(|c| c.iter().all(|a| a.indices.len() == names.len()));
+    let intervals: serde_json::Map<String, Value> = match &calibrated {
+        Some(cal) => names
+            .iter()
+            .enumerate()
+            .map(|(k, n)| {
+                let lo: Vec<f64> = cal.iter().map(|a| a.indices[k].lo).collect();
+                let hi: Vec<f64> = cal.iter().map(|a| a.indices[k].hi).collect();
+                let verdict: Vec<Option<&str>> = cal
+                    .iter()
+                    .map(|a| a.verdicts[k].map(|v| v.as_str()))
+                    .collect();
+                (n.clone(), json!({"lo": lo, "hi": hi, "verdict": verdict}))
+            })
+            .collect(),
+        None => serde_json::Map::new(),
+    };
     let outside: Vec<bool> = designs.iter().map(|d| !ex.outside(d).is_empty()).collect();
     json_ok(json!({
         "parameter": ex.rules().names[req.parameter],
         "values": values,
         "indices": indices,
+        "coverage": calibrated.as_ref().map(|_| req.base.coverage),
+        "intervals": intervals,
+        "verdict": calibrated.as_ref().map(|c| c.iter().map(|a| a.verdict.map(|v| v.as_str())).collect::<Vec<_>>()),
+        "no_intervals": ex.calibration_note(),
         "outside": outside,
         "solved": solved,
         "elapsed_ms": started.elapsed().as_secs_f64() * 1e3,

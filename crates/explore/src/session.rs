@@ -9,12 +9,19 @@
 //! (`n = 1..T-2`, where its central-difference derivatives exist): the rows `predict --out`
 //! writes, so the page shows exactly what the command gives. The exact solve runs the
 //! `simulate` stage's engine with the dataset's run controls and is cut to the same rows.
+//!
+//! Error bars: with the model's calibration ([`Explorer::load_calibration`],
+//! docs/uncertainty.md) every prediction carries, at the request's coverage, each index's
+//! interval and three-valued verdict and each predicted channel's band (half-widths at the same
+//! interior rows); sweeps carry each index curve's intervals. Without one the answers say why
+//! ([`Explorer::calibration_note`]).
 
 use crate::request::{ApiError, DesignRequest, Excitation, RequestRules, SweepRequest};
 use crate::solve::{self, Rates};
 use mbd_engine::{Profile, RunConfig};
+use pino_eval::calibration::{CalibratedAnswer, REPORTED_LEVELS};
 use pino_eval::indices_eval::{SampleIndices, StoredColumns};
-use pino_eval::predict::{Predictor, ProfileChoice, SetPrediction};
+use pino_eval::predict::{DesignAnswer, Predictor, ProfileChoice, SetPrediction};
 use pino_indices::IndexConfig;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -31,6 +38,9 @@ pub enum Error {
     /// Reading the dataset's files.
     #[error(transparent)]
     Data(#[from] pino_data::Error),
+    /// The calibration refused (missing, corrupt, of another model), naming the file.
+    #[error("{0}")]
+    Calibration(String),
     /// Anything else, with its context.
     #[error("{0}")]
     Other(String),
@@ -138,6 +148,9 @@ pub struct Response {
     pub indices: Vec<f64>,
     /// Indices over their limits.
     pub failed: Vec<String>,
+    /// The intervals, bands and three-valued verdicts of a calibrated prediction (`None` for
+    /// a solve, or without a calibration).
+    pub calibrated: Option<CalibratedAnswer>,
 }
 
 /// The points of each profile of the system (`None`: analytic or level), shared.
@@ -161,7 +174,12 @@ pub struct Explorer {
     generated: Vec<String>,
     cache: Mutex<Vec<((u64, u64), Profiles)>>,
     limits: Limits,
+    calibration_file: Option<PathBuf>,
+    calibration_note: Option<String>,
 }
+
+/// Why answers carry no interval when no calibration was given.
+pub const NO_CALIBRATION: &str = "no error bar: no calibration was given, the answers are point values (give --calibration, or run the pipeline's `calibrate` stage; docs/uncertainty.md)";
 
 fn internal(e: impl std::fmt::Display) -> ApiError {
     ApiError::internal(e)
@@ -231,6 +249,8 @@ impl Explorer {
             ranges,
             sweep_max_designs: limits.sweep_max_designs,
             sweep_max_solve_points: limits.sweep_max_solve_points,
+            calibration_n: None,
+            band_channels: Vec::new(),
         };
         let generated = system
             .profiles
@@ -240,7 +260,7 @@ impl Explorer {
             .collect();
         let identity = ModelIdentity {
             dir: model_dir.display().to_string(),
-            identity: model_identity(model_dir)?,
+            identity: predictor.identity().blake3.clone(),
             algorithm: meta.train.algorithm.id(),
             system: system.name.clone(),
         };
@@ -259,6 +279,92 @@ impl Explorer {
             generated,
             cache: Mutex::new(Vec::new()),
             limits,
+            calibration_file: None,
+            calibration_note: Some(NO_CALIBRATION.to_owned()),
+        })
+    }
+
+    /// Loads the model's calibration (a `calibration.json` or the `calibrate` stage's output
+    /// directory): refused, naming the file, when missing, corrupt or of another model. A
+    /// calibration without intervals (`n_calibration: 0`) is accepted and its reason noted.
+    pub fn load_calibration(&mut self, path: &Path) -> Result<(), Error> {
+        let cal = self
+            .predictor
+            .load_calibration(path)
+            .map_err(|e| Error::Calibration(format!("calibration {}: {e}", path.display())))?;
+        let (n, has, why) = (cal.n, cal.has_intervals(), cal.no_intervals.clone());
+        self.calibration_file = Some(path.to_owned());
+        if has {
+            self.rules.calibration_n = Some(n);
+            self.calibration_note = None;
+            self.rules.band_channels = (0..self.channels.len())
+                .filter(|&k| self.band_index(k).is_some())
+                .map(|k| self.channels[k].name.clone())
+                .collect();
+        } else {
+            self.rules.calibration_n = None;
+            self.rules.band_channels.clear();
+            self.calibration_note = Some(format!(
+                "no error bar: the calibration {} has no intervals: {}",
+                path.display(),
+                why.unwrap_or_else(|| "it has no calibration samples".into())
+            ));
+        }
+        Ok(())
+    }
+
+    /// Records why no calibration was loaded (shown on the page and in the summary).
+    pub fn no_calibration(&mut self, why: impl Into<String>) {
+        self.calibration_note = Some(why.into());
+    }
+
+    /// Why the answers carry no interval; `None` when they do.
+    pub fn calibration_note(&self) -> Option<&str> {
+        self.calibration_note.as_deref()
+    }
+
+    /// Whether the answers carry intervals.
+    pub fn has_intervals(&self) -> bool {
+        self.rules.calibration_n.is_some()
+    }
+
+    /// The band index of each channel ([`Explorer::channels`] order) in a calibrated answer's
+    /// `bands` (outputs, velocities, accelerations; `None` for excitations, exact inputs).
+    pub fn band_index(&self, channel: usize) -> Option<usize> {
+        if !self.has_intervals() {
+            return None;
+        }
+        let layout = &self.predictor.meta.layout;
+        let (o, d) = (layout.n_outputs(), layout.n_dofs());
+        match self.channels.get(channel)?.slot {
+            Slot::Output(i) => Some(i),
+            Slot::Velocity(j) => Some(o + j),
+            Slot::Acceleration(j) => Some(o + d + j),
+            Slot::Excitation(_) => None,
+        }
+    }
+
+    /// The calibration as the summary lists it (`null` without intervals).
+    fn calibration_summary(&self) -> serde_json::Value {
+        let Some(cal) = self.predictor.calibration().filter(|c| c.has_intervals()) else {
+            return serde_json::Value::Null;
+        };
+        let levels: Vec<_> = REPORTED_LEVELS
+            .iter()
+            .map(|&level| match cal.at(level) {
+                Ok(_) => serde_json::json!({"level": level, "supported": true, "why": null}),
+                Err(e) => {
+                    serde_json::json!({"level": level, "supported": false, "why": e.to_string()})
+                }
+            })
+            .collect();
+        serde_json::json!({
+            "file": self.calibration_file.as_ref().map(|p| p.display().to_string()),
+            "n": cal.n,
+            "normaliser": cal.normaliser.as_str(),
+            "max_coverage": pino_eval::calibration::max_coverage(cal.n),
+            "levels": levels,
+            "default_coverage": crate::request::DEFAULT_COVERAGE,
         })
     }
 
@@ -347,6 +453,8 @@ impl Explorer {
             },
             "time": {"t0": meta.grid.t0, "dt": meta.grid.dt, "points": meta.grid.t_points},
             "limits": self.limits,
+            "calibration": self.calibration_summary(),
+            "calibration_note": self.calibration_note,
         })
     }
 
@@ -480,21 +588,31 @@ impl Explorer {
     }
 
     /// The answer of `design` from its values `p`: the curves at the interior rows and the
-    /// indices.
+    /// indices; with `coverage` (a prediction), the intervals and bands of the calibration.
     fn response(
         &self,
         design: &[f64],
         p: &SetPrediction,
         rates: Rates,
         stored: Option<&StoredColumns>,
+        coverage: Option<f64>,
     ) -> Result<Response, ApiError> {
         let ix = self.indices_of(design, p, stored)?;
         let (t, channels) = solve::curves(&self.channels, &self.predictor.meta, p, rates);
+        let indices = ix.as_ref().map_or_else(Vec::new, |ix| ix.values.clone());
+        let calibrated = match coverage {
+            Some(c) if self.has_intervals() => self
+                .predictor
+                .calibrated(design, p, &indices, c, true)
+                .map_err(calibration_error)?,
+            _ => None,
+        };
         Ok(Response {
             t,
             channels,
-            failed: ix.as_ref().map_or_else(Vec::new, |ix| ix.failed.clone()),
-            indices: ix.map_or_else(Vec::new, |ix| ix.values),
+            failed: ix.map_or_else(Vec::new, |ix| ix.failed),
+            indices,
+            calibrated,
         })
     }
 
@@ -505,7 +623,7 @@ impl Explorer {
             .predict_raw(std::slice::from_ref(&req.design), &profiles)?
             .pop()
             .ok_or_else(|| internal("no prediction"))?;
-        self.response(&req.design, &p, Rates::Interior, None)
+        self.response(&req.design, &p, Rates::Interior, None, Some(req.coverage))
     }
 
     /// The designs of a sweep.
@@ -525,11 +643,11 @@ impl Explorer {
     }
 
     /// The index values of every design of a sweep through the surrogate (batches side by side
-    /// on the CPU), and which designs leave the training ranges.
+    /// on the CPU), with their intervals at the request's coverage when calibrated.
     pub fn sweep(
         &self,
         req: &SweepRequest,
-    ) -> Result<(Vec<Vec<f64>>, Vec<SampleIndices>), ApiError> {
+    ) -> Result<(Vec<Vec<f64>>, Vec<DesignAnswer>), ApiError> {
         let designs = self.sweep_designs(req);
         if !self.predictor.index_inputs().computable() {
             return Err(ApiError::bad(
@@ -549,13 +667,34 @@ impl Explorer {
             .len()
             .div_ceil(rayon::current_num_threads().max(1))
             .max(1);
-        let ix = self
-            .predictor
-            .indices(&designs, &profiles, &self.run, &self.index_cfg, batch)
-            .map_err(|e| {
-                ApiError::bad("excitation", e.to_string(), "profiles that cover the run")
-            })?;
-        Ok((designs, ix))
+        let answers = if self.has_intervals() {
+            self.predictor
+                .answers(
+                    &designs,
+                    &profiles,
+                    &self.run,
+                    &self.index_cfg,
+                    batch,
+                    req.base.coverage,
+                )
+                .map_err(|e| match e {
+                    pino_learn::Error::OutOfRange { .. } => calibration_error(e),
+                    e => ApiError::bad("excitation", e.to_string(), "profiles that cover the run"),
+                })?
+        } else {
+            self.predictor
+                .indices(&designs, &profiles, &self.run, &self.index_cfg, batch)
+                .map_err(|e| {
+                    ApiError::bad("excitation", e.to_string(), "profiles that cover the run")
+                })?
+                .into_iter()
+                .map(|indices| DesignAnswer {
+                    indices,
+                    calibrated: None,
+                })
+                .collect()
+        };
+        Ok((designs, answers))
     }
 
     /// The exact solve of a design beside its prediction; stops early (an error) when `cancel`
@@ -590,7 +729,13 @@ impl Explorer {
         let exact = solve::exact(&self.predictor, &self.run, &req.design, &profiles, cancel)?;
         let solve_ms = started.elapsed().as_secs_f64() * 1e3;
         let stored = StoredColumns::of_sample(self.predictor.index_inputs(), 0, exact.stored);
-        let solved = self.response(&req.design, &exact.values, Rates::EveryPoint, Some(&stored))?;
+        let solved = self.response(
+            &req.design,
+            &exact.values,
+            Rates::EveryPoint,
+            Some(&stored),
+            None,
+        )?;
         Ok((solved, solve_ms))
     }
 
@@ -604,6 +749,8 @@ impl Explorer {
         let req = DesignRequest {
             design: design.to_vec(),
             excitation,
+            coverage: crate::request::DEFAULT_COVERAGE,
+            bands: Some(Vec::new()),
         };
         Ok(self.exact(&req, cancel)?.0.indices)
     }
@@ -654,18 +801,15 @@ impl Explorer {
     }
 }
 
-/// blake3 over `model.json` and `model.safetensors`, hex.
-fn model_identity(dir: &Path) -> Result<String, Error> {
-    let mut h = blake3::Hasher::new();
-    for name in [pino_learn::checkpoint::MODEL_META, "model.safetensors"] {
-        let path = dir.join(name);
-        let bytes = std::fs::read(&path)
-            .map_err(|e| Error::Other(format!("reading {}: {e}", path.display())))?;
-        h.update(name.as_bytes());
-        h.update(&(bytes.len() as u64).to_le_bytes());
-        h.update(&bytes);
+/// A calibration's refusal of a request: a level it cannot support is the request's `coverage`;
+/// anything else is a fault of the calibration file.
+fn calibration_error(e: pino_learn::Error) -> ApiError {
+    match e {
+        pino_learn::Error::OutOfRange { field, allowed, .. } if field == "coverage" => {
+            ApiError::bad("coverage", format!("`coverage`: {allowed}"), allowed)
+        }
+        other => ApiError::internal(format!("the calibration: {other}")),
     }
-    Ok(h.finalize().to_hex().to_string())
 }
 
 /// The test split of the dataset, with each sample's profiles.

@@ -4,11 +4,14 @@
 //! ```text
 //! explore [-C DIR] [-f pipeline.yaml] [--algorithm 5]            # the workspace's current model
 //! explore --model DIR [--params params.parquet --profiles irregularity.parquet]
+//!         [--calibration calibration.json|DIR]
 //!         [--bind 127.0.0.1:8750] [--token T] [--allow-host NAME]...
 //!         [--solve-workers 1] [--solve-queue 4] [--solve-max-duration 30] [--sweep-max 400]
 //! ```
 //! Prints `explore: serving ... on http://ADDR/` (the real port for `--bind HOST:0`) and serves
-//! until interrupted.
+//! until interrupted. Without `--model` the calibration is the pipeline's `calibrate` output
+//! (when it ran); a calibration that is missing, corrupt or of another model is refused at
+//! startup, naming the file (exit 2).
 use anyhow::{bail, Context, Result};
 use clap::Parser;
 use pino_explore::glance::{locate, DEFAULT_ALGORITHM};
@@ -49,6 +52,11 @@ struct Args {
     /// With --model: the dataset's `irregularity.parquet` (the test samples' profiles).
     #[arg(long, requires = "model", value_name = "FILE")]
     profiles: Vec<PathBuf>,
+    /// The model's calibration (a `calibration.json`, or the `calibrate` stage's output
+    /// directory): the answers' intervals and verdicts (default without --model: the
+    /// pipeline's `calibrate` output).
+    #[arg(long, value_name = "FILE|DIR")]
+    calibration: Option<PathBuf>,
     /// Address to serve on; port 0 takes any free port.
     #[arg(long, default_value = "127.0.0.1:8750")]
     bind: SocketAddr,
@@ -72,6 +80,19 @@ struct Args {
     #[arg(long, default_value_t = Limits::default().sweep_max_designs)]
     sweep_max: usize,
 }
+
+/// A refusal of the command line's inputs (a calibration missing, corrupt or of another
+/// model): exit 2.
+#[derive(Debug)]
+struct Refused(String);
+
+impl std::fmt::Display for Refused {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Refused {}
 
 fn random_token() -> Result<String> {
     use std::io::Read;
@@ -111,7 +132,7 @@ async fn run(args: Args) -> Result<()> {
     } else {
         None
     };
-    let (model_dir, dataset, what) = match (&args.model, &pipeline) {
+    let (model_dir, dataset, what, calibration) = match (&args.model, &pipeline) {
         (Some(dir), _) => (
             dir.clone(),
             DatasetFiles {
@@ -119,6 +140,7 @@ async fn run(args: Args) -> Result<()> {
                 profiles: args.profiles.clone(),
             },
             dir.display().to_string(),
+            Err(pino_explore::session::NO_CALIBRATION.to_owned()),
         ),
         (None, Some(p)) => {
             let found = locate(p, args.algorithm).map_err(anyhow::Error::msg)?;
@@ -126,9 +148,14 @@ async fn run(args: Args) -> Result<()> {
                 found.model_dir,
                 found.dataset,
                 format!("{} of {}", found.unit, p.file),
+                found.calibration,
             )
         }
         (None, None) => bail!("no model: give --model DIR or a pipeline file with -f"),
+    };
+    let calibration = match &args.calibration {
+        Some(path) => Ok(path.clone()),
+        None => calibration,
     };
     let limits = Limits {
         solve_max_duration_s: args.solve_max_duration,
@@ -136,8 +163,23 @@ async fn run(args: Args) -> Result<()> {
         ..Limits::default()
     };
     eprintln!("explore: opening {what} ...");
-    let explorer = Explorer::open(&model_dir, dataset, limits)
+    let mut explorer = Explorer::open(&model_dir, dataset, limits)
         .with_context(|| format!("opening the model {}", model_dir.display()))?;
+    match calibration {
+        Ok(path) => {
+            explorer
+                .load_calibration(&path)
+                .map_err(|e| Refused(e.to_string()))?;
+            match explorer.calibration_note() {
+                Some(note) => eprintln!("explore: note: {note}"),
+                None => eprintln!("explore: intervals from the calibration {}", path.display()),
+            }
+        }
+        Err(why) => {
+            eprintln!("explore: note: {why}");
+            explorer.no_calibration(why);
+        }
+    }
     let listener = tokio::net::TcpListener::bind(args.bind)
         .await
         .with_context(|| format!("binding {}", args.bind))?;
@@ -199,6 +241,10 @@ fn main() {
     };
     if let Err(e) = rt.block_on(run(args)) {
         eprintln!("explore: {e:#}");
-        std::process::exit(1);
+        std::process::exit(if e.downcast_ref::<Refused>().is_some() {
+            2
+        } else {
+            1
+        });
     }
 }

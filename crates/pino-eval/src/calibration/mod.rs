@@ -28,6 +28,7 @@ pub mod scored;
 
 pub use answer::{Calibrated, CalibratedAnswer};
 
+pub use pino_conformal::scores::{max_coverage, rank as conformal_rank};
 use pino_conformal::{ErrorHead, ScoreSet};
 use pino_learn::{Error, Result};
 use serde::{Deserialize, Serialize};
