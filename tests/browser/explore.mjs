@@ -454,6 +454,11 @@ async function main() {
     check(notFresh.length === 0, `units not fresh on the pipeline page: ${JSON.stringify(notFresh)}`);
     const table4Rows = await page.$$eval('#table4 tbody tr', (rows) => rows.length);
     check(table4Rows > 0, 'the pipeline page shows no Table 4');
+    // Every image finished (loaded or failed) before judging: the page loads its plots lazily
+    // (as a user scrolls to them) and a loaded machine may still be fetching them.
+    await page.$$eval('img', (imgs) => imgs.forEach((i) => { i.loading = 'eager'; }));
+    await page.waitForFunction(() => document.images.length > 0 && [...document.images].every((i) => i.complete),
+      null, { timeout: TIMEOUT_MS });
     const plots = await page.$$eval('img', (imgs) => imgs.map((i) => [i.getAttribute('src'), i.complete && i.naturalWidth > 0]));
     check(plots.length > 0 && plots.every(([, ok]) => ok), `evaluate plots not shown: ${JSON.stringify(plots)}`);
     results.pipeline = { units, table4_rows: table4Rows, plots: plots.length };
