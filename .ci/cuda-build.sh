@@ -35,8 +35,10 @@ if [ "${PINO_CUDA_CHECK:-release}" = dev ]; then
 else
     profile=(--release) out=release
 fi
-cargo build "${profile[@]}" --locked -p train -p calibrate -p evaluate -p predict --features cuda
-cargo test "${profile[@]}" --locked -p pino-learn --features cuda --test cuda_parity --no-run
+# One build of the stages and of pino-learn's tests (the CUDA parity test among them): one
+# feature resolution, so no dependency is compiled twice.
+cargo build "${profile[@]}" --locked -p train -p calibrate -p evaluate -p predict -p pino-learn \
+    --features cuda --bins --tests
 
 # The binaries must want the driver by its soname (the stub is link-time only).
 for bin in train calibrate evaluate predict; do
