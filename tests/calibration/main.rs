@@ -10,43 +10,22 @@
 //! without calibration samples gives answers without intervals and says why.
 
 use pino_eval::calibration::{Calibration, Normaliser};
-use pino_mbd_tests::bin;
+use pino_mbd_tests::{output_text as text, run_bin as run, stage_context};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-/// Calibration samples of the synthetic dataset: 12 support levels up to 12/13 = 0.923.
-const N_CALIBRATION: u64 = 12;
-
+/// A hand-written stage context (not in check mode): [`stage_context`].
 fn context(
     dir: &Path,
     name: &str,
     params: serde_json::Value,
     inputs: serde_json::Value,
 ) -> (PathBuf, PathBuf) {
-    let out = dir.join(format!("{name}-out"));
-    std::fs::create_dir_all(&out).unwrap();
-    let ctx = serde_json::json!({
-        "protocol": 1, "stage": name, "params": params, "inputs": inputs, "output": out,
-    });
-    let path = dir.join(format!("{name}.json"));
-    std::fs::write(&path, serde_json::to_string(&ctx).unwrap()).unwrap();
-    (path, out)
+    stage_context(dir, name, params, inputs, false)
 }
 
-fn run(binary: &str, args: &[&str]) -> Output {
-    Command::new(bin(binary))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+/// Calibration samples of the synthetic dataset: 12 support levels up to 12/13 = 0.923.
+const N_CALIBRATION: u64 = 12;
 
 fn stage(binary: &str, ctx: &Path) {
     let o = run(binary, &["--context", ctx.to_str().unwrap()]);

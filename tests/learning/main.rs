@@ -4,39 +4,17 @@
 //!
 //! Build the binaries first: `cargo build -p train -p evaluate -p predict`.
 
-use pino_mbd_tests::bin;
+use pino_mbd_tests::{output_text as text, run_bin as run, stage_context};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
+/// A hand-written stage context (not in check mode): [`stage_context`].
 fn context(
     dir: &Path,
     name: &str,
     params: serde_json::Value,
     inputs: serde_json::Value,
 ) -> (PathBuf, PathBuf) {
-    let out = dir.join(format!("{name}-out"));
-    std::fs::create_dir_all(&out).unwrap();
-    let ctx = serde_json::json!({
-        "protocol": 1, "stage": name, "params": params, "inputs": inputs, "output": out,
-    });
-    let path = dir.join(format!("{name}.json"));
-    std::fs::write(&path, serde_json::to_string(&ctx).unwrap()).unwrap();
-    (path, out)
-}
-
-fn run(binary: &str, args: &[&str]) -> Output {
-    Command::new(bin(binary))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
+    stage_context(dir, name, params, inputs, false)
 }
 
 #[test]

@@ -179,6 +179,14 @@ impl Drop for TempWorkspace {
     }
 }
 
+/// Runs the built binary `binary` with `args` to completion.
+pub fn run_bin(binary: &str, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(bin(binary))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
 /// A finished command's exit code, stdout and stderr, for assertion messages.
 pub fn output_text(o: &std::process::Output) -> String {
     format!(

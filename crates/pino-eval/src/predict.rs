@@ -776,20 +776,30 @@ impl Predictor {
         batch: usize,
     ) -> Result<Vec<SampleIndices>> {
         self.check_indices()?;
-        let (layout, dt) = (&self.meta.layout, self.meta.grid.dt);
         self.batched(sets, profiles, run, batch, &|k, p| {
-            self.indices.sample(
-                &self.system,
-                layout,
-                &sets[k],
-                k as i64,
-                &p.physical,
-                None,
-                &p.eta,
-                dt,
-                cfg,
-            )
+            self.design_indices(&sets[k], k, p, cfg)
         })
+    }
+
+    /// The indices of design `k` (parameters `set`) from its prediction `p`.
+    fn design_indices(
+        &self,
+        set: &[f64],
+        k: usize,
+        p: &SetPrediction,
+        cfg: &IndexConfig,
+    ) -> Result<SampleIndices> {
+        self.indices.sample(
+            &self.system,
+            &self.meta.layout,
+            set,
+            k as i64,
+            &p.physical,
+            None,
+            &p.eta,
+            self.meta.grid.dt,
+            cfg,
+        )
     }
 
     /// Every design's indices and, with a calibration, their intervals and three-valued
@@ -804,19 +814,8 @@ impl Predictor {
         coverage: f64,
     ) -> Result<Vec<DesignAnswer>> {
         self.check_indices()?;
-        let (layout, dt) = (&self.meta.layout, self.meta.grid.dt);
         self.batched(sets, profiles, run, batch, &|k, p| {
-            let indices = self.indices.sample(
-                &self.system,
-                layout,
-                &sets[k],
-                k as i64,
-                &p.physical,
-                None,
-                &p.eta,
-                dt,
-                cfg,
-            )?;
+            let indices = self.design_indices(&sets[k], k, p, cfg)?;
             let calibrated = self.calibrated(&sets[k], p, &indices.values, coverage, false)?;
             Ok(DesignAnswer {
                 indices,
