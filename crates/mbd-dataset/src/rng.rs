@@ -20,6 +20,11 @@ pub enum Purpose {
     WeightNoise = 3,
     /// Training (initialisation, shuffling).
     Training = 4,
+    /// The designs of a study (parameter draws of a Monte Carlo study, starting points of an
+    /// optimisation).
+    StudyDesigns = 5,
+    /// Bootstrap resamples of a study's estimators (one stream per replicate).
+    Bootstrap = 6,
 }
 
 /// Purpose code of the profile of index `p` of a description: the first profile keeps the
