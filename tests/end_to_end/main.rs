@@ -160,6 +160,71 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     assert_eq!(algs, [1, 2, 3, 4, 5]);
     assert!(cov.i64("n_calibration").unwrap().iter().all(|&n| n == 10));
 
+    // The study: every design evaluated, the exceedance probability of its summary recomputed
+    // from the evaluations, the solver beside 20 of them, and the same bytes from the unit's
+    // context run again by hand on 1 and on 2 threads.
+    let study = show(ws.path(), "study", &[]);
+    let evals = read_parquet(named(&study, "evaluations.parquet")[0], None).unwrap();
+    assert_eq!(evals.num_rows(), 2000);
+    assert_eq!(evals.i64("solver_checked").unwrap().iter().sum::<i64>(), 20);
+    let q = evals.f64("wheel_load_reduction_rate").unwrap();
+    let over = q.iter().filter(|&&x| x > 0.6).count() as f64 / q.len() as f64;
+    let summary = read_parquet(named(&study, "summary.parquet")[0], None).unwrap();
+    let row = (0..summary.num_rows())
+        .find(|&r| {
+            summary.str("index").unwrap()[r] == "wheel_load_reduction_rate"
+                && summary.str("source").unwrap()[r] == "surrogate"
+        })
+        .expect("a surrogate row of the wheel-load reduction rate");
+    assert_eq!(summary.f64("p_exceed").unwrap()[row], over);
+    assert_eq!(summary.f64("limit").unwrap()[row], 0.6);
+    let lo = evals.f64("wheel_load_reduction_rate_lo").unwrap();
+    let hi = evals.f64("wheel_load_reduction_rate_hi").unwrap();
+    assert!(lo.iter().zip(q).zip(hi).all(|((l, v), h)| l <= v && v <= h));
+    let solver = read_parquet(named(&study, "solver.parquet")[0], None).unwrap();
+    assert_eq!(solver.num_rows(), 20);
+    assert!(solver
+        .str("solver_failure")
+        .unwrap()
+        .iter()
+        .all(String::is_empty));
+    assert!(solver
+        .f64("peak_wheel_rail_force_kn")
+        .unwrap()
+        .iter()
+        .all(|&p| p > 30.0 && p < 300.0));
+    let unit = study[0]
+        .parent()
+        .and_then(Path::parent)
+        .expect("objects/<id>/out");
+    let ctx: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(unit.join("context.json")).unwrap()).unwrap();
+    for threads in [1, 2] {
+        let scratch = tempfile::tempdir().unwrap();
+        let (path, out) = pino_mbd_tests::stage_context(
+            scratch.path(),
+            ctx["stage"].as_str().unwrap(),
+            ctx["params"].clone(),
+            ctx["inputs"].clone(),
+            false,
+        );
+        let o = pino_mbd_tests::run_stage(
+            "study",
+            Some(&ws.path().join("systems/vtcd.yaml")),
+            &path,
+            threads,
+        );
+        assert!(o.status.success(), "{}", output_text(&o));
+        for f in study.iter().filter(|f| !f.ends_with("speed.csv")) {
+            let again = out.join(f.file_name().unwrap());
+            assert!(
+                std::fs::read(f).unwrap() == std::fs::read(&again).unwrap(),
+                "{} differs on {threads} thread(s)",
+                f.display()
+            );
+        }
+    }
+
     // Same inputs: nothing to do.
     let second = pipeline(ws.path(), &["run"]);
     assert!(second.status.success(), "{}", output_text(&second));

@@ -185,6 +185,18 @@ EXPECTED = {
     "indices.parquet": ("indices", None),
     "indices_errors.parquet": ("evaluate", None),
     "indices_samples.parquet": ("evaluate", None),
+    # A Monte Carlo study (docs/studies.md): its evaluations and solver checks own their
+    # columns (the parameters and indices of the description); the summary is fixed.
+    "evaluations.parquet": ("study", None),
+    "solver.parquet": ("study", None),
+    "summary.parquet": (
+        "study",
+        [("index", STR, "-"), ("unit", STR, "-"), ("source", STR, "-"), ("n", I64, "-")]
+        + [(f"{stat}{side}", F64, "{unit}") for stat in ["mean", "std", "q05", "q50", "q95", "q99"]
+           for side in ["", "_lo", "_hi"]]
+        + [("limit", F64, "{unit}"), ("p_exceed", F64, "-"), ("p_exceed_lo", F64, "-"),
+           ("p_exceed_hi", F64, "-"), ("p_surrogate_lo", F64, "-"), ("p_surrogate_hi", F64, "-")],
+    ),
     "predict": (
         "predict",
         [("set", I64, "-"), ("t", F64, "s")] + signals(SOLUTIONS + [(p, F64, "N") for p in FORCES])
@@ -196,6 +208,15 @@ EXPECTED = {
 PARTIAL = {
     "indices.parquet": [("sample_id", I64, "-"), ("peak_wheel_rail_force_kn", F64, "kN")],
     "indices_errors.parquet": [("algorithm", I64, "-"), ("index", STR, "-"), ("unit", STR, "-")],
+    "evaluations.parquet": [
+        ("design", I64, "-"), ("excitation", I64, "-"), ("wheel_load_reduction_rate", F64, "-"),
+        ("wheel_load_reduction_rate_lo", F64, "-"), ("wheel_load_reduction_rate_hi", F64, "-"),
+        ("extrapolated", I64, "-"), ("solver_checked", I64, "-"),
+    ],
+    "solver.parquet": [
+        ("design", I64, "-"), ("excitation", I64, "-"), ("peak_wheel_rail_force_kn", F64, "kN"),
+        ("peak_wheel_rail_force_kn_surrogate", F64, "kN"), ("solver_failure", STR, "-"),
+    ],
     "indices_samples.parquet": [
         ("algorithm", I64, "-"), ("sample_id", I64, "-"),
         ("peak_wheel_rail_force_kn", F64, "kN"), ("peak_wheel_rail_force_kn_exact", F64, "kN"),
@@ -467,6 +488,22 @@ def recompute(arts, say):
     check(not bad, f"{cov.path}: rows break monotonicity in the level or the test count: {bad[:3]}")
     n_cov = duckdb.sql(f"SELECT count(*) FROM read_parquet({lit(cov.path)})").fetchall()[0][0]
     say(f"coverage: {n_cov} rows monotone in the level, fractions of the {scored} test samples")
+
+    # study: every exceedance probability and its surrogate bounds recomputed from the
+    # evaluations in DuckDB, exactly.
+    ev, sm = one(arts, "evaluations.parquet"), one(arts, "summary.parquet")
+    rows = duckdb.sql(
+        f'SELECT "index", "limit", p_exceed, p_surrogate_lo, p_surrogate_hi FROM read_parquet({lit(sm.path)}) '
+        f"""WHERE source = 'surrogate' AND NOT isnan("limit")"""
+    ).fetchall()
+    check(rows, f"{sm.path}: no exceedance row")
+    for index, limit, p, lo, hi in rows:
+        got = duckdb.sql(
+            f'SELECT avg(("{index}" > {limit!r})::DOUBLE), avg(("{index}_lo" > {limit!r})::DOUBLE), '
+            f'avg(("{index}_hi" > {limit!r})::DOUBLE) FROM read_parquet({lit(ev.path)})'
+        ).fetchall()[0]
+        check(got == (p, lo, hi), f"{sm.path}: P({index} > {limit}) {p, lo, hi}, DuckDB {got}")
+    say(f"study: {len(rows)} exceedance probabilities and their bounds recomputed from the evaluations")
 
     # predict: one block of rows per parameter set, on a uniform time grid (polars).
     for a in arts["predict"]:

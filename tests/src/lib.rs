@@ -345,6 +345,7 @@ pub const TINY: &[&str] = &[
     "train.projection_width=16",
     "train.batch_size=2",
     "evaluate.plot_samples=1",
+    "study.bootstrap=100",
 ];
 
 #[cfg(test)]

@@ -1,4 +1,4 @@
-//! "Solve exactly": one design through the `simulate` stage's engine ([`mbd_engine::Engine`])
+//! "Solve exactly": one design through the exact solver ([`pino_eval::solve`])
 //! with the dataset's run controls and the same profiles as its prediction, cut to the model's
 //! window (the rows whose times equal the window's), and compared with the prediction channel
 //! by channel (relative L2 error) and index by index.
@@ -8,27 +8,18 @@
 
 use crate::request::ApiError;
 use crate::session::{Channel, Slot};
-use mbd_engine::{Engine, Profile, RunConfig};
-use pino_eval::eval::Physical;
+use mbd_engine::{Profile, RunConfig};
 use pino_eval::predict::{Predictor, SetPrediction};
+pub use pino_eval::solve::Exact;
+use pino_eval::solve::SolveError;
 use pino_learn::checkpoint::ModelMeta;
-use std::sync::atomic::{AtomicBool, Ordering};
-
-/// The solver's values over the model's window: outputs `[T, O]`, velocities and accelerations
-/// `[T, D]` at every window point and excitations `[T, E]` (in a prediction's form), and the
-/// stored columns the indices read beside them (each `T` long).
-#[derive(Debug, Clone)]
-pub struct Exact {
-    /// Outputs, exact derivatives, excitations.
-    pub values: SetPrediction,
-    /// The index inputs' stored columns.
-    pub stored: Vec<Vec<f64>>,
-}
+use std::sync::atomic::AtomicBool;
 
 /// The error of a solve stopped by its cancel flag.
 pub const CANCELLED: &str = "cancelled";
 
-/// Runs `design` with `profiles` and cuts the trajectory to the model's window.
+/// Runs `design` with `profiles` ([`pino_eval::solve::exact`]), its refusals blamed on the
+/// design.
 pub fn exact(
     predictor: &Predictor,
     run: &RunConfig,
@@ -36,77 +27,18 @@ pub fn exact(
     profiles: &[Option<Profile>],
     cancel: &AtomicBool,
 ) -> Result<Exact, ApiError> {
-    let system = predictor.system().clone();
-    let meta = &predictor.meta;
-    let model = predictor
-        .space
-        .check(design, "design")
-        .map_err(|e| ApiError::bad("design", e.to_string(), "a design the description accepts"))?;
-    let engine = Engine::new(system.clone(), model, run, profiles.to_vec())
-        .map_err(|e| ApiError::bad("design", e.to_string(), "a design the solver accepts"))?;
-    let traj = engine.run_cancellable(Some(cancel)).map_err(|f| {
-        if cancel.load(Ordering::Relaxed) {
+    pino_eval::solve::exact(predictor, run, design, profiles, Some(cancel)).map_err(|e| match e {
+        SolveError::Refused(why) => ApiError::bad("design", why, "a design the solver accepts"),
+        SolveError::Cancelled => {
             ApiError::bad("design", CANCELLED, "a client that waits for its answer")
-        } else {
-            ApiError::bad(
-                "design",
-                format!("the solver failed for this design: {}", f.reason),
-                "a design whose response stays finite",
-            )
         }
-    })?;
-    let rows = window_rows(&traj.t, meta)?;
-    let column = |name: &str| -> Result<Vec<f64>, ApiError> {
-        let c = system.channel(name).ok_or_else(|| {
-            ApiError::internal(format!("`{name}` is not a channel of the system"))
-        })?;
-        Ok(rows.iter().map(|&r| traj.columns[c][r]).collect())
-    };
-    let interleave = |names: &[String]| -> Result<Vec<f64>, ApiError> {
-        let cols: Vec<Vec<f64>> = names.iter().map(|n| column(n)).collect::<Result<_, _>>()?;
-        Ok((0..rows.len())
-            .flat_map(|n| cols.iter().map(move |c| c[n]))
-            .collect())
-    };
-    let layout = &meta.layout;
-    let stored = predictor
-        .index_inputs()
-        .stored_columns()
-        .into_iter()
-        .map(column)
-        .collect::<Result<_, _>>()?;
-    Ok(Exact {
-        values: SetPrediction {
-            physical: Physical {
-                u: interleave(&layout.outputs)?,
-                v: interleave(&layout.velocities())?,
-                a: interleave(&layout.accelerations())?,
-            },
-            eta: interleave(&layout.excitations)?,
-        },
-        stored,
+        e @ SolveError::Failed(_) => ApiError::bad(
+            "design",
+            e.to_string(),
+            "a design whose response stays finite",
+        ),
+        SolveError::Window(why) | SolveError::Indices(why) => ApiError::internal(why),
     })
-}
-
-/// The trajectory row of each of the window's times.
-fn window_rows(t: &[f64], meta: &ModelMeta) -> Result<Vec<usize>, ApiError> {
-    let (first, step) = match t {
-        [a, b, ..] => (*a, b - a),
-        _ => return Err(ApiError::internal("the solver stored fewer than two rows")),
-    };
-    meta.grid
-        .times()
-        .iter()
-        .map(|&tw| {
-            let r = ((tw - first) / step).round();
-            let ok = r >= 0.0 && (r as usize) < t.len() && (t[r as usize] - tw).abs() <= 1e-6 * step;
-            ok.then_some(r as usize).ok_or_else(|| {
-                ApiError::internal(format!(
-                    "the model's window time {tw} s is not an output time of the solver's run (rows every {step} s from {first} s)"
-                ))
-            })
-        })
-        .collect()
 }
 
 /// Which window points a [`SetPrediction`]'s velocities and accelerations cover.

@@ -16,6 +16,8 @@
 //! - [`predict`]: designs by parameter name (sets, grids, random sweeps) through a trained
 //!   model, with the training ranges checked and the excitations regenerated or read; the
 //!   `predict` command's library.
+//! - [`solve`]: a design through the exact solver in a prediction's form (the explorer's
+//!   "Solve exactly", the studies' solver checks).
 //!
 //! Errors are the engine's ([`pino_learn::Error`]): each names the file, field or tensor at
 //! fault.
@@ -25,3 +27,5 @@ pub mod calibration;
 pub mod eval;
 pub mod indices_eval;
 pub mod predict;
+pub mod solve;
+pub mod study;

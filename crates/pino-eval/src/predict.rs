@@ -219,7 +219,7 @@ pub fn profiles(
     if generated.is_empty() {
         return Ok(vec![None; system.profiles.len()]);
     }
-    let flag = Path::new("--profile / --seed");
+    let flag = Path::new(PROFILE_FLAGS);
     match choice {
         None => Err(fmt_err(
             flag,
@@ -236,22 +236,43 @@ pub fn profiles(
                     "the model's dataset records no profile settings (run.json): give --profile FILE".into(),
                 )
             })?;
-            let params = mbd_dataset::ProfileParams { seed: *seed, ..*base };
-            let generators = mbd_dataset::profile_generators(system, &params)
-                .map_err(|e| fmt_err(flag, e.to_string()))?;
-            generators
-                .iter()
-                .map(|g| {
-                    g.as_ref()
-                        .map(|g| Profile::new(g.positions(), g.profile(*id)))
-                        .transpose()
-                        .map_err(|e| fmt_err(flag, e.to_string()))
-                })
-                .collect()
+            GeneratedProfiles::new(system, base, *seed)?.of(*id)
         }
         Some(ProfileChoice::File { path, sample_id }) => {
             read_profiles(system, path, *sample_id, &generated)
         }
+    }
+}
+
+/// Where errors about a prediction's profile points are blamed (`predict`'s flags).
+const PROFILE_FLAGS: &str = "--profile / --seed";
+
+/// The generators of a system's profiles at one seed, built once: the profiles of any
+/// sample id (a study draws thousands), as `irregularity` generates them.
+pub struct GeneratedProfiles {
+    generators: Vec<Option<mbd_dataset::ProfileGenerator>>,
+}
+
+impl GeneratedProfiles {
+    /// The generators of `system`'s profiles with the dataset's `settings` and `seed`.
+    pub fn new(system: &System, settings: &mbd_dataset::ProfileParams, seed: u64) -> Result<Self> {
+        let params = mbd_dataset::ProfileParams { seed, ..*settings };
+        let generators = mbd_dataset::profile_generators(system, &params)
+            .map_err(|e| fmt_err(Path::new(PROFILE_FLAGS), e.to_string()))?;
+        Ok(Self { generators })
+    }
+
+    /// The points of each profile (`None` for analytic ones) of sample `id`.
+    pub fn of(&self, id: u64) -> Result<Vec<Option<Profile>>> {
+        self.generators
+            .iter()
+            .map(|g| {
+                g.as_ref()
+                    .map(|g| Profile::new(g.positions(), g.profile(id)))
+                    .transpose()
+                    .map_err(|e| fmt_err(Path::new(PROFILE_FLAGS), e.to_string()))
+            })
+            .collect()
     }
 }
 
@@ -369,6 +390,15 @@ fn profiles_of_rows(
 /// The column of a profile file naming each row's profile (written by `irregularity` when a
 /// description has several).
 pub const PROFILE_COLUMN: &str = pino_data::schema::PROFILE;
+
+/// The profile points under each design of a batch: one set for all, or each design's own
+/// (by its position in the batch's list of designs).
+pub enum ProfileSource<'a> {
+    /// The same profiles under every design.
+    Shared(&'a [Option<Profile>]),
+    /// The profiles of design `k`.
+    PerDesign(&'a (dyn Fn(usize) -> Result<Vec<Option<Profile>>> + Sync)),
+}
 
 /// A trained model loaded for prediction.
 pub struct Predictor {
@@ -560,6 +590,24 @@ impl Predictor {
         profiles(&self.system, settings, choice)
     }
 
+    /// The generators of the system's profiles at `seed` with the dataset's settings (none
+    /// needed when every profile is analytic).
+    pub fn profile_generators(&self, seed: u64) -> Result<GeneratedProfiles> {
+        if generated_names(&self.system).is_empty() {
+            return Ok(GeneratedProfiles {
+                generators: vec![None; self.system.profiles.len()],
+            });
+        }
+        let settings = self.meta.data.as_ref().and_then(|d| d.profiles.as_ref());
+        let settings = settings.ok_or_else(|| {
+            fmt_err(
+                Path::new("model.json"),
+                "the model's dataset records no profile settings (run.json): retrain on a dataset that has them".into(),
+            )
+        })?;
+        GeneratedProfiles::new(&self.system, settings, seed)
+    }
+
     /// The parameters of each design outside the model's training ranges.
     pub fn outside_training(&self, sets: &[Vec<f64>]) -> Vec<Vec<OutOfRange>> {
         sets.iter()
@@ -599,13 +647,29 @@ impl Predictor {
         profiles: &[Option<Profile>],
         run: &RunConfig,
     ) -> Result<Vec<SetPrediction>> {
+        self.forward_with(first, sets, &ProfileSource::Shared(profiles), run)
+    }
+
+    /// [`Predictor::forward`] with the profiles of each design from `profiles`.
+    pub fn forward_with(
+        &self,
+        first: usize,
+        sets: &[Vec<f64>],
+        profiles: &ProfileSource<'_>,
+        run: &RunConfig,
+    ) -> Result<Vec<SetPrediction>> {
         let meta = &self.meta;
         let times = meta.grid.times();
         let (tp, n_in) = (meta.grid.t_points, meta.layout.n_inputs());
         let mut x = Vec::with_capacity(sets.len() * tp * n_in);
         let mut etas = Vec::with_capacity(sets.len());
         for (k, p) in sets.iter().enumerate() {
-            let eta = self.excitations(first + k, p, profiles, run)?;
+            let eta = match profiles {
+                ProfileSource::Shared(shared) => self.excitations(first + k, p, shared, run)?,
+                ProfileSource::PerDesign(of) => {
+                    self.excitations(first + k, p, &of(first + k)?, run)?
+                }
+            };
             x.extend(meta.norm.inputs.normalise(&input_block(&times, &eta, p)));
             etas.push(eta);
         }
@@ -630,7 +694,7 @@ impl Predictor {
     fn batched<T: Send>(
         &self,
         sets: &[Vec<f64>],
-        profiles: &[Option<Profile>],
+        profiles: &ProfileSource<'_>,
         run: &RunConfig,
         batch: usize,
         f: &(dyn Fn(usize, &SetPrediction) -> Result<T> + Sync),
@@ -643,7 +707,7 @@ impl Predictor {
             .map(|(k, c)| (k * batch, c))
             .collect();
         let go = |(start, chunk): &(usize, &[Vec<f64>])| -> Result<Vec<T>> {
-            self.forward(*start, chunk, profiles, run)?
+            self.forward_with(*start, chunk, profiles, run)?
                 .iter()
                 .enumerate()
                 .map(|(k, p)| f(start + k, p))
@@ -672,13 +736,19 @@ impl Predictor {
         let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
         let times = self.meta.grid.times();
         let tp = self.meta.grid.t_points;
-        let preds = self.batched(sets, profiles, run, batch, &|k, p| {
-            let bands = match coverage {
-                Some(c) => self.calibrated(&sets[k], p, &[], c, true)?,
-                None => None,
-            };
-            Ok((p.clone(), bands))
-        })?;
+        let preds = self.batched(
+            sets,
+            &ProfileSource::Shared(profiles),
+            run,
+            batch,
+            &|k, p| {
+                let bands = match coverage {
+                    Some(c) => self.calibrated(&sets[k], p, &[], c, true)?,
+                    None => None,
+                };
+                Ok((p.clone(), bands))
+            },
+        )?;
         let names: Vec<String> = layout
             .outputs
             .iter()
@@ -776,9 +846,13 @@ impl Predictor {
         batch: usize,
     ) -> Result<Vec<SampleIndices>> {
         self.check_indices()?;
-        self.batched(sets, profiles, run, batch, &|k, p| {
-            self.design_indices(&sets[k], k, p, cfg)
-        })
+        self.batched(
+            sets,
+            &ProfileSource::Shared(profiles),
+            run,
+            batch,
+            &|k, p| self.design_indices(&sets[k], k, p, cfg),
+        )
     }
 
     /// The indices of design `k` (parameters `set`) from its prediction `p`.
@@ -808,6 +882,21 @@ impl Predictor {
         &self,
         sets: &[Vec<f64>],
         profiles: &[Option<Profile>],
+        run: &RunConfig,
+        cfg: &IndexConfig,
+        batch: usize,
+        coverage: f64,
+    ) -> Result<Vec<DesignAnswer>> {
+        let profiles = ProfileSource::Shared(profiles);
+        self.answers_with(sets, &profiles, run, cfg, batch, coverage)
+    }
+
+    /// [`Predictor::answers`] with the profiles of each design from `profiles` (a study's
+    /// designs, each under its own excitation).
+    pub fn answers_with(
+        &self,
+        sets: &[Vec<f64>],
+        profiles: &ProfileSource<'_>,
         run: &RunConfig,
         cfg: &IndexConfig,
         batch: usize,

@@ -310,10 +310,15 @@ fn override_value(
         .map_err(|why| at(format!("--set {set}: wrong type for {what}: {why}")))
 }
 
-/// Renders a matrix value inside an expansion name (strings bare, others as JSON).
+/// Renders a matrix value inside an expansion name: strings bare, a mapping with a string
+/// `name` by that name (a declared study: `study[study=wheel_unloading]`), others as JSON.
 fn render(v: &Value) -> String {
     match v {
         Value::String(s) => s.clone(),
+        Value::Object(m) => match m.get("name") {
+            Some(Value::String(s)) => s.clone(),
+            _ => v.to_string(),
+        },
         other => other.to_string(),
     }
 }
@@ -438,6 +443,13 @@ impl Pipeline {
                     return Err(spec_err(
                         l,
                         format!("stage `{name}`: matrix key `{k}` has no values"),
+                    ));
+                }
+                let mut seen = std::collections::BTreeSet::new();
+                if let Some(v) = values.iter().find(|v| !seen.insert(render(v))) {
+                    return Err(spec_err(
+                        l,
+                        format!("stage `{name}`: matrix key `{k}` has the value `{}` twice (values name units: give each its own)", render(v)),
                     ));
                 }
             }
@@ -797,6 +809,32 @@ mod tests {
             r#"{"k":1,"n":3,"rate":2.0,"s":"42"}"#
         );
         assert_eq!(p.stages[0].shards, 2);
+    }
+
+    /// A matrix value that is a mapping with a `name` (a declared study) names its unit by
+    /// it and carries the whole mapping as the parameter; two values with one name are
+    /// refused at the matrix's line.
+    #[test]
+    fn mapping_matrix_values_are_named_by_their_name() {
+        let text = "stages:\n  s:\n    cmd: [x]\n    matrix:\n      study:\n        - {name: mc, n: 10}\n        - {name: sobol, n: 64}\n";
+        let p = load(text, &[]).unwrap();
+        let ex: Vec<&str> = p.stages[0]
+            .expansions
+            .iter()
+            .map(|e| e.name.as_str())
+            .collect();
+        assert_eq!(ex, ["s[study=mc]", "s[study=sobol]"]);
+        assert_eq!(
+            serde_json::to_string(&p.stages[0].expansions[1].params).unwrap(),
+            r#"{"study":{"n":64,"name":"sobol"}}"#
+        );
+        let e = load(&text.replace("name: sobol", "name: mc"), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the value `mc` twice") && e.contains(":5:"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -1,0 +1,114 @@
+//! How a study's designs are answered: by the surrogate in batches, each design under its own
+//! excitation (generated at the study's seed for its excitation id), with calibrated
+//! intervals where the model has a calibration; and a chosen few by the exact solver with the
+//! same excitations, timed.
+
+use super::spec::StudyParams;
+use crate::predict::{DesignAnswer, GeneratedProfiles, Predictor, ProfileSource};
+use crate::solve::{exact, exact_indices};
+use mbd_engine::RunConfig;
+use pino_indices::IndexConfig;
+use pino_learn::{Error, Result};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// What a study evaluates with: the model, its run controls, the index settings and the
+/// profile generators at the study's seed.
+pub struct Evaluator<'a> {
+    /// The model (with its calibration when there is one).
+    pub predictor: &'a Predictor,
+    /// The model's run controls.
+    pub run: RunConfig,
+    /// The index settings of a prediction.
+    pub cfg: IndexConfig,
+    /// The study's shared settings.
+    pub params: &'a StudyParams,
+    profiles: GeneratedProfiles,
+}
+
+/// One design through the solver.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solved {
+    /// The index values (NaN when the solver refused or failed).
+    pub indices: Vec<f64>,
+    /// Why it has none.
+    pub failure: Option<String>,
+    /// Wall time of the solve (s).
+    pub seconds: f64,
+}
+
+impl<'a> Evaluator<'a> {
+    /// The evaluator of `predictor` for a study with `params`.
+    pub fn new(predictor: &'a Predictor, params: &'a StudyParams) -> Result<Self> {
+        Ok(Self {
+            run: predictor.run_config(None)?,
+            cfg: predictor.index_config()?,
+            profiles: predictor.profile_generators(params.seed)?,
+            predictor,
+            params,
+        })
+    }
+
+    /// Whether answers carry calibrated intervals.
+    pub fn calibrated(&self) -> bool {
+        self.predictor
+            .calibration()
+            .is_some_and(|c| c.has_intervals())
+    }
+
+    /// The surrogate's answers for `designs`, design `k` under excitation `excitation[k]`;
+    /// `done(n)` after each batch.
+    pub fn surrogate(&self, designs: &[Vec<f64>], excitation: &[u64]) -> Result<Vec<DesignAnswer>> {
+        let of = |k: usize| self.profiles.of(excitation[k]);
+        self.predictor.answers_with(
+            designs,
+            &ProfileSource::PerDesign(&of),
+            &self.run,
+            &self.cfg,
+            self.params.batch_size,
+            self.params.coverage,
+        )
+    }
+
+    /// The solver's indices of `designs` under `excitation` (side by side on all cores).
+    pub fn solver(&self, designs: &[Vec<f64>], excitation: &[u64]) -> Result<Vec<Solved>> {
+        designs
+            .par_iter()
+            .zip(excitation)
+            .map(|(d, &e)| {
+                let profiles = self.profiles.of(e)?;
+                let t0 = Instant::now();
+                let result = exact(self.predictor, &self.run, d, &profiles, None)
+                    .and_then(|x| exact_indices(self.predictor, d, x, &self.cfg));
+                let seconds = t0.elapsed().as_secs_f64();
+                let n = self.predictor.index_inputs().columns().len();
+                Ok(match result {
+                    Ok(ix) => Solved {
+                        indices: ix.values,
+                        failure: None,
+                        seconds,
+                    },
+                    Err(e) => Solved {
+                        indices: vec![f64::NAN; n],
+                        failure: Some(e.to_string()),
+                        seconds,
+                    },
+                })
+            })
+            .collect()
+    }
+}
+
+/// `k` designs spread evenly over `n` (`floor(j n / k)`, `j < k`).
+pub fn spread(n: usize, k: usize) -> Vec<usize> {
+    (0..k.min(n)).map(|j| j * n / k.min(n).max(1)).collect()
+}
+
+/// An error of a study's own inputs, blamed on the study.
+pub fn study_error(study: &str, message: impl Into<String>) -> Error {
+    Error::OutOfRange {
+        field: format!("study.{study}"),
+        value: message.into(),
+        allowed: "a study the model can answer".into(),
+    }
+}

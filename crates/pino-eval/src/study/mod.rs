@@ -1,0 +1,141 @@
+//! Design studies through a trained model (`docs/studies.md`): many designs, each under its
+//! own excitation, answered by the surrogate with calibrated intervals where the model has a
+//! calibration, and a sample of them answered by the exact solver beside it.
+//!
+//! A study is declared as one value of the `study` stage's matrix: a mapping with `name`,
+//! `kind` (`monte_carlo`, `sensitivity`, `optimise`), `parameters` (distributions by name;
+//! every sampled parameter not named is uniform over the model's training range) and
+//! `solver_check` (how many designs also run through the solver). The estimators are
+//! `pino-studies`'; this module draws the designs, evaluates them and writes the tables.
+//!
+//! Every random draw is keyed by (the study's seed, purpose, design id): parameter draws by
+//! [`mbd_dataset::Purpose::StudyDesigns`], the excitation of design `i` is the profile the
+//! `irregularity` stage would generate for sample `i` at the study's seed.
+
+pub mod evaluate;
+pub mod monte_carlo;
+pub mod output;
+pub mod spec;
+
+pub use spec::{Study, StudyKind, StudyParams};
+
+use crate::indices_eval::IndexInputs;
+use crate::predict::Predictor;
+use candle_core::Device;
+use mbd_system::System;
+use pino_learn::layout::Layout;
+use pino_learn::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// The sampled parameters of `system` with their sampling ranges (description order).
+pub fn description_parameters(system: &System) -> Vec<(String, [f64; 2])> {
+    system
+        .sampled_names()
+        .into_iter()
+        .map(str::to_owned)
+        .zip(system.ranges())
+        .collect()
+}
+
+/// The model's sampled parameters with their training ranges (its parameter order).
+pub fn model_parameters(predictor: &Predictor) -> Vec<(String, [f64; 2])> {
+    let r = &predictor.meta.training_ranges;
+    predictor
+        .space
+        .names()
+        .iter()
+        .map(|n| {
+            let k = r.names.iter().position(|x| x == n);
+            let range = k.map_or([f64::NEG_INFINITY, f64::INFINITY], |k| [r.min[k], r.max[k]]);
+            (n.clone(), range)
+        })
+        .collect()
+}
+
+/// The index names a model of `system` computes.
+pub fn index_names(system: &System) -> Result<Vec<String>> {
+    let inputs = IndexInputs::of(system, &Layout::of(system))?;
+    Ok(inputs.columns().iter().map(|c| c.name.clone()).collect())
+}
+
+/// A refusal of a declaration, named by its field (`study.<name>.<field>: ...`).
+fn spec_error(e: spec::SpecError) -> Error {
+    Error::Format {
+        path: format!("study.{}.{}", e.study, e.field).into(),
+        message: format!("{} (docs/studies.md)", e.message),
+    }
+}
+
+/// Checks the study of `params` against `system` before anything runs.
+pub fn check(system: &System, params: &StudyParams) -> Result<Study> {
+    params.validate()?;
+    Study::parse(
+        &params.study,
+        &description_parameters(system),
+        &index_names(system)?,
+    )
+    .map_err(spec_error)
+}
+
+/// Runs the study of `params` with the model of `params.algorithm` among `models` (with its
+/// calibration from `calibration` when given) and writes its files into `out`; returns the
+/// one-line summary.
+pub fn run(
+    models: &[PathBuf],
+    calibration: Option<&Path>,
+    params: &StudyParams,
+    out: &Path,
+    device: &Device,
+) -> Result<String> {
+    params.validate()?;
+    let mut predictor = None;
+    for dir in models {
+        let p = Predictor::load(dir, device)?;
+        if p.meta.train.algorithm.id() == params.algorithm {
+            predictor = Some(p);
+            break;
+        }
+    }
+    let mut predictor = predictor.ok_or_else(|| Error::OutOfRange {
+        field: "algorithm".into(),
+        value: params.algorithm.to_string(),
+        allowed: format!("an algorithm among the {} trained models", models.len()),
+    })?;
+    if let Some(c) = calibration {
+        predictor.load_calibration(c)?;
+    }
+    pino_data::system::declare_units(predictor.system())?;
+    let parameters = model_parameters(&predictor);
+    let names: Vec<String> = predictor
+        .index_inputs()
+        .columns()
+        .iter()
+        .map(|c| c.name.clone())
+        .collect();
+    let study = Study::parse(&params.study, &parameters, &names).map_err(spec_error)?;
+    let ev = evaluate::Evaluator::new(&predictor, params)?;
+    match &study.kind {
+        StudyKind::MonteCarlo { n, limits } => {
+            let mc = monte_carlo::run(&ev, &study, *n, limits, &parameters)?;
+            output::write_monte_carlo(out, &predictor, &study, &mc)?;
+            let firsts: Vec<String> = mc
+                .summaries
+                .iter()
+                .filter(|s| s.source == "surrogate")
+                .filter_map(|s| {
+                    s.exceedance
+                        .map(|e| format!("P({} > {}) = {:.4}", s.index, e.limit, e.probability))
+                })
+                .collect();
+            Ok(format!(
+                "`{}`: {n} designs in {:.1} s ({} through the solver in {:.1} s){}{}",
+                study.name,
+                mc.surrogate_s,
+                mc.checked.len(),
+                mc.solver_s,
+                if firsts.is_empty() { "" } else { "; " },
+                firsts.join(", ")
+            ))
+        }
+    }
+}

@@ -1,0 +1,431 @@
+//! The declaration of one study and the stage's shared settings, checked against the model's
+//! system before anything runs: unknown parameters and indices, numbers out of range and
+//! study sizes beyond the stated limits are refused with the field named
+//! (`study.<name>.<field>`).
+
+use pino_studies::Distribution;
+use serde::Deserialize;
+use serde_json::Value;
+use std::collections::BTreeMap;
+
+/// The most designs a Monte Carlo study evaluates.
+pub const MAX_MONTE_CARLO: usize = 1_000_000;
+
+/// The `study` stage's parameters: the study (the matrix value) and the settings shared by
+/// every study.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudyParams {
+    /// The study's declaration (one matrix value).
+    pub study: Value,
+    /// The trained model used (its `algorithm`).
+    #[serde(default = "default_algorithm")]
+    pub algorithm: i64,
+    /// Coverage of the calibrated intervals.
+    #[serde(default = "default_coverage")]
+    pub coverage: f64,
+    /// Seed of the designs, excitations and bootstrap.
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    /// Designs per forward pass.
+    #[serde(default = "default_batch")]
+    pub batch_size: usize,
+    /// Bootstrap replicates of every interval.
+    #[serde(default = "default_bootstrap")]
+    pub bootstrap: usize,
+    /// Level of the statistical intervals (bootstrap, Wilson).
+    #[serde(default = "default_confidence")]
+    pub confidence: f64,
+    /// Where the network runs.
+    #[serde(default = "default_device")]
+    pub device: pino_learn::config::DeviceKind,
+    /// Overrides of the description's values (checked against the description before the
+    /// model exists).
+    #[serde(default)]
+    pub system_values: BTreeMap<String, mbd_system::Override>,
+}
+
+impl StudyParams {
+    /// Checks the shared settings.
+    pub fn validate(&self) -> pino_learn::Result<()> {
+        let bad = |field: &str, value: String, allowed: &str| pino_learn::Error::OutOfRange {
+            field: field.into(),
+            value,
+            allowed: allowed.into(),
+        };
+        if !(self.coverage > 0.0 && self.coverage < 1.0) {
+            return Err(bad(
+                "coverage",
+                self.coverage.to_string(),
+                "a coverage in (0, 1)",
+            ));
+        }
+        if !(self.confidence > 0.0 && self.confidence < 1.0) {
+            return Err(bad(
+                "confidence",
+                self.confidence.to_string(),
+                "a level in (0, 1)",
+            ));
+        }
+        if self.batch_size == 0 {
+            return Err(bad("batch_size", "0".into(), ">= 1"));
+        }
+        if self.bootstrap > 100_000 {
+            return Err(bad(
+                "bootstrap",
+                self.bootstrap.to_string(),
+                "0 to 100000 replicates",
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn default_algorithm() -> i64 {
+    5
+}
+fn default_coverage() -> f64 {
+    0.9
+}
+fn default_seed() -> u64 {
+    7
+}
+fn default_batch() -> usize {
+    8
+}
+fn default_bootstrap() -> usize {
+    1000
+}
+fn default_confidence() -> f64 {
+    0.95
+}
+fn default_device() -> pino_learn::config::DeviceKind {
+    pino_learn::config::DeviceKind::Cpu
+}
+
+/// One study, parsed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Study {
+    /// Its name (the output's and the unit's).
+    pub name: String,
+    /// What it computes.
+    pub kind: StudyKind,
+    /// Parameter distributions by name, as declared (the rest uniform over the training
+    /// range).
+    pub parameters: BTreeMap<String, Distribution>,
+    /// Designs also run through the solver.
+    pub solver_check: usize,
+}
+
+/// The kinds of study.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StudyKind {
+    /// N designs drawn from the distributions, each under its own excitation.
+    MonteCarlo {
+        /// Designs.
+        n: usize,
+        /// Upper limits by index (the description's limits where not given).
+        limits: BTreeMap<String, f64>,
+    },
+}
+
+/// A refusal naming the field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("study.{study}.{field}: {message}")]
+pub struct SpecError {
+    /// The study's name (`?` before it is known).
+    pub study: String,
+    /// The field.
+    pub field: String,
+    /// What is wrong and what is allowed.
+    pub message: String,
+}
+
+/// A parameter's distribution as written: `{uniform: [lo, hi]}`, `{normal: {mean, std}}`,
+/// `{lognormal: {median, sigma_log}}` (truncated at `range: [lo, hi]`, by default the
+/// training range), `{fixed: v}` or a bare number (fixed).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "snake_case")]
+struct DistributionSpec {
+    uniform: Option<[f64; 2]>,
+    normal: Option<NormalSpec>,
+    lognormal: Option<LogNormalSpec>,
+    fixed: Option<f64>,
+    range: Option<[f64; 2]>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NormalSpec {
+    mean: f64,
+    std: f64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LogNormalSpec {
+    median: f64,
+    sigma_log: f64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MonteCarloSpec {
+    n: usize,
+    #[serde(default)]
+    limits: BTreeMap<String, f64>,
+}
+
+impl Study {
+    /// Parses a study's declaration; `parameters` are the model's sampled parameters with
+    /// their training ranges, `indices` its index names.
+    pub fn parse(
+        value: &Value,
+        parameters: &[(String, [f64; 2])],
+        indices: &[String],
+    ) -> Result<Self, SpecError> {
+        let err = |study: &str, field: &str, message: String| SpecError {
+            study: study.to_owned(),
+            field: field.to_owned(),
+            message,
+        };
+        let Value::Object(map) = value else {
+            return Err(err(
+                "?",
+                "",
+                "a study is a mapping with `name` and `kind`".into(),
+            ));
+        };
+        let name = match map.get("name") {
+            Some(Value::String(s))
+                if !s.is_empty()
+                    && s.chars()
+                        .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') =>
+            {
+                s.clone()
+            }
+            other => {
+                return Err(err(
+                    "?",
+                    "name",
+                    format!("{other:?}: a name of letters, digits, `_` and `-`"),
+                ))
+            }
+        };
+        let mut rest = map.clone();
+        rest.remove("name");
+        let kind = rest.remove("kind");
+        let solver_check = match rest.remove("solver_check") {
+            None => 0,
+            Some(v) => v.as_u64().ok_or_else(|| {
+                err(
+                    &name,
+                    "solver_check",
+                    format!("{v}: a count of designs >= 0"),
+                )
+            })? as usize,
+        };
+        let declared = match rest.remove("parameters") {
+            None => serde_json::Map::new(),
+            Some(Value::Object(p)) => p,
+            Some(v) => {
+                return Err(err(
+                    &name,
+                    "parameters",
+                    format!("{v}: a mapping from parameter names to distributions"),
+                ))
+            }
+        };
+        let mut dists = BTreeMap::new();
+        for (p, v) in declared {
+            let Some((_, range)) = parameters.iter().find(|(n, _)| *n == p) else {
+                let known: Vec<&str> = parameters.iter().map(|(n, _)| n.as_str()).collect();
+                return Err(err(
+                    &name,
+                    &format!("parameters.{p}"),
+                    format!(
+                        "not a sampled parameter of the model (parameters: {})",
+                        known.join(", ")
+                    ),
+                ));
+            };
+            let field = format!("parameters.{p}");
+            let d = parse_distribution(&v, *range).map_err(|m| err(&name, &field, m))?;
+            d.validate(&field)
+                .map_err(|e| err(&name, &field, e.to_string()))?;
+            dists.insert(p, d);
+        }
+        let check_index = |field: &str, i: &str| -> Result<(), SpecError> {
+            if indices.iter().any(|x| x == i) {
+                Ok(())
+            } else {
+                Err(err(
+                    &name,
+                    field,
+                    format!(
+                        "`{i}` is not an index of the model (indices: {})",
+                        indices.join(", ")
+                    ),
+                ))
+            }
+        };
+        let kind = match kind.as_ref().and_then(Value::as_str) {
+            Some("monte_carlo") => {
+                let s: MonteCarloSpec = serde_json::from_value(Value::Object(rest))
+                    .map_err(|e| err(&name, "", e.to_string()))?;
+                if !(1..=MAX_MONTE_CARLO).contains(&s.n) {
+                    return Err(err(
+                        &name,
+                        "n",
+                        format!("{}: allowed 1 to {MAX_MONTE_CARLO}", s.n),
+                    ));
+                }
+                if solver_check > s.n {
+                    return Err(err(
+                        &name,
+                        "solver_check",
+                        format!("{solver_check} is more than the study's {} designs", s.n),
+                    ));
+                }
+                for (i, l) in &s.limits {
+                    check_index(&format!("limits.{i}"), i)?;
+                    if !l.is_finite() {
+                        return Err(err(
+                            &name,
+                            &format!("limits.{i}"),
+                            format!("{l}: a finite limit"),
+                        ));
+                    }
+                }
+                StudyKind::MonteCarlo {
+                    n: s.n,
+                    limits: s.limits,
+                }
+            }
+            other => {
+                return Err(err(
+                    &name,
+                    "kind",
+                    format!("{other:?}: one of monte_carlo, sensitivity, optimise"),
+                ))
+            }
+        };
+        Ok(Self {
+            name,
+            kind,
+            parameters: dists,
+            solver_check,
+        })
+    }
+
+    /// The distribution of every sampled parameter (declared, else uniform over its training
+    /// range), in the model's parameter order.
+    pub fn distributions(&self, parameters: &[(String, [f64; 2])]) -> Vec<Distribution> {
+        parameters
+            .iter()
+            .map(|(n, [lo, hi])| {
+                self.parameters
+                    .get(n)
+                    .copied()
+                    .unwrap_or(Distribution::Uniform { lo: *lo, hi: *hi })
+            })
+            .collect()
+    }
+}
+
+fn parse_distribution(v: &Value, training: [f64; 2]) -> Result<Distribution, String> {
+    if let Some(x) = v.as_f64() {
+        return Ok(Distribution::Fixed(x));
+    }
+    let s: DistributionSpec = serde_json::from_value(v.clone()).map_err(|e| e.to_string())?;
+    let [lo, hi] = s.range.unwrap_or(training);
+    let given = [
+        s.uniform.is_some(),
+        s.normal.is_some(),
+        s.lognormal.is_some(),
+        s.fixed.is_some(),
+    ];
+    if given.iter().filter(|g| **g).count() != 1 {
+        return Err("exactly one of uniform, normal, lognormal, fixed".into());
+    }
+    Ok(if let Some([lo, hi]) = s.uniform {
+        Distribution::Uniform { lo, hi }
+    } else if let Some(n) = s.normal {
+        Distribution::Normal {
+            mean: n.mean,
+            std: n.std,
+            lo,
+            hi,
+        }
+    } else if let Some(l) = s.lognormal {
+        Distribution::LogNormal {
+            median: l.median,
+            sigma_log: l.sigma_log,
+            lo,
+            hi,
+        }
+    } else {
+        Distribution::Fixed(s.fixed.unwrap_or(f64::NAN))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn params() -> Vec<(String, [f64; 2])> {
+        vec![("c_s".into(), [1.0, 2.0]), ("m_c".into(), [10.0, 20.0])]
+    }
+
+    #[test]
+    fn a_monte_carlo_study_parses_with_defaults() {
+        let s = Study::parse(
+            &json!({"name": "wheel", "kind": "monte_carlo", "n": 100, "solver_check": 5,
+                    "parameters": {"c_s": {"normal": {"mean": 1.5, "std": 0.2}}, "m_c": 12.0},
+                    "limits": {"q": 0.6}}),
+            &params(),
+            &["q".into()],
+        )
+        .unwrap();
+        assert_eq!(s.solver_check, 5);
+        let d = s.distributions(&params());
+        assert_eq!(
+            d[0],
+            Distribution::Normal {
+                mean: 1.5,
+                std: 0.2,
+                lo: 1.0,
+                hi: 2.0
+            }
+        );
+        assert_eq!(d[1], Distribution::Fixed(12.0));
+    }
+
+    #[test]
+    fn bad_declarations_name_the_field() {
+        let idx = ["q".to_string()];
+        let e = |v: Value| Study::parse(&v, &params(), &idx).unwrap_err().to_string();
+        assert!(
+            e(json!({"name": "a", "kind": "monte_carlo", "n": 10, "parameters": {"k": 1.0}}))
+                .starts_with("study.a.parameters.k: not a sampled parameter")
+        );
+        assert!(
+            e(json!({"name": "a", "kind": "monte_carlo", "n": 10, "limits": {"z": 1.0}}))
+                .contains("`z` is not an index")
+        );
+        assert!(e(json!({"name": "a", "kind": "monte_carlo", "n": 0})).starts_with("study.a.n:"));
+        assert!(
+            e(json!({"name": "a", "kind": "monte_carlo", "n": 3, "solver_check": 4}))
+                .starts_with("study.a.solver_check:")
+        );
+        assert!(e(json!({"name": "a", "kind": "mc", "n": 3})).starts_with("study.a.kind:"));
+        assert!(
+            e(json!({"name": "a", "kind": "monte_carlo", "n": 3, "m": 1}))
+                .contains("unknown field `m`")
+        );
+        assert!(e(json!({"name": "a", "kind": "monte_carlo", "n": 3,
+                         "parameters": {"c_s": {"normal": {"mean": 0.0, "std": -1.0}}}}))
+        .contains("std"));
+    }
+}

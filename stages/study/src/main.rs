@@ -1,0 +1,50 @@
+//! `study` stage: one design study through a trained model (`docs/studies.md`), the solver
+//! beside it.
+//!
+//! Inputs: `models` (one directory per expansion of `train`), `calibration` (optional: the
+//! `calibrate` stage's output; without it the answers carry no error bar and the files say
+//! so). Params: `study` (the matrix value: the study's declaration, with `name` and `kind`),
+//! `algorithm` (which model), `coverage`, `seed`, `batch_size`, `bootstrap`, `confidence`,
+//! `device`, `system_values`. In check mode the declaration is checked against the
+//! description named on the command line before anything runs. Writes the study's files
+//! (`evaluations.parquet`, `solver.parquet`, `summary.{parquet,csv,md}`).
+use anyhow::{bail, Context, Result};
+use pino_eval::study::StudyParams;
+use stage_kit::StageContext;
+
+fn run() -> Result<String> {
+    pino_learn::tune_allocator();
+    let ctx = StageContext::load()?;
+    pino_data::metadata::set_stage_origin(&ctx)?;
+    let p: StudyParams = ctx.params()?;
+    if ctx.is_check() {
+        let (_, system) = pino_data::system::load(&p.system_values)?;
+        let study = pino_eval::study::check(&system, &p)
+            .with_context(|| format!("stage `{}`: bad study", ctx.stage))?;
+        return Ok(format!("study `{}` valid", study.name));
+    }
+    let models = ctx.input_dirs("models")?.to_vec();
+    if models.is_empty() {
+        bail!("input `models` is empty: wire the `train` stage");
+    }
+    let calibration = if ctx.input_names().any(|n| n == "calibration") {
+        match ctx.input_dirs("calibration")? {
+            [one] => Some(one.clone()),
+            dirs => bail!(
+                "input `calibration`: {} directories, expected the one output of the `calibrate` stage",
+                dirs.len()
+            ),
+        }
+    } else {
+        None
+    };
+    let device = p.device.device()?;
+    let summary = pino_eval::study::run(&models, calibration.as_deref(), &p, &ctx.output, &device)
+        .with_context(|| format!("stage `{}`", ctx.stage))?;
+    Ok(summary)
+}
+
+fn main() {
+    pino_learn::candle_single_threaded_by_default();
+    stage_kit::finish(run())
+}
