@@ -137,6 +137,24 @@ impl StageContext {
         Ok(files.remove(0))
     }
 
+    /// The one directory of input `name` when the pipeline wires it (an optional input that
+    /// is one unit's output, such as `calibration`), `None` when it does not; an error names
+    /// the count otherwise.
+    pub fn optional_single_input_dir(&self, name: &str) -> Result<Option<PathBuf>> {
+        if !self.inputs.contains_key(name) {
+            return Ok(None);
+        }
+        match self.input_dirs(name)? {
+            [dir] => Ok(Some(dir.clone())),
+            dirs => Err(Error::InputCount {
+                stage: self.stage.clone(),
+                name: name.to_owned(),
+                file_name: "directory (one unit's output)".into(),
+                found: dirs.len(),
+            }),
+        }
+    }
+
     /// Names of all inputs the pipeline wired to this stage.
     pub fn input_names(&self) -> impl Iterator<Item = &str> {
         self.inputs.keys().map(String::as_str)
@@ -201,6 +219,13 @@ mod tests {
         assert!(err.contains("exactly one y.parquet, found 0"), "{err}");
         let err = ctx.input_dirs("down").unwrap_err().to_string();
         assert!(err.contains("`down`") && err.contains("up"), "{err}");
+        // An optional single input: absent is None, two directories are refused by count.
+        assert_eq!(ctx.optional_single_input_dir("down").unwrap(), None);
+        let err = ctx.optional_single_input_dir("up").unwrap_err().to_string();
+        assert!(
+            err.contains("input `up`") && err.contains("found 2"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -45,7 +45,8 @@ fn run() -> Result<()> {
         batch_size: p.batch_size.max(1),
         transform: Transform::for_device(&device),
         compare_with_paper: p.compare_with_paper,
-        calibration: calibration_dir(&ctx)?,
+        // Optional: an uncalibrated pipeline is evaluated without coverage tables.
+        calibration: ctx.optional_single_input_dir("calibration")?,
     };
     let progress = ctx.progress(models.len() as u64);
     let data = EvalData {
@@ -90,21 +91,6 @@ fn run() -> Result<()> {
         rows.join(", ")
     ));
     Ok(())
-}
-
-/// The `calibrate` stage's output when the pipeline wires input `calibration` (optional: an
-/// uncalibrated pipeline is evaluated without coverage tables).
-fn calibration_dir(ctx: &StageContext) -> Result<Option<std::path::PathBuf>> {
-    if !ctx.input_names().any(|n| n == "calibration") {
-        return Ok(None);
-    }
-    match ctx.input_dirs("calibration")? {
-        [dir] => Ok(Some(dir.clone())),
-        dirs => bail!(
-            "input `calibration`: {} directories, expected the one output of the `calibrate` stage",
-            dirs.len()
-        ),
-    }
 }
 
 fn main() {

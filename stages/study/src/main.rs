@@ -27,17 +27,8 @@ fn run() -> Result<String> {
     if models.is_empty() {
         bail!("input `models` is empty: wire the `train` stage");
     }
-    let calibration = if ctx.input_names().any(|n| n == "calibration") {
-        match ctx.input_dirs("calibration")? {
-            [one] => Some(one.clone()),
-            dirs => bail!(
-                "input `calibration`: {} directories, expected the one output of the `calibrate` stage",
-                dirs.len()
-            ),
-        }
-    } else {
-        None
-    };
+    // Optional: without it the answers carry no error bar and the files say so.
+    let calibration = ctx.optional_single_input_dir("calibration")?;
     let device = p.device.device()?;
     let summary = pino_eval::study::run(&models, calibration.as_deref(), &p, &ctx.output, &device)
         .with_context(|| format!("stage `{}`", ctx.stage))?;

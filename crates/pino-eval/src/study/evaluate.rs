@@ -8,9 +8,8 @@ use crate::predict::{DesignAnswer, GeneratedProfiles, Predictor, ProfileSource};
 use crate::solve::{exact, exact_indices};
 use mbd_engine::RunConfig;
 use pino_indices::IndexConfig;
-use pino_learn::{Error, Result};
+use pino_learn::Result;
 use rayon::prelude::*;
-use std::time::Instant;
 
 /// What a study evaluates with: the model, its run controls, the index settings and the
 /// profile generators at the study's seed.
@@ -33,8 +32,6 @@ pub struct Solved {
     pub indices: Vec<f64>,
     /// Why it has none.
     pub failure: Option<String>,
-    /// Wall time of the solve (s).
-    pub seconds: f64,
 }
 
 impl<'a> Evaluator<'a> {
@@ -56,8 +53,7 @@ impl<'a> Evaluator<'a> {
             .is_some_and(|c| c.has_intervals())
     }
 
-    /// The surrogate's answers for `designs`, design `k` under excitation `excitation[k]`;
-    /// `done(n)` after each batch.
+    /// The surrogate's answers for `designs`, design `k` under excitation `excitation[k]`.
     pub fn surrogate(&self, designs: &[Vec<f64>], excitation: &[u64]) -> Result<Vec<DesignAnswer>> {
         let of = |k: usize| self.profiles.of(excitation[k]);
         self.predictor.answers_with(
@@ -77,21 +73,17 @@ impl<'a> Evaluator<'a> {
             .zip(excitation)
             .map(|(d, &e)| {
                 let profiles = self.profiles.of(e)?;
-                let t0 = Instant::now();
                 let result = exact(self.predictor, &self.run, d, &profiles, None)
                     .and_then(|x| exact_indices(self.predictor, d, x, &self.cfg));
-                let seconds = t0.elapsed().as_secs_f64();
                 let n = self.predictor.index_inputs().columns().len();
                 Ok(match result {
                     Ok(ix) => Solved {
                         indices: ix.values,
                         failure: None,
-                        seconds,
                     },
                     Err(e) => Solved {
                         indices: vec![f64::NAN; n],
                         failure: Some(e.to_string()),
-                        seconds,
                     },
                 })
             })
@@ -102,13 +94,4 @@ impl<'a> Evaluator<'a> {
 /// `k` designs spread evenly over `n` (`floor(j n / k)`, `j < k`).
 pub fn spread(n: usize, k: usize) -> Vec<usize> {
     (0..k.min(n)).map(|j| j * n / k.min(n).max(1)).collect()
-}
-
-/// An error of a study's own inputs, blamed on the study.
-pub fn study_error(study: &str, message: impl Into<String>) -> Error {
-    Error::OutOfRange {
-        field: format!("study.{study}"),
-        value: message.into(),
-        allowed: "a study the model can answer".into(),
-    }
 }

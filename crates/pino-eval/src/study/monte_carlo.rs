@@ -71,15 +71,14 @@ pub fn run(
     limits: &BTreeMap<String, f64>,
     parameters: &[(String, [f64; 2])],
 ) -> Result<MonteCarlo> {
-    let n = &n;
     let p = ev.params;
     let dists = study.distributions(parameters);
-    let designs: Vec<Vec<f64>> = (0..*n as u64).map(|i| draw(p.seed, i, &dists)).collect();
-    let excitation: Vec<u64> = (0..*n as u64).collect();
+    let designs: Vec<Vec<f64>> = (0..n as u64).map(|i| draw(p.seed, i, &dists)).collect();
+    let excitation: Vec<u64> = (0..n as u64).collect();
     let t0 = Instant::now();
     let answers = ev.surrogate(&designs, &excitation)?;
     let surrogate_s = t0.elapsed().as_secs_f64();
-    let checked = spread(*n, study.solver_check);
+    let checked = spread(n, study.solver_check);
     let t1 = Instant::now();
     let solved = ev.solver(
         &checked
@@ -111,7 +110,7 @@ pub fn run(
                 })
                 .collect()
         };
-        let all: Vec<usize> = (0..*n).collect();
+        let all: Vec<usize> = (0..n).collect();
         let sources: [Source; 3] = [
             (
                 "surrogate",

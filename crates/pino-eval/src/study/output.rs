@@ -10,7 +10,7 @@ use crate::predict::Predictor;
 use pino_data::units::{declare, DIMENSIONLESS, PER_ROW, UNIT_KEY};
 use pino_data::{Column, Table};
 use pino_learn::{Error, Result};
-use pino_studies::stats::QUANTILES;
+use pino_studies::stats::{Interval, QUANTILES};
 use std::path::Path;
 
 /// Column of a design's number in a study.
@@ -24,6 +24,14 @@ pub const SOLVER_CHECKED: &str = "solver_checked";
 
 fn quantile_name(p: f64) -> String {
     format!("q{:02}", (p * 100.0).round() as i64)
+}
+
+/// The summary's statistics, in column order: `mean`, `std`, the quantiles (`q05`, ...).
+fn statistic_names() -> Vec<String> {
+    ["mean".to_owned(), "std".to_owned()]
+        .into_iter()
+        .chain(QUANTILES.iter().map(|&p| quantile_name(p)))
+        .collect()
 }
 
 fn report_err(e: report::Error) -> Error {
@@ -58,11 +66,7 @@ pub fn write_monte_carlo(
             units.push((format!("{}{suffix}", c.name), c.unit.clone()));
         }
     }
-    for stat in ["mean", "std"]
-        .into_iter()
-        .map(str::to_owned)
-        .chain(QUANTILES.iter().map(|&p| quantile_name(p)))
-    {
+    for stat in statistic_names() {
         for suffix in ["", "_lo", "_hi"] {
             units.push((format!("{stat}{suffix}"), PER_ROW.into()));
         }
@@ -189,48 +193,31 @@ pub fn write_monte_carlo(
         Column::I64(rows.iter().map(|r| r.summary.n as i64).collect()),
     )?;
     let f = |m: &mut Table, name: &str, v: Vec<f64>| m.push(name, Column::F64(v));
-    f(
-        &mut m,
-        "mean",
-        rows.iter().map(|r| r.summary.mean).collect(),
-    )?;
-    f(
-        &mut m,
-        "mean_lo",
-        rows.iter().map(|r| r.summary.mean_ci.lo).collect(),
-    )?;
-    f(
-        &mut m,
-        "mean_hi",
-        rows.iter().map(|r| r.summary.mean_ci.hi).collect(),
-    )?;
-    f(&mut m, "std", rows.iter().map(|r| r.summary.std).collect())?;
-    f(
-        &mut m,
-        "std_lo",
-        rows.iter().map(|r| r.summary.std_ci.lo).collect(),
-    )?;
-    f(
-        &mut m,
-        "std_hi",
-        rows.iter().map(|r| r.summary.std_ci.hi).collect(),
-    )?;
-    for (k, &p) in QUANTILES.iter().enumerate() {
-        let q = quantile_name(p);
+    // Each statistic with its bootstrap interval: mean, std, then the quantiles.
+    let stats = |s: &pino_studies::stats::Summary| -> Vec<(f64, Interval)> {
+        [(s.mean, s.mean_ci), (s.std, s.std_ci)]
+            .into_iter()
+            .chain(
+                s.quantiles
+                    .iter()
+                    .copied()
+                    .zip(s.quantile_ci.iter().copied()),
+            )
+            .collect()
+    };
+    let names = statistic_names();
+    let per_row: Vec<Vec<(f64, Interval)>> = rows.iter().map(|r| stats(&r.summary)).collect();
+    for (k, name) in names.iter().enumerate() {
+        f(&mut m, name, per_row.iter().map(|s| s[k].0).collect())?;
         f(
             &mut m,
-            &q,
-            rows.iter().map(|r| r.summary.quantiles[k]).collect(),
+            &format!("{name}_lo"),
+            per_row.iter().map(|s| s[k].1.lo).collect(),
         )?;
         f(
             &mut m,
-            &format!("{q}_lo"),
-            rows.iter().map(|r| r.summary.quantile_ci[k].lo).collect(),
-        )?;
-        f(
-            &mut m,
-            &format!("{q}_hi"),
-            rows.iter().map(|r| r.summary.quantile_ci[k].hi).collect(),
+            &format!("{name}_hi"),
+            per_row.iter().map(|s| s[k].1.hi).collect(),
         )?;
     }
     let ex = |g: &dyn Fn(&pino_studies::stats::Exceedance) -> f64| -> Vec<f64> {

@@ -53,19 +53,9 @@ impl StudyParams {
             value,
             allowed: allowed.into(),
         };
-        if !(self.coverage > 0.0 && self.coverage < 1.0) {
-            return Err(bad(
-                "coverage",
-                self.coverage.to_string(),
-                "a coverage in (0, 1)",
-            ));
-        }
-        if !(self.confidence > 0.0 && self.confidence < 1.0) {
-            return Err(bad(
-                "confidence",
-                self.confidence.to_string(),
-                "a level in (0, 1)",
-            ));
+        for (field, level) in [("coverage", self.coverage), ("confidence", self.confidence)] {
+            pino_studies::stats::check_level(field, level)
+                .map_err(|e| bad(field, level.to_string(), &e.to_string()))?;
         }
         if self.batch_size == 0 {
             return Err(bad("batch_size", "0".into(), ">= 1"));
