@@ -930,7 +930,13 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
         // Every stage that reads the description names the same file, which exists and
         // compiles with the file's overrides; every stage gets the same overrides.
         let mut values = None;
-        for stage in ["sample-params", "irregularity", "simulate", "evaluate"] {
+        for stage in [
+            "sample-params",
+            "irregularity",
+            "simulate",
+            "evaluate",
+            "study",
+        ] {
             let cmd = pino_mbd_tests::stage_cmd(file, stage);
             assert_eq!(cmd[1..], [system_file], "{file}: {stage}");
             let (_, v) = split_values(params(stage));

@@ -163,7 +163,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     // The study: every design evaluated, the exceedance probability of its summary recomputed
     // from the evaluations, the solver beside 20 of them, and the same bytes from the unit's
     // context run again by hand on 1 and on 2 threads.
-    let study = show(ws.path(), "study", &[]);
+    let study = show(ws.path(), "study[study=wheel_unloading]", &[]);
     let evals = read_parquet(named(&study, "evaluations.parquet")[0], None).unwrap();
     assert_eq!(evals.num_rows(), 2000);
     assert_eq!(evals.i64("solver_checked").unwrap().iter().sum::<i64>(), 20);
@@ -193,37 +193,46 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         .unwrap()
         .iter()
         .all(|&p| p > 30.0 && p < 300.0));
-    let unit = study[0]
-        .parent()
-        .and_then(Path::parent)
-        .expect("objects/<id>/out");
-    let ctx: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(unit.join("context.json")).unwrap()).unwrap();
-    for threads in [1, 2] {
-        let scratch = tempfile::tempdir().unwrap();
-        let (path, out) = pino_mbd_tests::stage_context(
-            scratch.path(),
-            ctx["stage"].as_str().unwrap(),
-            ctx["params"].clone(),
-            ctx["inputs"].clone(),
-            false,
-        );
-        let o = pino_mbd_tests::run_stage(
-            "study",
-            Some(&ws.path().join("systems/vtcd.yaml")),
-            &path,
-            threads,
-        );
-        assert!(o.status.success(), "{}", output_text(&o));
-        for f in study.iter().filter(|f| !f.ends_with("speed.csv")) {
-            let again = out.join(f.file_name().unwrap());
-            assert!(
-                std::fs::read(f).unwrap() == std::fs::read(&again).unwrap(),
-                "{} differs on {threads} thread(s)",
-                f.display()
-            );
-        }
+    // The sensitivity study: SALib's order, the solver's rows, one estimate per index, source
+    // and factor (the interop test recomputes them with SALib).
+    let sensitivity = show(ws.path(), "study[study=drivers]", &[]);
+    let evals = read_parquet(named(&sensitivity, "evaluations.parquet")[0], None).unwrap();
+    let factors = system.sampled_names().len() + 1;
+    let per_row = factors + 2;
+    assert_eq!(evals.num_rows(), 256 * per_row);
+    let (row, position) = (evals.i64("row").unwrap(), evals.i64("position").unwrap());
+    for (k, (r, p)) in row.iter().zip(position).enumerate() {
+        assert_eq!((*r as usize, *p as usize), (k / per_row, k % per_row));
     }
+    assert_eq!(
+        evals.i64("solver_checked").unwrap().iter().sum::<i64>() as usize,
+        16 * per_row
+    );
+    let sobol = read_parquet(named(&sensitivity, "sobol.parquet")[0], None).unwrap();
+    let indices = pino_eval::study::index_names(&system).unwrap();
+    assert_eq!(sobol.num_rows(), indices.len() * 3 * factors);
+    let total = sobol.f64("ST").unwrap();
+    assert!(
+        total.iter().all(|&t| t >= 0.0),
+        "Jansen's total index is a mean of squares"
+    );
+    for chunk in sobol.f64("rank").unwrap().chunks(factors) {
+        let mut ranks: Vec<usize> = chunk.iter().map(|&r| r as usize).collect();
+        ranks.sort_unstable();
+        assert_eq!(ranks, (1..=factors).collect::<Vec<_>>());
+    }
+    let solver = read_parquet(named(&sensitivity, "solver.parquet")[0], None).unwrap();
+    assert_eq!(solver.num_rows(), 16 * per_row);
+    assert!(solver
+        .str("solver_failure")
+        .unwrap()
+        .iter()
+        .all(String::is_empty));
+
+    // The pipeline ran each unit on all cores; again by hand on 1 and 2 threads (the
+    // sensitivity study, the costlier, on 1).
+    same_bytes_by_hand(ws.path(), &study, &[1, 2]);
+    same_bytes_by_hand(ws.path(), &sensitivity, &[1]);
 
     // Same inputs: nothing to do.
     let second = pipeline(ws.path(), &["run"]);
@@ -233,6 +242,38 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         "second run should do nothing: {}",
         output_text(&second)
     );
+}
+
+/// Runs the study unit of `files` (its outputs) again by hand from its context on each of
+/// `threads`: every file but the timings has the same bytes.
+fn same_bytes_by_hand(ws: &Path, files: &[PathBuf], threads: &[usize]) {
+    let unit = files[0]
+        .parent()
+        .and_then(Path::parent)
+        .expect("objects/<id>/out");
+    let ctx: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(unit.join("context.json")).unwrap()).unwrap();
+    for &threads in threads {
+        let scratch = tempfile::tempdir().unwrap();
+        let (path, out) = pino_mbd_tests::stage_context(
+            scratch.path(),
+            ctx["stage"].as_str().unwrap(),
+            ctx["params"].clone(),
+            ctx["inputs"].clone(),
+            false,
+        );
+        let o =
+            pino_mbd_tests::run_stage("study", Some(&ws.join("systems/vtcd.yaml")), &path, threads);
+        assert!(o.status.success(), "{}", output_text(&o));
+        for f in files.iter().filter(|f| !f.ends_with("speed.csv")) {
+            let again = out.join(f.file_name().unwrap());
+            assert!(
+                std::fs::read(f).unwrap() == std::fs::read(&again).unwrap(),
+                "{} differs on {threads} thread(s)",
+                f.display()
+            );
+        }
+    }
 }
 
 /// Every stage file of a workspace's store (none when nothing ran).

@@ -32,16 +32,19 @@ import os
 import re
 import sys
 import tomllib
+import warnings
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 
 try:
     import duckdb
+    import numpy as np
     import pandas as pd
     import polars as pl
     import pyarrow
     import pyarrow.parquet as pq
+    from SALib.analyze import sobol as salib_sobol
 except ImportError as e:
     sys.exit(f"check_parquet: {e}: run `pip install -r tests/interop/requirements.txt`")
 
@@ -185,17 +188,28 @@ EXPECTED = {
     "indices.parquet": ("indices", None),
     "indices_errors.parquet": ("evaluate", None),
     "indices_samples.parquet": ("evaluate", None),
-    # A Monte Carlo study (docs/studies.md): its evaluations and solver checks own their
-    # columns (the parameters and indices of the description); the summary is fixed.
-    "evaluations.parquet": ("study", None),
-    "solver.parquet": ("study", None),
-    "summary.parquet": (
+    # The studies (docs/studies.md), keyed by their kind: the evaluations and solver checks own
+    # their columns (the parameters and indices of the description); the summaries are fixed.
+    "monte_carlo/evaluations.parquet": ("study", None),
+    "monte_carlo/solver.parquet": ("study", None),
+    "monte_carlo/summary.parquet": (
         "study",
         [("index", STR, "-"), ("unit", STR, "-"), ("source", STR, "-"), ("n", I64, "-")]
         + [(f"{stat}{side}", F64, "{unit}") for stat in ["mean", "std", "q05", "q50", "q95", "q99"]
            for side in ["", "_lo", "_hi"]]
         + [("limit", F64, "{unit}"), ("p_exceed", F64, "-"), ("p_exceed_lo", F64, "-"),
            ("p_exceed_hi", F64, "-"), ("p_surrogate_lo", F64, "-"), ("p_surrogate_hi", F64, "-")],
+    ),
+    "sensitivity/evaluations.parquet": ("study", None),
+    "sensitivity/solver.parquet": ("study", None),
+    "sensitivity/sobol.parquet": (
+        "study",
+        [("index", STR, "-"), ("source", STR, "-"), ("n", I64, "-"), ("factor", STR, "-")]
+        + [(c, F64, "-") for c in ["S1", "S1_lo", "S1_hi", "ST", "ST_lo", "ST_hi", "rank"]],
+    ),
+    "sensitivity/convergence.parquet": (
+        "study",
+        [("index", STR, "-"), ("n", I64, "-"), ("factor", STR, "-"), ("S1", F64, "-"), ("ST", F64, "-")],
     ),
     "predict": (
         "predict",
@@ -208,14 +222,24 @@ EXPECTED = {
 PARTIAL = {
     "indices.parquet": [("sample_id", I64, "-"), ("peak_wheel_rail_force_kn", F64, "kN")],
     "indices_errors.parquet": [("algorithm", I64, "-"), ("index", STR, "-"), ("unit", STR, "-")],
-    "evaluations.parquet": [
+    "monte_carlo/evaluations.parquet": [
         ("design", I64, "-"), ("excitation", I64, "-"), ("wheel_load_reduction_rate", F64, "-"),
         ("wheel_load_reduction_rate_lo", F64, "-"), ("wheel_load_reduction_rate_hi", F64, "-"),
         ("extrapolated", I64, "-"), ("solver_checked", I64, "-"),
     ],
-    "solver.parquet": [
+    "monte_carlo/solver.parquet": [
         ("design", I64, "-"), ("excitation", I64, "-"), ("peak_wheel_rail_force_kn", F64, "kN"),
         ("peak_wheel_rail_force_kn_surrogate", F64, "kN"), ("solver_failure", STR, "-"),
+    ],
+    "sensitivity/evaluations.parquet": [
+        ("row", I64, "-"), ("position", I64, "-"), ("block", STR, "-"), ("factor", STR, "-"),
+        ("excitation", I64, "-"), ("sperling_wz_centre", F64, "-"), ("extrapolated", I64, "-"),
+        ("solver_checked", I64, "-"),
+    ],
+    "sensitivity/solver.parquet": [
+        ("row", I64, "-"), ("position", I64, "-"), ("block", STR, "-"), ("factor", STR, "-"),
+        ("excitation", I64, "-"), ("sperling_wz_centre", F64, "-"),
+        ("sperling_wz_centre_surrogate", F64, "-"), ("solver_failure", STR, "-"),
     ],
     "indices_samples.parquet": [
         ("algorithm", I64, "-"), ("sample_id", I64, "-"),
@@ -491,7 +515,7 @@ def recompute(arts, say):
 
     # study: every exceedance probability and its surrogate bounds recomputed from the
     # evaluations in DuckDB, exactly.
-    ev, sm = one(arts, "evaluations.parquet"), one(arts, "summary.parquet")
+    ev, sm = one(arts, "monte_carlo/evaluations.parquet"), one(arts, "monte_carlo/summary.parquet")
     rows = duckdb.sql(
         f'SELECT "index", "limit", p_exceed, p_surrogate_lo, p_surrogate_hi FROM read_parquet({lit(sm.path)}) '
         f"""WHERE source = 'surrogate' AND NOT isnan("limit")"""
@@ -504,6 +528,33 @@ def recompute(arts, say):
         ).fetchall()[0]
         check(got == (p, lo, hi), f"{sm.path}: P({index} > {limit}) {p, lo, hi}, DuckDB {got}")
     say(f"study: {len(rows)} exceedance probabilities and their bounds recomputed from the evaluations")
+
+    # sensitivity: every Sobol index of every source recomputed with SALib from the stored
+    # outputs in SALib's order (the surrogate's on all rows and on the solver's, the solver's),
+    # to 1e-10.
+    ev, sv = one(arts, "sensitivity/evaluations.parquet"), one(arts, "sensitivity/solver.parquet")
+    sb = pl.read_parquet(one(arts, "sensitivity/sobol.parquet").path)
+    outputs = {
+        "surrogate": pl.read_parquet(ev.path).sort(["row", "position"]),
+        "solver": pl.read_parquet(sv.path).sort(["row", "position"]),
+    }
+    outputs["surrogate_reduced"] = outputs["surrogate"].filter(pl.col("solver_checked") == 1)
+    compared = 0
+    for (index, source), est in sb.group_by(["index", "source"], maintain_order=True):
+        factors = est["factor"].to_list()
+        # One name per factor (the excitation's phases already one column of the design); an
+        # array, as SALib 1.5.1's `pd.unique` needs under pandas 3.
+        problem = {"num_vars": len(factors), "names": np.asarray(factors), "bounds": [[0.0, 1.0]] * len(factors)}
+        y = outputs[source][index].to_numpy()
+        check(len(y) == est["n"][0] * (len(factors) + 2), f"{ev.path}: {len(y)} outputs of `{index}` ({source})")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            got = salib_sobol.analyze(problem, y, calc_second_order=False, num_resamples=10, seed=1)
+        for name in ["S1", "ST"]:
+            diff = np.abs(np.asarray(got[name]) - est[name].to_numpy()).max()
+            check(diff <= 1e-10, f"{index} ({source}): {name} differs from SALib's by {diff:.3g}")
+        compared += 1
+    say(f"sensitivity: S1 and ST of {compared} index-source pairs equal SALib's to 1e-10")
 
     # predict: one block of rows per parameter set, on a uniform time grid (polars).
     for a in arts["predict"]:
@@ -567,6 +618,8 @@ def main():
         arts = defaultdict(list)
         for path, context in files:
             kind = "predict" if context is None else path.name
+            if context is not None and context["stage"].split("[")[0] == "study":
+                kind = f"{context['params']['study']['kind']}/{path.name}"
             check(kind in EXPECTED, f"{path}: an artifact this check does not know; state its schema in EXPECTED")
             arts[kind].append(check_file(path, kind, context, version))
         say(f"{len(files)} files: names, types, units and provenance agree in pyarrow, polars and DuckDB")

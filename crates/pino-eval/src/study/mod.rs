@@ -15,6 +15,7 @@
 pub mod evaluate;
 pub mod monte_carlo;
 pub mod output;
+pub mod sensitivity;
 pub mod spec;
 
 pub use spec::{Study, StudyKind, StudyParams};
@@ -135,6 +136,32 @@ pub fn run(
                 mc.solver_s,
                 if firsts.is_empty() { "" } else { "; " },
                 firsts.join(", ")
+            ))
+        }
+        StudyKind::Sensitivity { n } => {
+            let s = sensitivity::run(&ev, &study, *n, &parameters)?;
+            output::write_sensitivity(out, &predictor, &study, &s)?;
+            let ranked = sensitivity::rankings(&s);
+            let differ: Vec<&str> = ranked
+                .iter()
+                .filter(|r| !r.same)
+                .map(|r| r.index.as_str())
+                .collect();
+            Ok(format!(
+                "`{}`: {} evaluations ({n} rows, {} factors) in {:.1} s ({} through the solver in {:.1} s){}",
+                study.name,
+                s.evaluations.len(),
+                s.factors.len(),
+                s.surrogate_s,
+                s.solved.len(),
+                s.solver_s,
+                if ranked.is_empty() {
+                    String::new()
+                } else if differ.is_empty() {
+                    "; surrogate and solver rank the top factors alike".to_owned()
+                } else {
+                    format!("; the rankings differ for {} (summary.md says why)", differ.join(", "))
+                }
             ))
         }
     }

@@ -11,6 +11,15 @@ use std::collections::BTreeMap;
 /// The most designs a Monte Carlo study evaluates.
 pub const MAX_MONTE_CARLO: usize = 1_000_000;
 
+/// The most evaluations (`N (factors + 2)`) a sensitivity study makes.
+pub const MAX_SENSITIVITY_EVALUATIONS: usize = 1_000_000;
+
+/// The fewest rows of a sensitivity study's design.
+pub const MIN_SENSITIVITY_ROWS: usize = 4;
+
+/// The name of the excitation as one grouped factor of a sensitivity study.
+pub const EXCITATION_FACTOR: &str = "excitation";
+
 /// The `study` stage's parameters: the study (the matrix value) and the settings shared by
 /// every study.
 #[derive(Debug, Clone, Deserialize)]
@@ -117,6 +126,13 @@ pub enum StudyKind {
         /// Upper limits by index (the description's limits where not given).
         limits: BTreeMap<String, f64>,
     },
+    /// Sobol indices of every index over every varying parameter and the excitation, on a
+    /// Saltelli design of `n` rows (`n (factors + 2)` evaluations); the solver runs the
+    /// design's first `solver_check` rows.
+    Sensitivity {
+        /// Rows of the design (a power of two).
+        n: usize,
+    },
 }
 
 /// A refusal naming the field.
@@ -156,6 +172,12 @@ struct NormalSpec {
 struct LogNormalSpec {
     median: f64,
     sigma_log: f64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SensitivitySpec {
+    n: usize,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -292,6 +314,55 @@ impl Study {
                     limits: s.limits,
                 }
             }
+            Some("sensitivity") => {
+                let s: SensitivitySpec = serde_json::from_value(Value::Object(rest))
+                    .map_err(|e| err(&name, "", e.to_string()))?;
+                let varying = parameters
+                    .iter()
+                    .filter(|(p, _)| dists.get(p).is_none_or(Distribution::varies))
+                    .count();
+                if varying == 0 {
+                    return Err(err(
+                        &name,
+                        "parameters",
+                        "every parameter is fixed: a sensitivity study needs one that varies"
+                            .into(),
+                    ));
+                }
+                let factors = varying + 1;
+                let most = (MAX_SENSITIVITY_EVALUATIONS / (factors + 2))
+                    .min(pino_studies::sobol::MAX_ROWS);
+                if !(MIN_SENSITIVITY_ROWS..=most).contains(&s.n) || !s.n.is_power_of_two() {
+                    return Err(err(
+                        &name,
+                        "n",
+                        format!(
+                            "{}: a power of two from {MIN_SENSITIVITY_ROWS} to {most} rows \
+                             (N ({factors} factors + 2) evaluations, at most \
+                             {MAX_SENSITIVITY_EVALUATIONS})",
+                            s.n
+                        ),
+                    ));
+                }
+                if solver_check != 0 && (solver_check < 2 || !solver_check.is_power_of_two()) {
+                    return Err(err(
+                        &name,
+                        "solver_check",
+                        format!(
+                            "{solver_check}: 0 or a power of two >= 2 (rows of the design the \
+                             solver also runs)"
+                        ),
+                    ));
+                }
+                if solver_check > s.n {
+                    return Err(err(
+                        &name,
+                        "solver_check",
+                        format!("{solver_check} is more than the study's {} rows", s.n),
+                    ));
+                }
+                StudyKind::Sensitivity { n: s.n }
+            }
             other => {
                 return Err(err(
                     &name,
@@ -417,5 +488,33 @@ mod tests {
         assert!(e(json!({"name": "a", "kind": "monte_carlo", "n": 3,
                          "parameters": {"c_s": {"normal": {"mean": 0.0, "std": -1.0}}}}))
         .contains("std"));
+    }
+
+    #[test]
+    fn a_sensitivity_study_counts_its_factors_and_rows() {
+        let idx = ["q".to_string()];
+        let parse = |v: Value| Study::parse(&v, &params(), &idx);
+        let s =
+            parse(json!({"name": "s", "kind": "sensitivity", "n": 64, "solver_check": 8})).unwrap();
+        assert_eq!(s.kind, StudyKind::Sensitivity { n: 64 });
+        let e = |v: Value| parse(v).unwrap_err().to_string();
+        assert!(e(json!({"name": "s", "kind": "sensitivity", "n": 48}))
+            .starts_with("study.s.n: 48: a power of two"));
+        assert!(e(json!({"name": "s", "kind": "sensitivity", "n": 2})).contains("from 4"));
+        // Two varying parameters and the excitation: 5 evaluations per row.
+        let most = (MAX_SENSITIVITY_EVALUATIONS / 5).min(pino_studies::sobol::MAX_ROWS);
+        assert!(e(json!({"name": "s", "kind": "sensitivity", "n": 1 << 17}))
+            .contains(&format!("to {most} rows")));
+        assert!(
+            e(json!({"name": "s", "kind": "sensitivity", "n": 64, "solver_check": 6}))
+                .starts_with("study.s.solver_check: 6: 0 or a power of two")
+        );
+        assert!(
+            e(json!({"name": "s", "kind": "sensitivity", "n": 64, "solver_check": 128}))
+                .contains("more than the study's 64 rows")
+        );
+        assert!(e(json!({"name": "s", "kind": "sensitivity", "n": 64,
+                         "parameters": {"c_s": 1.5, "m_c": 12.0}}))
+        .starts_with("study.s.parameters: every parameter is fixed"));
     }
 }

@@ -1,45 +1,21 @@
-//! The files of a study: every evaluation (`evaluations.parquet`: the design, its excitation
-//! id, every index, its interval where calibrated, `extrapolated`, `solver_checked`), the
-//! solver's answers beside the surrogate's (`solver.parquet`), the statistics
-//! (`summary.{parquet,csv,md}`, one row per index and source) and the timings
-//! ([`SPEED_FILE`]: the only file whose bytes differ between two runs). Column units are declared, as in every artifact.
+//! The files of a Monte Carlo study: every evaluation (`evaluations.parquet`: the design, its
+//! excitation id, every index, its interval where calibrated, `extrapolated`,
+//! `solver_checked`), the solver's answers beside the surrogate's (`solver.parquet`), the
+//! statistics (`summary.{parquet,csv,md}`, one row per index and source) and the timings
+//! ([`SPEED_FILE`]).
 
-use super::monte_carlo::MonteCarlo;
-use super::spec::Study;
-use crate::predict::Predictor;
-use pino_data::units::{declare, DIMENSIONLESS, PER_ROW, UNIT_KEY};
+use super::{
+    declare_units, num, push_answers, push_solver, report_err, statistic_names, write_speed,
+    DESIGN, EXCITATION, SOLVER_CHECKED, SPEED_FILE,
+};
+use crate::predict::{DesignAnswer, Predictor};
+use crate::study::monte_carlo::MonteCarlo;
+use crate::study::spec::Study;
+use pino_data::units::{DIMENSIONLESS, PER_ROW, UNIT_KEY};
 use pino_data::{Column, Table};
-use pino_learn::{Error, Result};
-use pino_studies::stats::{Interval, QUANTILES};
+use pino_learn::Result;
+use pino_studies::stats::Interval;
 use std::path::Path;
-
-/// Column of a design's number in a study.
-pub const DESIGN: &str = "design";
-/// Column of its excitation id (the profile sample id at the study's seed).
-pub const EXCITATION: &str = "excitation";
-/// The timings of a study (the only file that differs between two runs of one study).
-pub const SPEED_FILE: &str = "speed.csv";
-/// Column flagging the designs the solver also answered.
-pub const SOLVER_CHECKED: &str = "solver_checked";
-
-fn quantile_name(p: f64) -> String {
-    format!("q{:02}", (p * 100.0).round() as i64)
-}
-
-/// The summary's statistics, in column order: `mean`, `std`, the quantiles (`q05`, ...).
-fn statistic_names() -> Vec<String> {
-    ["mean".to_owned(), "std".to_owned()]
-        .into_iter()
-        .chain(QUANTILES.iter().map(|&p| quantile_name(p)))
-        .collect()
-}
-
-fn report_err(e: report::Error) -> Error {
-    Error::Format {
-        path: "study".into(),
-        message: e.to_string(),
-    }
-}
 
 /// Writes a Monte Carlo study's files into `out`.
 pub fn write_monte_carlo(
@@ -49,26 +25,13 @@ pub fn write_monte_carlo(
     mc: &MonteCarlo,
 ) -> Result<()> {
     let columns = predictor.index_inputs().columns();
-    let mut units: Vec<(String, String)> = vec![
-        (DESIGN.into(), DIMENSIONLESS.into()),
-        (EXCITATION.into(), DIMENSIONLESS.into()),
-        (SOLVER_CHECKED.into(), DIMENSIONLESS.into()),
-        ("extrapolated".into(), DIMENSIONLESS.into()),
-        ("source".into(), DIMENSIONLESS.into()),
-        ("index".into(), DIMENSIONLESS.into()),
-        ("n".into(), DIMENSIONLESS.into()),
-        ("solver_failure".into(), DIMENSIONLESS.into()),
-        ("limit".into(), PER_ROW.into()),
-        ("p_exceed".into(), DIMENSIONLESS.into()),
+    let mut extra: Vec<(String, &str)> = vec![
+        ("limit".into(), PER_ROW),
+        ("p_exceed".into(), DIMENSIONLESS),
     ];
-    for c in columns {
-        for suffix in ["_lo", "_hi", "_surrogate"] {
-            units.push((format!("{}{suffix}", c.name), c.unit.clone()));
-        }
-    }
     for stat in statistic_names() {
         for suffix in ["", "_lo", "_hi"] {
-            units.push((format!("{stat}{suffix}"), PER_ROW.into()));
+            extra.push((format!("{stat}{suffix}"), PER_ROW));
         }
     }
     for s in [
@@ -77,9 +40,10 @@ pub fn write_monte_carlo(
         "p_surrogate_lo",
         "p_surrogate_hi",
     ] {
-        units.push((s.into(), DIMENSIONLESS.into()));
+        extra.push((s.into(), DIMENSIONLESS));
     }
-    declare(units.iter().map(|(n, u)| (n.as_str(), u.as_str())))?;
+    let extra: Vec<(&str, &str)> = extra.iter().map(|(n, u)| (n.as_str(), *u)).collect();
+    declare_units(predictor, &extra)?;
 
     // Every evaluation.
     let n = mc.designs.len();
@@ -89,34 +53,7 @@ pub fn write_monte_carlo(
         EXCITATION,
         Column::I64(mc.excitation.iter().map(|&e| e as i64).collect()),
     )?;
-    predictor.space.push_columns(&mut t, &mc.designs)?;
-    for (j, c) in columns.iter().enumerate() {
-        t.push(
-            &c.name,
-            Column::F64(mc.answers.iter().map(|a| a.indices.values[j]).collect()),
-        )?;
-    }
-    let calibrated = mc.answers.iter().all(|a| a.calibrated.is_some()) && n > 0;
-    if calibrated {
-        for (j, c) in columns.iter().enumerate() {
-            let side = |lo: bool| {
-                mc.answers
-                    .iter()
-                    .map(|a| {
-                        let i = a.calibrated.as_ref().map(|c| c.indices[j]);
-                        i.map_or(f64::NAN, |i| if lo { i.lo } else { i.hi })
-                    })
-                    .collect()
-            };
-            t.push(&format!("{}_lo", c.name), Column::F64(side(true)))?;
-            t.push(&format!("{}_hi", c.name), Column::F64(side(false)))?;
-        }
-    }
-    let outside = predictor.outside_training(&mc.designs);
-    t.push(
-        "extrapolated",
-        Column::I64(outside.iter().map(|o| (!o.is_empty()) as i64).collect()),
-    )?;
+    let calibrated = push_answers(&mut t, predictor, &mc.designs, &mc.answers)?;
     let mut checked = vec![0i64; n];
     for &k in &mc.checked {
         checked[k] = 1;
@@ -140,31 +77,8 @@ pub fn write_monte_carlo(
         ),
     )?;
     let designs: Vec<Vec<f64>> = mc.checked.iter().map(|&k| mc.designs[k].clone()).collect();
-    predictor.space.push_columns(&mut s, &designs)?;
-    for (j, c) in columns.iter().enumerate() {
-        s.push(
-            &c.name,
-            Column::F64(mc.solved.iter().map(|x| x.indices[j]).collect()),
-        )?;
-        s.push(
-            &format!("{}_surrogate", c.name),
-            Column::F64(
-                mc.checked
-                    .iter()
-                    .map(|&k| mc.answers[k].indices.values[j])
-                    .collect(),
-            ),
-        )?;
-    }
-    s.push(
-        "solver_failure",
-        Column::Str(
-            mc.solved
-                .iter()
-                .map(|x| x.failure.clone().unwrap_or_default())
-                .collect(),
-        ),
-    )?;
+    let answers: Vec<&DesignAnswer> = mc.checked.iter().map(|&k| &mc.answers[k]).collect();
+    push_solver(&mut s, predictor, &designs, &mc.solved, &answers)?;
     pino_data::write_parquet(&out.join("solver.parquet"), &s)?;
 
     // The statistics.
@@ -241,28 +155,13 @@ pub fn write_monte_carlo(
     )?;
     pino_data::write_parquet(&out.join("summary.parquet"), &m)?;
     report::csv::write_csv(&out.join("summary.csv"), &m).map_err(report_err)?;
-    let checked = mc.checked.len();
-    let per = |s: f64, k: usize| if k == 0 { f64::NAN } else { 1e3 * s / k as f64 };
-    let (sur_ms, sol_ms) = (per(mc.surrogate_s, n), per(mc.solver_s, checked));
-    let speed = format!(
-        "side,designs,seconds,ms_per_design\nsurrogate,{n},{:.4},{sur_ms:.4}\nsolver,{checked},{:.4},{sol_ms:.4}\n",
-        mc.surrogate_s, mc.solver_s
-    );
-    report::write_atomic(&out.join(SPEED_FILE), speed.as_bytes()).map_err(report_err)?;
+    write_speed(out, (n, mc.surrogate_s), (mc.checked.len(), mc.solver_s))?;
     report::write_atomic(
         &out.join("summary.md"),
         summary_markdown(study, mc, calibrated).as_bytes(),
     )
     .map_err(report_err)?;
     Ok(())
-}
-
-fn num(x: f64) -> String {
-    if x.is_nan() {
-        "-".into()
-    } else {
-        format!("{x:.4}")
-    }
 }
 
 /// The Markdown summary: what ran, the statistics, the exceedances side by side.
