@@ -973,6 +973,22 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
             .unwrap_or_else(|e| panic!("{file}: calibrate: {e}"));
         assert_eq!(plan.ranges(), described.ranges().as_slice(), "{file}");
 
+        // Every study of the matrix passes the planning check against the description, and
+        // the file declares one study of each kind.
+        let mut kinds = std::collections::BTreeSet::new();
+        for expansion in pino_mbd_tests::stage_spec(file, "study").expansions {
+            let study: pino_eval::study::spec::StudyParams =
+                serde_json::from_value(expansion.params.clone())
+                    .unwrap_or_else(|e| panic!("{file}: study: {e}"));
+            pino_eval::study::check(&described, &study).unwrap_or_else(|e| panic!("{file}: {e}"));
+            kinds.insert(study.study["kind"].as_str().unwrap().to_owned());
+        }
+        assert_eq!(
+            kinds.into_iter().collect::<Vec<_>>(),
+            ["monte_carlo", "optimise", "sensitivity"],
+            "{file}"
+        );
+
         let (p, _) = split_values(params("irregularity"));
         let controls: mbd_dataset::ProfileParams =
             serde_json::from_value(p).unwrap_or_else(|e| panic!("{file}: irregularity: {e}"));

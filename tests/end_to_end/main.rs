@@ -229,10 +229,56 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         .iter()
         .all(String::is_empty));
 
+    // The optimisation: every candidate under the same excitations, the optimum the best
+    // feasible candidate of the history, its objective the mean of its evaluations, and the
+    // solver beside the optimum, the runners-up and the spread candidates.
+    let optimise = show(ws.path(), "study[study=quiet_car_body]", &[]);
+    let history = read_parquet(named(&optimise, "history.parquet")[0], None).unwrap();
+    let evals = read_parquet(named(&optimise, "evaluations.parquet")[0], None).unwrap();
+    let excitations = 8;
+    assert!(history.num_rows() > 40, "{} candidates", history.num_rows());
+    assert_eq!(evals.num_rows(), history.num_rows() * excitations);
+    let (objective, feasible) = (
+        history.f64("objective").unwrap(),
+        history.i64("feasible").unwrap(),
+    );
+    let best = (0..history.num_rows())
+        .filter(|&c| feasible[c] == 1)
+        .min_by(|&a, &b| objective[a].total_cmp(&objective[b]))
+        .expect("a feasible candidate");
+    let optimum = read_parquet(named(&optimise, "optimum.parquet")[0], None).unwrap();
+    let (role, source) = (optimum.str("role").unwrap(), optimum.str("source").unwrap());
+    let row = (0..optimum.num_rows())
+        .find(|&r| role[r] == "optimum" && source[r] == "surrogate")
+        .expect("the optimum's surrogate row");
+    let chosen = optimum.i64("candidate").unwrap()[row] as usize;
+    assert_eq!(
+        objective[chosen], objective[best],
+        "the optimum is the best feasible"
+    );
+    let rms = evals.f64("car_body_acc_rms_centre_ms2").unwrap();
+    let mean = rms[chosen * excitations..(chosen + 1) * excitations]
+        .iter()
+        .sum::<f64>()
+        / excitations as f64;
+    assert!((mean - objective[chosen]).abs() <= 1e-12 * mean.abs());
+    let checked = optimum.num_rows() / 2;
+    assert!(
+        (4..=7).contains(&checked) && role.iter().filter(|r| *r == "runner_up").count() == 4,
+        "{role:?}"
+    );
+    assert_eq!(
+        evals.i64("solver_checked").unwrap().iter().sum::<i64>() as usize,
+        checked * excitations
+    );
+    let solver = read_parquet(named(&optimise, "solver.parquet")[0], None).unwrap();
+    assert_eq!(solver.num_rows(), checked * excitations);
+
     // The pipeline ran each unit on all cores; again by hand on 1 and 2 threads (the
-    // sensitivity study, the costlier, on 1).
+    // sensitivity study and the optimisation, the costlier, on 1).
     same_bytes_by_hand(ws.path(), &study, &[1, 2]);
     same_bytes_by_hand(ws.path(), &sensitivity, &[1]);
+    same_bytes_by_hand(ws.path(), &optimise, &[1]);
 
     // Same inputs: nothing to do.
     let second = pipeline(ws.path(), &["run"]);

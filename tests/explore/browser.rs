@@ -25,7 +25,7 @@ fn out_dir() -> PathBuf {
 
 #[test]
 fn a_user_explores_designs_in_a_real_browser() {
-    let trained = Trained::new(&[]);
+    let trained = Trained::shared();
     let mut served = trained.serve(&[]);
     let out = out_dir();
     let _ = std::fs::remove_dir_all(&out);
@@ -163,7 +163,7 @@ fn a_user_explores_designs_in_a_real_browser() {
     let equivalent = scratch.path().join("slider-design.yaml");
     let sets = serde_json::json!({"sets": [slider["design"]]});
     std::fs::write(&equivalent, serde_yaml::to_string(&sets).unwrap()).unwrap();
-    let predicted = predict(&trained, &equivalent, sample_id, scratch.path());
+    let predicted = predict(trained, &equivalent, sample_id, scratch.path());
     let compared = compare_plotted(&slider["charts"], "", &predicted, 1e-5, 1e-12);
     assert!(
         compared >= 2,
@@ -255,7 +255,7 @@ fn a_user_explores_designs_in_a_real_browser() {
             "design.yaml {name} = {got}, page {want}"
         );
     }
-    let read_back = predict(&trained, &file, sample_id, scratch.path());
+    let read_back = predict(trained, &file, sample_id, scratch.path());
     let compared = compare_plotted(&download["charts"], "", &read_back, 1e-5, 1e-12);
     assert!(
         compared >= 2,

@@ -10,32 +10,82 @@ use std::io::BufRead;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
+use std::sync::OnceLock;
 use std::time::Duration;
 
 mod api;
 mod browser;
 
+/// The shared workspace's targets: every stage but the studies (the explorer serves the
+/// models, their calibration, Table 4 and the indices; the studies are left unrun).
+const SERVED_STAGES: &[&str] = &["evaluate", "indices"];
+
 /// A workspace in which the default pipeline ran with the TINY overrides and then `extra`.
 pub struct Trained {
     /// The workspace.
-    pub ws: TempWorkspace,
+    ws: Workspace,
     /// The `--set` overrides of the run.
     pub sets: Vec<String>,
 }
 
+/// Where a [`Trained`] lives: its own temporary directory, or the shared one under `target/`
+/// (a static is never dropped, so that one is wiped when the next test process makes it).
+enum Workspace {
+    Temporary(TempWorkspace),
+    Shared(PathBuf),
+}
+
 impl Trained {
-    /// Runs the pipeline (`pipeline run`) in a fresh copy of the product.
-    pub fn new(extra: &[&str]) -> Self {
+    /// The workspace the tests that need no overrides of their own share (they only read
+    /// it): the pipeline up to [`SERVED_STAGES`] with the TINY overrides, run once per test
+    /// process in `target/explore-shared`.
+    pub fn shared() -> &'static Self {
+        static SHARED: OnceLock<Trained> = OnceLock::new();
+        SHARED.get_or_init(|| {
+            let dir = pino_mbd_tests::workspace_root()
+                .join("target")
+                .join("explore-shared");
+            if dir.exists() {
+                std::fs::remove_dir_all(&dir).expect("remove the last shared workspace");
+            }
+            std::fs::create_dir_all(&dir).expect("target/explore-shared");
+            std::fs::copy(
+                pino_mbd_tests::workspace_root().join("pipeline.yaml"),
+                dir.join("pipeline.yaml"),
+            )
+            .expect("copy the pipeline file");
+            pino_mbd_tests::copy_systems(&dir);
+            Self::run(Workspace::Shared(dir), &[], SERVED_STAGES)
+        })
+    }
+
+    /// Runs the pipeline's `targets` and what they read (all of it when `targets` is empty)
+    /// with the TINY overrides and `extra`, in a fresh copy of the product.
+    pub fn up_to(extra: &[&str], targets: &[&str]) -> Self {
         let ws = pino_mbd_tests::product_workspace("pipeline.yaml");
+        Self::run(Workspace::Temporary(ws), extra, targets)
+    }
+
+    fn run(ws: Workspace, extra: &[&str], targets: &[&str]) -> Self {
         let sets: Vec<String> = TINY.iter().chain(extra).map(|s| s.to_string()).collect();
-        let o = self::pipeline(ws.path(), &sets, &["run", "-j", "2"]);
+        let args: Vec<&str> = ["run", "-j", "2"].iter().chain(targets).copied().collect();
+        let trained = Self { ws, sets };
+        let o = self::pipeline(trained.path(), &trained.sets, &args);
         assert!(o.status.success(), "{}", output_text(&o));
-        Self { ws, sets }
+        trained
+    }
+
+    /// The workspace's directory.
+    pub fn path(&self) -> &Path {
+        match &self.ws {
+            Workspace::Temporary(t) => t.path(),
+            Workspace::Shared(p) => p,
+        }
     }
 
     /// The files of `stage`'s current output.
     pub fn show(&self, stage: &str) -> Vec<PathBuf> {
-        let o = pipeline(self.ws.path(), &self.sets, &["show", stage]);
+        let o = pipeline(self.path(), &self.sets, &["show", stage]);
         assert!(o.status.success(), "{}", output_text(&o));
         String::from_utf8_lossy(&o.stdout)
             .lines()
@@ -58,7 +108,7 @@ impl Trained {
     pub fn serve(&self, extra: &[&str]) -> Served {
         let mut cmd = Command::new(pino_mbd_tests::bin("explore"));
         cmd.arg("-C")
-            .arg(self.ws.path())
+            .arg(self.path())
             .arg("--bin-dir")
             .arg(pino_mbd_tests::pipeline_bin_dir("pipeline.yaml"))
             .env_remove("PINO_BIN_DIR");

@@ -211,6 +211,10 @@ EXPECTED = {
         "study",
         [("index", STR, "-"), ("n", I64, "-"), ("factor", STR, "-"), ("S1", F64, "-"), ("ST", F64, "-")],
     ),
+    "optimise/history.parquet": ("study", None),
+    "optimise/evaluations.parquet": ("study", None),
+    "optimise/solver.parquet": ("study", None),
+    "optimise/optimum.parquet": ("study", None),
     "predict": (
         "predict",
         [("set", I64, "-"), ("t", F64, "s")] + signals(SOLUTIONS + [(p, F64, "N") for p in FORCES])
@@ -240,6 +244,22 @@ PARTIAL = {
         ("row", I64, "-"), ("position", I64, "-"), ("block", STR, "-"), ("factor", STR, "-"),
         ("excitation", I64, "-"), ("sperling_wz_centre", F64, "-"),
         ("sperling_wz_centre_surrogate", F64, "-"), ("solver_failure", STR, "-"),
+    ],
+    "optimise/history.parquet": [
+        ("candidate", I64, "-"), ("start", I64, "-"), ("evaluation", I64, "-"),
+        ("objective", F64, "m/s^2"), ("feasible", I64, "-"), ("penalised", F64, "-"),
+    ],
+    "optimise/evaluations.parquet": [
+        ("candidate", I64, "-"), ("excitation", I64, "-"), ("car_body_acc_rms_centre_ms2", F64, "m/s^2"),
+        ("extrapolated", I64, "-"), ("solver_checked", I64, "-"),
+    ],
+    "optimise/solver.parquet": [
+        ("candidate", I64, "-"), ("role", STR, "-"), ("excitation", I64, "-"),
+        ("car_body_acc_rms_centre_ms2_surrogate", F64, "m/s^2"), ("solver_failure", STR, "-"),
+    ],
+    "optimise/optimum.parquet": [
+        ("candidate", I64, "-"), ("role", STR, "-"), ("source", STR, "-"), ("objective", F64, "m/s^2"),
+        ("feasible", I64, "-"),
     ],
     "indices_samples.parquet": [
         ("algorithm", I64, "-"), ("sample_id", I64, "-"),
@@ -555,6 +575,22 @@ def recompute(arts, say):
             check(diff <= 1e-10, f"{index} ({source}): {name} differs from SALib's by {diff:.3g}")
         compared += 1
     say(f"sensitivity: S1 and ST of {compared} index-source pairs equal SALib's to 1e-10")
+
+    # optimise: the optimum's objective, the mean of its evaluations (docs/studies.md's query),
+    # and the best objective of the feasible candidates of the history.
+    ev, op = one(arts, "optimise/evaluations.parquet"), one(arts, "optimise/optimum.parquet")
+    hist = one(arts, "optimise/history.parquet")
+    objective = ev.params["study"]["objective"]
+    check(isinstance(objective, str), f"{ev.path}: the shipped optimisation has one index as objective")
+    got, stored = duckdb.sql(
+        f'SELECT avg(e."{objective}"), any_value(o.objective) FROM read_parquet({lit(ev.path)}) e '
+        f"JOIN read_parquet({lit(op.path)}) o USING (candidate) "
+        f"WHERE o.role = 'optimum' AND o.source = 'surrogate'"
+    ).fetchall()[0]
+    check(abs(got - stored) <= 1e-12 * abs(stored), f"{op.path}: optimum objective {stored}, DuckDB {got}")
+    lowest = duckdb.sql(f"SELECT min(objective) FROM read_parquet({lit(hist.path)}) WHERE feasible = 1").fetchall()[0][0]
+    check(lowest == stored, f"{hist.path}: best feasible objective {lowest}, the optimum's {stored}")
+    say(f"optimise: the optimum's objective {stored:.6g} recomputed from its evaluations, the history's best feasible")
 
     # predict: one block of rows per parameter set, on a uniform time grid (polars).
     for a in arts["predict"]:

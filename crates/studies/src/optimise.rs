@@ -92,8 +92,7 @@ pub struct Settings {
 pub struct Outcome {
     /// The best step of each start (start order).
     pub best_of_start: Vec<Step>,
-    /// The best step: the lowest penalised score among feasible ones, else the least
-    /// violating.
+    /// The best step: the lowest objective among feasible ones, else the least violating.
     pub best: Step,
     /// Whether [`Outcome::best`] meets every constraint.
     pub feasible: bool,
@@ -154,11 +153,14 @@ fn simplex(u0: &[f64], step: f64) -> Vec<Vec<f64>> {
     out
 }
 
-fn better(a: &Step, b: &Step) -> bool {
+/// Whether `a` ranks before `b`: feasible before infeasible, then the lower objective
+/// (feasible) or the smaller violation (infeasible). A step is the design at its projected
+/// point, so the penalty the optimiser saw for stepping outside the cube does not count here.
+pub fn better(a: &Step, b: &Step) -> bool {
     match (a.value.feasible(), b.value.feasible()) {
         (true, false) => true,
         (false, true) => false,
-        (true, true) => a.penalised < b.penalised,
+        (true, true) => a.value.objective < b.value.objective,
         (false, false) => a.value.violation() < b.value.violation(),
     }
 }
@@ -301,6 +303,33 @@ mod tests {
         assert!(!out.feasible);
         assert!((out.best.u[0] - 1.0).abs() < 1e-6, "{:?}", out.best.u);
         assert!((out.best.value.violation() - 2.0).abs() < 1e-5);
+    }
+
+    /// A step outside the cube is the design at its projection: ranked by that design's
+    /// objective, not by the penalty the optimiser saw for stepping outside.
+    #[test]
+    fn a_projected_step_ranks_by_its_designs_objective() {
+        let step = |objective: f64, penalised: f64| Step {
+            start: 0,
+            evaluation: 0,
+            u: vec![0.0],
+            value: Evaluation {
+                objective,
+                constraints: vec![-1.0],
+            },
+            penalised,
+        };
+        let projected = step(0.1, 0.1 + PENALTY * 0.15);
+        let inside = step(0.2, 0.2);
+        assert!(better(&projected, &inside) && !better(&inside, &projected));
+        let infeasible = Step {
+            value: Evaluation {
+                objective: -5.0,
+                constraints: vec![0.5],
+            },
+            ..inside.clone()
+        };
+        assert!(better(&inside, &infeasible) && !better(&infeasible, &inside));
     }
 
     #[test]

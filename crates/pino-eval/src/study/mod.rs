@@ -14,6 +14,7 @@
 
 pub mod evaluate;
 pub mod monte_carlo;
+pub mod optimise;
 pub mod output;
 pub mod sensitivity;
 pub mod spec;
@@ -161,6 +162,27 @@ pub fn run(
                     "; surrogate and solver rank the top factors alike".to_owned()
                 } else {
                     format!("; the rankings differ for {} (summary.md says why)", differ.join(", "))
+                }
+            ))
+        }
+        StudyKind::Optimise(o) => {
+            let r = optimise::run(&ev, &study, o, &parameters)?;
+            output::write_optimise(out, &predictor, &study, o, &r)?;
+            let best = &r.history[r.best];
+            let solver = r.checked.iter().find(|c| c.role == optimise::Role::Optimum);
+            Ok(format!(
+                "`{}`: {} candidates in {:.1} s ({} through the solver in {:.1} s); {}: objective {:.4} (solver {}){}",
+                study.name,
+                r.history.len(),
+                r.surrogate_s,
+                r.checked.len(),
+                r.solver_s,
+                if r.feasible { "optimum" } else { "infeasible, least-violating design" },
+                best.judged.objective,
+                solver.map_or("-".to_owned(), |c| format!("{:.4}", c.solver.objective)),
+                match solver {
+                    Some(c) if r.feasible && !c.solver.feasible => "; the solver finds it violates a limit (summary.md)",
+                    _ => "",
                 }
             ))
         }

@@ -55,9 +55,15 @@ pub struct IndexSobol {
 impl IndexSobol {
     /// The positions of the [`RANKED`] largest total indices, largest first.
     pub fn top(&self) -> Vec<usize> {
+        let mut order = self.order();
+        order.truncate(RANKED);
+        order
+    }
+
+    /// Every factor, the largest total index first (a stable sort: ties keep factor order).
+    pub fn order(&self) -> Vec<usize> {
         let mut order: Vec<usize> = (0..self.factors.len()).collect();
         order.sort_by(|&a, &b| self.factors[b].total.total_cmp(&self.factors[a].total));
-        order.truncate(RANKED);
         order
     }
 }

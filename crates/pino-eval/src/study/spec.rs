@@ -20,6 +20,19 @@ pub const MIN_SENSITIVITY_ROWS: usize = 4;
 /// The name of the excitation as one grouped factor of a sensitivity study.
 pub const EXCITATION_FACTOR: &str = "excitation";
 
+/// The most excitations an optimisation averages each candidate over.
+pub const MAX_OPTIMISE_EXCITATIONS: usize = 256;
+
+/// The most starting points of an optimisation.
+pub const MAX_OPTIMISE_STARTS: usize = 64;
+
+/// The most candidates of an optimisation's history the solver checks beside the optimum
+/// and the runners-up.
+pub const MAX_OPTIMISE_SOLVER_CHECK: usize = 1000;
+
+/// The most Nelder-Mead iterations per run of a start.
+pub const MAX_OPTIMISE_ITERATIONS: u64 = 10_000;
+
 /// The `study` stage's parameters: the study (the matrix value) and the settings shared by
 /// every study.
 #[derive(Debug, Clone, Deserialize)]
@@ -133,6 +146,64 @@ pub enum StudyKind {
         /// Rows of the design (a power of two).
         n: usize,
     },
+    /// Minimise (or maximise) a weighted sum of indices under upper limits on indices, over
+    /// the box of the uniform distributions (the training ranges by default), each candidate
+    /// judged by a statistic over the same `excitations`.
+    Optimise(Optimise),
+}
+
+/// What an optimisation looks for.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Optimise {
+    /// The objective's terms: index name and weight (the objective is their weighted sum).
+    pub objective: Vec<(String, f64)>,
+    /// Whether the objective is maximised (else minimised).
+    pub maximise: bool,
+    /// Upper limits by index, judged on the upper end of the calibrated interval where the
+    /// model has one (the description's limits where not given).
+    pub limits: BTreeMap<String, f64>,
+    /// Excitations every candidate is evaluated under (ids `0..excitations`).
+    pub excitations: usize,
+    /// The statistic over the excitations of the objective and of each constraint.
+    pub statistic: Robust,
+    /// Starting points (the box's centre first, the rest drawn).
+    pub starts: usize,
+    /// Nelder-Mead iterations per run (each start runs twice: first and restart).
+    pub iterations: u64,
+    /// Best points of other starts also checked by the solver.
+    pub runners_up: usize,
+}
+
+/// A statistic over a candidate's excitations.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Robust {
+    /// The mean.
+    Mean,
+    /// The `p`-quantile (linear interpolation).
+    Quantile(f64),
+}
+
+impl Robust {
+    /// The statistic of `values` (NaN when any is not finite).
+    pub fn of(self, values: &[f64]) -> f64 {
+        if values.iter().any(|v| !v.is_finite()) {
+            return f64::NAN;
+        }
+        match self {
+            Self::Mean => pino_studies::stats::mean(values),
+            Self::Quantile(p) => {
+                pino_studies::stats::quantile_sorted(&pino_studies::stats::sorted(values), p)
+            }
+        }
+    }
+
+    /// Its name in tables (`mean`, `q90`).
+    pub fn label(self) -> String {
+        match self {
+            Self::Mean => "mean".into(),
+            Self::Quantile(p) => format!("q{}", (p * 100.0).round() as i64),
+        }
+    }
 }
 
 /// A refusal naming the field.
@@ -178,6 +249,45 @@ struct LogNormalSpec {
 #[serde(deny_unknown_fields)]
 struct SensitivitySpec {
     n: usize,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OptimiseSpec {
+    objective: Value,
+    #[serde(default = "default_sense")]
+    sense: String,
+    #[serde(default)]
+    limits: BTreeMap<String, f64>,
+    #[serde(default = "default_excitations")]
+    excitations: usize,
+    #[serde(default = "default_statistic")]
+    statistic: Value,
+    #[serde(default = "default_starts")]
+    starts: usize,
+    #[serde(default = "default_iterations")]
+    iterations: u64,
+    #[serde(default = "default_runners_up")]
+    runners_up: usize,
+}
+
+fn default_sense() -> String {
+    "minimise".into()
+}
+fn default_excitations() -> usize {
+    8
+}
+fn default_statistic() -> Value {
+    Value::String("mean".into())
+}
+fn default_starts() -> usize {
+    4
+}
+fn default_iterations() -> u64 {
+    60
+}
+fn default_runners_up() -> usize {
+    2
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -363,6 +473,50 @@ impl Study {
                 }
                 StudyKind::Sensitivity { n: s.n }
             }
+            Some("optimise") => {
+                let s: OptimiseSpec = serde_json::from_value(Value::Object(rest))
+                    .map_err(|e| err(&name, "", e.to_string()))?;
+                let field_err = |field: &str, message: String| err(&name, field, message);
+                let o = parse_optimise(s, &field_err)?;
+                for (i, _) in &o.objective {
+                    check_index(&format!("objective.{i}"), i)?;
+                }
+                for (i, l) in &o.limits {
+                    check_index(&format!("limits.{i}"), i)?;
+                    if !l.is_finite() {
+                        return Err(field_err(
+                            &format!("limits.{i}"),
+                            format!("{l}: a finite limit"),
+                        ));
+                    }
+                }
+                for (p, d) in &dists {
+                    if !matches!(d, Distribution::Uniform { .. } | Distribution::Fixed(_)) {
+                        return Err(field_err(
+                            &format!("parameters.{p}"),
+                            "an optimisation searches a box: `uniform: [lo, hi]` (a sub-box) \
+                             or `fixed`"
+                                .into(),
+                        ));
+                    }
+                }
+                if !dists.values().any(Distribution::varies) && dists.len() == parameters.len() {
+                    return Err(field_err(
+                        "parameters",
+                        "every parameter is fixed: an optimisation needs one that varies".into(),
+                    ));
+                }
+                if solver_check > MAX_OPTIMISE_SOLVER_CHECK {
+                    return Err(field_err(
+                        "solver_check",
+                        format!(
+                            "{solver_check}: at most {MAX_OPTIMISE_SOLVER_CHECK} candidates of the \
+                             history (beside the optimum and the runners-up)"
+                        ),
+                    ));
+                }
+                StudyKind::Optimise(o)
+            }
             other => {
                 return Err(err(
                     &name,
@@ -392,6 +546,94 @@ impl Study {
             })
             .collect()
     }
+}
+
+/// The optimisation's own fields, checked (the index names are checked by the caller).
+fn parse_optimise(
+    s: OptimiseSpec,
+    err: &dyn Fn(&str, String) -> SpecError,
+) -> Result<Optimise, SpecError> {
+    let objective: Vec<(String, f64)> = match &s.objective {
+        Value::String(i) => vec![(i.clone(), 1.0)],
+        Value::Object(terms) if !terms.is_empty() => terms
+            .iter()
+            .map(|(i, w)| match w.as_f64() {
+                Some(w) if w.is_finite() && w != 0.0 => Ok((i.clone(), w)),
+                _ => Err(err(
+                    &format!("objective.{i}"),
+                    format!("{w}: a finite, nonzero weight"),
+                )),
+            })
+            .collect::<Result<_, _>>()?,
+        v => {
+            return Err(err(
+                "objective",
+                format!("{v}: an index name, or a mapping from index names to weights"),
+            ))
+        }
+    };
+    let maximise = match s.sense.as_str() {
+        "minimise" => false,
+        "maximise" => true,
+        other => return Err(err("sense", format!("`{other}`: `minimise` or `maximise`"))),
+    };
+    let statistic = match &s.statistic {
+        Value::String(m) if m == "mean" => Robust::Mean,
+        Value::Object(q) if q.len() == 1 && q.contains_key("quantile") => {
+            match q["quantile"].as_f64() {
+                Some(p) if p > 0.0 && p < 1.0 => Robust::Quantile(p),
+                _ => {
+                    return Err(err(
+                        "statistic.quantile",
+                        format!("{}: a level in (0, 1)", q["quantile"]),
+                    ))
+                }
+            }
+        }
+        v => {
+            return Err(err(
+                "statistic",
+                format!("{v}: `mean` or `{{quantile: p}}` with p in (0, 1)"),
+            ))
+        }
+    };
+    if !(1..=MAX_OPTIMISE_EXCITATIONS).contains(&s.excitations) {
+        return Err(err(
+            "excitations",
+            format!("{}: allowed 1 to {MAX_OPTIMISE_EXCITATIONS}", s.excitations),
+        ));
+    }
+    if !(1..=MAX_OPTIMISE_STARTS).contains(&s.starts) {
+        return Err(err(
+            "starts",
+            format!("{}: allowed 1 to {MAX_OPTIMISE_STARTS}", s.starts),
+        ));
+    }
+    if !(1..=MAX_OPTIMISE_ITERATIONS).contains(&s.iterations) {
+        return Err(err(
+            "iterations",
+            format!("{}: allowed 1 to {MAX_OPTIMISE_ITERATIONS}", s.iterations),
+        ));
+    }
+    if s.runners_up >= s.starts {
+        return Err(err(
+            "runners_up",
+            format!(
+                "{}: fewer than the {} starts (a runner-up is the best point of another start)",
+                s.runners_up, s.starts
+            ),
+        ));
+    }
+    Ok(Optimise {
+        objective,
+        maximise,
+        limits: s.limits,
+        excitations: s.excitations,
+        statistic,
+        starts: s.starts,
+        iterations: s.iterations,
+        runners_up: s.runners_up,
+    })
 }
 
 fn parse_distribution(v: &Value, training: [f64; 2]) -> Result<Distribution, String> {
@@ -516,5 +758,61 @@ mod tests {
         assert!(e(json!({"name": "s", "kind": "sensitivity", "n": 64,
                          "parameters": {"c_s": 1.5, "m_c": 12.0}}))
         .starts_with("study.s.parameters: every parameter is fixed"));
+    }
+
+    #[test]
+    fn an_optimisation_parses_its_goal_and_refuses_what_it_cannot_search() {
+        let idx = ["q".to_string(), "r".to_string()];
+        let parse = |v: Value| Study::parse(&v, &params(), &idx);
+        let s = parse(
+            json!({"name": "o", "kind": "optimise", "objective": {"q": 1.0, "r": 0.5},
+                             "sense": "maximise", "statistic": {"quantile": 0.9},
+                             "limits": {"r": 2.0}, "solver_check": 3,
+                             "parameters": {"c_s": {"uniform": [1.2, 1.8]}, "m_c": 15.0}}),
+        )
+        .unwrap();
+        let StudyKind::Optimise(o) = &s.kind else {
+            panic!("not an optimisation: {:?}", s.kind)
+        };
+        assert_eq!(o.objective, vec![("q".into(), 1.0), ("r".into(), 0.5)]);
+        assert!(o.maximise);
+        assert_eq!(o.statistic, Robust::Quantile(0.9));
+        assert_eq!(o.statistic.label(), "q90");
+        assert_eq!((o.excitations, o.starts, o.runners_up), (8, 4, 2));
+        assert_eq!(o.limits["r"], 2.0);
+        let plain = parse(json!({"name": "o", "kind": "optimise", "objective": "q"})).unwrap();
+        let StudyKind::Optimise(plain) = plain.kind else {
+            panic!("not an optimisation")
+        };
+        assert_eq!(plain.objective, vec![("q".into(), 1.0)]);
+        assert!(!plain.maximise);
+        assert_eq!(plain.statistic, Robust::Mean);
+
+        let e = |v: Value| parse(v).unwrap_err().to_string();
+        let with = |extra: Value| {
+            let mut v = json!({"name": "o", "kind": "optimise", "objective": "q"});
+            v.as_object_mut()
+                .unwrap()
+                .extend(extra.as_object().unwrap().clone());
+            e(v)
+        };
+        assert!(with(json!({"objective": "z"})).contains("`z` is not an index"));
+        assert!(with(json!({"objective": {"q": 0.0}})).starts_with("study.o.objective.q:"));
+        assert!(with(json!({"objective": 3})).starts_with("study.o.objective:"));
+        assert!(with(json!({"sense": "down"})).starts_with("study.o.sense: `down`"));
+        assert!(with(json!({"statistic": {"quantile": 1.5}}))
+            .starts_with("study.o.statistic.quantile:"));
+        assert!(with(json!({"statistic": "median"})).starts_with("study.o.statistic:"));
+        assert!(with(json!({"excitations": 0})).starts_with("study.o.excitations: 0"));
+        assert!(with(json!({"starts": 2, "runners_up": 2})).starts_with("study.o.runners_up:"));
+        assert!(with(json!({"limits": {"z": 1.0}})).contains("`z` is not an index"));
+        assert!(
+            with(json!({"parameters": {"c_s": {"normal": {"mean": 1.5, "std": 0.1}}}}))
+                .starts_with("study.o.parameters.c_s: an optimisation searches a box")
+        );
+        assert!(with(json!({"parameters": {"c_s": 1.5, "m_c": 12.0}}))
+            .starts_with("study.o.parameters: every parameter is fixed"));
+        assert!(with(json!({"solver_check": MAX_OPTIMISE_SOLVER_CHECK + 1}))
+            .starts_with("study.o.solver_check:"));
     }
 }

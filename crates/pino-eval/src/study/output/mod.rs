@@ -5,9 +5,11 @@
 //! study). Column units are declared, as in every artifact.
 
 pub mod monte_carlo;
+pub mod optimise;
 pub mod sensitivity;
 
 pub use monte_carlo::write_monte_carlo;
+pub use optimise::write_optimise;
 pub use sensitivity::write_sensitivity;
 
 use super::evaluate::Solved;
@@ -162,6 +164,13 @@ fn push_solver(
         ),
     )?;
     Ok(())
+}
+
+/// Writes a study's last files: [`SPEED_FILE`] with each side's evaluations and wall time,
+/// and `summary.md`.
+fn finish(out: &Path, surrogate: (usize, f64), solver: (usize, f64), summary: &str) -> Result<()> {
+    write_speed(out, surrogate, solver)?;
+    report::write_atomic(&out.join("summary.md"), summary.as_bytes()).map_err(report_err)
 }
 
 /// Writes [`SPEED_FILE`]: each side's evaluations, wall time and time per evaluation.

@@ -5,8 +5,8 @@
 //! ([`SPEED_FILE`]).
 
 use super::{
-    declare_units, num, push_answers, push_solver, report_err, statistic_names, write_speed,
-    DESIGN, EXCITATION, SOLVER_CHECKED, SPEED_FILE,
+    declare_units, finish, num, push_answers, push_solver, report_err, statistic_names, DESIGN,
+    EXCITATION, SOLVER_CHECKED, SPEED_FILE,
 };
 use crate::predict::{DesignAnswer, Predictor};
 use crate::study::monte_carlo::MonteCarlo;
@@ -155,13 +155,12 @@ pub fn write_monte_carlo(
     )?;
     pino_data::write_parquet(&out.join("summary.parquet"), &m)?;
     report::csv::write_csv(&out.join("summary.csv"), &m).map_err(report_err)?;
-    write_speed(out, (n, mc.surrogate_s), (mc.checked.len(), mc.solver_s))?;
-    report::write_atomic(
-        &out.join("summary.md"),
-        summary_markdown(study, mc, calibrated).as_bytes(),
+    finish(
+        out,
+        (n, mc.surrogate_s),
+        (mc.checked.len(), mc.solver_s),
+        &summary_markdown(study, mc, calibrated),
     )
-    .map_err(report_err)?;
-    Ok(())
 }
 
 /// The Markdown summary: what ran, the statistics, the exceedances side by side.

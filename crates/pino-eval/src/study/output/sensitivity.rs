@@ -8,8 +8,8 @@
 //! Markdown summary with the rankings side by side, and the timings ([`SPEED_FILE`]).
 
 use super::{
-    declare_units, num, push_answers, push_solver, report_err, write_speed, EXCITATION,
-    SOLVER_CHECKED, SPEED_FILE,
+    declare_units, finish, num, push_answers, push_solver, report_err, EXCITATION, SOLVER_CHECKED,
+    SPEED_FILE,
 };
 use crate::predict::{DesignAnswer, Predictor};
 use crate::study::sensitivity::{rankings, Evaluation, Sensitivity, RANKED};
@@ -124,9 +124,7 @@ pub fn write_sensitivity(
     let mut values: Vec<Vec<f64>> = vec![Vec::new(); ESTIMATES.len()];
     for e in &s.sobol {
         let mut rank = vec![f64::NAN; s.factors.len()];
-        let mut order: Vec<usize> = (0..e.factors.len()).collect();
-        order.sort_by(|&a, &b| e.factors[b].total.total_cmp(&e.factors[a].total));
-        for (place, &k) in order.iter().enumerate() {
+        for (place, &k) in e.order().iter().enumerate() {
             rank[k] = (place + 1) as f64;
         }
         for (k, name) in s.factors.iter().enumerate() {
@@ -179,17 +177,12 @@ pub fn write_sensitivity(
     c.push("ST", Column::F64(total))?;
     pino_data::write_parquet(&out.join("convergence.parquet"), &c)?;
 
-    write_speed(
+    finish(
         out,
         (s.evaluations.len(), s.surrogate_s),
         (checked, s.solver_s),
-    )?;
-    report::write_atomic(
-        &out.join("summary.md"),
-        summary_markdown(study, s, calibrated).as_bytes(),
+        &summary_markdown(study, s, calibrated),
     )
-    .map_err(report_err)?;
-    Ok(())
 }
 
 /// The Markdown summary: what ran, each index's indices by source, the rankings.
