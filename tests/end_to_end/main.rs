@@ -274,6 +274,25 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     let solver = read_parquet(named(&optimise, "solver.parquet")[0], None).unwrap();
     assert_eq!(solver.num_rows(), checked * excitations);
 
+    // Each kind's plots.
+    for (files, plots) in [
+        (
+            &study,
+            &[
+                "histograms.png",
+                "exceedance.png",
+                "surrogate_vs_solver.png",
+            ][..],
+        ),
+        (&sensitivity, &["sobol.png", "surrogate_vs_solver.png"][..]),
+        (&optimise, &["history.png", "surrogate_vs_solver.png"][..]),
+    ] {
+        for plot in plots {
+            let png = std::fs::read(named(files, plot)[0]).unwrap();
+            assert_eq!(&png[1..4], b"PNG", "{plot}");
+        }
+    }
+
     // The pipeline ran each unit on all cores; again by hand on 1 and 2 threads (the
     // sensitivity study and the optimisation, the costlier, on 1).
     same_bytes_by_hand(ws.path(), &study, &[1, 2]);

@@ -6,6 +6,7 @@
 
 pub mod monte_carlo;
 pub mod optimise;
+pub mod plots;
 pub mod sensitivity;
 
 pub use monte_carlo::write_monte_carlo;
@@ -26,6 +27,9 @@ pub const DESIGN: &str = "design";
 pub const EXCITATION: &str = "excitation";
 /// The timings of a study (the only file that differs between two runs of one study).
 pub const SPEED_FILE: &str = "speed.csv";
+
+/// The plot of the surrogate against the solver on the checked evaluations (every kind).
+pub const SCATTER_FILE: &str = "surrogate_vs_solver.png";
 /// Column flagging the designs the solver also answered.
 pub const SOLVER_CHECKED: &str = "solver_checked";
 /// Column flagging designs outside the model's training ranges.
@@ -164,6 +168,36 @@ fn push_solver(
         ),
     )?;
     Ok(())
+}
+
+/// The model's indices as named quantities, for the plots.
+fn quantities(predictor: &Predictor) -> Vec<plots::Quantity<'_>> {
+    predictor
+        .index_inputs()
+        .columns()
+        .iter()
+        .map(|c| plots::Quantity {
+            name: &c.name,
+            unit: &c.unit,
+        })
+        .collect()
+}
+
+/// Per index, the surrogate's and the solver's values on the same evaluations: `beside[k]`
+/// the surrogate's answer the solver's `solved[k]` checks.
+fn solver_pairs(
+    indices: usize,
+    beside: &[&DesignAnswer],
+    solved: &[Solved],
+) -> Vec<(Vec<f64>, Vec<f64>)> {
+    (0..indices)
+        .map(|j| {
+            (
+                beside.iter().map(|a| a.indices.values[j]).collect(),
+                solved.iter().map(|s| s.indices[j]).collect(),
+            )
+        })
+        .collect()
 }
 
 /// Writes a study's last files: [`SPEED_FILE`] with each side's evaluations and wall time,

@@ -1,12 +1,12 @@
 //! The files of a Monte Carlo study: every evaluation (`evaluations.parquet`: the design, its
 //! excitation id, every index, its interval where calibrated, `extrapolated`,
 //! `solver_checked`), the solver's answers beside the surrogate's (`solver.parquet`), the
-//! statistics (`summary.{parquet,csv,md}`, one row per index and source) and the timings
-//! ([`SPEED_FILE`]).
+//! statistics (`summary.{parquet,csv,md}`, one row per index and source), the plots
+//! (`histograms.png`, `exceedance.png`, [`SCATTER_FILE`]) and the timings ([`SPEED_FILE`]).
 
 use super::{
-    declare_units, finish, num, push_answers, push_solver, report_err, statistic_names, DESIGN,
-    EXCITATION, SOLVER_CHECKED, SPEED_FILE,
+    declare_units, finish, num, plots, push_answers, push_solver, quantities, report_err,
+    solver_pairs, statistic_names, DESIGN, EXCITATION, SCATTER_FILE, SOLVER_CHECKED, SPEED_FILE,
 };
 use crate::predict::{DesignAnswer, Predictor};
 use crate::study::monte_carlo::MonteCarlo;
@@ -155,6 +155,32 @@ pub fn write_monte_carlo(
     )?;
     pino_data::write_parquet(&out.join("summary.parquet"), &m)?;
     report::csv::write_csv(&out.join("summary.csv"), &m).map_err(report_err)?;
+    let q = quantities(predictor);
+    let values: Vec<Vec<f64>> = (0..q.len())
+        .map(|j| mc.answers.iter().map(|a| a.indices.values[j]).collect())
+        .collect();
+    plots::histograms(
+        &out.join("histograms.png"),
+        &study.name,
+        &q,
+        &values,
+        &mc.limits,
+    )
+    .map_err(report_err)?;
+    let beside: Vec<&DesignAnswer> = mc.checked.iter().map(|&i| &mc.answers[i]).collect();
+    let pairs = solver_pairs(q.len(), &beside, &mc.solved);
+    let solver: Vec<Vec<f64>> = pairs.iter().map(|(_, v)| v.clone()).collect();
+    plots::exceedance_curves(
+        &out.join("exceedance.png"),
+        &study.name,
+        &q,
+        &values,
+        &solver,
+        &mc.limits,
+    )
+    .map_err(report_err)?;
+    plots::surrogate_vs_solver(&out.join(SCATTER_FILE), &study.name, &q, &pairs)
+        .map_err(report_err)?;
     finish(
         out,
         (n, mc.surrogate_s),

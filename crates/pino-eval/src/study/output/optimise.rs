@@ -4,11 +4,12 @@
 //! `feasible`), every surrogate evaluation (`evaluations.parquet`: candidate by excitation,
 //! every index with its interval where calibrated, `extrapolated`, `solver_checked`), the
 //! solver's evaluations beside the surrogate's (`solver.parquet`), the checked candidates
-//! judged by each source (`optimum.{parquet,csv}`), the Markdown summary and the timings
-//! ([`SPEED_FILE`]).
+//! judged by each source (`optimum.{parquet,csv}`), the Markdown summary, the plots
+//! (`history.png`, [`SCATTER_FILE`]) and the timings ([`SPEED_FILE`]).
 
 use super::{
-    declare_units, finish, num, push_answers, push_solver, EXCITATION, SOLVER_CHECKED, SPEED_FILE,
+    declare_units, finish, num, plots, push_answers, push_solver, EXCITATION, SCATTER_FILE,
+    SOLVER_CHECKED, SPEED_FILE,
 };
 use crate::predict::{DesignAnswer, Predictor};
 use crate::study::optimise::{describe, Judged, Optimisation, Role};
@@ -249,6 +250,32 @@ pub fn write_optimise(
     push_judged(&mut t, predictor, r, &judged)?;
     pino_data::write_parquet(&out.join("optimum.parquet"), &t)?;
     report::csv::write_csv(&out.join("optimum.csv"), &t).map_err(super::report_err)?;
+
+    let q = super::quantities(predictor);
+    let steps: Vec<plots::Step> = r
+        .history
+        .iter()
+        .map(|c| plots::Step {
+            start: c.start,
+            objective: c.judged.objective,
+            constraints: c.judged.constraints.clone(),
+            feasible: c.judged.feasible,
+        })
+        .collect();
+    let limited: Vec<(plots::Quantity<'_>, f64)> =
+        r.constraints.iter().map(|&(j, l)| (q[j], l)).collect();
+    plots::history(
+        &out.join("history.png"),
+        &study.name,
+        &describe(o),
+        &limited,
+        &steps,
+        o.maximise,
+    )
+    .map_err(super::report_err)?;
+    let pairs = super::solver_pairs(q.len(), &beside, &solved);
+    plots::surrogate_vs_solver(&out.join(SCATTER_FILE), &study.name, &q, &pairs)
+        .map_err(super::report_err)?;
 
     let solves = r.checked.len() * m;
     finish(

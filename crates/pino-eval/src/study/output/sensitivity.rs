@@ -5,11 +5,12 @@
 //! evaluations beside the surrogate's (`solver.parquet`), the indices
 //! (`sobol.{parquet,csv}`: one row per index, source and factor, with bootstrap intervals and
 //! the factor's rank by total index), the convergence record (`convergence.parquet`), the
-//! Markdown summary with the rankings side by side, and the timings ([`SPEED_FILE`]).
+//! Markdown summary with the rankings side by side, the plots (`sobol.png`,
+//! [`SCATTER_FILE`]) and the timings ([`SPEED_FILE`]).
 
 use super::{
-    declare_units, finish, num, push_answers, push_solver, report_err, EXCITATION, SOLVER_CHECKED,
-    SPEED_FILE,
+    declare_units, finish, num, plots, push_answers, push_solver, quantities, report_err,
+    solver_pairs, EXCITATION, SCATTER_FILE, SOLVER_CHECKED, SPEED_FILE,
 };
 use crate::predict::{DesignAnswer, Predictor};
 use crate::study::sensitivity::{rankings, Evaluation, Sensitivity, RANKED};
@@ -177,6 +178,31 @@ pub fn write_sensitivity(
     c.push("ST", Column::F64(total))?;
     pino_data::write_parquet(&out.join("convergence.parquet"), &c)?;
 
+    let q = quantities(predictor);
+    let estimates = |index: &str, source: &str| -> plots::SobolBars {
+        s.of(index, source).map_or_else(Vec::new, |e| {
+            e.factors
+                .iter()
+                .map(|f| (f.first, f.total, [f.total_ci.lo, f.total_ci.hi]))
+                .collect()
+        })
+    };
+    let names: Vec<&str> = q.iter().map(|x| x.name).collect();
+    let bars: Vec<_> = names
+        .iter()
+        .map(|i| (estimates(i, "surrogate"), estimates(i, "solver")))
+        .collect();
+    plots::sobol_bars(
+        &out.join("sobol.png"),
+        &study.name,
+        &s.factors,
+        &names,
+        &bars,
+    )
+    .map_err(report_err)?;
+    let pairs = solver_pairs(q.len(), &answers, &s.solved);
+    plots::surrogate_vs_solver(&out.join(SCATTER_FILE), &study.name, &q, &pairs)
+        .map_err(report_err)?;
     finish(
         out,
         (s.evaluations.len(), s.surrogate_s),
