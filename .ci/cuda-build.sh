@@ -35,12 +35,12 @@ if [ "${PINO_CUDA_CHECK:-release}" = dev ]; then
 else
     profile=(--release) out=release
 fi
-# One build of the stages and of the CUDA parity test: one feature resolution, so no
-# dependency is compiled twice. `--test cuda_parity`, not `--tests`: the unit tests of
-# pino-learn and the stages' test harnesses do not change with the feature, and each is
-# another optimised compile and link of the whole library (the tests section ran them).
+# One build of the stages and of pino-learn's tests (the CUDA parity test among them): one
+# feature resolution, so no dependency is compiled twice. `--tests`, not `--test cuda_parity`:
+# without the stages' test targets the features resolve differently from the tests section's
+# build and dependencies compile again (19 min 24 s against 9 min 49 s, BENCHMARKS.md "CI").
 cargo build "${profile[@]}" --locked -p train -p calibrate -p evaluate -p predict -p pino-learn \
-    --features cuda --bins --test cuda_parity
+    --features cuda --bins --tests
 
 # The binaries must want the driver by its soname (the stub is link-time only).
 for bin in train calibrate evaluate predict; do
