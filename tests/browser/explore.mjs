@@ -465,6 +465,63 @@ async function main() {
     results.pipeline = { units, table4_rows: table4Rows, plots: plots.length };
   });
 
+  // ---- 11. a Sobol study of two parameters started from the sweep view -------------------
+  await step('study-start', async () => {
+    await page.goto(url);
+    await page.waitForSelector('body[data-predictions]', { timeout: TIMEOUT_MS });
+    const params = await page.evaluate(() => window.explorerState.summary.parameters.map((p) => p.name));
+    await page.locator('#study-start').scrollIntoViewIfNeeded();
+    await page.click('#study-start summary');
+    await page.selectOption('#sweep-param', params[0]);
+    await page.selectOption('#study-kind', 'sensitivity');
+    await page.selectOption('#study-param2', params[1]);
+    check(await page.isEnabled('#study-from2'), 'the second parameter\'s interval stays disabled');
+    await page.fill('#study-n', '16');
+    await page.fill('#study-solver-check', '4');
+    await page.click('#start-study');
+    await page.waitForFunction(() => document.body.dataset.studyState, null, { timeout: 120_000 });
+    await expectNoError();
+    const state = await page.evaluate(() => document.body.dataset.studyState);
+    const status = await page.textContent('#study-status');
+    check(state === 'finished', `the study did not finish: ${status}`);
+    results.studyStart = {
+      name: await page.evaluate(() => document.body.dataset.study),
+      design: await page.evaluate(() => window.explorerState.design),
+      parameters: [
+        { name: params[0], from: Number(await page.inputValue('#sweep-from')), to: Number(await page.inputValue('#sweep-to')) },
+        { name: params[1], from: Number(await page.inputValue('#study-from2')), to: Number(await page.inputValue('#study-to2')) },
+      ],
+      status,
+    };
+  });
+
+  // ---- 12. the Studies page: the started study's report, table and plots; the pipeline's
+  // studies listed with their state ------------------------------------------------------------
+  await step('studies', async () => {
+    const { name } = results.studyStart;
+    await page.click('#study-status a');
+    await page.waitForURL(/\/studies#/);
+    await page.waitForSelector('body[data-polls]', { timeout: TIMEOUT_MS });
+    await expectNoError();
+    const listed = await page.$$eval('#study-list tbody tr', (rows) => rows.map((r) => [r.dataset.source, r.dataset.name, r.dataset.state]));
+    const card = page.locator(`#study-explorer-${name}`);
+    check(await card.count() === 1, `no card for ${name}: ${JSON.stringify(listed)}`);
+    const table = await card.locator('.study-table table').evaluate((t) => ({
+      file: t.dataset.file,
+      header: [...t.tHead.rows[0].cells].map((c) => c.textContent),
+      rows: [...t.tBodies[0].rows].map((r) => [...r.cells].map((c) => c.textContent)),
+    }));
+    const reportTables = await card.locator('.study-report table').count();
+    await card.locator('img').evaluateAll((imgs) => imgs.forEach((i) => { i.loading = 'eager'; }));
+    await page.waitForFunction((id) => [...document.querySelectorAll(`#${id} img`)].every((i) => i.complete),
+      `study-explorer-${name}`, { timeout: TIMEOUT_MS });
+    const plots = await card.locator('img').evaluateAll((imgs) => imgs.map((i) => [i.getAttribute('src'), i.naturalWidth]));
+    check(plots.length > 0 && plots.every(([, w]) => w > 100), `the study's plots are not shown: ${JSON.stringify(plots)}`);
+    check(reportTables > 0, 'the report (summary.md) shows no table');
+    const declaration = await card.locator('.study-declaration pre').textContent();
+    results.studies = { listed, table, plots, report_tables: reportTables, declaration };
+  });
+
   check(results.consoleErrors.length === 0, `console errors on the page:\n  ${results.consoleErrors.join('\n  ')}`);
 }
 

@@ -694,14 +694,24 @@ fn the_solver_is_bounded_and_a_client_that_leaves_is_cancelled() {
 
 #[test]
 fn beyond_loopback_every_request_needs_the_token() {
+    const TOKEN: &str = "s3cret-token-0123";
     let trained = Trained::shared();
-    let served = trained.serve(&["--bind", "0.0.0.0:0", "--token", "s3cret"]);
-    assert!(served.url.ends_with("/?token=s3cret"), "{}", served.url);
+    let served = trained.serve(&["--bind", "0.0.0.0:0", "--token", TOKEN]);
+    assert!(
+        served.url.ends_with(&format!("/?token={TOKEN}")),
+        "{}",
+        served.url
+    );
     let port = served.addr.port();
     let local: std::net::SocketAddr = format!("127.0.0.1:{port}").parse().unwrap();
     let mut c = Client::new(local);
     assert_eq!(c.get("/api/model").unwrap().status, 403);
-    let page = c.get("/?token=s3cret").unwrap();
+    assert_eq!(
+        c.get("/api/model?token=").unwrap().status,
+        403,
+        "an empty token passed"
+    );
+    let page = c.get(&format!("/?token={TOKEN}")).unwrap();
     assert_eq!(page.status, 200);
     let cookie = page.header("set-cookie").unwrap().to_owned();
     assert!(
@@ -713,10 +723,423 @@ fn beyond_loopback_every_request_needs_the_token() {
         .headers
         .push(format!("Cookie: {}", cookie.split(';').next().unwrap()));
     assert_eq!(with_cookie.get("/api/model").unwrap().status, 200);
-    let mut bearer = Client::new(local);
-    bearer.headers.push("Authorization: Bearer s3cret".into());
-    assert_eq!(bearer.get("/api/model").unwrap().status, 200);
+    // The scheme is case-insensitive (RFC 7235); the token is not.
+    for scheme in ["Bearer", "bearer", "BEARER"] {
+        let mut bearer = Client::new(local);
+        bearer
+            .headers
+            .push(format!("Authorization: {scheme} {TOKEN}"));
+        assert_eq!(bearer.get("/api/model").unwrap().status, 200, "{scheme}");
+    }
     let mut wrong = Client::new(local);
-    wrong.headers.push("Authorization: Bearer s3creT".into());
+    wrong
+        .headers
+        .push(format!("Authorization: Bearer {}", TOKEN.to_uppercase()));
     assert_eq!(wrong.get("/api/model").unwrap().status, 403);
+}
+
+#[test]
+fn a_token_shorter_than_16_characters_is_refused_at_startup() {
+    let trained = Trained::shared();
+    for token in ["", "fifteen-chars-x"] {
+        let o = std::process::Command::new(pino_mbd_tests::bin("explore"))
+            .arg("-C")
+            .arg(trained.path())
+            .args(["--bind", "0.0.0.0:0", "--token", token])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{token:?}: {err}");
+        assert!(
+            err.contains("--token") && err.contains("at least 16"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn every_error_is_json_and_a_post_must_say_it_is_json() {
+    let trained = Trained::shared();
+    let served = trained.serve(&[]);
+    let mut c = served.client();
+    let predict = json!({}).to_string();
+    // A cross-site form or `fetch` without a preflight sends text/plain or a form type.
+    for content_type in [
+        None,
+        Some("text/plain"),
+        Some("application/x-www-form-urlencoded"),
+        Some("multipart/form-data; boundary=x"),
+    ] {
+        let mut raw = Client::new(served.addr);
+        let a = match content_type {
+            None => raw.request_without_content_type("POST", "/api/predict", predict.as_bytes()),
+            Some(t) => {
+                raw.headers.push(format!("Content-Type: {t}"));
+                raw.request_without_content_type("POST", "/api/predict", predict.as_bytes())
+            }
+        }
+        .unwrap();
+        assert_eq!(a.status, 415, "{content_type:?}");
+        assert_eq!(a.json()["field"], "Content-Type");
+    }
+    let mut charset = Client::new(served.addr);
+    charset
+        .headers
+        .push("Content-Type: Application/JSON; charset=utf-8".into());
+    assert_eq!(
+        charset
+            .request_without_content_type("POST", "/api/predict", predict.as_bytes())
+            .unwrap()
+            .status,
+        200
+    );
+    // The framework's own answers carry the API's JSON error body too.
+    let wrong_method = c.get("/api/predict").unwrap();
+    assert_eq!(wrong_method.status, 405);
+    assert!(wrong_method
+        .header("content-type")
+        .unwrap()
+        .starts_with("application/json"));
+    assert!(wrong_method.json()["error"]
+        .as_str()
+        .unwrap()
+        .contains("method"));
+    assert!(wrong_method
+        .header("allow")
+        .is_some_and(|a| a.contains("POST")));
+    let big = vec![b' '; pino_explore::server::BODY_LIMIT + 1];
+    let too_large = c.request("POST", "/api/predict", &big).unwrap();
+    assert_eq!(too_large.status, 413);
+    assert!(too_large
+        .header("content-type")
+        .unwrap()
+        .starts_with("application/json"));
+    assert_eq!(too_large.json()["field"], "body");
+    let missing = c.get("/api/nope").unwrap();
+    assert_eq!(missing.status, 404);
+    assert!(missing.json()["error"].is_string());
+}
+
+/// Polls the Studies list until the started study `name` has ended (two minutes at most).
+fn wait_study(c: &mut Client, name: &str) -> Value {
+    let t0 = Instant::now();
+    loop {
+        let list = c.get("/api/studies").unwrap().json();
+        let s = list["explorer"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["name"] == name)
+            .unwrap_or_else(|| panic!("{name} is not listed: {list}"))
+            .clone();
+        if s["state"] != "running" {
+            return s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "{name} still running: {s}"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+#[test]
+fn a_study_started_from_the_sweep_view_is_the_stage_s_study_on_the_served_model() {
+    let trained = Trained::shared();
+    let dir = tempfile::tempdir().unwrap();
+    let study_dir = dir.path().join("studies");
+    let dir_arg = study_dir.to_str().unwrap();
+    let mut served = trained.serve(&["--study-dir", dir_arg]);
+    let mut c = served.client();
+    let model = c.get("/api/model").unwrap().json();
+    let params = names(&model, "parameters");
+    let limits = &model["studies"];
+    assert_eq!(limits["max_varied"], 2, "{model}");
+
+    // The pipeline's studies are listed with their state (the shared workspace runs none).
+    let list = c.get("/api/studies").unwrap().json();
+    let pipeline: Vec<(&str, &str)> = list["pipeline"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| (s["name"].as_str().unwrap(), s["state"].as_str().unwrap()))
+        .collect();
+    assert_eq!(
+        pipeline,
+        [
+            ("wheel_unloading", "never run"),
+            ("drivers", "never run"),
+            ("quiet_car_body", "never run")
+        ],
+        "{list}"
+    );
+    assert_eq!(list["explorer"], json!([]));
+
+    // Bad starts: 400 naming the field; nothing is claimed in the directory.
+    let p0 = params[0].as_str();
+    let one = json!([{"name": p0}]);
+    for (body, field) in [
+        (json!({"kind": "optimise", "parameters": one}), "kind"),
+        (json!({"parameters": one}), "kind"),
+        (
+            json!({"kind": "monte_carlo", "parameters": []}),
+            "parameters",
+        ),
+        (
+            json!({"kind": "monte_carlo", "parameters": [{"name": p0}, {"name": p0}]}),
+            "parameters[1].name",
+        ),
+        (
+            json!({"kind": "monte_carlo", "parameters": [{"name": "nope"}]}),
+            "parameters[0].name",
+        ),
+        (
+            json!({"kind": "monte_carlo", "parameters": [{"name": p0, "from": 2.0, "to": 1.0}]}),
+            "parameters[0].to",
+        ),
+        (
+            json!({"kind": "monte_carlo", "parameters": one, "n": 5001}),
+            "n",
+        ),
+        (
+            json!({"kind": "sensitivity", "parameters": one, "n": 48}),
+            "n",
+        ),
+        (
+            json!({"kind": "sensitivity", "parameters": one, "n": 16, "solver_check": 3}),
+            "solver_check",
+        ),
+        (
+            json!({"kind": "monte_carlo", "parameters": one, "n": 10, "solver_check": 11}),
+            "solver_check",
+        ),
+        (
+            json!({"kind": "monte_carlo", "parameters": one, "design": {"nope": 1.0}}),
+            "design.nope",
+        ),
+    ] {
+        let a = c.post_json("/api/studies", &body).unwrap();
+        assert_eq!(a.status, 400, "{body}: {}", a.json());
+        assert_eq!(a.json()["field"], field, "{body}: {}", a.json());
+    }
+    assert!(!study_dir.exists(), "a refused study claimed a directory");
+
+    // A Monte Carlo study of one parameter over part of its range, the others at a design.
+    let range = &model["parameters"][0];
+    let (lo, hi) = (
+        range["min"].as_f64().unwrap(),
+        range["max"].as_f64().unwrap(),
+    );
+    let (from, to) = (lo + 0.25 * (hi - lo), lo + 0.75 * (hi - lo));
+    let p1 = params[1].as_str();
+    let fixed = model["parameters"][1]["nominal"].as_f64().unwrap() * 1.01;
+    let body = json!({"kind": "monte_carlo", "n": 40, "solver_check": 2,
+                      "parameters": [{"name": p0, "from": from, "to": to}],
+                      "design": {p1: fixed}});
+    let a = c.post_json("/api/studies", &body).unwrap();
+    assert_eq!(a.status, 202, "{}", a.json());
+    let name = a.json()["name"].as_str().unwrap().to_owned();
+    assert_eq!(name, format!("monte_carlo-{p0}-1"));
+    let s = wait_study(&mut c, &name);
+    assert_eq!(s["state"], "finished", "{s}");
+    assert_eq!(s["kind"], "monte_carlo");
+    assert_eq!(s["table"]["file"], "summary.csv");
+    let files: Vec<&str> = s["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    for f in [
+        "evaluations.parquet",
+        "solver.parquet",
+        "summary.md",
+        "summary.csv",
+        "histograms.png",
+        "study.yaml",
+    ] {
+        assert!(files.contains(&f), "{f} missing: {files:?}");
+    }
+    assert!(s["summary_md"].as_str().unwrap().contains(&name), "{s}");
+
+    // Its declaration: the parameter uniform over the interval, every other one fixed at the
+    // design's value (nominal where the request named none).
+    let decl: Value = serde_yaml::from_str(
+        &std::fs::read_to_string(study_dir.join(&name).join("study.yaml")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(decl["parameters"][p0], json!({"uniform": [from, to]}));
+    assert_eq!(decl["parameters"][p1], json!(fixed));
+    for (k, p) in params.iter().enumerate().skip(2) {
+        assert_eq!(
+            decl["parameters"][p.as_str()],
+            model["parameters"][k]["nominal"],
+            "{p}"
+        );
+    }
+
+    // The evaluations: 40 designs, the varied parameter inside the interval, and each design's
+    // indices those `/api/predict` gives for the same design under the same generated profile
+    // (the study's seed, the design's excitation id).
+    let t =
+        pino_data::read_parquet(&study_dir.join(&name).join("evaluations.parquet"), None).unwrap();
+    let x = t.f64(p0).unwrap();
+    assert_eq!(x.len(), 40);
+    assert!(x.iter().all(|v| (from..=to).contains(v)), "{x:?}");
+    assert!(t.f64(p1).unwrap().iter().all(|&v| v == fixed));
+    let excitation = t.i64("excitation").unwrap();
+    for row in [0, 39] {
+        let design: serde_json::Map<String, Value> = params
+            .iter()
+            .map(|p| (p.clone(), json!(t.f64(p).unwrap()[row])))
+            .collect();
+        let p = c
+            .post_json(
+                "/api/predict",
+                &json!({"design": design, "bands": false,
+                        "excitation": {"kind": "seed", "seed": 7, "id": excitation[row]}}),
+            )
+            .unwrap()
+            .json();
+        for i in p["indices"].as_array().unwrap() {
+            let name = i["name"].as_str().unwrap();
+            let stored = t.f64(name).unwrap()[row];
+            let got = i["value"].as_f64().unwrap();
+            assert!(
+                (got - stored).abs() <= 1e-9 * stored.abs().max(1e-12),
+                "design {row}, {name}: predict {got}, study {stored}"
+            );
+        }
+    }
+
+    // Its files are served; nothing else is.
+    let md = c
+        .get(&format!("/api/studies/explorer/{name}/summary.md"))
+        .unwrap();
+    assert_eq!(md.status, 200);
+    assert!(md
+        .header("content-type")
+        .unwrap()
+        .starts_with("text/markdown"));
+    let png = c
+        .get(&format!("/api/studies/explorer/{name}/histograms.png"))
+        .unwrap();
+    assert_eq!((png.status, &png.body[1..4]), (200, &b"PNG"[..]));
+    for bad in [
+        format!("/api/studies/explorer/{name}/nope.csv"),
+        format!("/api/studies/explorer/{name}/..%2Fstudy.yaml"),
+        format!("/api/studies/other/{name}/summary.md"),
+        "/api/studies/explorer/nope/summary.md".to_owned(),
+        "/api/studies/pipeline/drivers/summary.md".to_owned(),
+    ] {
+        assert_eq!(c.get(&bad).unwrap().status, 404, "{bad}");
+    }
+    assert!(served.alive());
+
+    // A later session on the same directory lists it again, finished, and names the next
+    // study of the same parameter `-2`.
+    drop(served);
+    let served = trained.serve(&["--study-dir", dir_arg]);
+    let mut c = served.client();
+    let again = c.get("/api/studies").unwrap().json();
+    assert_eq!(again["explorer"][0]["name"], name.as_str(), "{again}");
+    assert_eq!(again["explorer"][0]["state"], "finished");
+    let a = c
+        .post_json(
+            "/api/studies",
+            &json!({"kind": "monte_carlo", "n": 10, "parameters": [{"name": p0}]}),
+        )
+        .unwrap();
+    assert_eq!(a.json()["name"], format!("monte_carlo-{p0}-2"));
+    assert_eq!(
+        wait_study(&mut c, &format!("monte_carlo-{p0}-2"))["state"],
+        "finished"
+    );
+}
+
+/// Whether the server closed `s` within its read timeout: EOF or a reset, not a timeout.
+fn closed_by_server(s: &mut std::net::TcpStream) -> bool {
+    use std::io::Read;
+    let mut buf = [0u8; 4096];
+    loop {
+        match s.read(&mut buf) {
+            Ok(0) => return true,
+            Ok(_) => continue, // an answer before the close
+            Err(e) => {
+                return !matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                )
+            }
+        }
+    }
+}
+
+#[test]
+fn idle_and_half_sent_connections_are_closed_and_the_connection_cap_holds() {
+    use std::io::Write;
+    use std::net::TcpStream;
+    let trained = Trained::shared();
+    let served = trained.serve(&["--header-timeout", "1"]);
+    let connect = || {
+        let s = TcpStream::connect(served.addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        s
+    };
+    let mut silent = connect();
+    let mut half = connect();
+    half.write_all(b"GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ")
+        .unwrap();
+    let mut kept_alive = connect();
+    let host = format!("127.0.0.1:{}", served.addr.port());
+    kept_alive
+        .write_all(format!("GET /api/health HTTP/1.1\r\nHost: {host}\r\n\r\n").as_bytes())
+        .unwrap();
+    for (what, s) in [
+        ("a connection that sends nothing", &mut silent),
+        ("a connection stuck mid-header", &mut half),
+        (
+            "a kept-alive connection left idle after its answer",
+            &mut kept_alive,
+        ),
+    ] {
+        assert!(
+            closed_by_server(s),
+            "{what} was not closed by the 1-s timeout"
+        );
+    }
+    let mut c = served.client();
+    assert_eq!(c.post_json("/api/predict", &json!({})).unwrap().status, 200);
+
+    // A cap of 4 connections: the fifth is closed at once while four idle ones hold theirs
+    // (a 60-s timeout, so none of them is closed meanwhile); then predicts answer again.
+    let capped = trained.serve(&["--header-timeout", "60", "--max-connections", "4"]);
+    // Each of the four is answered once, so the server holds it, kept alive.
+    let hold: Vec<Client> = (0..4)
+        .map(|_| {
+            let mut c = capped.client();
+            assert_eq!(c.get("/api/health").unwrap().status, 200);
+            c
+        })
+        .collect();
+    let mut fifth = TcpStream::connect(capped.addr).unwrap();
+    fifth
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    assert!(
+        closed_by_server(&mut fifth),
+        "the fifth connection was kept"
+    );
+    drop(hold);
+    let t0 = Instant::now();
+    let mut c = capped.client();
+    loop {
+        match c.get("/api/health") {
+            Ok(a) if a.status == 200 => break,
+            _ if t0.elapsed() < Duration::from_secs(10) => {
+                std::thread::sleep(Duration::from_millis(100))
+            }
+            other => panic!("no answer after the idle connections left: {other:?}"),
+        }
+    }
 }

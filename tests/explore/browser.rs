@@ -82,9 +82,12 @@ fn a_user_explores_designs_in_a_real_browser() {
             "outside",
             "sweep",
             "download",
-            "pipeline"
+            "pipeline",
+            "study-start",
+            "studies"
         ]
     );
+    check_started_study(trained, &r);
 
     // The parameter rows are the model's sampled parameters, in its order.
     let ranges = read_parquet(&trained.file("sample-params", "ranges.parquet"), None).unwrap();
@@ -442,4 +445,61 @@ fn str_of(v: &Value) -> &str {
 
 fn num(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+/// The study started from the sweep view: its declaration is the page's two intervals and
+/// design, the Studies page's table is its `sobol.csv`, and the pipeline's studies are listed
+/// with their state.
+fn check_started_study(trained: &Trained, r: &Value) {
+    let start = &r["studyStart"];
+    let name = str_of(&start["name"]);
+    let dir = trained.path().join("explore-studies").join(name);
+    let decl: Value = serde_yaml::from_str(
+        &std::fs::read_to_string(dir.join("study.yaml")).expect("the study's study.yaml"),
+    )
+    .expect("study.yaml is YAML");
+    assert_eq!(decl["kind"], "sensitivity");
+    assert_eq!(decl["n"], 16);
+    let varied: Vec<&str> = arr(&start["parameters"])
+        .iter()
+        .map(|p| str_of(&p["name"]))
+        .collect();
+    for p in arr(&start["parameters"]) {
+        assert_eq!(
+            decl["parameters"][str_of(&p["name"])],
+            serde_json::json!({"uniform": [num(&p["from"]), num(&p["to"])]}),
+            "{decl}"
+        );
+    }
+    for (k, v) in obj(&start["design"]) {
+        if !varied.contains(&k.as_str()) {
+            assert_eq!(num(&decl["parameters"][k.as_str()]), num(v), "{k}");
+        }
+    }
+    let s = &r["studies"];
+    let csv = std::fs::read_to_string(dir.join("sobol.csv")).expect("sobol.csv");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let shown: Vec<&str> = arr(&s["table"]["header"]).iter().map(str_of).collect();
+    assert_eq!(shown, header, "the page's table header is sobol.csv's");
+    assert_eq!(
+        arr(&s["table"]["rows"]).len(),
+        lines.count(),
+        "one row per line of sobol.csv"
+    );
+    let listed: Vec<(&str, &str, &str)> = arr(&s["listed"])
+        .iter()
+        .map(|l| (str_of(&l[0]), str_of(&l[1]), str_of(&l[2])))
+        .collect();
+    assert!(
+        listed.contains(&("explorer", name, "finished")),
+        "{listed:?}"
+    );
+    for study in ["wheel_unloading", "drivers", "quiet_car_body"] {
+        assert!(
+            listed.contains(&("pipeline", study, "never run")),
+            "{listed:?}"
+        );
+    }
+    assert!(str_of(&s["declaration"]).contains("kind: sensitivity"));
 }

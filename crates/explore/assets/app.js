@@ -12,7 +12,9 @@
  *   - "Solve exactly" (POST /api/solve) overlays the exact solver's curves (dashed) and shows
  *     the surrogate's errors; "Pin as A" keeps a design to compare the following ones with;
  *     the sweep (POST /api/sweep) plots one index against one parameter; downloads fetch the
- *     design YAML and the curves (CSV / Parquet).
+ *     design YAML and the curves (CSV / Parquet); "Start study" (POST /api/studies) runs a
+ *     Monte Carlo or Sobol study of the swept parameter (and one more) and follows it until it
+ *     ends, with a link to the Studies page (/studies) that shows it.
  *   - with a calibration (summary.calibration, docs/uncertainty.md): every plotted channel is
  *     drawn with its band (shaded, the channel's colour), every index with its interval and
  *     three-valued verdict (pass / uncertain / fail), the sweep's index curve with its band;
@@ -29,6 +31,8 @@
  *   window.explorerBandAlpha: the opacity of a band's fill (its colour over white is known)
  *   body[data-state]       = loading | idle | predicting | solving | sweeping
  *   body[data-predictions], body[data-solves], body[data-sweeps]: counters bumped after drawing
+ *   body[data-study], body[data-study-state]: the study last started from the sweep view and,
+ *     once it ended, `finished` or `failed`
  *
  * Plain ES2020, no framework, no build step; the only dependency is the vendored uPlot
  * (global `uPlot`, see VENDORED.md). No inline scripts, no eval (CSP `script-src 'self'`).
@@ -1139,6 +1143,107 @@
     indexSel.addEventListener('change', () => { if (st.sweep) renderSweep(); });
     $('#run-sweep').addEventListener('click', runSweep);
     if (!summary.indices.length) $('#sweep').hidden = true;
+    buildStudyStart(summary);
+  }
+
+  // ---------------------------------------------------------------------------------------
+  // A study started from the sweep view (POST /api/studies; shown on /studies)
+  // ---------------------------------------------------------------------------------------
+
+  function buildStudyStart(summary) {
+    const limits = summary.studies;
+    if (!limits) { $('#study-start').hidden = true; return; }
+    const second = $('#study-param2');
+    const fill = () => {
+      const first = $('#sweep-param').value;
+      const keep = second.value;
+      second.replaceChildren(el('option', { value: '' }, '— none —'),
+        ...summary.parameters.filter((p) => p.name !== first).map((p) =>
+          el('option', { value: p.name }, withUnit(p.name, p.unit))));
+      second.value = keep && keep !== first ? keep : '';
+      second.dispatchEvent(new Event('change'));
+    };
+    second.addEventListener('change', () => {
+      const on = second.value !== '';
+      for (const id of ['#study-from2', '#study-to2']) $(id).disabled = !on;
+      if (on) {
+        const p = paramMeta(second.value);
+        $('#study-from2').value = String(p.min);
+        $('#study-to2').value = String(p.max);
+      } else {
+        $('#study-from2').value = '';
+        $('#study-to2').value = '';
+      }
+    });
+    const kind = $('#study-kind');
+    const setKind = () => {
+      const k = kind.value;
+      $('#study-n').max = String(limits.max_n[k]);
+      $('#study-n').value = String(limits.default_n[k]);
+      $('#study-n-label').textContent = k === 'sensitivity' ? 'rows (power of 2)' : 'designs';
+      $('#study-solver-check').max = String(limits.max_solver_check);
+    };
+    kind.addEventListener('change', setKind);
+    $('#sweep-param').addEventListener('change', fill);
+    setKind();
+    fill();
+    $('#start-study').addEventListener('click', startStudy);
+  }
+
+  async function startStudy() {
+    const button = $('#start-study');
+    const status = $('#study-status');
+    const parameters = [{
+      name: $('#sweep-param').value,
+      from: $('#sweep-from').valueAsNumber,
+      to: $('#sweep-to').valueAsNumber,
+    }];
+    if ($('#study-param2').value) {
+      parameters.push({
+        name: $('#study-param2').value,
+        from: $('#study-from2').valueAsNumber,
+        to: $('#study-to2').valueAsNumber,
+      });
+    }
+    const body = {
+      design: { ...st.design },
+      kind: $('#study-kind').value,
+      parameters,
+      n: $('#study-n').valueAsNumber,
+      solver_check: $('#study-solver-check').valueAsNumber,
+    };
+    if (st.coverage != null) body.coverage = st.coverage;
+    button.disabled = true;
+    status.textContent = 'starting…';
+    try {
+      const started = await api('POST', '/api/studies', body);
+      clearError();
+      document.body.dataset.study = started.name;
+      await followStudy(started.name, status);
+    } catch (err) {
+      status.textContent = '';
+      showError(err, 'Study');
+    } finally {
+      button.disabled = false;
+    }
+  }
+
+  /** Polls the Studies list until the started study `name` is finished or failed. */
+  async function followStudy(name, status) {
+    const link = () => el('a', { href: `/studies#study-explorer-${name}` }, 'on the Studies page');
+    for (;;) {
+      const answer = await api('GET', '/api/studies');
+      const s = (answer.explorer || []).find((x) => x.name === name);
+      if (!s) throw new Error(`the study ${name} is no longer listed`);
+      if (s.state === 'running') {
+        status.replaceChildren(`${name}: ${s.detail} — `, link());
+        await sleep(1000);
+        continue;
+      }
+      status.replaceChildren(`${name} ${s.state}: ${s.detail} — `, link());
+      document.body.dataset.studyState = s.state;
+      return;
+    }
   }
 
   async function runSweep() {

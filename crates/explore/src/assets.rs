@@ -27,8 +27,10 @@ macro_rules! asset {
 pub const ASSETS: &[Asset] = &[
     asset!("index.html", "text/html; charset=utf-8"),
     asset!("pipeline.html", "text/html; charset=utf-8"),
+    asset!("studies.html", "text/html; charset=utf-8"),
     asset!("app.js", "text/javascript; charset=utf-8"),
     asset!("pipeline.js", "text/javascript; charset=utf-8"),
+    asset!("studies.js", "text/javascript; charset=utf-8"),
     asset!("dom.js", "text/javascript; charset=utf-8"),
     asset!("style.css", "text/css; charset=utf-8"),
     asset!("favicon.svg", "image/svg+xml"),
@@ -63,7 +65,7 @@ mod tests {
 
     #[test]
     fn the_pages_load_only_embedded_scripts_and_styles() {
-        for page in ["index.html", "pipeline.html"] {
+        for page in ["index.html", "pipeline.html", "studies.html"] {
             let text = std::str::from_utf8(get(page).unwrap().bytes).unwrap();
             for attr in ["src=\"", "href=\""] {
                 for part in text.split(attr).skip(1) {

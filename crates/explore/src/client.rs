@@ -71,14 +71,27 @@ impl Client {
     /// Sends a request and reads the answer; reconnects once when a kept-alive connection was
     /// closed by the server.
     pub fn request(&mut self, method: &str, path: &str, body: &[u8]) -> std::io::Result<Answer> {
-        match self.try_request(method, path, body) {
+        let json = method == "POST";
+        match self.send(method, path, body, json) {
             Ok(a) => Ok(a),
             Err(_) if self.stream.is_some() => {
                 self.stream = None;
-                self.try_request(method, path, body)
+                self.send(method, path, body, json)
             }
             Err(e) => Err(e),
         }
+    }
+
+    /// Sends a request with only the headers in [`Client::headers`] (no `Content-Type` of its
+    /// own, so a test can send any or none), on a new connection.
+    pub fn request_without_content_type(
+        &mut self,
+        method: &str,
+        path: &str,
+        body: &[u8],
+    ) -> std::io::Result<Answer> {
+        self.stream = None;
+        self.send(method, path, body, false)
     }
 
     /// `POST` of a JSON value.
@@ -91,13 +104,20 @@ impl Client {
         self.request("GET", path, b"")
     }
 
-    fn try_request(&mut self, method: &str, path: &str, body: &[u8]) -> std::io::Result<Answer> {
+    /// Sends a request (with `Content-Type: application/json` when `json`) and reads the answer.
+    fn send(
+        &mut self,
+        method: &str,
+        path: &str,
+        body: &[u8],
+        json: bool,
+    ) -> std::io::Result<Answer> {
         let mut head = format!(
             "{method} {path} HTTP/1.1\r\nHost: {}\r\nContent-Length: {}\r\n",
             self.host,
             body.len()
         );
-        if !body.is_empty() {
+        if json {
             head.push_str("Content-Type: application/json\r\n");
         }
         for h in &self.headers {
@@ -117,7 +137,7 @@ impl Client {
     pub fn send_only(&self, method: &str, path: &str, body: &[u8]) -> std::io::Result<TcpStream> {
         let mut s = TcpStream::connect(self.addr)?;
         let head = format!(
-            "{method} {path} HTTP/1.1\r\nHost: {}\r\nContent-Length: {}\r\n\r\n",
+            "{method} {path} HTTP/1.1\r\nHost: {}\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n",
             self.host,
             body.len()
         );

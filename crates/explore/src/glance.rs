@@ -256,7 +256,7 @@ pub fn plot_path(p: &Pipeline, name: &str) -> Option<PathBuf> {
         .find(|f| f.file_name().is_some_and(|n| n == name))
 }
 
-fn read_csv(path: &Path) -> Result<Vec<Vec<String>>, String> {
+pub(crate) fn read_csv(path: &Path) -> Result<Vec<Vec<String>>, String> {
     let mut r = csv::ReaderBuilder::new()
         .has_headers(false)
         .from_path(path)

@@ -6,9 +6,10 @@
 //! - [`request`]: requests parsed and validated, errors naming the field and the allowed range;
 //! - [`download`]: the design and curve files, each with the model's identity and excitation;
 //! - [`glance`]: the pipeline at a glance and the model found through the orchestrator's record;
+//! - [`studies`]: the pipeline's studies and those started from the sweep view;
 //! - [`client`]: the blocking HTTP client of the load benchmark and the tests;
-//! - [`server`]: axum routes, host and token checks, the solve gate; [`assets`]: the embedded
-//!   page.
+//! - [`server`]: axum routes, host and token checks, the solve gate; [`serve`]: the accept
+//!   loop with its timeouts and connection cap; [`assets`]: the embedded pages.
 #![warn(missing_docs)]
 
 pub mod assets;
@@ -16,6 +17,8 @@ pub mod client;
 pub mod download;
 pub mod glance;
 pub mod request;
+pub mod serve;
 pub mod server;
 pub mod session;
 pub mod solve;
+pub mod studies;

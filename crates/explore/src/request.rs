@@ -132,6 +132,67 @@ pub struct SweepRequest {
     pub solve_points: usize,
 }
 
+/// The kinds of study the sweep view starts (`docs/studies.md`): the optimisation needs an
+/// objective and limits the view does not ask for, so it stays a pipeline declaration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StartedKind {
+    /// Exceedance probabilities and quantiles over the varied parameters.
+    MonteCarlo,
+    /// Sobol indices of the varied parameters and the excitation.
+    Sensitivity,
+}
+
+impl StartedKind {
+    /// The `kind` of the study's declaration.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::MonteCarlo => pino_eval::study::spec::MONTE_CARLO,
+            Self::Sensitivity => pino_eval::study::spec::SENSITIVITY,
+        }
+    }
+
+    /// Designs (rows) when a request names none: a Monte Carlo study of a few seconds, a
+    /// sensitivity design of 64 rows.
+    pub fn default_n(self) -> usize {
+        match self {
+            Self::MonteCarlo => 500,
+            Self::Sensitivity => 64,
+        }
+    }
+}
+
+/// The most parameters a study started from the sweep view varies.
+pub const STUDY_MAX_VARIED: usize = 2;
+
+/// The most designs of a Monte Carlo study started from the sweep view (a minute or less of
+/// the surrogate on a laptop; larger ones belong in the pipeline file).
+pub const STUDY_MAX_MONTE_CARLO: usize = 5000;
+
+/// The most rows of a sensitivity study started from the sweep view.
+pub const STUDY_MAX_SENSITIVITY_ROWS: usize = 1024;
+
+/// The most designs (rows, for a sensitivity study) of a started study the solver checks.
+pub const STUDY_MAX_SOLVER_CHECK: usize = 32;
+
+/// A study started from the sweep view: one or two parameters uniform over their intervals,
+/// every other parameter fixed at the design's value, each design under its own excitation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StudyRequest {
+    /// The design whose other parameters stay fixed.
+    pub design: Vec<f64>,
+    /// Coverage of the intervals.
+    pub coverage: f64,
+    /// Monte Carlo or sensitivity.
+    pub kind: StartedKind,
+    /// The varied parameters: (index, from, to) with from < to.
+    pub varied: Vec<(usize, f64, f64)>,
+    /// Designs (Monte Carlo) or rows of the Saltelli design (sensitivity).
+    pub n: usize,
+    /// Designs (rows) also through the solver.
+    pub solver_check: usize,
+}
+
 /// What the parser needs to know of the model: parameter names, nominal values and training
 /// ranges, and the request limits.
 #[derive(Debug, Clone)]
@@ -418,6 +479,109 @@ impl RequestRules {
             to: end("to", hi)?,
             steps,
             solve_points,
+        })
+    }
+}
+
+impl RequestRules {
+    /// A study request: `{design, coverage, kind, parameters: [{name, from, to}], n,
+    /// solver_check}`. The study's own rules (a power of two for a sensitivity design, ...)
+    /// are checked again by the study's declaration parser.
+    pub fn study_request(&self, v: &Value) -> Result<StudyRequest, ApiError> {
+        let obj = object(v, "body")?;
+        only_keys(
+            obj,
+            "",
+            &[
+                "design",
+                "coverage",
+                "kind",
+                "parameters",
+                "n",
+                "solver_check",
+            ],
+        )?;
+        let known = [StartedKind::MonteCarlo, StartedKind::Sensitivity];
+        let kinds = || {
+            let names: Vec<String> = known
+                .iter()
+                .map(|k| format!("\"{}\"", k.as_str()))
+                .collect();
+            format!(
+                "{} (an optimisation is declared in the pipeline file)",
+                names.join(" or ")
+            )
+        };
+        let kind = match obj.get("kind").and_then(Value::as_str) {
+            Some(name) => *known.iter().find(|k| k.as_str() == name).ok_or_else(|| {
+                ApiError::bad("kind", format!("unknown study kind `{name}`"), kinds())
+            })?,
+            None => return Err(ApiError::bad("kind", "`kind` is missing", kinds())),
+        };
+        let list = obj
+            .get("parameters")
+            .and_then(Value::as_array)
+            .filter(|l| (1..=STUDY_MAX_VARIED).contains(&l.len()))
+            .ok_or_else(|| {
+                ApiError::bad(
+                    "parameters",
+                    "`parameters` must list the varied parameters",
+                    format!("a list of 1 to {STUDY_MAX_VARIED} objects {{name, from, to}}"),
+                )
+            })?;
+        let mut varied = Vec::new();
+        for (i, p) in list.iter().enumerate() {
+            let at = format!("parameters[{i}]");
+            let p = object(p, &at)?;
+            only_keys(p, &at, &["name", "from", "to"])?;
+            let allowed = format!("one of {}", self.names.join(", "));
+            let name = p.get("name").and_then(Value::as_str).unwrap_or("");
+            let k = self.names.iter().position(|n| n == name).ok_or_else(|| {
+                ApiError::bad(
+                    format!("{at}.name"),
+                    format!("unknown parameter `{name}`"),
+                    allowed,
+                )
+            })?;
+            if varied.iter().any(|&(j, _, _)| j == k) {
+                return Err(ApiError::bad(
+                    format!("{at}.name"),
+                    format!("`{name}` is listed twice"),
+                    "distinct parameters",
+                ));
+            }
+            let [lo, hi] = self.ranges[k];
+            let end = |key: &str, default: f64| {
+                p.get(key)
+                    .map_or(Ok(default), |v| number(v, &format!("{at}.{key}")))
+            };
+            let (from, to) = (end("from", lo)?, end("to", hi)?);
+            if from >= to {
+                return Err(ApiError::bad(
+                    format!("{at}.to"),
+                    format!("`{at}`: from = {from} is not below to = {to}"),
+                    "an interval with from < to",
+                ));
+            }
+            varied.push((k, from, to));
+        }
+        let max_n = match kind {
+            StartedKind::MonteCarlo => STUDY_MAX_MONTE_CARLO,
+            StartedKind::Sensitivity => STUDY_MAX_SENSITIVITY_ROWS,
+        };
+        let n = obj.get("n").map_or(Ok(kind.default_n() as u64), |v| {
+            integer(v, "n", 1, max_n as u64)
+        })? as usize;
+        let solver_check = obj.get("solver_check").map_or(Ok(0), |v| {
+            integer(v, "solver_check", 0, STUDY_MAX_SOLVER_CHECK.min(n) as u64)
+        })? as usize;
+        Ok(StudyRequest {
+            design: self.design(obj.get("design"))?,
+            coverage: self.coverage(obj.get("coverage"))?,
+            kind,
+            varied,
+            n,
+            solver_check,
         })
     }
 }

@@ -4,8 +4,13 @@
 //!   rebinding), and beyond loopback it must carry the token (a cookie set by the page's first
 //!   load with `?token=`, or `Authorization: Bearer`). Answers carry a strict Content Security
 //!   Policy and no CORS headers, so other origins cannot read them.
+//! - A POST must say its body is JSON (415 otherwise: a cross-site page cannot send one
+//!   without a preflight, which is never granted); every error, the framework's 405 and 413
+//!   included, answers the API's JSON error body.
 //! - Bodies are limited ([`BODY_LIMIT`]); model work runs on the blocking pool, so the async
 //!   workers keep accepting while a prediction or a solve computes.
+//! - The Studies page's routes list the pipeline's studies and those started from the sweep
+//!   view ([`crate::studies`]) and serve their files by the names listed.
 //! - Solves pass a [`SolveGate`]: at most `workers` run and `queue` wait; beyond, 429 with
 //!   `Retry-After`. A solve whose client disconnects is cancelled: hyper drops the handler's
 //!   future, whose `CancelOnDrop` guard sets the engine's stop flag.
@@ -15,6 +20,7 @@ use crate::glance;
 use crate::request::{self, ApiError, DesignRequest};
 use crate::session::{Explorer, Response};
 use crate::solve::{relative_error, relative_l2};
+use crate::studies::{self, Source, Studies};
 use axum::body::{Body, Bytes};
 use axum::extract::{DefaultBodyLimit, Path, Query, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
@@ -32,6 +38,9 @@ use tokio::sync::Semaphore;
 
 /// Largest request body (bytes).
 pub const BODY_LIMIT: usize = 64 * 1024;
+
+/// The fewest characters of a token given with `--token` (a random one has 32).
+pub const MIN_TOKEN_CHARS: usize = 16;
 
 /// Name of the token cookie.
 const TOKEN_COOKIE: &str = "explore_token";
@@ -104,10 +113,13 @@ impl Access {
                     .fold(0, |d, (x, y)| d | (x ^ y))
                     == 0
         };
+        // The scheme is case-insensitive (RFC 7235).
         let bearer = headers
             .get(header::AUTHORIZATION)
             .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer "));
+            .and_then(|v| v.split_once(' '))
+            .filter(|(scheme, _)| scheme.eq_ignore_ascii_case("bearer"))
+            .map(|(_, t)| t.trim_start());
         let cookie = headers
             .get_all(header::COOKIE)
             .iter()
@@ -191,6 +203,8 @@ pub struct App {
     pub access: Access,
     /// The solve gate.
     pub solves: Arc<SolveGate>,
+    /// The studies started from the sweep view.
+    pub studies: Arc<Studies>,
 }
 
 type Shared = Arc<App>;
@@ -244,8 +258,17 @@ async fn guard(State(app): State<Shared>, req: Request, next: Next) -> HttpRespo
             retry_after_s: None,
         });
     }
+    if req.method() == axum::http::Method::POST && !is_json(req.headers()) {
+        return error_response(ApiError {
+            status: 415,
+            error: "a POST body must be JSON: send `Content-Type: application/json`".into(),
+            field: Some("Content-Type".into()),
+            allowed: Some("application/json".into()),
+            retry_after_s: None,
+        });
+    }
     let set_cookie = app.access.token.is_some() && query_token(query.as_deref()).is_some();
-    let mut r = next.run(req).await;
+    let mut r = as_json_error(next.run(req).await);
     let h = r.headers_mut();
     h.insert(
         header::CONTENT_SECURITY_POLICY,
@@ -272,6 +295,49 @@ async fn guard(State(app): State<Shared>, req: Request, next: Next) -> HttpRespo
         }
     }
     r
+}
+
+/// Whether the request says its body is JSON (`application/json`, any parameters). Requiring
+/// it makes every cross-site POST a preflighted one, which the server never grants.
+fn is_json(headers: &HeaderMap) -> bool {
+    headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.split(';').next())
+        .is_some_and(|t| t.trim().eq_ignore_ascii_case("application/json"))
+}
+
+/// The framework's own error answers (405 method not allowed, 413 body too large, with a
+/// plain-text or empty body) as the API's JSON errors; every other answer unchanged.
+fn as_json_error(r: HttpResponse) -> HttpResponse {
+    let status = r.status();
+    let json = r
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(b"application/json"));
+    let error = match status {
+        StatusCode::METHOD_NOT_ALLOWED => {
+            "method not allowed on this path (see docs/explore.md)".to_owned()
+        }
+        StatusCode::PAYLOAD_TOO_LARGE => format!("the body is larger than {BODY_LIMIT} bytes"),
+        _ => return r,
+    };
+    if json {
+        return r;
+    }
+    let allow = r.headers().get(header::ALLOW).cloned();
+    let mut answer = error_response(ApiError {
+        status: status.as_u16(),
+        error,
+        field: (status == StatusCode::PAYLOAD_TOO_LARGE).then(|| "body".to_owned()),
+        allowed: (status == StatusCode::PAYLOAD_TOO_LARGE)
+            .then(|| format!("at most {BODY_LIMIT} bytes")),
+        retry_after_s: None,
+    });
+    if let Some(a) = allow {
+        answer.headers_mut().insert(header::ALLOW, a);
+    }
+    answer
 }
 
 fn asset(name: &str) -> HttpResponse {
@@ -677,6 +743,87 @@ async fn pipeline_plot(State(app): State<Shared>, Path(name): Path<String>) -> H
     }
 }
 
+/// The model's summary, with the limits of a study the sweep view may start.
+async fn model_summary(State(app): State<Shared>) -> HttpResponse {
+    let mut v = app.explorer.summary();
+    v["studies"] = studies::limits_json();
+    json_ok(v)
+}
+
+/// The Studies page's data: the pipeline's studies and those started here.
+async fn studies_view(State(app): State<Shared>) -> HttpResponse {
+    let answer = blocking(move || {
+        let pipeline = match &app.pipeline {
+            Some(p) => studies::pipeline_studies(p).map_err(ApiError::internal)?,
+            None => Vec::new(),
+        };
+        Ok(json!({
+            "file": app.pipeline.as_ref().map(|p| p.file.clone()),
+            "dir": app.studies.dir().display().to_string(),
+            "running": app.studies.is_running(),
+            "limits": studies::limits_json(),
+            "pipeline": pipeline,
+            "explorer": app.studies.list(),
+        }))
+    })
+    .await;
+    match answer {
+        Ok(v) => json_ok(v),
+        Err(e) => error_response(e),
+    }
+}
+
+/// Starts a study (`docs/explore.md`): 202 with its name and declaration.
+async fn start_study(State(app): State<Shared>, body: Bytes) -> HttpResponse {
+    let started = blocking(move || {
+        let req = app.explorer.rules().study_request(&request::body(&body)?)?;
+        app.studies.start(app.explorer.clone(), &req)
+    })
+    .await;
+    match started {
+        Ok(s) => (StatusCode::ACCEPTED, axum::Json(s)).into_response(),
+        Err(e) => error_response(e),
+    }
+}
+
+/// A file of a study's output: plots inline, every other file as a download.
+async fn study_file(
+    State(app): State<Shared>,
+    Path((source, name, file)): Path<(String, String, String)>,
+) -> HttpResponse {
+    let Some(source) = Source::parse(&source) else {
+        return not_found();
+    };
+    let found = blocking(move || {
+        Ok(studies::file_path(
+            app.pipeline.as_deref(),
+            &app.studies,
+            source,
+            &name,
+            &file,
+        ))
+    })
+    .await;
+    let path = match found {
+        Ok(Some(path)) => path,
+        Ok(None) => return not_found(),
+        Err(e) => return error_response(e),
+    };
+    let bytes = match std::fs::read(&path) {
+        Ok(b) => b,
+        Err(e) => return error_response(ApiError::internal(format!("{}: {e}", path.display()))),
+    };
+    let content_type = studies::content_type(&path);
+    if content_type.starts_with("image/") {
+        return ([(header::CONTENT_TYPE, content_type)], bytes).into_response();
+    }
+    let file_name = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or("study-file");
+    attachment(content_type, file_name, bytes)
+}
+
 async fn health(State(app): State<Shared>) -> HttpResponse {
     let g = &app.solves;
     json_ok(json!({
@@ -692,15 +839,13 @@ pub fn router(app: Shared) -> Router {
     Router::new()
         .route("/", get(|| async { asset("index.html") }))
         .route("/pipeline", get(|| async { asset("pipeline.html") }))
+        .route("/studies", get(|| async { asset("studies.html") }))
         .route("/favicon.ico", get(|| async { asset("favicon.svg") }))
         .route(
             "/assets/{name}",
             get(|Path(name): Path<String>| async move { asset(&name) }),
         )
-        .route(
-            "/api/model",
-            get(|State(app): State<Shared>| async move { json_ok(app.explorer.summary()) }),
-        )
+        .route("/api/model", get(model_summary))
         .route("/api/health", get(health))
         .route("/api/predict", post(predict))
         .route("/api/sweep", post(sweep))
@@ -709,6 +854,8 @@ pub fn router(app: Shared) -> Router {
         .route("/api/download/curves", post(download_curves))
         .route("/api/pipeline", get(pipeline_view))
         .route("/api/pipeline/plot/{name}", get(pipeline_plot))
+        .route("/api/studies", get(studies_view).post(start_study))
+        .route("/api/studies/{source}/{name}/{file}", get(study_file))
         .fallback(|| async { not_found() })
         .layer(DefaultBodyLimit::max(BODY_LIMIT))
         .layer(middleware::from_fn_with_state(app.clone(), guard))

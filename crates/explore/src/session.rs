@@ -176,6 +176,7 @@ pub struct Explorer {
     limits: Limits,
     calibration_file: Option<PathBuf>,
     calibration_note: Option<String>,
+    model_dir: PathBuf,
 }
 
 /// Why answers carry no interval when no calibration was given.
@@ -281,6 +282,7 @@ impl Explorer {
             limits,
             calibration_file: None,
             calibration_note: Some(NO_CALIBRATION.to_owned()),
+            model_dir: model_dir.to_owned(),
         })
     }
 
@@ -366,6 +368,21 @@ impl Explorer {
             "levels": levels,
             "default_coverage": crate::request::DEFAULT_COVERAGE,
         })
+    }
+
+    /// The model's directory (a `train` output).
+    pub fn model_dir(&self) -> &Path {
+        &self.model_dir
+    }
+
+    /// The calibration file or directory the intervals come from, when one was loaded.
+    pub fn calibration_file(&self) -> Option<&Path> {
+        self.calibration_file.as_deref()
+    }
+
+    /// The model as loaded.
+    pub fn predictor(&self) -> &Predictor {
+        &self.predictor
     }
 
     /// The parser of this model's requests.

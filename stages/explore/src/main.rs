@@ -7,6 +7,7 @@
 //!         [--calibration calibration.json|DIR]
 //!         [--bind 127.0.0.1:8750] [--token T] [--allow-host NAME]...
 //!         [--solve-workers 1] [--solve-queue 4] [--solve-max-duration 30] [--sweep-max 400]
+//!         [--header-timeout 10] [--max-connections 512] [--study-dir explore-studies]
 //! ```
 //! Prints `explore: serving ... on http://ADDR/` (the real port for `--bind HOST:0`) and serves
 //! until interrupted. Without `--model` the calibration is the pipeline's `calibrate` output
@@ -15,11 +16,16 @@
 use anyhow::{bail, Context, Result};
 use clap::Parser;
 use pino_explore::glance::{locate, DEFAULT_ALGORITHM};
-use pino_explore::server::{router, Access, App, SolveGate};
+use pino_explore::serve::{serve, ConnectionLimits};
+use pino_explore::server::{router, Access, App, SolveGate, MIN_TOKEN_CHARS};
 use pino_explore::session::{DatasetFiles, Explorer, Limits};
+use pino_explore::studies::Studies;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
+
+/// The default directory of the studies started from the sweep view, in the workspace.
+const STUDY_DIR: &str = "explore-studies";
 
 #[derive(Parser)]
 #[command(
@@ -60,7 +66,8 @@ struct Args {
     /// Address to serve on; port 0 takes any free port.
     #[arg(long, default_value = "127.0.0.1:8750")]
     bind: SocketAddr,
-    /// Token required beyond loopback (default: a random one, printed in the URL).
+    /// Token required beyond loopback, at least 16 characters (default: a random one of 32,
+    /// printed in the URL).
     #[arg(long)]
     token: Option<String>,
     /// More `Host` names to answer to (DNS-rebinding protection answers only the bound
@@ -79,6 +86,17 @@ struct Args {
     /// Most designs in one sweep.
     #[arg(long, default_value_t = Limits::default().sweep_max_designs)]
     sweep_max: usize,
+    /// Longest wait for a request's head, and the idle time after which a kept-alive
+    /// connection is closed (s).
+    #[arg(long, default_value_t = ConnectionLimits::default().header_timeout.as_secs_f64())]
+    header_timeout: f64,
+    /// Most open connections; a new one beyond is closed at once.
+    #[arg(long, default_value_t = ConnectionLimits::default().max_connections)]
+    max_connections: usize,
+    /// Where studies started from the sweep view are written (default: `explore-studies`
+    /// in the workspace); the Studies page lists those of earlier sessions too.
+    #[arg(long, value_name = "DIR")]
+    study_dir: Option<PathBuf>,
 }
 
 /// A refusal of the command line's inputs (a calibration missing, corrupt or of another
@@ -112,6 +130,31 @@ async fn run(args: Args) -> Result<()> {
     }
     if !(2..=100_000).contains(&args.sweep_max) {
         bail!("--sweep-max {}: allowed 2..=100000", args.sweep_max);
+    }
+    if !(args.header_timeout.is_finite() && (0.1..=3600.0).contains(&args.header_timeout)) {
+        bail!(
+            "--header-timeout {}: allowed 0.1 to 3600 seconds",
+            args.header_timeout
+        );
+    }
+    if !(1..=1_000_000).contains(&args.max_connections) {
+        bail!(
+            "--max-connections {}: allowed 1..=1000000",
+            args.max_connections
+        );
+    }
+    let connections = ConnectionLimits {
+        header_timeout: std::time::Duration::from_secs_f64(args.header_timeout),
+        max_connections: args.max_connections,
+    };
+    if let Some(t) = &args.token {
+        if t.chars().count() < MIN_TOKEN_CHARS {
+            return Err(Refused(format!(
+                "--token: {} characters; allowed: at least {MIN_TOKEN_CHARS} (or leave it out for a random one)",
+                t.chars().count()
+            ))
+            .into());
+        }
     }
     let workspace = args.workspace.clone().unwrap_or_else(|| PathBuf::from("."));
     let file = workspace.join(&args.file);
@@ -201,6 +244,11 @@ async fn run(args: Args) -> Result<()> {
         pipeline: pipeline.map(Arc::new),
         access,
         solves: Arc::new(SolveGate::new(args.solve_workers, args.solve_queue)),
+        studies: Arc::new(Studies::open(
+            args.study_dir
+                .clone()
+                .unwrap_or_else(|| workspace.join(STUDY_DIR)),
+        )),
     });
     let shown = if addr.ip().is_unspecified() {
         format!("localhost:{}", addr.port())
@@ -217,12 +265,11 @@ async fn run(args: Args) -> Result<()> {
     );
     use std::io::Write;
     std::io::stdout().flush().ok();
-    axum::serve(listener, router(app))
-        .with_graceful_shutdown(async {
-            let _ = tokio::signal::ctrl_c().await;
-        })
-        .await
-        .context("serving")
+    serve(listener, router(app), connections, async {
+        let _ = tokio::signal::ctrl_c().await;
+    })
+    .await;
+    Ok(())
 }
 
 fn main() {

@@ -21,6 +21,18 @@ pub mod spec;
 
 pub use spec::{Study, StudyKind, StudyParams};
 
+/// The `source` values of a study's tables: which side answered.
+pub mod source {
+    /// The surrogate on every design of the study.
+    pub const SURROGATE: &str = "surrogate";
+    /// The surrogate on the designs the solver also answered (Monte Carlo).
+    pub const SURROGATE_CHECKED: &str = "surrogate_checked";
+    /// The surrogate on the solver's rows of a sensitivity design.
+    pub const SURROGATE_REDUCED: &str = "surrogate_reduced";
+    /// The exact solver.
+    pub const SOLVER: &str = "solver";
+}
+
 use crate::indices_eval::IndexInputs;
 use crate::predict::Predictor;
 use candle_core::Device;
@@ -123,7 +135,7 @@ pub fn run(
             let firsts: Vec<String> = mc
                 .summaries
                 .iter()
-                .filter(|s| s.source == "surrogate")
+                .filter(|s| s.source == source::SURROGATE)
                 .filter_map(|s| {
                     s.exceedance
                         .map(|e| format!("P({} > {}) = {:.4}", s.index, e.limit, e.probability))

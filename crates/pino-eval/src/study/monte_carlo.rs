@@ -8,6 +8,7 @@
 //! solver, stand side by side.
 
 use super::evaluate::{spread, Evaluator, Solved};
+use super::source;
 use super::spec::Study;
 use crate::predict::DesignAnswer;
 use mbd_dataset::{Purpose, SampleStream};
@@ -113,12 +114,12 @@ pub fn run(
         let all: Vec<usize> = (0..n).collect();
         let sources: [Source; 3] = [
             (
-                "surrogate",
+                source::SURROGATE,
                 answers.iter().map(|a| a.indices.values[j]).collect(),
                 bounds(&all),
             ),
             (
-                "surrogate_checked",
+                source::SURROGATE_CHECKED,
                 checked
                     .iter()
                     .map(|&k| answers[k].indices.values[j])
@@ -126,7 +127,7 @@ pub fn run(
                 bounds(&checked),
             ),
             (
-                "solver",
+                source::SOLVER,
                 solved.iter().map(|s| s.indices[j]).collect(),
                 None,
             ),

@@ -179,6 +179,12 @@ fn normalised(j: &Judged, maximise: bool, scale: f64, constraints: &[(usize, f64
     }
 }
 
+/// The key of a design in the cache of answers: its values' bit patterns (a design evaluated
+/// twice is the same design only when every value is the same number).
+fn design_key(design: &[f64]) -> Vec<u64> {
+    design.iter().map(|x| x.to_bits()).collect()
+}
+
 /// Runs `study` (an optimisation `o`); `parameters` are the model's sampled parameters with
 /// their training ranges.
 pub fn run(
@@ -239,7 +245,7 @@ pub fn run(
     // Each distinct design's answers, kept for the tables (Nelder-Mead revisits points).
     let cache: Mutex<HashMap<Vec<u64>, Vec<DesignAnswer>>> = Mutex::new(HashMap::new());
     let answers_of = |design: &[f64]| -> Result<Vec<DesignAnswer>> {
-        let key: Vec<u64> = design.iter().map(|x| x.to_bits()).collect();
+        let key = design_key(design);
         if let Some(a) = cache.lock().expect("no thread panicked").get(&key) {
             return Ok(a.clone());
         }
@@ -306,7 +312,7 @@ pub fn run(
     let mut answers = Vec::with_capacity(outcome.history.len());
     for step in &outcome.history {
         let design = to_design(&step.u);
-        let key: Vec<u64> = design.iter().map(|x| x.to_bits()).collect();
+        let key = design_key(&design);
         let a = cache.get(&key).cloned().ok_or_else(|| Error::Format {
             path: format!("study.{}", study.name).into(),
             message: "a candidate of the search has no recorded answers".into(),

@@ -16,6 +16,7 @@
 //! both. Rankings compare the three largest total indices of each index.
 
 use super::evaluate::{Evaluator, Solved};
+use super::source;
 use super::spec::{Study, EXCITATION_FACTOR};
 use crate::predict::DesignAnswer;
 use pino_learn::{Error, Result};
@@ -199,10 +200,15 @@ pub fn run(
     for (j, c) in columns.iter().enumerate() {
         let surrogate: Vec<f64> = answers.iter().map(|a| a.indices.values[j]).collect();
         let solver: Vec<f64> = solved.iter().map(|s| s.indices[j]).collect();
-        let mut sources: Vec<(&'static str, &[f64], usize)> = vec![("surrogate", &surrogate, n)];
+        let mut sources: Vec<(&'static str, &[f64], usize)> =
+            vec![(source::SURROGATE, &surrogate, n)];
         if solver_rows > 0 {
-            sources.push(("surrogate_reduced", &surrogate[..checked], solver_rows));
-            sources.push(("solver", &solver, solver_rows));
+            sources.push((
+                source::SURROGATE_REDUCED,
+                &surrogate[..checked],
+                solver_rows,
+            ));
+            sources.push((source::SOLVER, &solver, solver_rows));
         }
         for (k, (source, y, rows)) in sources.into_iter().enumerate() {
             let seed = p.seed ^ ((j as u64) << 32) ^ ((k as u64) << 48);
@@ -264,15 +270,15 @@ pub struct Ranking {
 /// apart).
 pub fn rankings(s: &Sensitivity) -> Vec<Ranking> {
     let mut out = Vec::new();
-    for sur in s.sobol.iter().filter(|x| x.source == "surrogate") {
-        let Some(sol) = s.of(&sur.index, "solver") else {
+    for sur in s.sobol.iter().filter(|x| x.source == source::SURROGATE) {
+        let Some(sol) = s.of(&sur.index, source::SOLVER) else {
             continue;
         };
         let names = |v: Vec<usize>| -> Vec<String> {
             v.into_iter().map(|k| s.factors[k].clone()).collect()
         };
         let surrogate_reduced = s
-            .of(&sur.index, "surrogate_reduced")
+            .of(&sur.index, source::SURROGATE_REDUCED)
             .filter(|r| !r.factors.is_empty())
             .map_or_else(Vec::new, |r| names(r.top()));
         if sol.factors.is_empty() || sur.factors.is_empty() {
@@ -412,7 +418,7 @@ mod tests {
             answers: Vec::new(),
             solver_rows: 16,
             solved: Vec::new(),
-            sobol: vec![mk("surrogate", surrogate), mk("solver", solver)],
+            sobol: vec![mk(source::SURROGATE, surrogate), mk(source::SOLVER, solver)],
             convergence: Vec::new(),
             surrogate_s: 0.0,
             solver_s: 0.0,

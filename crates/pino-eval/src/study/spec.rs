@@ -8,6 +8,13 @@ use serde::Deserialize;
 use serde_json::Value;
 use std::collections::BTreeMap;
 
+/// The `kind` of a Monte Carlo study.
+pub const MONTE_CARLO: &str = "monte_carlo";
+/// The `kind` of a sensitivity study.
+pub const SENSITIVITY: &str = "sensitivity";
+/// The `kind` of an optimisation.
+pub const OPTIMISE: &str = "optimise";
+
 /// The most designs a Monte Carlo study evaluates.
 pub const MAX_MONTE_CARLO: usize = 1_000_000;
 
@@ -392,7 +399,7 @@ impl Study {
             }
         };
         let kind = match kind.as_ref().and_then(Value::as_str) {
-            Some("monte_carlo") => {
+            Some(MONTE_CARLO) => {
                 let s: MonteCarloSpec = serde_json::from_value(Value::Object(rest))
                     .map_err(|e| err(&name, "", e.to_string()))?;
                 if !(1..=MAX_MONTE_CARLO).contains(&s.n) {
@@ -424,7 +431,7 @@ impl Study {
                     limits: s.limits,
                 }
             }
-            Some("sensitivity") => {
+            Some(SENSITIVITY) => {
                 let s: SensitivitySpec = serde_json::from_value(Value::Object(rest))
                     .map_err(|e| err(&name, "", e.to_string()))?;
                 let varying = parameters
@@ -473,7 +480,7 @@ impl Study {
                 }
                 StudyKind::Sensitivity { n: s.n }
             }
-            Some("optimise") => {
+            Some(OPTIMISE) => {
                 let s: OptimiseSpec = serde_json::from_value(Value::Object(rest))
                     .map_err(|e| err(&name, "", e.to_string()))?;
                 let field_err = |field: &str, message: String| err(&name, field, message);

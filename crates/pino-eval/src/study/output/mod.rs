@@ -14,6 +14,7 @@ pub use optimise::write_optimise;
 pub use sensitivity::write_sensitivity;
 
 use super::evaluate::Solved;
+use super::spec;
 use crate::predict::{DesignAnswer, Predictor};
 use pino_data::units::{declare, DIMENSIONLESS};
 use pino_data::{Column, Table};
@@ -27,6 +28,25 @@ pub const DESIGN: &str = "design";
 pub const EXCITATION: &str = "excitation";
 /// The timings of a study (the only file that differs between two runs of one study).
 pub const SPEED_FILE: &str = "speed.csv";
+
+/// The report of a study, in Markdown (every kind).
+pub const SUMMARY_MD_FILE: &str = "summary.md";
+/// A Monte Carlo study's statistics per index and source, as CSV.
+pub const MONTE_CARLO_TABLE_FILE: &str = "summary.csv";
+/// A sensitivity study's Sobol indices per index and factor, as CSV.
+pub const SOBOL_TABLE_FILE: &str = "sobol.csv";
+/// An optimisation's optimum, runners-up and checked candidates, as CSV.
+pub const OPTIMUM_TABLE_FILE: &str = "optimum.csv";
+
+/// The table a reader of a study of `kind` (the declaration's `kind`) opens first.
+pub fn headline_table(kind: &str) -> Option<&'static str> {
+    match kind {
+        spec::MONTE_CARLO => Some(MONTE_CARLO_TABLE_FILE),
+        spec::SENSITIVITY => Some(SOBOL_TABLE_FILE),
+        spec::OPTIMISE => Some(OPTIMUM_TABLE_FILE),
+        _ => None,
+    }
+}
 
 /// The plot of the surrogate against the solver on the checked evaluations (every kind).
 pub const SCATTER_FILE: &str = "surrogate_vs_solver.png";
@@ -201,10 +221,10 @@ fn solver_pairs(
 }
 
 /// Writes a study's last files: [`SPEED_FILE`] with each side's evaluations and wall time,
-/// and `summary.md`.
+/// and [`SUMMARY_MD_FILE`].
 fn finish(out: &Path, surrogate: (usize, f64), solver: (usize, f64), summary: &str) -> Result<()> {
     write_speed(out, surrogate, solver)?;
-    report::write_atomic(&out.join("summary.md"), summary.as_bytes()).map_err(report_err)
+    report::write_atomic(&out.join(SUMMARY_MD_FILE), summary.as_bytes()).map_err(report_err)
 }
 
 /// Writes [`SPEED_FILE`]: each side's evaluations, wall time and time per evaluation.

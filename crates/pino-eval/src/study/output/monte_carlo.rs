@@ -154,7 +154,7 @@ pub fn write_monte_carlo(
         ex(&|e| e.surrogate.map_or(f64::NAN, |s| s.hi)),
     )?;
     pino_data::write_parquet(&out.join("summary.parquet"), &m)?;
-    report::csv::write_csv(&out.join("summary.csv"), &m).map_err(report_err)?;
+    report::csv::write_csv(&out.join(super::MONTE_CARLO_TABLE_FILE), &m).map_err(report_err)?;
     let q = quantities(predictor);
     let values: Vec<Vec<f64>> = (0..q.len())
         .map(|j| mc.answers.iter().map(|a| a.indices.values[j]).collect())

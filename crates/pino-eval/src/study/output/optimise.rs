@@ -13,6 +13,7 @@ use super::{
 };
 use crate::predict::{DesignAnswer, Predictor};
 use crate::study::optimise::{describe, Judged, Optimisation, Role};
+use crate::study::source;
 use crate::study::spec::{Optimise, Study};
 use pino_data::units::DIMENSIONLESS;
 use pino_data::{Column, Table};
@@ -232,7 +233,7 @@ pub fn write_optimise(
         Column::Str(
             r.checked
                 .iter()
-                .flat_map(|_| ["surrogate".to_owned(), "solver".to_owned()])
+                .flat_map(|_| [source::SURROGATE.to_owned(), source::SOLVER.to_owned()])
                 .collect(),
         ),
     )?;
@@ -249,7 +250,7 @@ pub fn write_optimise(
         .collect();
     push_judged(&mut t, predictor, r, &judged)?;
     pino_data::write_parquet(&out.join("optimum.parquet"), &t)?;
-    report::csv::write_csv(&out.join("optimum.csv"), &t).map_err(super::report_err)?;
+    report::csv::write_csv(&out.join(super::OPTIMUM_TABLE_FILE), &t).map_err(super::report_err)?;
 
     let q = super::quantities(predictor);
     let steps: Vec<plots::Step> = r

@@ -14,6 +14,7 @@
 //!
 //! Same results, same bytes.
 
+use crate::study::source;
 use report::plot::{write_png, Figure, Panel, Rgb, Series, BLACK, PALETTE, RED};
 use std::path::Path;
 
@@ -158,7 +159,7 @@ pub fn histograms(
     figure(
         path,
         format!("study {study}: the surrogate's answers"),
-        vec![(SURROGATE, "surrogate".into()), (RED, "limit".into())],
+        vec![(SURROGATE, source::SURROGATE.into()), (RED, "limit".into())],
         panels,
         3,
         PANEL,
@@ -422,7 +423,10 @@ pub fn surrogate_vs_solver(
     figure(
         path,
         format!("study {study}: surrogate against solver, same designs and excitations"),
-        vec![(SURROGATE, "surrogate".into()), (BLACK, "equality".into())],
+        vec![
+            (SURROGATE, source::SURROGATE.into()),
+            (BLACK, "equality".into()),
+        ],
         panels,
         3,
         PANEL,

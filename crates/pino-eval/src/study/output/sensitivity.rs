@@ -14,6 +14,7 @@ use super::{
 };
 use crate::predict::{DesignAnswer, Predictor};
 use crate::study::sensitivity::{rankings, Evaluation, Sensitivity, RANKED};
+use crate::study::source;
 use crate::study::spec::Study;
 use pino_data::units::DIMENSIONLESS;
 use pino_data::{Column, Table};
@@ -156,7 +157,7 @@ pub fn write_sensitivity(
         m.push(name, Column::F64(col))?;
     }
     pino_data::write_parquet(&out.join("sobol.parquet"), &m)?;
-    report::csv::write_csv(&out.join("sobol.csv"), &m).map_err(report_err)?;
+    report::csv::write_csv(&out.join(super::SOBOL_TABLE_FILE), &m).map_err(report_err)?;
 
     // The convergence record.
     let mut c = Table::default();
@@ -190,7 +191,12 @@ pub fn write_sensitivity(
     let names: Vec<&str> = q.iter().map(|x| x.name).collect();
     let bars: Vec<_> = names
         .iter()
-        .map(|i| (estimates(i, "surrogate"), estimates(i, "solver")))
+        .map(|i| {
+            (
+                estimates(i, source::SURROGATE),
+                estimates(i, source::SOLVER),
+            )
+        })
         .collect();
     plots::sobol_bars(
         &out.join("sobol.png"),
@@ -232,7 +238,7 @@ fn summary_markdown(study: &Study, s: &Sensitivity, calibrated: bool) -> String 
     );
     let ci = |x: f64, lo: f64, hi: f64| format!("{} [{}, {}]", num(x), num(lo), num(hi));
     let mut header = vec!["factor".to_owned()];
-    let sources: Vec<&str> = ["surrogate", "surrogate_reduced", "solver"]
+    let sources: Vec<&str> = [source::SURROGATE, source::SURROGATE_REDUCED, source::SOLVER]
         .into_iter()
         .filter(|src| s.sobol.iter().any(|e| e.source == *src))
         .collect();

@@ -1,0 +1,704 @@
+//! Design studies on the explorer's Studies page (`docs/explore.md`, `docs/studies.md`).
+//!
+//! Two sources, listed side by side:
+//! - the pipeline's studies: the units of its `study` stage, their state and files read as
+//!   `pipeline status` and `pipeline show` read them (nothing here runs a stage);
+//! - studies started from the sweep view: one declaration of the `study` stage's matrix (the
+//!   sweep's one or two parameters uniform over their intervals, every other parameter fixed
+//!   at the design's value, each design under its own excitation), run in the background by
+//!   the stage's own library ([`pino_eval::study::run`]) on the model being explored.
+//!
+//! A started study writes into `<dir>/<name>.partial/` and is renamed to `<dir>/<name>/` once
+//! every file is written, so a run cut short is never listed as finished. Beside the study's
+//! files it keeps its declaration ([`DECLARATION_FILE`], ready to paste under the pipeline
+//! file's `study:` matrix) and the record the page lists it by ([`RECORD_FILE`]), so a later
+//! session of the explorer lists it again. One started study runs at a time and it cannot be
+//! cancelled: the request caps ([`crate::request::STUDY_MAX_MONTE_CARLO`], ...) keep it to
+//! seconds or a minute; larger studies belong in the pipeline file.
+
+use crate::request::{ApiError, StudyRequest};
+use crate::session::Explorer;
+use orchestrator::spec::Pipeline;
+use orchestrator::status::{show, unit_states};
+use pino_eval::study::output::{headline_table, SUMMARY_MD_FILE};
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Map, Value};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// The stage whose units are the pipeline's studies (its name in the shipped pipelines).
+pub const STUDY_STAGE: &str = "study";
+
+/// A started study's declaration, as YAML.
+pub const DECLARATION_FILE: &str = "study.yaml";
+
+/// A started study's record: its declaration, model, one-line summary and wall time.
+pub const RECORD_FILE: &str = "explore-study.json";
+
+/// Suffix of a started study's directory while it runs.
+const PARTIAL_SUFFIX: &str = ".partial";
+
+/// The most bytes of a study's Markdown report the page is sent.
+const SUMMARY_MD_MAX_BYTES: u64 = 512 * 1024;
+
+/// Where a study comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Source {
+    /// A unit of the pipeline's `study` stage.
+    Pipeline,
+    /// Started from the explorer's sweep view.
+    Explorer,
+}
+
+impl Source {
+    /// The name used in URLs and answers.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Pipeline => "pipeline",
+            Self::Explorer => "explorer",
+        }
+    }
+
+    /// The source named `name` in a URL.
+    pub fn parse(name: &str) -> Option<Self> {
+        [Self::Pipeline, Self::Explorer]
+            .into_iter()
+            .find(|s| s.as_str() == name)
+    }
+}
+
+/// A CSV table: its file name and rows, the header first.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TableView {
+    /// The file.
+    pub file: String,
+    /// Its rows, the header first.
+    pub rows: Vec<Vec<String>>,
+}
+
+/// A study as the page shows it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StudyView {
+    /// Where it comes from.
+    pub source: Source,
+    /// Its declared name.
+    pub name: String,
+    /// `monte_carlo`, `sensitivity` or `optimise`.
+    pub kind: String,
+    /// The unit's state (`fresh`, `stale`, `never run`, `running`, ...) or a started study's
+    /// (`running`, `finished`, `failed`).
+    pub state: String,
+    /// Why (stale), the progress, the one-line summary or the error.
+    pub detail: String,
+    /// The declaration, as YAML.
+    pub declaration: String,
+    /// The Markdown report, when written.
+    pub summary_md: Option<String>,
+    /// The table a reader opens first ([`headline_table`]).
+    pub table: Option<TableView>,
+    /// The plots (PNG file names).
+    pub plots: Vec<String>,
+    /// Every file of the study's output.
+    pub files: Vec<String>,
+    /// The directory of its files.
+    #[serde(skip)]
+    pub dir: Option<PathBuf>,
+}
+
+/// The file names in `dir` (plain files, sorted).
+fn file_names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+        .filter_map(|e| e.file_name().into_string().ok())
+        .filter(|n| !n.starts_with('.'))
+        .collect();
+    names.sort();
+    names
+}
+
+/// Fills `view`'s report, table, plots and file list from the study's output directory.
+fn with_outputs(mut view: StudyView, dir: &Path) -> StudyView {
+    let files = file_names(dir);
+    let has = |name: &str| files.iter().any(|f| f == name);
+    view.summary_md = has(SUMMARY_MD_FILE)
+        .then(|| {
+            use std::io::Read;
+            let mut text = String::new();
+            std::fs::File::open(dir.join(SUMMARY_MD_FILE))
+                .and_then(|f| f.take(SUMMARY_MD_MAX_BYTES).read_to_string(&mut text))
+                .ok()
+                .map(|_| text)
+        })
+        .flatten();
+    view.table = headline_table(&view.kind).filter(|f| has(f)).and_then(|f| {
+        crate::glance::read_csv(&dir.join(f))
+            .ok()
+            .map(|rows| TableView {
+                file: f.to_owned(),
+                rows,
+            })
+    });
+    view.plots = files
+        .iter()
+        .filter(|f| f.ends_with(".png"))
+        .cloned()
+        .collect();
+    view.files = files;
+    view.dir = Some(dir.to_owned());
+    view
+}
+
+fn yaml_of(declaration: &Value) -> String {
+    serde_yaml::to_string(declaration).unwrap_or_default()
+}
+
+fn field_str(v: &Value, key: &str) -> String {
+    v.get(key).and_then(Value::as_str).unwrap_or("").to_owned()
+}
+
+/// The pipeline's studies: every expansion of its [`STUDY_STAGE`] with its state, and the
+/// files of its current output when it has one. Empty when the pipeline has no such stage.
+pub fn pipeline_studies(p: &Pipeline) -> Result<Vec<StudyView>, String> {
+    let Some(si) = p.index(STUDY_STAGE) else {
+        return Ok(Vec::new());
+    };
+    let stage = &p.stages[si];
+    let mut views: Vec<StudyView> = Vec::new();
+    let mut seen = Vec::new();
+    for u in unit_states(p).map_err(|e| e.to_string())? {
+        if u.stage != si || seen.contains(&u.expansion) {
+            continue;
+        }
+        seen.push(u.expansion);
+        let e = &stage.expansions[u.expansion];
+        let declaration = e.params.get(STUDY_STAGE).cloned().unwrap_or(Value::Null);
+        let view = StudyView {
+            source: Source::Pipeline,
+            name: field_str(&declaration, "name"),
+            kind: field_str(&declaration, "kind"),
+            state: u.state.to_owned(),
+            detail: u.detail,
+            declaration: yaml_of(&declaration),
+            summary_md: None,
+            table: None,
+            plots: Vec::new(),
+            files: Vec::new(),
+            dir: None,
+        };
+        let dir = show(p, &e.name).ok().and_then(|text| {
+            text.lines()
+                .next()
+                .and_then(|f| Path::new(f).parent().map(Path::to_path_buf))
+        });
+        views.push(match dir {
+            Some(dir) => with_outputs(view, &dir),
+            None => view,
+        });
+    }
+    Ok(views)
+}
+
+/// What a finished started study keeps beside its files ([`RECORD_FILE`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Record {
+    /// The declaration (one value of the `study` stage's matrix).
+    pub declaration: Value,
+    /// The identity of the model that answered.
+    pub model: String,
+    /// The stage's one-line summary.
+    pub summary: String,
+    /// Wall time of the whole study (s).
+    pub seconds: f64,
+}
+
+/// Where a started study stands.
+#[derive(Debug, Clone)]
+enum JobState {
+    Running { started: Instant },
+    Finished { summary: String },
+    Failed { error: String },
+}
+
+/// A started study.
+#[derive(Debug, Clone)]
+struct Job {
+    name: String,
+    declaration: Value,
+    state: JobState,
+}
+
+/// The studies started from the explorer: their directory and their jobs.
+pub struct Studies {
+    dir: PathBuf,
+    jobs: Mutex<Vec<Job>>,
+    running: AtomicBool,
+}
+
+/// Clears the running flag when the study's thread ends, however it ends.
+struct RunningFlag(Arc<Studies>);
+
+impl Drop for RunningFlag {
+    fn drop(&mut self) {
+        self.0.running.store(false, Ordering::SeqCst);
+    }
+}
+
+/// An accepted start: the study's name and declaration.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Started {
+    /// The study's name (its directory under the studies directory).
+    pub name: String,
+    /// The declaration, as YAML.
+    pub declaration: String,
+}
+
+impl Studies {
+    /// The started studies kept in `dir` (created on the first start), those of earlier
+    /// sessions listed as finished.
+    pub fn open(dir: PathBuf) -> Self {
+        let mut jobs = Vec::new();
+        for name in file_dirs(&dir) {
+            let Ok(text) = std::fs::read_to_string(dir.join(&name).join(RECORD_FILE)) else {
+                continue;
+            };
+            if let Ok(r) = serde_json::from_str::<Record>(&text) {
+                jobs.push(Job {
+                    name,
+                    declaration: r.declaration,
+                    state: JobState::Finished { summary: r.summary },
+                });
+            }
+        }
+        Self {
+            dir,
+            jobs: Mutex::new(jobs),
+            running: AtomicBool::new(false),
+        }
+    }
+
+    /// The directory of the started studies.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Whether a started study is running.
+    pub fn is_running(&self) -> bool {
+        self.running.load(Ordering::SeqCst)
+    }
+
+    fn jobs(&self) -> std::sync::MutexGuard<'_, Vec<Job>> {
+        self.jobs.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The started studies, the latest first; a finished one with its files.
+    pub fn list(&self) -> Vec<StudyView> {
+        let jobs = self.jobs().clone();
+        jobs.into_iter()
+            .rev()
+            .map(|j| {
+                let (state, detail) = match &j.state {
+                    JobState::Running { started } => (
+                        "running",
+                        format!("running for {:.0} s", started.elapsed().as_secs_f64()),
+                    ),
+                    JobState::Finished { summary } => ("finished", summary.clone()),
+                    JobState::Failed { error } => ("failed", error.clone()),
+                };
+                let view = StudyView {
+                    source: Source::Explorer,
+                    kind: field_str(&j.declaration, "kind"),
+                    state: state.to_owned(),
+                    detail,
+                    declaration: yaml_of(&j.declaration),
+                    summary_md: None,
+                    table: None,
+                    plots: Vec::new(),
+                    files: Vec::new(),
+                    dir: None,
+                    name: j.name.clone(),
+                };
+                if matches!(j.state, JobState::Finished { .. }) {
+                    with_outputs(view, &self.dir.join(&j.name))
+                } else {
+                    view
+                }
+            })
+            .collect()
+    }
+
+    /// Starts the study of `req` on the model of `ex` in the background; refused (429) while
+    /// another runs, (400) when the declaration it makes is not a valid study of the model.
+    pub fn start(
+        self: &Arc<Self>,
+        ex: Arc<Explorer>,
+        req: &StudyRequest,
+    ) -> Result<Started, ApiError> {
+        let declaration_of = |name: &str| declaration(&ex, req, name);
+        let names = ex.rules().names.clone();
+        let stem = std::iter::once(req.kind.as_str().to_owned())
+            .chain(req.varied.iter().map(|&(k, _, _)| names[k].clone()))
+            .collect::<Vec<_>>()
+            .join("-");
+        let parameters = pino_eval::study::model_parameters(ex.predictor());
+        pino_eval::study::spec::Study::parse(
+            &declaration_of(&stem),
+            &parameters,
+            &ex.index_names(),
+        )
+        .map_err(|e| {
+            let field = match e.field.as_str() {
+                "n" | "solver_check" => e.field.clone(),
+                _ => "parameters".to_owned(),
+            };
+            ApiError::bad(field, e.message, "see docs/studies.md")
+        })?;
+        if self.running.swap(true, Ordering::SeqCst) {
+            return Err(ApiError {
+                status: 429,
+                error:
+                    "a study started here is still running: wait for it (the Studies page shows it)"
+                        .into(),
+                field: None,
+                allowed: None,
+                retry_after_s: Some(5),
+            });
+        }
+        let flag = RunningFlag(self.clone());
+        let (name, partial) = self.claim(&stem).map_err(ApiError::internal)?;
+        let decl = declaration_of(&name);
+        let started = Started {
+            name: name.clone(),
+            declaration: yaml_of(&decl),
+        };
+        self.jobs().push(Job {
+            name: name.clone(),
+            declaration: decl.clone(),
+            state: JobState::Running {
+                started: Instant::now(),
+            },
+        });
+        let studies = self.clone();
+        let coverage = req.coverage;
+        std::thread::Builder::new()
+            .name(format!("study {name}"))
+            .spawn(move || {
+                let _flag = flag;
+                let t0 = Instant::now();
+                let outcome = run_study(&ex, &decl, coverage, &partial).and_then(|summary| {
+                    let record = Record {
+                        declaration: decl.clone(),
+                        model: ex.identity().identity.clone(),
+                        summary: summary.clone(),
+                        seconds: t0.elapsed().as_secs_f64(),
+                    };
+                    finish(&studies.dir, &name, &partial, &record)?;
+                    Ok(summary)
+                });
+                let state = match outcome {
+                    Ok(summary) => JobState::Finished { summary },
+                    Err(error) => {
+                        let _ = std::fs::remove_dir_all(&partial);
+                        JobState::Failed { error }
+                    }
+                };
+                if let Some(j) = studies.jobs().iter_mut().find(|j| j.name == name) {
+                    j.state = state;
+                }
+            })
+            .map_err(|e| {
+                let error = format!("starting the study's thread: {e}");
+                if let Some(j) = self.jobs().iter_mut().find(|j| j.name == started.name) {
+                    j.state = JobState::Failed {
+                        error: error.clone(),
+                    };
+                }
+                let _ = std::fs::remove_dir_all(
+                    self.dir.join(format!("{}{PARTIAL_SUFFIX}", started.name)),
+                );
+                ApiError::internal(error)
+            })?;
+        Ok(started)
+    }
+
+    /// A free name `<stem>-<k>` and its partial directory, claimed by creating it (so two
+    /// explorers sharing the directory never write into one).
+    fn claim(&self, stem: &str) -> Result<(String, PathBuf), String> {
+        std::fs::create_dir_all(&self.dir)
+            .map_err(|e| format!("creating {}: {e}", self.dir.display()))?;
+        for k in 1..100_000 {
+            let name = format!("{stem}-{k}");
+            if self.dir.join(&name).exists() {
+                continue;
+            }
+            let partial = self.dir.join(format!("{name}{PARTIAL_SUFFIX}"));
+            match std::fs::create_dir(&partial) {
+                Ok(()) => return Ok((name, partial)),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+                Err(e) => return Err(format!("creating {}: {e}", partial.display())),
+            }
+        }
+        Err(format!(
+            "no free study name `{stem}-K` in {}",
+            self.dir.display()
+        ))
+    }
+
+    /// The directory of the finished started study `name`.
+    pub fn finished_dir(&self, name: &str) -> Option<PathBuf> {
+        self.jobs()
+            .iter()
+            .any(|j| j.name == name && matches!(j.state, JobState::Finished { .. }))
+            .then(|| self.dir.join(name))
+    }
+}
+
+/// The sub-directories of `dir` that are not partial.
+fn file_dirs(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
+        .filter_map(|e| e.file_name().into_string().ok())
+        .filter(|n| !n.ends_with(PARTIAL_SUFFIX))
+        .collect();
+    names.sort();
+    names
+}
+
+/// The declaration of the study `req` asks for, named `name`: the varied parameters uniform
+/// over their intervals, every other one fixed at the design's value.
+fn declaration(ex: &Explorer, req: &StudyRequest, name: &str) -> Value {
+    let names = &ex.rules().names;
+    let mut parameters = Map::new();
+    for (k, n) in names.iter().enumerate() {
+        let value = match req.varied.iter().find(|&&(j, _, _)| j == k) {
+            Some(&(_, from, to)) => json!({"uniform": [from, to]}),
+            None => json!(req.design[k]),
+        };
+        parameters.insert(n.clone(), value);
+    }
+    json!({
+        "name": name,
+        "kind": req.kind.as_str(),
+        "n": req.n,
+        "solver_check": req.solver_check,
+        "parameters": parameters,
+    })
+}
+
+/// Runs the study `declaration` on the explorer's model (and its calibration) into `out`.
+fn run_study(
+    ex: &Explorer,
+    declaration: &Value,
+    coverage: f64,
+    out: &Path,
+) -> Result<String, String> {
+    let params: pino_eval::study::StudyParams = serde_json::from_value(json!({
+        "study": declaration,
+        "algorithm": ex.identity().algorithm,
+        "coverage": coverage,
+    }))
+    .map_err(|e| format!("the study's settings: {e}"))?;
+    pino_eval::study::run(
+        &[ex.model_dir().to_owned()],
+        ex.calibration_file(),
+        &params,
+        out,
+        &candle_core::Device::Cpu,
+    )
+    .map_err(|e| e.to_string())
+}
+
+/// Writes the declaration and the record into `partial`, then renames it to `name`.
+fn finish(dir: &Path, name: &str, partial: &Path, record: &Record) -> Result<(), String> {
+    let yaml = format!(
+        "# Started from the explorer's sweep view. To run it in the pipeline, add this entry\n# to the `study` stage's `matrix: study:` list in the pipeline file (docs/studies.md).\n{}",
+        yaml_of(&record.declaration)
+    );
+    let json = serde_json::to_vec_pretty(record).map_err(|e| e.to_string())?;
+    for (file, bytes) in [(DECLARATION_FILE, yaml.as_bytes()), (RECORD_FILE, &json)] {
+        atomic_file::write_atomic(&partial.join(file), bytes)
+            .map_err(|e| format!("writing {}: {e}", partial.join(file).display()))?;
+    }
+    let done = dir.join(name);
+    std::fs::rename(partial, &done)
+        .map_err(|e| format!("renaming {} to {}: {e}", partial.display(), done.display()))
+}
+
+/// The path of the file `file` of study `name` of `source`, when that study lists it.
+pub fn file_path(
+    pipeline: Option<&Pipeline>,
+    studies: &Studies,
+    source: Source,
+    name: &str,
+    file: &str,
+) -> Option<PathBuf> {
+    let dir = match source {
+        Source::Explorer => studies.finished_dir(name)?,
+        Source::Pipeline => {
+            pipeline_studies(pipeline?)
+                .ok()?
+                .into_iter()
+                .find(|v| v.name == name)?
+                .dir?
+        }
+    };
+    file_names(&dir)
+        .iter()
+        .any(|f| f == file)
+        .then(|| dir.join(file))
+}
+
+/// The limits of a study the sweep view may start, as the page reads them.
+pub fn limits_json() -> Value {
+    use crate::request::{
+        StartedKind, STUDY_MAX_MONTE_CARLO, STUDY_MAX_SENSITIVITY_ROWS, STUDY_MAX_SOLVER_CHECK,
+        STUDY_MAX_VARIED,
+    };
+    json!({
+        "kinds": [StartedKind::MonteCarlo.as_str(), StartedKind::Sensitivity.as_str()],
+        "max_varied": STUDY_MAX_VARIED,
+        "max_n": {
+            StartedKind::MonteCarlo.as_str(): STUDY_MAX_MONTE_CARLO,
+            StartedKind::Sensitivity.as_str(): STUDY_MAX_SENSITIVITY_ROWS,
+        },
+        "default_n": {
+            StartedKind::MonteCarlo.as_str(): StartedKind::MonteCarlo.default_n(),
+            StartedKind::Sensitivity.as_str(): StartedKind::Sensitivity.default_n(),
+        },
+        "max_solver_check": STUDY_MAX_SOLVER_CHECK,
+    })
+}
+
+/// The Content-Type a study's file is served with.
+pub fn content_type(path: &Path) -> &'static str {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("png") => "image/png",
+        Some("csv") => "text/csv; charset=utf-8",
+        Some("md") => "text/markdown; charset=utf-8",
+        Some("yaml") => "application/yaml",
+        Some("json") => "application/json",
+        Some("parquet") => "application/vnd.apache.parquet",
+        _ => "application/octet-stream",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn view(kind: &str) -> StudyView {
+        StudyView {
+            source: Source::Explorer,
+            name: "s".into(),
+            kind: kind.into(),
+            state: "finished".into(),
+            detail: String::new(),
+            declaration: String::new(),
+            summary_md: None,
+            table: None,
+            plots: Vec::new(),
+            files: Vec::new(),
+            dir: None,
+        }
+    }
+
+    #[test]
+    fn a_study_directory_is_read_as_its_report_table_and_plots() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(d.join(SUMMARY_MD_FILE), "# Study\n").unwrap();
+        std::fs::write(d.join("sobol.csv"), "index,factor,total\nq,k,0.5\n").unwrap();
+        std::fs::write(d.join("summary.csv"), "not,this,kind\n").unwrap();
+        std::fs::write(d.join("sobol.png"), b"png").unwrap();
+        std::fs::write(d.join(".hidden"), b"").unwrap();
+        std::fs::create_dir(d.join("sub")).unwrap();
+        let v = with_outputs(view("sensitivity"), d);
+        assert_eq!(v.summary_md.as_deref(), Some("# Study\n"));
+        let t = v.table.expect("the sensitivity table");
+        assert_eq!(t.file, "sobol.csv");
+        assert_eq!(t.rows, [["index", "factor", "total"], ["q", "k", "0.5"]]);
+        assert_eq!(v.plots, ["sobol.png"]);
+        assert_eq!(
+            v.files,
+            ["sobol.csv", "sobol.png", "summary.csv", SUMMARY_MD_FILE]
+        );
+        // A kind without a headline table, or a directory without the file: no table.
+        assert!(with_outputs(view("other"), d).table.is_none());
+        assert!(with_outputs(view("optimise"), d).table.is_none());
+    }
+
+    #[test]
+    fn only_finished_studies_with_a_record_are_listed_again_and_names_are_claimed_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().to_path_buf();
+        let record = Record {
+            declaration: json!({"name": "monte_carlo-k-1", "kind": "monte_carlo"}),
+            model: "m".into(),
+            summary: "done".into(),
+            seconds: 1.0,
+        };
+        let done = root.join("monte_carlo-k-1");
+        std::fs::create_dir_all(&done).unwrap();
+        std::fs::write(done.join(RECORD_FILE), serde_json::to_vec(&record).unwrap()).unwrap();
+        std::fs::create_dir_all(root.join(format!("monte_carlo-k-2{PARTIAL_SUFFIX}"))).unwrap();
+        std::fs::create_dir_all(root.join("no-record")).unwrap();
+        let studies = Studies::open(root.clone());
+        let listed = studies.list();
+        assert_eq!(listed.len(), 1, "{listed:?}");
+        assert_eq!(
+            (
+                listed[0].name.as_str(),
+                listed[0].state.as_str(),
+                listed[0].detail.as_str()
+            ),
+            ("monte_carlo-k-1", "finished", "done")
+        );
+        assert_eq!(studies.finished_dir("monte_carlo-k-1"), Some(done));
+        assert_eq!(studies.finished_dir("monte_carlo-k-2"), None);
+        // -1 is finished and -2 is being written: the next name is -3, then -4.
+        let (a, pa) = studies.claim("monte_carlo-k").unwrap();
+        let (b, _) = studies.claim("monte_carlo-k").unwrap();
+        assert_eq!(
+            (a.as_str(), b.as_str()),
+            ("monte_carlo-k-3", "monte_carlo-k-4")
+        );
+        assert!(pa.is_dir() && pa.ends_with(format!("monte_carlo-k-3{PARTIAL_SUFFIX}")));
+    }
+
+    #[test]
+    fn finishing_renames_the_partial_directory_with_the_declaration_beside_the_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let partial = dir.path().join(format!("s-1{PARTIAL_SUFFIX}"));
+        std::fs::create_dir(&partial).unwrap();
+        std::fs::write(partial.join(SUMMARY_MD_FILE), "# s\n").unwrap();
+        let record = Record {
+            declaration: json!({"name": "s-1", "kind": "sensitivity", "n": 16}),
+            model: "m".into(),
+            summary: "ok".into(),
+            seconds: 2.0,
+        };
+        finish(dir.path(), "s-1", &partial, &record).unwrap();
+        assert!(!partial.exists());
+        let done = dir.path().join("s-1");
+        let yaml: Value =
+            serde_yaml::from_str(&std::fs::read_to_string(done.join(DECLARATION_FILE)).unwrap())
+                .unwrap();
+        assert_eq!(
+            yaml, record.declaration,
+            "the YAML is the declaration itself"
+        );
+        let back: Record =
+            serde_json::from_str(&std::fs::read_to_string(done.join(RECORD_FILE)).unwrap())
+                .unwrap();
+        assert_eq!(back, record);
+        assert!(done.join(SUMMARY_MD_FILE).is_file());
+    }
+}
