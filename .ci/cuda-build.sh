@@ -32,15 +32,22 @@ nvcc --version | tail -n 2
 if [ "${PINO_CUDA_CHECK:-release}" = dev ]; then
     export CARGO_TARGET_DIR=target
     profile=() out=debug
+    # A compile check, never run: device code without nvcc's optimisers. candle-kernels' build
+    # script (its PTX and the quantised kernels' static library, nvcc for sm_90) is most of this
+    # section, 12 of its 15 minutes; one of its files takes 61 s at nvcc's defaults and 23 s
+    # so (BENCHMARKS.md, "CI"). The release build keeps nvcc's defaults.
+    export NVCC_APPEND_FLAGS="-Xcicc -O0 -Xptxas -O0"
 else
     profile=(--release) out=release
 fi
-# One build of the stages and of pino-learn's tests (the CUDA parity test among them): one
-# feature resolution, so no dependency is compiled twice. `--tests`, not `--test cuda_parity`:
-# without the stages' test targets the features resolve differently from the tests section's
-# build and dependencies compile again (19 min 24 s against 9 min 49 s, BENCHMARKS.md "CI").
-cargo build "${profile[@]}" --locked -p train -p calibrate -p evaluate -p predict -p pino-learn \
-    --features cuda --bins --tests
+# One build of the four stages and of the CUDA parity test, resolved over the whole workspace
+# (`--workspace` with dev-dependencies on, as the tests section resolves it) with CUDA on:
+# every dependency keeps the features the tests compiled it with, so only candle and the crates
+# above it are compiled again. Selecting the packages instead (`-p train ... --features cuda`)
+# resolves fewer features of shared crates (serde, syn, bytes, hashbrown, ...) and recompiled
+# nearly the whole tree: 17 min 17 s against about 6 min (BENCHMARKS.md, "CI").
+cargo build "${profile[@]}" --locked --workspace --features pino-learn/cuda \
+    --bin train --bin calibrate --bin evaluate --bin predict --test cuda_parity
 
 # The binaries must want the driver by its soname (the stub is link-time only).
 for bin in train calibrate evaluate predict; do

@@ -315,7 +315,22 @@ async function main() {
       check(r.inside.includes(inside[r.index] ? 'inside' : 'outside'),
         `${r.index}: the page says ${r.inside}, the answer ${inside[r.index]}`);
     }
-    results.solve = { design: before.design, excitation: before.excitation, answer, status, charts, channelMarks, rows };
+    // The headline verdict follows the solver, the surrogate's beside it; errors above 10 %
+    // stand out, and only those.
+    const headline = await page.evaluate(() => {
+      const v = document.querySelector('#verdict');
+      return { text: v.textContent, source: v.dataset.source, pass: v.dataset.pass };
+    });
+    const solvedPass = await page.evaluate(() => window.explorerState.solve.pass);
+    check(headline.source === 'solver' && headline.text.startsWith('solver: ')
+      && headline.text.includes('; surrogate: ') && headline.pass === String(solvedPass),
+    `the headline verdict after the solve: ${JSON.stringify(headline)} (solver pass: ${solvedPass})`);
+    const errorCells = await page.$$eval('#indices td.error', (cells) => cells.map((c) => [c.textContent, c.classList.contains('large-error')]));
+    const misMarked = errorCells.filter(([t, large]) => Number.isFinite(parseFloat(t)) && (Math.abs(parseFloat(t)) > 10) !== large);
+    check(errorCells.length > 0 && misMarked.length === 0, `index errors marked wrongly (> 10 % must stand out): ${JSON.stringify(misMarked)}`);
+    const header = await page.$$eval('#indices thead th', (ths) => ths.map((t) => t.textContent));
+    check(header[2] === 'surrogate', `the index value column is headed ${JSON.stringify(header[2])}`);
+    results.solve = { design: before.design, excitation: before.excitation, answer, status, charts, channelMarks, rows, headline, errorCells };
   });
 
   // ---- 6. move a slider: the curves change ----------------------------------------------

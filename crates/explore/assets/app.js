@@ -59,6 +59,8 @@
   const PALETTE = ['#1f77b4', '#d62728', '#2ca02c', '#9467bd', '#ff7f0e',
     '#17becf', '#8c564b', '#e377c2', '#7f7f7f', '#bcbd22'];
   const PIN_COLOR = '#9aa0a6';
+  // A surrogate error (relative, of an index or a channel's L2) above this stands out.
+  const LARGE_ERROR = 0.10;
   // Opacity of the bands' fill (the channel's colour); the sweep's band is the surrogate's.
   const BAND_ALPHA = 0.22;
   const SWEEP_COLOR = '#1f77b4';
@@ -604,6 +606,11 @@
     return el('span', { class: `badge ${verdict}`, title, dataset: { verdict } }, verdict);
   }
 
+  /** Whether a relative error stands out (above LARGE_ERROR). */
+  function isLarge(e) {
+    return e != null && Number.isFinite(e) && Math.abs(e) > LARGE_ERROR;
+  }
+
   /** ✓ inside / ✗ outside mark of a solver value against an interval. */
   function insideMark(inside, text) {
     return el('span', { class: `inside-mark ${inside ? 'in' : 'out'}`, dataset: { inside: String(inside) } },
@@ -632,7 +639,7 @@
     const pinBy = byName(pinned && pinned.indices);
 
     const calibrated = !!(pred && pred.coverage != null);
-    const head = ['index', 'unit', 'value'];
+    const head = ['index', 'unit', 'surrogate'];
     if (calibrated) head.push(`interval (${percent(pred.coverage)})`);
     head.push('limit', 'status');
     if (calibrated) head.push('verdict');
@@ -667,7 +674,9 @@
           el('td', { class: 'solver num' }, s ? fmt(s.value) : '—',
             s && s.pass != null ? ' ' : null, s && s.pass != null ? badge(s.pass) : null,
             inside != null ? insideMark(inside) : null),
-          el('td', { class: 'error num' }, fmtPercent(e, true)));
+          el('td', { class: `error num${isLarge(e) ? ' large-error' : ''}`,
+            title: isLarge(e) ? `above ${fmtPercent(LARGE_ERROR)}: the surrogate is off here` : '' },
+          fmtPercent(e, true)));
       }
       if (pinned) {
         const a = pinBy[meta.name];
@@ -682,18 +691,22 @@
     });
     table.tBodies[0].replaceChildren(...rows);
 
+    // The headline verdict: the solver's once it answered this design, the surrogate's beside.
     const verdict = $('#verdict');
     verdict.className = 'verdict';
+    const said = (answer) => (answer.pass ? 'all limits met' : `fails ${(answer.failed || []).join(', ')}`);
+    const extrapolated = pred && ((pred.outside || []).length > 0 || pred.extrapolated);
     if (!pred) {
       verdict.textContent = '';
-    } else if (pred.pass) {
-      verdict.textContent = 'all limits met';
-      verdict.classList.add('pass');
+    } else if (solve) {
+      verdict.textContent = `solver: ${said(solve)}; surrogate: ${said(pred)}${extrapolated ? ' (extrapolated)' : ''}`;
+      verdict.classList.add(solve.pass ? 'pass' : 'fail');
     } else {
-      verdict.textContent = `fails: ${(pred.failed || []).join(', ')}`;
-      verdict.classList.add('fail');
+      verdict.textContent = `${said(pred)}${extrapolated ? ' (surrogate, extrapolated)' : ''}`;
+      verdict.classList.add(pred.pass ? 'pass' : 'fail');
     }
-    verdict.dataset.pass = pred ? String(!!pred.pass) : '';
+    verdict.dataset.pass = !pred ? '' : String(!!(solve || pred).pass);
+    verdict.dataset.source = !pred ? '' : solve ? 'solver' : 'surrogate';
 
     // The three-valued verdict of the intervals.
     const iv = $('#interval-verdict');
@@ -952,6 +965,7 @@
         const e = solve && solve.errors ? solve.errors[label.dataset.channel] : null;
         span.textContent = solve && e != null ? fmtPercent(e) : '';
         span.title = solve && e != null ? 'relative L2 error of the surrogate vs the solver' : '';
+        span.classList.toggle('large-error', !!solve && isLarge(e));
         const f = solve ? channelInside(st.prediction, solve, label.dataset.channel) : null;
         if (f != null) {
           span.append(insideMark(f === 1, f === 1 ? 'inside the band' : `${fmtPercent(f)} inside the band`));
