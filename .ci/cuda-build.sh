@@ -32,11 +32,6 @@ nvcc --version | tail -n 2
 if [ "${PINO_CUDA_CHECK:-release}" = dev ]; then
     export CARGO_TARGET_DIR=target
     profile=() out=debug
-    # A compile check, never run: device code without nvcc's optimisers. candle-kernels' build
-    # script (its PTX and the quantised kernels' static library, nvcc for sm_90) is most of this
-    # section, 12 of its 15 minutes; one of its files takes 61 s at nvcc's defaults and 23 s
-    # so (BENCHMARKS.md, "CI"). The release build keeps nvcc's defaults.
-    export NVCC_APPEND_FLAGS="-Xcicc -O0 -Xptxas -O0"
 else
     profile=(--release) out=release
 fi
@@ -45,7 +40,8 @@ fi
 # every dependency keeps the features the tests compiled it with, so only candle and the crates
 # above it are compiled again. Selecting the packages instead (`-p train ... --features cuda`)
 # resolves fewer features of shared crates (serde, syn, bytes, hashbrown, ...) and recompiled
-# nearly the whole tree: 17 min 17 s against about 6 min (BENCHMARKS.md, "CI").
+# nearly the whole tree: 17 min 17 s against 15 min 10 s, of which 12 min are candle-kernels'
+# build script (nvcc), which no flag tried here shortened (BENCHMARKS.md, "CI").
 cargo build "${profile[@]}" --locked --workspace --features pino-learn/cuda \
     --bin train --bin calibrate --bin evaluate --bin predict --test cuda_parity
 
