@@ -1,6 +1,7 @@
 /*
- * The two pages' DOM helpers (served as /assets/dom.js, loaded before app.js and
- * pipeline.js): `pinoDom.$(selector, root)` and `pinoDom.el(tag, attrs, ...children)`.
+ * The pages' DOM helpers (served as /assets/dom.js, loaded before app.js, pipeline.js and
+ * studies.js): `pinoDom.$(selector, root)`, `pinoDom.el(tag, attrs, ...children)` and
+ * `pinoDom.poll(path, ms, draw)` for the read-only pages.
  * Plain ES2020, no inline scripts, no eval.
  */
 'use strict';
@@ -25,5 +26,37 @@ window.pinoDom = (() => {
     return node;
   }
 
-  return { $, el };
+  /**
+   * Polls GET `path` every `ms` and calls `draw(answer, polls)` (polls: answers drawn before
+   * this one); shows a failure in #error, the time in #updated; sets body[data-polls] after
+   * each answer drawn and body[data-state] = idle after each try.
+   */
+  function poll(path, ms, draw) {
+    let polls = 0;
+    async function once() {
+      try {
+        const res = await fetch(path, { credentials: 'same-origin' });
+        if (!res.ok) {
+          let msg = `HTTP ${res.status}`;
+          try { const j = await res.json(); if (j && j.error) msg = j.error; } catch (_) { /* not JSON */ }
+          throw new Error(msg);
+        }
+        draw(await res.json(), polls);
+        $('#updated').textContent = new Date().toLocaleTimeString();
+        $('#error').hidden = true;
+        polls += 1;
+        document.body.dataset.polls = String(polls);
+      } catch (err) {
+        $('.error-message').textContent = `GET ${path}: ${err.message || err}`;
+        $('#error').hidden = false;
+      } finally {
+        document.body.dataset.state = 'idle';
+        setTimeout(once, ms);
+      }
+    }
+    if (document.readyState === 'loading') document.addEventListener('DOMContentLoaded', once);
+    else once();
+  }
+
+  return { $, el, poll };
 })();

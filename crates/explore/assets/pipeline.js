@@ -15,7 +15,6 @@
 (() => {
   const POLL_MS = 2000;
   const { $, el } = window.pinoDom;
-  let polls = 0;
   let lastTable4 = '';
   let lastPlots = '';
   window.pipelineState = null;
@@ -84,33 +83,11 @@
     $('#plots-empty').hidden = (plots || []).length > 0;
   }
 
-  async function poll() {
-    try {
-      const res = await fetch('/api/pipeline', { credentials: 'same-origin' });
-      if (!res.ok) {
-        let msg = `HTTP ${res.status}`;
-        try { const j = await res.json(); if (j && j.error) msg = j.error; } catch (_) { /* not JSON */ }
-        throw new Error(msg);
-      }
-      const answer = await res.json();
-      window.pipelineState = answer;
-      $('#pipeline-file').textContent = answer.file || '—';
-      renderUnits(answer.units);
-      renderTable4(answer.evaluate ? answer.evaluate.table4 : null);
-      renderPlots(answer.evaluate ? answer.evaluate.plots : []);
-      $('#updated').textContent = new Date().toLocaleTimeString();
-      $('#error').hidden = true;
-      polls += 1;
-      document.body.dataset.polls = String(polls);
-    } catch (err) {
-      $('.error-message').textContent = `GET /api/pipeline: ${err.message || err}`;
-      $('#error').hidden = false;
-    } finally {
-      document.body.dataset.state = 'idle';
-      setTimeout(poll, POLL_MS);
-    }
-  }
-
-  if (document.readyState === 'loading') document.addEventListener('DOMContentLoaded', poll);
-  else poll();
+  window.pinoDom.poll('/api/pipeline', POLL_MS, (answer) => {
+    window.pipelineState = answer;
+    $('#pipeline-file').textContent = answer.file || '—';
+    renderUnits(answer.units);
+    renderTable4(answer.evaluate ? answer.evaluate.table4 : null);
+    renderPlots(answer.evaluate ? answer.evaluate.plots : []);
+  });
 })();

@@ -18,7 +18,6 @@
 (() => {
   const POLL_MS = 2000;
   const { $, el } = window.pinoDom;
-  let polls = 0;
   const drawn = new Map(); // card id -> the JSON it was drawn from
   window.studiesState = null;
 
@@ -168,36 +167,14 @@
     }
   }
 
-  async function poll() {
-    try {
-      const res = await fetch('/api/studies', { credentials: 'same-origin' });
-      if (!res.ok) {
-        let msg = `HTTP ${res.status}`;
-        try { const j = await res.json(); if (j && j.error) msg = j.error; } catch (_) { /* not JSON */ }
-        throw new Error(msg);
-      }
-      const answer = await res.json();
-      window.studiesState = answer;
-      $('#pipeline-file').textContent = answer.file || '—';
-      $('#study-dir').textContent = answer.dir || '—';
-      render(answer);
-      if (polls === 0 && window.location.hash) {
-        const target = document.getElementById(decodeURIComponent(window.location.hash.slice(1)));
-        if (target) target.scrollIntoView();
-      }
-      $('#updated').textContent = new Date().toLocaleTimeString();
-      $('#error').hidden = true;
-      polls += 1;
-      document.body.dataset.polls = String(polls);
-    } catch (err) {
-      $('.error-message').textContent = `GET /api/studies: ${err.message || err}`;
-      $('#error').hidden = false;
-    } finally {
-      document.body.dataset.state = 'idle';
-      setTimeout(poll, POLL_MS);
+  window.pinoDom.poll('/api/studies', POLL_MS, (answer, polls) => {
+    window.studiesState = answer;
+    $('#pipeline-file').textContent = answer.file || '—';
+    $('#study-dir').textContent = answer.dir || '—';
+    render(answer);
+    if (polls === 0 && window.location.hash) {
+      const target = document.getElementById(decodeURIComponent(window.location.hash.slice(1)));
+      if (target) target.scrollIntoView();
     }
-  }
-
-  if (document.readyState === 'loading') document.addEventListener('DOMContentLoaded', poll);
-  else poll();
+  });
 })();

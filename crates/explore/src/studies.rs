@@ -108,17 +108,26 @@ pub struct StudyView {
     pub dir: Option<PathBuf>,
 }
 
-/// The file names in `dir` (plain files, sorted).
-fn file_names(dir: &Path) -> Vec<String> {
+/// The names of `dir`'s entries that are directories (`dirs`) or plain files, sorted.
+fn entry_names(dir: &Path, dirs: bool) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
         .into_iter()
         .flatten()
         .flatten()
-        .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+        .filter(|e| {
+            e.file_type()
+                .is_ok_and(|t| if dirs { t.is_dir() } else { t.is_file() })
+        })
         .filter_map(|e| e.file_name().into_string().ok())
-        .filter(|n| !n.starts_with('.'))
         .collect();
     names.sort();
+    names
+}
+
+/// The file names in `dir` (plain files, hidden ones left out, sorted).
+fn file_names(dir: &Path) -> Vec<String> {
+    let mut names = entry_names(dir, false);
+    names.retain(|n| !n.starts_with('.'));
     names
 }
 
@@ -191,17 +200,32 @@ pub fn pipeline_studies(p: &Pipeline) -> Result<Vec<StudyView>, String> {
             files: Vec::new(),
             dir: None,
         };
-        let dir = show(p, &e.name).ok().and_then(|text| {
-            text.lines()
-                .next()
-                .and_then(|f| Path::new(f).parent().map(Path::to_path_buf))
-        });
-        views.push(match dir {
+        views.push(match output_dir(p, &e.name) {
             Some(dir) => with_outputs(view, &dir),
             None => view,
         });
     }
     Ok(views)
+}
+
+/// The directory of the current output of the pipeline's study expansion `expansion`.
+fn output_dir(p: &Pipeline, expansion: &str) -> Option<PathBuf> {
+    let text = show(p, expansion).ok()?;
+    Path::new(text.lines().next()?)
+        .parent()
+        .map(Path::to_path_buf)
+}
+
+/// The directory of the current output of the pipeline's study named `name`, found by its
+/// declaration alone (no unit states read, no report).
+fn pipeline_study_dir(p: &Pipeline, name: &str) -> Option<PathBuf> {
+    let stage = &p.stages[p.index(STUDY_STAGE)?];
+    let e = stage.expansions.iter().find(|e| {
+        e.params
+            .get(STUDY_STAGE)
+            .is_some_and(|d| field_str(d, "name") == name)
+    })?;
+    output_dir(p, &e.name)
 }
 
 /// What a finished started study keeps beside its files ([`RECORD_FILE`]).
@@ -460,15 +484,8 @@ impl Studies {
 
 /// The sub-directories of `dir` that are not partial.
 fn file_dirs(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .into_iter()
-        .flatten()
-        .flatten()
-        .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
-        .filter_map(|e| e.file_name().into_string().ok())
-        .filter(|n| !n.ends_with(PARTIAL_SUFFIX))
-        .collect();
-    names.sort();
+    let mut names = entry_names(dir, true);
+    names.retain(|n| !n.ends_with(PARTIAL_SUFFIX));
     names
 }
 
@@ -542,13 +559,7 @@ pub fn file_path(
 ) -> Option<PathBuf> {
     let dir = match source {
         Source::Explorer => studies.finished_dir(name)?,
-        Source::Pipeline => {
-            pipeline_studies(pipeline?)
-                .ok()?
-                .into_iter()
-                .find(|v| v.name == name)?
-                .dir?
-        }
+        Source::Pipeline => pipeline_study_dir(pipeline?, name)?,
     };
     file_names(&dir)
         .iter()
