@@ -388,6 +388,40 @@ async function main() {
     };
   });
 
+  // ---- 7b. an invalid input: named in the user's words, the row marked, results stale ----
+  await step('invalid', async () => {
+    const p = summary.parameters.find((q) => q.name === 'm_c') || summary.parameters[0];
+    const previous = (await state()).design[p.name];
+    const field = page.locator(`.param[data-param="${p.name}"] input[type=number]`);
+    await field.scrollIntoViewIfNeeded();
+    await field.click({ clickCount: 3 });
+    await field.fill('-1');
+    await field.press('Tab');
+    await page.waitForFunction(() => window.explorerState.stale === true
+      && !document.querySelector('#error').hidden && document.body.dataset.state === 'idle');
+    const box = page.locator('#error');
+    const shown = {
+      message: (await page.locator('#error .error-message').textContent()).trim(),
+      field: await box.evaluate((b) => b.dataset.field),
+      allowed: (await page.locator('#error .error-allowed').textContent()).trim(),
+      rowInvalid: await page.locator(`.param[data-param="${p.name}"]`).evaluate((r) => r.classList.contains('invalid')),
+      staleBanner: await page.locator('#stale-banner').isVisible(),
+      indicesOpacity: Number(await page.locator('#indices-card').evaluate((c) => getComputedStyle(c).opacity)),
+      chartsOpacity: Number(await page.locator('#charts').evaluate((c) => getComputedStyle(c).opacity)),
+    };
+    check(shown.field === `design.${p.name}`, `the error names ${shown.field}, not design.${p.name}`);
+    check(shown.message.includes(`design.${p.name}\` = -1`), `the message does not quote the typed value: ${shown.message}`);
+    check(shown.rowInvalid, `the ${p.name} row is not marked invalid`);
+    check(shown.staleBanner && shown.indicesOpacity < 1 && shown.chartsOpacity < 1,
+      `the old results are not marked out of date: ${JSON.stringify(shown)}`);
+    // Fixing the input answers again and lifts the mark.
+    await typeValue(p.name, previous);
+    const cleared = await page.evaluate(() => !window.explorerState.stale
+      && document.querySelector('#stale-banner').hidden && !document.querySelector('.param.invalid'));
+    check(cleared, 'the out-of-date mark stayed after the input was fixed');
+    results.invalid = { param: p.name, previous, ...shown, cleared };
+  });
+
   // ---- 8. back inside the range (the flag goes), then a sweep ----------------------------
   await step('sweep', async () => {
     await typeValue(results.outside.param, results.outside.previous);

@@ -80,6 +80,7 @@ fn a_user_explores_designs_in_a_real_browser() {
             "solve",
             "slider",
             "outside",
+            "invalid",
             "sweep",
             "download",
             "pipeline",
@@ -203,6 +204,20 @@ fn a_user_explores_designs_in_a_real_browser() {
             .any(|o| o["name"] == oname),
         "{outside}"
     );
+
+    // An invalid input is named as the user typed it, its row marked, the results stale
+    // until it is fixed (the message is the server's, in the design parameter's words).
+    let invalid = &r["invalid"];
+    let iname = str_of(&invalid["param"]);
+    assert_eq!(invalid["field"], format!("design.{iname}"), "{invalid}");
+    assert!(
+        str_of(&invalid["message"]).contains(&format!("`design.{iname}` = -1 is out of range")),
+        "{invalid}"
+    );
+    assert!(str_of(&invalid["allowed"]).contains("bodies."), "{invalid}");
+    for key in ["rowInvalid", "staleBanner", "cleared"] {
+        assert_eq!(invalid[key], true, "{key}: {invalid}");
+    }
 
     // The sweep: `steps` designs evenly spaced over the asked range, every index for each,
     // `solve_points` of them solved.

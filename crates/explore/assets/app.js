@@ -104,6 +104,7 @@
     s.solve = st.solve;
     s.sweep = st.sweep;
     s.coverage = st.coverage;
+    s.stale = !!st.stale;
   }
 
   // ---------------------------------------------------------------------------------------
@@ -220,6 +221,17 @@
       if (row) row.classList.add('invalid');
     }
     if (err && !(err instanceof ApiError)) console.warn(err);
+  }
+
+  /**
+   * Marks the results as those of an older design (an input was refused): greyed, with the
+   * "out of date" banner, until a prediction of the design on screen arrives.
+   */
+  function markStale(stale) {
+    st.stale = stale;
+    document.body.classList.toggle('stale', stale);
+    $('#stale-banner').hidden = !stale;
+    publishState();
   }
 
   function clearError() {
@@ -383,6 +395,7 @@
         if (!Number.isFinite(v)) {
           showError({ message: `parameter \`${p.name}\` must be a finite number`,
             field: `design.${p.name}`, allowed: 'a finite number' }, 'Input');
+          markStale(true);
           return;
         }
         slider.value = String(Math.min(p.max, Math.max(p.min, v)));
@@ -561,8 +574,8 @@
       st.predictionRev = rev;
       // The solver overlay belongs to the design it was solved for.
       if (st.solve && st.solveRev !== rev) clearSolve();
-      publishState();
       clearError();
+      markStale(false);
       renderOutside(answer.outside);
       renderIndices();
       renderAllCharts();
@@ -578,6 +591,8 @@
       if (seq === st.predictSeq) {
         $('#predict-status').textContent = '';
         showError(err, 'Prediction');
+        // A refused input leaves the last answer on screen, marked as another design's.
+        if (err instanceof ApiError && err.status === 400) markStale(true);
       }
     } finally {
       if (st.predictAbort === abort) st.predictAbort = null;

@@ -538,12 +538,14 @@ impl Explorer {
         }
     }
 
-    /// Refuses a design outside the description's domains (a negative mass).
-    fn check(&self, design: &[f64]) -> Result<(), ApiError> {
+    /// Refuses a design outside the description's domains (a negative mass), whose run leaves
+    /// its profiles or beams (a speed too high) or that the network cannot read (1e300), the
+    /// error naming the design parameter at fault (`design.NAME`, the row the page marks) and,
+    /// for a run, its limit.
+    fn check(&self, design: &[f64], profiles: &[Option<Profile>]) -> Result<(), ApiError> {
         self.predictor
-            .space
-            .check(design, "design")
-            .map(|_| ())
+            .excitations_of(design, profiles, &self.run, "design")
+            .and_then(|_| self.predictor.readable(design, "design"))
             .map_err(|e| match e {
                 pino_learn::Error::OutOfRange {
                     field,
@@ -554,10 +556,11 @@ impl Explorer {
                     format!("`{field}` = {value} is out of range"),
                     allowed,
                 ),
+                // A run no design parameter explains: the profiles under it.
                 other => ApiError::bad(
-                    "design",
+                    "excitation",
                     other.to_string(),
-                    "a design the description accepts",
+                    "profiles that cover the run",
                 ),
             })
     }
@@ -568,11 +571,54 @@ impl Explorer {
         profiles: &[Option<Profile>],
     ) -> Result<Vec<SetPrediction>, ApiError> {
         for d in designs {
-            self.check(d)?;
+            self.check(d, profiles)?;
         }
         self.predictor
             .forward(0, designs, profiles, &self.run)
-            .map_err(|e| ApiError::bad("excitation", e.to_string(), "profiles that cover the run"))
+            .map_err(|e| self.refusal(e, None))
+    }
+
+    /// A refusal of the predictor in the request's words: a design parameter at fault
+    /// (`sets[k].NAME`) is `design.NAME`, or in a sweep the end (`from`, `to`) a swept
+    /// parameter lies towards; anything else is the excitation's.
+    fn refusal(&self, e: pino_learn::Error, sweep: Option<&SweepRequest>) -> ApiError {
+        if let pino_learn::Error::OutOfRange {
+            field,
+            value,
+            allowed,
+        } = &e
+        {
+            let at = field
+                .strip_prefix("sets[")
+                .and_then(|rest| rest.split_once("]."))
+                .and_then(|(k, name)| Some((k.parse::<usize>().ok()?, name)));
+            if let Some((k, name)) = at {
+                let field = format!("design.{name}");
+                let error = ApiError::bad(
+                    field.clone(),
+                    format!("`{field}` = {value} is out of range"),
+                    allowed.clone(),
+                );
+                return match sweep {
+                    Some(req) => self.at_sweep_end(error, req, k),
+                    None => error,
+                };
+            }
+        }
+        ApiError::bad("excitation", e.to_string(), "profiles that cover the run")
+    }
+
+    /// An error on design `k` of a sweep, the first refused: when it blames the swept
+    /// parameter, it is the sweep's `from` when that design is the first, else its `to` (the
+    /// sweep runs in a line from an accepted `from` to the refused values).
+    fn at_sweep_end(&self, mut e: ApiError, req: &SweepRequest, k: usize) -> ApiError {
+        let swept = format!("design.{}", self.rules.names[req.parameter]);
+        if e.field.as_deref() == Some(swept.as_str()) {
+            let end = if k == 0 { "from" } else { "to" };
+            e.error = format!("sweep `{end}`: {}", e.error);
+            e.field = Some(end.to_owned());
+        }
+        e
     }
 
     /// The indices of `design` from its values `p` (a prediction, or the solver's with its
@@ -676,10 +722,11 @@ impl Explorer {
                 "a model whose description defines indices",
             ));
         }
-        for d in &designs {
-            self.check(d)?;
-        }
         let profiles = self.profiles(req.base.excitation)?;
+        for (k, d) in designs.iter().enumerate() {
+            self.check(d, &profiles)
+                .map_err(|e| self.at_sweep_end(e, req, k))?;
+        }
         let batch = designs
             .len()
             .div_ceil(rayon::current_num_threads().max(1))
@@ -695,15 +742,17 @@ impl Explorer {
                     req.base.coverage,
                 )
                 .map_err(|e| match e {
-                    pino_learn::Error::OutOfRange { .. } => calibration_error(e),
-                    e => ApiError::bad("excitation", e.to_string(), "profiles that cover the run"),
+                    pino_learn::Error::OutOfRange { ref field, .. }
+                        if !field.starts_with("sets[") =>
+                    {
+                        calibration_error(e)
+                    }
+                    e => self.refusal(e, Some(req)),
                 })?
         } else {
             self.predictor
                 .indices(&designs, &profiles, &self.run, &self.index_cfg, batch)
-                .map_err(|e| {
-                    ApiError::bad("excitation", e.to_string(), "profiles that cover the run")
-                })?
+                .map_err(|e| self.refusal(e, Some(req)))?
                 .into_iter()
                 .map(|indices| DesignAnswer {
                     indices,

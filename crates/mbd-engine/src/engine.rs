@@ -90,7 +90,6 @@ pub(crate) struct BeamRuntime {
     /// Moving points on this beam, in declaration order.
     pub(crate) points: Vec<usize>,
     pub(crate) coupling: Coupling,
-    pub(crate) outside: Outside,
     /// Whether some element needs the rate of the deflection under a point.
     pub(crate) rates: bool,
 }
@@ -279,7 +278,6 @@ impl Engine {
                 modal,
                 points,
                 coupling,
-                outside: mb.outside,
                 rates,
             });
         }
@@ -328,42 +326,13 @@ impl Engine {
             sensor_shapes,
             route,
         };
-        engine.check_coverage()?;
+        check_coverage(
+            &engine.system,
+            &engine.model,
+            &engine.config,
+            &engine.profiles,
+        )?;
         Ok(engine)
-    }
-
-    fn check_coverage(&self) -> Result<()> {
-        let c = &self.config;
-        let (t_end, speed) = (c.t_end(), self.model.speed);
-        let span =
-            |offset: f64, t0: f64| [c.x0 + speed * t0 + offset, c.x0 + speed * t_end + offset];
-        for (b, beam) in self.beams.iter().enumerate() {
-            if beam.outside != Outside::Refuse || beam.points.is_empty() {
-                continue;
-            }
-            let lo = beam
-                .points
-                .iter()
-                .map(|&p| span(self.model.points[p].1, 0.0)[0])
-                .fold(f64::INFINITY, f64::min);
-            let hi = beam
-                .points
-                .iter()
-                .map(|&p| span(self.model.points[p].1, 0.0)[1])
-                .fold(f64::NEG_INFINITY, f64::max);
-            let length = beam.modal.length;
-            if !(lo > 0.0 && hi < length) {
-                return Err(Error::TooShort {
-                    what: format!("beam `{}` (length {length} m)", self.system.beams[b].name),
-                    have_lo: 0.0,
-                    have_hi: length,
-                    need_lo: lo,
-                    need_hi: hi,
-                    hint: "lengthen the beam, shorten the run (duration) or move x0; or let points leave it (`outside: rigid`)".to_owned(),
-                });
-            }
-        }
-        check_profile_coverage(&self.system, &self.model, c, &self.profiles)
     }
 
     /// The compiled system.
@@ -828,9 +797,51 @@ pub(crate) fn profile_sources(
         .collect()
 }
 
+/// Checks that the run stays where the model is defined: the moving points on a beam that
+/// refuses leaving it stay strictly inside it for the whole run, and every sampled profile
+/// covers the positions its elements read from the moment the profile comes on
+/// ([`RunConfig::profile_on`]) to the end of the run. Positions in m along the track, a point
+/// at `x0 + speed t + offset`.
+pub(crate) fn check_coverage(
+    system: &System,
+    model: &Model,
+    c: &RunConfig,
+    sources: &[ProfileSource],
+) -> Result<()> {
+    let (t_end, speed) = (c.t_end(), model.speed);
+    for (b, beam) in model.beams.iter().enumerate() {
+        let offsets = || {
+            model
+                .points
+                .iter()
+                .filter(move |p| p.0 == Some(b))
+                .map(|p| p.1)
+        };
+        if beam.outside != Outside::Refuse || offsets().next().is_none() {
+            continue;
+        }
+        let lo = offsets().map(|o| c.x0 + o).fold(f64::INFINITY, f64::min);
+        let hi = offsets()
+            .map(|o| c.x0 + speed * t_end + o)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let length = beam.length;
+        if !(lo > 0.0 && hi < length) {
+            return Err(Error::TooShort {
+                what: format!("beam `{}` (length {length} m)", system.beams[b].name),
+                have_lo: 0.0,
+                have_hi: length,
+                need_lo: lo,
+                need_hi: hi,
+                hint: "lengthen the beam, shorten the run (duration) or move x0; or let points leave it (`outside: rigid`)".to_owned(),
+            });
+        }
+    }
+    check_profile_coverage(system, model, c, sources)
+}
+
 /// Checks that every sampled profile covers the positions its elements read from the moment
 /// the profile comes on ([`RunConfig::profile_on`]) to the end of the run.
-pub(crate) fn check_profile_coverage(
+fn check_profile_coverage(
     system: &System,
     model: &Model,
     c: &RunConfig,

@@ -5,7 +5,7 @@
 //! evaluation reads at the same `t`, so a learned operator (`predict`) sees the inputs the
 //! solver saw.
 
-use crate::engine::{check_profile_coverage, profile_sources};
+use crate::engine::{check_coverage, profile_sources};
 use crate::{Profile, ProfileSource, Result, RunConfig};
 use mbd_system::model::{Model, ModelEnd};
 use mbd_system::System;
@@ -22,8 +22,8 @@ pub struct Excitations {
 
 impl Excitations {
     /// The excitations of `model` (of `system`) under `config`, with `profiles[p]` the points
-    /// of generated profile `p` (`None`: level). Refuses, as the engine does, profiles that do
-    /// not cover the positions read while they are on.
+    /// of generated profile `p` (`None`: level). Refuses, as the engine does, a run that
+    /// leaves a refusing beam or the profiles ([`crate::engine::check_coverage`]).
     pub fn new(
         system: &System,
         model: &Model,
@@ -32,7 +32,7 @@ impl Excitations {
     ) -> Result<Self> {
         config.validate()?;
         let sources = profile_sources(model, profiles);
-        check_profile_coverage(system, model, config, &sources)?;
+        check_coverage(system, model, config, &sources)?;
         let reads = model
             .elements
             .iter()

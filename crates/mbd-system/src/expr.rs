@@ -335,6 +335,17 @@ impl Expr {
         out
     }
 
+    /// Indices of the parameters the expression reads (resolved names only, with repeats).
+    pub fn parameters(&self) -> Vec<usize> {
+        let mut out = Vec::new();
+        self.walk(&mut |e| {
+            if let Expr::Var(_, Some(i)) = e {
+                out.push(*i);
+            }
+        });
+        out
+    }
+
     fn walk<'a>(&'a self, f: &mut impl FnMut(&'a Expr)) {
         f(self);
         match self {

@@ -4,6 +4,7 @@
 //! Units are SI; displacements positive downward, pitch positive nose-up, `x` forward. A body
 //! point at `x` moves down by `u = z + c beta` with `c = -x` (a nose-up pitch lifts the front).
 
+use crate::expr::Expr;
 use crate::schema::Outside;
 use crate::system::{End, Law, ParamSource, Profile, Source, System};
 
@@ -17,6 +18,10 @@ pub struct FieldError {
     pub value: f64,
     /// What is allowed.
     pub allowed: String,
+    /// The sampled parameters its value is computed from (through the description's
+    /// expressions and derived parameters), in declaration order: what a user changed to get
+    /// here, named in their own words.
+    pub sources: Vec<String>,
 }
 
 /// The rigid-DOF participation of a body point: `u = z + c beta`.
@@ -379,47 +384,36 @@ impl System {
         let non_finite: Vec<FieldError> = self
             .parameters
             .iter()
-            .zip(&v)
-            .filter(|(_, x)| !x.is_finite())
-            .map(|(p, x)| FieldError {
+            .enumerate()
+            .filter(|&(i, _)| !v[i].is_finite())
+            .map(|(i, p)| FieldError {
                 path: format!("parameters.{}", p.name),
-                value: *x,
+                value: v[i],
                 allowed: "finite".to_owned(),
+                sources: self.sampled_sources([i]),
             })
             .collect();
         if !non_finite.is_empty() {
             return Err(non_finite);
         }
-        let ev = |e: &crate::expr::Expr| e.eval(&v);
-        // Each check records a field out of its domain and passes the value on; the model is
-        // returned only when nothing was recorded.
-        let errors = std::cell::RefCell::new(Vec::new());
-        let check = |path: String, x: f64, ok: bool, allowed: &str| -> f64 {
-            if !(x.is_finite() && ok) {
-                errors.borrow_mut().push(FieldError {
-                    path,
-                    value: x,
-                    allowed: allowed.to_owned(),
-                });
-            }
-            x
+        let mut c = Checker {
+            system: self,
+            values: &v,
+            errors: Vec::new(),
         };
-        let positive = |path: String, x: f64| check(path, x, x > 0.0, "finite and > 0");
-        let non_negative = |path: String, x: f64| check(path, x, x >= 0.0, "finite and >= 0");
-        let finite = |path: String, x: f64| check(path, x, true, "finite");
-        let recorded = || errors.borrow().len();
+        let ev = |e: &Expr| e.eval(&v);
 
         let mut dof_mass = vec![0.0; self.dofs.len()];
         for b in &self.bodies {
-            let m = positive(format!("bodies.{}.mass", b.name), ev(&b.mass));
+            let m = c.positive(|| format!("bodies.{}.mass", b.name), &b.mass);
             if let Some(z) = b.z {
                 dof_mass[z] = m;
             }
             if let (Some(p), Some(j)) = (b.pitch, &b.inertia) {
-                dof_mass[p] = positive(format!("bodies.{}.inertia", b.name), ev(j));
+                dof_mass[p] = c.positive(|| format!("bodies.{}.inertia", b.name), j);
             }
             for (name, x) in &b.points {
-                finite(format!("bodies.{}.points.{name}", b.name), ev(x));
+                c.finite(|| format!("bodies.{}.points.{name}", b.name), x);
             }
         }
         let end = |e: &End| -> ModelEnd {
@@ -441,46 +435,51 @@ impl System {
         };
         let mut elements = Vec::with_capacity(self.elements.len());
         for e in &self.elements {
-            let w = format!("elements.{}", e.name);
+            let w = || format!("elements.{}", e.name);
             let law = match &e.law {
-                Law::SpringDamper { k, c, preload } => ModelLaw::SpringDamper {
-                    k: non_negative(format!("{w}.k"), ev(k)),
-                    c: non_negative(format!("{w}.c"), ev(c)),
-                    preload: finite(format!("{w}.preload"), ev(preload)),
+                Law::SpringDamper {
+                    k,
+                    c: damping,
+                    preload,
+                } => ModelLaw::SpringDamper {
+                    k: c.non_negative(|| format!("{}.k", w()), k),
+                    c: c.non_negative(|| format!("{}.c", w()), damping),
+                    preload: c.finite(|| format!("{}.preload", w()), preload),
                 },
                 Law::Hertz { g, exponent } => ModelLaw::Hertz {
-                    g: positive(format!("{w}.g"), ev(g)),
-                    exponent: positive(format!("{w}.exponent"), ev(exponent)),
+                    g: c.positive(|| format!("{}.g", w()), g),
+                    exponent: c.positive(|| format!("{}.exponent", w()), exponent),
                 },
                 Law::Table {
                     deflection,
                     force,
-                    c,
+                    c: damping,
                 } => {
                     let d: Vec<f64> = deflection.iter().map(ev).collect();
                     let f: Vec<f64> = force.iter().map(ev).collect();
-                    if d.len() < 2 || d.len() != f.len() {
-                        errors.borrow_mut().push(FieldError {
-                            path: format!("{w}.deflection"),
-                            value: d.len() as f64,
-                            allowed: "as many points as `force`, at least 2".to_owned(),
-                        });
-                    }
+                    c.check(
+                        || format!("{}.deflection", w()),
+                        d.len() as f64,
+                        d.len() >= 2 && d.len() == f.len(),
+                        || "as many points as `force`, at least 2".to_owned(),
+                        &[],
+                    );
                     for (i, pair) in d.windows(2).enumerate() {
-                        check(
-                            format!("{w}.deflection[{}]", i + 1),
+                        c.check(
+                            || format!("{}.deflection[{}]", w(), i + 1),
                             pair[1],
                             pair[1] > pair[0],
-                            "finite and above the previous point",
+                            || "finite and above the previous point".to_owned(),
+                            &[&deflection[i], &deflection[i + 1]],
                         );
                     }
-                    for (i, x) in f.iter().enumerate() {
-                        finite(format!("{w}.force[{i}]"), *x);
+                    for (i, x) in force.iter().enumerate() {
+                        c.finite(|| format!("{}.force[{i}]", w()), x);
                     }
                     ModelLaw::Table {
                         deflection: d,
                         force: f,
-                        c: non_negative(format!("{w}.c"), ev(c)),
+                        c: c.non_negative(|| format!("{}.c", w()), damping),
                     }
                 }
             };
@@ -495,7 +494,7 @@ impl System {
         for l in &self.loads {
             loads.push(ModelLoad {
                 at: end(&l.at),
-                force: finite(format!("loads.{}.force", l.name), ev(&l.force)),
+                force: c.finite(|| format!("loads.{}.force", l.name), &l.force),
             });
         }
         let assembly = self
@@ -515,31 +514,37 @@ impl System {
         // Whether each beam's length is valid (the sensors on it are checked against it).
         let mut length_valid = Vec::with_capacity(self.beams.len());
         for b in &self.beams {
-            let w = format!("beams.{}", b.name);
-            let before = recorded();
-            let length = positive(format!("{w}.length"), ev(&b.length));
-            length_valid.push(recorded() == before);
+            let w = || format!("beams.{}", b.name);
+            let before = c.errors.len();
+            let length = c.positive(|| format!("{}.length", w()), &b.length);
+            length_valid.push(c.errors.len() == before);
             let supports = match &b.supports {
                 None => None,
                 Some(s) => {
-                    let spacing = positive(format!("{w}.supports.spacing"), ev(&s.spacing));
-                    let first = non_negative(format!("{w}.supports.first"), ev(&s.first));
+                    let spacing = c.positive(|| format!("{}.supports.spacing", w()), &s.spacing);
+                    let first = c.non_negative(|| format!("{}.supports.first", w()), &s.first);
                     let last = first + (s.count.max(1) - 1) as f64 * spacing;
                     // Only with a valid length, spacing and start (no follow-on problem).
-                    if recorded() == before {
-                        check(format!("{w}.supports.count"), s.count as f64, last < length, &format!("supports from {first} m every {spacing} m must end inside the beam (length {length} m)"));
+                    if c.errors.len() == before {
+                        c.check(
+                            || format!("{}.supports.count", w()),
+                            s.count as f64,
+                            last < length,
+                            || format!("supports from {first} m every {spacing} m must end inside the beam (length {length} m)"),
+                            &[&b.length, &s.spacing, &s.first],
+                        );
                     }
                     let mut levels = Vec::new();
                     for (i, l) in s.levels.iter().enumerate() {
-                        let lw = format!("{w}.supports.levels[{i}]");
+                        let lw = || format!("{}.supports.levels[{i}]", w());
                         levels.push(ModelLevel {
-                            mass: positive(format!("{lw}.mass"), ev(&l.mass)),
-                            k: positive(format!("{lw}.link.k"), ev(&l.link.k)),
-                            c: non_negative(format!("{lw}.link.c"), ev(&l.link.c)),
+                            mass: c.positive(|| format!("{}.mass", lw()), &l.mass),
+                            k: c.positive(|| format!("{}.link.k", lw()), &l.link.k),
+                            c: c.non_negative(|| format!("{}.link.c", lw()), &l.link.c),
                             shear: l.shear.as_ref().map(|sh| {
                                 (
-                                    non_negative(format!("{lw}.shear.k"), ev(&sh.k)),
-                                    non_negative(format!("{lw}.shear.c"), ev(&sh.c)),
+                                    c.non_negative(|| format!("{}.shear.k", lw()), &sh.k),
+                                    c.non_negative(|| format!("{}.shear.c", lw()), &sh.c),
                                 )
                             }),
                         });
@@ -550,8 +555,8 @@ impl System {
                         first,
                         levels,
                         ground: (
-                            positive(format!("{w}.supports.ground.k"), ev(&s.ground.k)),
-                            non_negative(format!("{w}.supports.ground.c"), ev(&s.ground.c)),
+                            c.positive(|| format!("{}.supports.ground.k", w()), &s.ground.k),
+                            c.non_negative(|| format!("{}.supports.ground.c", w()), &s.ground.c),
                         ),
                     })
                 }
@@ -560,46 +565,50 @@ impl System {
             beams.push(ModelBeam {
                 length,
                 modes: b.modes,
-                mass_per_length: positive(format!("{w}.mass_per_length"), ev(&b.mass_per_length)),
-                bending_stiffness: positive(
-                    format!("{w}.bending_stiffness"),
-                    ev(&b.bending_stiffness),
+                mass_per_length: c
+                    .positive(|| format!("{}.mass_per_length", w()), &b.mass_per_length),
+                bending_stiffness: c.positive(
+                    || format!("{}.bending_stiffness", w()),
+                    &b.bending_stiffness,
                 ),
-                damping_ratio: check(
-                    format!("{w}.damping_ratio"),
+                damping_ratio: c.check(
+                    || format!("{}.damping_ratio", w()),
                     zeta,
                     (0.0..1.0).contains(&zeta),
-                    "in [0, 1)",
+                    || "in [0, 1)".to_owned(),
+                    &[&b.damping_ratio],
                 ),
                 outside: b.outside,
                 supports,
             });
         }
-        let speed = non_negative("moving.speed".to_owned(), ev(&self.speed));
+        let speed = c.non_negative(|| "moving.speed".to_owned(), &self.speed);
         let mut points = Vec::with_capacity(self.points.len());
         for p in &self.points {
             points.push((
                 p.beam,
-                finite(format!("moving.points.{}.offset", p.name), ev(&p.offset)),
+                c.finite(|| format!("moving.points.{}.offset", p.name), &p.offset),
             ));
         }
         let mut sensors = Vec::with_capacity(self.sensors.len());
         for s in &self.sensors {
             let x = ev(&s.x);
+            let path = || format!("sensors.{}.x", s.name);
             match beams.get(s.beam) {
                 Some(beam) if length_valid[s.beam] => {
                     let length = beam.length;
-                    check(
-                        format!("sensors.{}.x", s.name),
+                    c.check(
+                        path,
                         x,
                         (0.0..=length).contains(&x),
-                        &format!("on the beam: in [0, {length}] m"),
+                        || format!("on the beam: in [0, {length}] m"),
+                        &[&s.x, &self.beams[s.beam].length],
                     );
                 }
                 // Its beam's length is out of its domain, reported already.
                 Some(_) => {}
                 None => {
-                    check(format!("sensors.{}.x", s.name), x, false, "on a beam");
+                    c.check(path, x, false, || "on a beam".to_owned(), &[&s.x]);
                 }
             }
             sensors.push((s.beam, x));
@@ -614,15 +623,14 @@ impl System {
                     wavelength,
                     phase,
                 } => ModelProfile::Harmonic {
-                    amplitude: finite(format!("profiles.{name}.amplitude"), ev(amplitude)),
-                    wavelength: positive(format!("profiles.{name}.wavelength"), ev(wavelength)),
-                    phase: finite(format!("profiles.{name}.phase"), ev(phase)),
+                    amplitude: c.finite(|| format!("profiles.{name}.amplitude"), amplitude),
+                    wavelength: c.positive(|| format!("profiles.{name}.wavelength"), wavelength),
+                    phase: c.finite(|| format!("profiles.{name}.phase"), phase),
                 },
             });
         }
-        let errors = errors.into_inner();
-        if !errors.is_empty() {
-            return Err(errors);
+        if !c.errors.is_empty() {
+            return Err(c.errors);
         }
         Ok(Model {
             values: v,
@@ -636,6 +644,54 @@ impl System {
             sensors,
             profiles,
         })
+    }
+}
+
+/// The domain checks of one instantiation: each records a field out of its domain (its path
+/// and the sampled parameters it comes from, built only then) and passes the value on.
+struct Checker<'a> {
+    system: &'a System,
+    values: &'a [f64],
+    errors: Vec<FieldError>,
+}
+
+impl Checker<'_> {
+    /// Records `path` = `x` unless it is finite and `ok`; `from` are the expressions `x` and
+    /// the condition read (for [`FieldError::sources`]).
+    fn check(
+        &mut self,
+        path: impl FnOnce() -> String,
+        x: f64,
+        ok: bool,
+        allowed: impl FnOnce() -> String,
+        from: &[&Expr],
+    ) -> f64 {
+        if !(x.is_finite() && ok) {
+            self.errors.push(FieldError {
+                path: path(),
+                value: x,
+                allowed: allowed(),
+                sources: self
+                    .system
+                    .sampled_sources(from.iter().flat_map(|e| e.parameters())),
+            });
+        }
+        x
+    }
+
+    fn positive(&mut self, path: impl FnOnce() -> String, e: &Expr) -> f64 {
+        let x = e.eval(self.values);
+        self.check(path, x, x > 0.0, || "finite and > 0".to_owned(), &[e])
+    }
+
+    fn non_negative(&mut self, path: impl FnOnce() -> String, e: &Expr) -> f64 {
+        let x = e.eval(self.values);
+        self.check(path, x, x >= 0.0, || "finite and >= 0".to_owned(), &[e])
+    }
+
+    fn finite(&mut self, path: impl FnOnce() -> String, e: &Expr) -> f64 {
+        let x = e.eval(self.values);
+        self.check(path, x, true, || "finite".to_owned(), &[e])
     }
 }
 

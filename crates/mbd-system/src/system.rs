@@ -422,6 +422,28 @@ impl System {
             .collect()
     }
 
+    /// Names of the sampled parameters that parameters `roots` are computed from: a sampled
+    /// root itself, and through derived parameters every sampled one their expressions read
+    /// (in declaration order, each once). A fixed parameter contributes none.
+    pub fn sampled_sources(&self, roots: impl IntoIterator<Item = usize>) -> Vec<String> {
+        let mut reached = vec![false; self.parameters.len()];
+        let mut todo: Vec<usize> = roots.into_iter().collect();
+        while let Some(i) = todo.pop() {
+            if std::mem::replace(&mut reached[i], true) {
+                continue;
+            }
+            if let ParamSource::Derived(e) = &self.parameters[i].source {
+                todo.extend(e.parameters());
+            }
+        }
+        self.parameters
+            .iter()
+            .zip(reached)
+            .filter(|(p, r)| *r && matches!(p.source, ParamSource::Sampled { .. }))
+            .map(|(p, _)| p.name.clone())
+            .collect()
+    }
+
     /// Names of the sampled parameters.
     pub fn sampled_names(&self) -> Vec<&str> {
         self.sampled()

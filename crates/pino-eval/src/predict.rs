@@ -28,6 +28,7 @@ use crate::eval::{to_physical, Physical};
 use crate::indices_eval::{eval_config, IndexInputs, SampleIndices};
 use candle_core::{Device, Tensor};
 use mbd_engine::{Excitations, Profile, RunConfig};
+use mbd_system::model::FieldError;
 use mbd_system::system::Quantity;
 use mbd_system::System;
 use pino_data::{schema, Column, Table};
@@ -119,16 +120,115 @@ impl DesignSpace {
         Ok(())
     }
 
-    /// Checks a design against the description's domains (masses positive, ...): the error
-    /// names the design and the field.
+    /// Checks a design against the description's domains (masses positive, ...). The error
+    /// is in the user's words: it names the design parameter at fault (`design.m_c`, with
+    /// `label` = `design`) and its value, and says which field of the description it makes
+    /// leave its domain ([`DesignSpace::blame`]).
     pub fn check(&self, design: &[f64], label: &str) -> Result<mbd_system::model::Model> {
         self.system
             .instantiate(design)
-            .map_err(|e| Error::OutOfRange {
+            .map_err(|e| self.blame(design, label, &e))
+    }
+
+    /// The design parameter a field out of its domain is blamed on: among the sampled
+    /// parameters the field is computed from, the first whose value differs from its nominal
+    /// one (what the user changed), else the first of them. The error's field is
+    /// `{label}.{name}`, its value the design's, and what is allowed says which field it made
+    /// invalid and its value there (with the other changed parameters it was computed with). A field that
+    /// no design parameter reaches is named as the description's (`{label}: {path}`).
+    pub fn blame(&self, design: &[f64], label: &str, e: &FieldError) -> Error {
+        let position = |name: &str| self.names.iter().position(|n| n == name);
+        let changed = |k: &usize| design[*k] != self.nominal[*k];
+        let sources: Vec<usize> = e.sources.iter().filter_map(|n| position(n)).collect();
+        let Some(&k) = sources.iter().find(|k| changed(k)).or(sources.first()) else {
+            return Error::OutOfRange {
                 field: format!("{label}: {}", e.path),
                 value: e.value.to_string(),
                 allowed: e.allowed.clone(),
-            })
+            };
+        };
+        let name = &self.names[k];
+        let allowed = if e.path == format!("parameters.{name}") {
+            e.allowed.clone()
+        } else {
+            let with: Vec<String> = sources
+                .iter()
+                .filter(|&&j| j != k && changed(&j))
+                .map(|&j| format!("`{}` = {}", self.names[j], design[j]))
+                .collect();
+            let with = if with.is_empty() {
+                String::new()
+            } else {
+                format!(", with {}", with.join(", "))
+            };
+            format!(
+                "values that keep `{}` {} (this one makes it {}{with})",
+                e.path, e.allowed, e.value
+            )
+        };
+        Error::OutOfRange {
+            field: format!("{label}.{name}"),
+            value: design[k].to_string(),
+            allowed,
+        }
+    }
+
+    /// The design parameter a run that leaves its profiles or a refusing beam is blamed on,
+    /// and the limit it may reach: among the sampled parameters the frame speed and the moving
+    /// points' offsets are computed from, the first the user changed (differs from nominal)
+    /// whose nominal value `runs` accepts with the rest of the design; its limit is found by
+    /// bisection between the nominal value and the design's, and the error says "at most" or
+    /// "at least" it (6 significant digits, rounded to the accepted side) with `why`. A run no
+    /// changed parameter explains is the design's (`{label}: why`).
+    pub fn blame_run(
+        &self,
+        design: &[f64],
+        label: &str,
+        why: &str,
+        runs: impl Fn(&[f64]) -> bool,
+    ) -> Error {
+        let exprs =
+            std::iter::once(&self.system.speed).chain(self.system.points.iter().map(|p| &p.offset));
+        let sources = self
+            .system
+            .sampled_sources(exprs.flat_map(|e| e.parameters()));
+        for name in &sources {
+            let Some(k) = self.names.iter().position(|n| n == name) else {
+                continue;
+            };
+            let with = |x: f64| {
+                let mut d = design.to_vec();
+                d[k] = x;
+                d
+            };
+            let (mut good, mut bad) = (self.nominal[k], design[k]);
+            if good == bad || !runs(&with(good)) {
+                continue;
+            }
+            for _ in 0..64 {
+                let mid = 0.5 * (good + bad);
+                if mid == good || mid == bad {
+                    break;
+                }
+                if runs(&with(mid)) {
+                    good = mid;
+                } else {
+                    bad = mid;
+                }
+            }
+            let above = bad > good;
+            let limit = round_towards(good, 6, !above);
+            let limit = if runs(&with(limit)) { limit } else { good };
+            return Error::OutOfRange {
+                field: format!("{label}.{name}"),
+                value: design[k].to_string(),
+                allowed: format!(
+                    "{} {limit} with the rest of this design: {why}",
+                    if above { "at most" } else { "at least" }
+                ),
+            };
+        }
+        fmt_err(Path::new(label), why.to_owned())
     }
 
     /// Parses designs from YAML text (`origin` names the file in errors).
@@ -184,6 +284,23 @@ impl DesignSpace {
             table.push(name, Column::F64(sets.iter().map(|p| p[j]).collect()))?;
         }
         Ok(())
+    }
+}
+
+/// `x` to `digits` significant digits, rounded up (`up`) or down.
+fn round_towards(x: f64, digits: i32, up: bool) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    // Dividing by a power of ten (not multiplying by its inverse) keeps a short decimal.
+    let e = digits - 1 - x.abs().log10().floor() as i32;
+    let p = 10f64.powi(e.abs());
+    let q = if e >= 0 { x * p } else { x / p };
+    let q = if up { q.ceil() } else { q.floor() };
+    if e >= 0 {
+        q / p
+    } else {
+        q * p
     }
 }
 
@@ -615,6 +732,29 @@ impl Predictor {
             .collect()
     }
 
+    /// The excitations of `design` under `run`: the design checked against the description's
+    /// domains and the run against its profiles and beams, each refusal blamed on the design
+    /// parameter at fault (`{label}.NAME`, [`DesignSpace::check`], [`DesignSpace::blame_run`]).
+    pub fn excitations_of(
+        &self,
+        design: &[f64],
+        profiles: &[Option<Profile>],
+        run: &RunConfig,
+        label: &str,
+    ) -> Result<Excitations> {
+        let model = self.space.check(design, label)?;
+        let excitations = |model: &mbd_system::model::Model| {
+            Excitations::new(&self.system, model, run, profiles.to_vec())
+        };
+        excitations(&model).map_err(|e| {
+            self.space.blame_run(design, label, &e.to_string(), |d| {
+                self.system
+                    .instantiate(d)
+                    .is_ok_and(|m| excitations(&m).is_ok())
+            })
+        })
+    }
+
     /// The excitations `[T, E]` of design `k` at the window's times.
     fn excitations(
         &self,
@@ -623,20 +763,39 @@ impl Predictor {
         profiles: &[Option<Profile>],
         run: &RunConfig,
     ) -> Result<Vec<f64>> {
-        let model = self.space.check(design, &format!("set {k}"))?;
-        let ex = Excitations::new(&self.system, &model, run, profiles.to_vec()).map_err(|e| {
-            Error::OutOfRange {
-                field: format!("set {k}: profiles"),
-                value: e.to_string(),
-                allowed: "profiles that cover the run".into(),
-            }
-        })?;
+        let ex = self.excitations_of(design, profiles, run, &format!("sets[{k}]"))?;
         let times = self.meta.grid.times();
         let mut out = Vec::with_capacity(times.len() * self.excitation_elements.len());
         for &t in &times {
             out.extend(self.excitation_elements.iter().map(|&e| ex.at(e, t)));
         }
         Ok(out)
+    }
+
+    /// Refuses a design the network cannot read: a parameter whose z-scored value (by the
+    /// training data's mean and spread, as the network's input) overflows the network's single
+    /// precision, named `{label}.NAME` with its training range.
+    pub fn readable(&self, design: &[f64], label: &str) -> Result<()> {
+        let stats = &self.meta.norm.inputs;
+        // The parameters are the last input channels (`input_block`).
+        let first = stats.len() - design.len();
+        let z = |j: usize| ((design[j] - stats.mean[first + j]) / stats.std[first + j]) as f32;
+        let Some(j) = (0..design.len()).find(|&j| !z(j).is_finite()) else {
+            return Ok(());
+        };
+        let name = &self.space.names()[j];
+        let ranges = &self.meta.training_ranges;
+        let trained = match ranges.names.iter().position(|n| n == name) {
+            Some(i) => format!("; trained on [{}, {}]", ranges.min[i], ranges.max[i]),
+            None => String::new(),
+        };
+        Err(Error::OutOfRange {
+            field: format!("{label}.{name}"),
+            value: design[j].to_string(),
+            allowed: format!(
+                "a value the network can read (z-scored by its training data, this one overflows single precision){trained}"
+            ),
+        })
     }
 
     /// Predicts designs `sets` (the first numbered `first`) in one forward pass.
@@ -670,6 +829,7 @@ impl Predictor {
                     self.excitations(first + k, p, &of(first + k)?, run)?
                 }
             };
+            self.readable(p, &format!("sets[{}]", first + k))?;
             x.extend(meta.norm.inputs.normalise(&input_block(&times, &eta, p)));
             etas.push(eta);
         }
@@ -1236,11 +1396,52 @@ mod tests {
         assert!(sp.apply_override(&mut s, "m_c").is_err());
         // Values outside the description's domains are refused naming the design and field.
         sp.apply_override(&mut s, "m_c=-1").unwrap();
-        let err = sp.check(&s[1], "set 1").unwrap_err().to_string();
+        let err = sp.check(&s[1], "sets[1]").unwrap_err().to_string();
         assert!(
-            err.contains("set 1") && err.contains("mass") && err.contains("> 0"),
+            err.starts_with("`sets[1].m_c` = -1 is out of range: values that keep `bodies.c.mass` finite and > 0 (this one makes it -0.5)"),
             "{err}"
         );
+    }
+
+    /// A run refused for a changed speed is blamed on the speed, with the largest value the
+    /// run accepts (6 significant digits, on the accepted side); one no changed parameter
+    /// explains is the design's.
+    #[test]
+    fn a_refused_run_is_blamed_on_the_changed_parameter_with_its_limit() {
+        let sp = space();
+        let k = sp.names().iter().position(|n| n == "v_kmh").unwrap();
+        let limit = 341.234_567_89;
+        let runs = |d: &[f64]| d[k] <= limit;
+        let mut design = sp.nominal();
+        design[k] = 1e6;
+        let err = sp.blame_run(&design, "design", "too far", runs);
+        match &err {
+            Error::OutOfRange {
+                field,
+                value,
+                allowed,
+            } => {
+                assert_eq!(field, "design.v_kmh");
+                assert_eq!(value, "1000000");
+                assert_eq!(
+                    allowed,
+                    "at most 341.234 with the rest of this design: too far"
+                );
+            }
+            other => panic!("{other}"),
+        }
+        // A slower speed refused (a lower limit): at least, rounded up.
+        design[k] = 1.0;
+        let err = sp.blame_run(&design, "design", "too slow", |d: &[f64]| {
+            d[k] >= 299.000_000_1
+        });
+        assert!(err.to_string().contains("at least 299.001 "), "{err}");
+        // Nothing changed: the run is the design's.
+        let err = sp.blame_run(&sp.nominal(), "sets[2]", "too far", runs);
+        assert_eq!(err.to_string(), "sets[2]: too far");
+        assert_eq!(round_towards(-0.001_234_567_8, 3, false), -0.001_24);
+        assert_eq!(round_towards(123_456_789.0, 2, true), 130_000_000.0);
+        assert_eq!(round_towards(0.0, 3, true), 0.0);
     }
 
     /// A parameter file written for one system, given to a model of another, is refused
@@ -1449,6 +1650,9 @@ mod tests {
         let err = predictor
             .forward(0, std::slice::from_ref(&design), &short, &run)
             .unwrap_err();
-        assert!(err.to_string().contains("set 0: profiles"), "{err}");
+        assert!(
+            err.to_string().starts_with("sets[0]: profile `track`"),
+            "{err}"
+        );
     }
 }

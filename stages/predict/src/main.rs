@@ -129,7 +129,7 @@ fn run() -> Result<()> {
         space.apply_override(&mut sets, s)?;
     }
     for (k, s) in sets.iter().enumerate() {
-        space.check(s, &format!("set {k}"))?;
+        space.check(s, &format!("sets[{k}]"))?;
     }
     if let Some(id) = args.profile_id.filter(|id| *id < 0) {
         anyhow::bail!("--profile-id {id}: sample ids are >= 0");
@@ -159,7 +159,7 @@ fn run() -> Result<()> {
             .take(5)
             .map(|&k| {
                 let what: Vec<String> = outside[k].iter().map(|o| o.to_string()).collect();
-                format!("set {k}: {}", what.join(", "))
+                format!("sets[{k}]: {}", what.join(", "))
             })
             .collect();
         let msg = format!(
