@@ -171,6 +171,47 @@ async function main() {
     excitation: window.explorerState.excitation,
   })));
 
+  /**
+   * What a reader sees at a glance: whether the side panel scrolls on its own, whether the
+   * excitation and compare cards are in the window, each group's channel colours, each axis
+   * label's box against its chart's and each y axis's tick labels.
+   */
+  const readability = () => page.evaluate(() => {
+    const panel = document.querySelector('.panel.left');
+    const inView = (sel) => {
+      const n = document.querySelector(sel);
+      if (!n || n.hidden) return [sel, true];
+      const b = n.getBoundingClientRect();
+      return [sel, b.top >= 0 && b.bottom <= window.innerHeight + 0.5];
+    };
+    const groupColours = [...document.querySelectorAll('.chart-section')].map((sec) => [
+      sec.dataset.group,
+      [...sec.querySelectorAll('.channel .swatch')].map((w) => getComputedStyle(w).backgroundColor),
+    ]);
+    const axisLabels = [];
+    const yTicks = [];
+    for (const [key, u] of Object.entries(window.explorerCharts || {})) {
+      const root = u.root.getBoundingClientRect();
+      u.root.querySelectorAll('.u-axis .u-label').forEach((l) => {
+        const b = l.getBoundingClientRect();
+        axisLabels.push({
+          chart: key, text: l.textContent,
+          inside: b.left >= root.left - 0.5 && b.right <= root.right + 0.5
+            && b.top >= root.top - 0.5 && b.bottom <= root.bottom + 0.5
+            && l.scrollWidth <= l.clientWidth + 1,
+        });
+      });
+      u.axes.forEach((a, i) => {
+        if (i > 0) yTicks.push([`${key}.${i}`, (u.explorerTicks || {})[i] || []]);
+      });
+    }
+    return {
+      panelScrolls: panel.scrollHeight > panel.clientHeight + 1,
+      cardsInView: [inView('#excitation-box'), inView('#pin'), inView('#unpin')],
+      groupColours, axisLabels, yTicks,
+    };
+  });
+
   /** Drags the slider of `param` to `fraction` of its track, as a mouse would. */
   async function dragSlider(param, fraction) {
     const slider = page.locator(`.param[data-param="${param}"] input[type=range]`);
@@ -212,6 +253,16 @@ async function main() {
     check(results.parameters.length > 0, 'no parameter rows');
     const charts = await plotted();
     check(Object.keys(charts).length > 0, 'no chart drawn after the first prediction');
+    results.readability = await readability();
+    const r = results.readability;
+    check(r.panelScrolls === false, `the side panel scrolls on its own: ${JSON.stringify(r)}`);
+    check(r.cardsInView.every(([, inView]) => inView), `cards not in view at 1400 x 1000: ${JSON.stringify(r.cardsInView)}`);
+    const repeated = r.groupColours.filter(([, colours]) => new Set(colours).size !== colours.length);
+    check(repeated.length === 0, `colours repeated within a group: ${JSON.stringify(repeated)}`);
+    const clipped = r.axisLabels.filter((a) => !a.inside);
+    check(clipped.length === 0, `axis labels clipped: ${JSON.stringify(clipped)}`);
+    const fewTicks = r.yTicks.filter(([, ticks]) => ticks.filter((t) => t !== '').length < 2);
+    check(fewTicks.length === 0, `y axes with fewer than 2 ticks: ${JSON.stringify(fewTicks)}`);
   });
 
   // ---- 2. choose the test sample: the design becomes the sample's ------------------------
@@ -219,7 +270,42 @@ async function main() {
     const samples = (summary.excitation && summary.excitation.test_samples) || [];
     check(samples.length > 0, 'the model summary lists no test sample');
     const sample = samples[0];
-    const n = await counter('predictions');
+    const designBefore = (await state()).design;
+    let n = await counter('predictions');
+    await page.selectOption('select#excitation', `test:${sample.sample_id}`);
+    await waitCounter('predictions', n + 1);
+    await expectNoError();
+    // The fields show the sample's values rounded to their slider's step (the design keeps
+    // them exactly), and the replaced design can be put back.
+    const fields = await page.$$eval('#params .param', (rows) => rows.map((r) => {
+      const range = r.querySelector('input[type=range]');
+      const number = r.querySelector('input[type=number]');
+      return { name: r.dataset.param, shown: number.value, step: Number(range.step),
+        fits: number.scrollWidth <= number.clientWidth + 1 };
+    }));
+    for (const f of fields) {
+      const exact = sample.design[f.name];
+      check(exact == null || Math.abs(Number(f.shown) - exact) <= f.step / 2 * (1 + 1e-9),
+        `${f.name} shows ${f.shown}, more than half a slider step (${f.step}) from ${exact}`);
+      const decimals = (f.shown.split('.')[1] || '').length;
+      check(decimals <= Math.max(0, Math.ceil(-Math.log10(f.step))),
+        `${f.name} shows ${f.shown}: more decimals than its slider's step ${f.step}`);
+    }
+    const undo = page.locator('#undo-design');
+    check(await undo.isVisible(), 'no undo offered after the test sample replaced the design');
+    n = await counter('predictions');
+    await undo.click();
+    await waitCounter('predictions', n + 1);
+    const undone = (await state()).design;
+    check(JSON.stringify(undone) === JSON.stringify(designBefore),
+      `undo gave ${JSON.stringify(undone)}, not the design before ${JSON.stringify(designBefore)}`);
+    check(!(await undo.isVisible()), 'the undo is still offered after it was used');
+    results.testSampleFields = { fields, undone: true };
+    // Back to the sample's design for the steps that follow.
+    n = await counter('predictions');
+    await page.selectOption('select#excitation', 'seed');
+    await waitCounter('predictions', n + 1);
+    n = await counter('predictions');
     await page.selectOption('select#excitation', `test:${sample.sample_id}`);
     await waitCounter('predictions', n + 1);
     await expectNoError();
@@ -330,7 +416,14 @@ async function main() {
     check(errorCells.length > 0 && misMarked.length === 0, `index errors marked wrongly (> 10 % must stand out): ${JSON.stringify(misMarked)}`);
     const header = await page.$$eval('#indices thead th', (ths) => ths.map((t) => t.textContent));
     check(header[2] === 'surrogate', `the index value column is headed ${JSON.stringify(header[2])}`);
-    results.solve = { design: before.design, excitation: before.excitation, answer, status, charts, channelMarks, rows, headline, errorCells };
+    // Each chart's key says which line style is the surrogate's and which the solver's.
+    const keys = await page.$$eval('.chart-section', (secs) => secs.map((sec) => [sec.dataset.group,
+      [...sec.querySelectorAll('.line-key .key-item')].map((k) => [k.dataset.kind,
+        getComputedStyle(k.querySelector('.key-line')).borderTopStyle])]));
+    const badKeys = keys.filter(([, items]) => JSON.stringify(items.slice(0, 2))
+      !== JSON.stringify([['surrogate', 'solid'], ['solver', 'dashed']]));
+    check(badKeys.length === 0, `charts without a surrogate (solid) / solver (dashed) key: ${JSON.stringify(badKeys)}`);
+    results.solve = { design: before.design, excitation: before.excitation, answer, status, charts, channelMarks, rows, headline, errorCells, keys };
   });
 
   // ---- 6. move a slider: the curves change ----------------------------------------------
@@ -511,7 +604,18 @@ async function main() {
       null, { timeout: TIMEOUT_MS });
     const plots = await page.$$eval('img', (imgs) => imgs.map((i) => [i.getAttribute('src'), i.complete && i.naturalWidth > 0]));
     check(plots.length > 0 && plots.every(([, ok]) => ok), `evaluate plots not shown: ${JSON.stringify(plots)}`);
-    results.pipeline = { units, table4_rows: table4Rows, plots: plots.length };
+    // Table 4 fits its card and its numbers are short (4 significant digits).
+    const table4 = await page.evaluate(() => {
+      const wrap = document.querySelector('#table4').closest('.table-wrap');
+      return {
+        fits: wrap.scrollWidth <= wrap.clientWidth + 1,
+        numbers: [...document.querySelectorAll('#table4 td.num')].map((c) => c.textContent),
+      };
+    });
+    check(table4.fits, 'Table 4 is wider than its card');
+    const long = table4.numbers.filter((t) => t.replace(/^-/, '').replace(/e.*$/, '').replace('.', '').replace(/^0+/, '').length > 4);
+    check(table4.numbers.length > 0 && long.length === 0, `Table 4 numbers with more than 4 digits: ${JSON.stringify(long)}`);
+    results.pipeline = { units, table4_rows: table4Rows, plots: plots.length, table4 };
   });
 
   // ---- 11. a Sobol study of two parameters started from the sweep view -------------------

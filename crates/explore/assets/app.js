@@ -50,15 +50,35 @@
     { key: 'velocity', title: 'Velocities', height: 230 },
     { key: 'acceleration', title: 'Accelerations', height: 230 },
     { key: 'force', title: 'Forces', height: 230 },
-    { key: 'excitation', title: 'Excitation', height: 150 },
+    { key: 'excitation', title: 'Excitation', height: 200 },
   ];
   const DEFAULT_SELECTED_PER_GROUP = 2;
   const SWEEP_HEIGHT = 320;
   const SYNC_KEY = 'pino-explorer';
-  // Series colours; style.css has the same list as `.swatch.c0` ... `.swatch.c9`.
+  // Series colours (the first ten of a group; channelColor makes more).
   const PALETTE = ['#1f77b4', '#d62728', '#2ca02c', '#9467bd', '#ff7f0e',
     '#17becf', '#8c564b', '#e377c2', '#7f7f7f', '#bcbd22'];
   const PIN_COLOR = '#9aa0a6';
+
+  /** `h` (degrees), `s`, `l` (0..1) as `#rrggbb`. */
+  function hslHex(h, sat, light) {
+    const f = (n) => {
+      const k = (n + h / 30) % 12;
+      const c = light - sat * Math.min(light, 1 - light) * Math.max(-1, Math.min(k - 3, 9 - k, 1));
+      return Math.round(c * 255).toString(16).padStart(2, '0');
+    };
+    return `#${f(0)}${f(8)}${f(4)}`;
+  }
+
+  /**
+   * The colour of the `i`-th channel of a group: the palette first, then hues a golden angle
+   * apart at two lightnesses, so no two channels of a group share one.
+   */
+  function channelColor(i) {
+    if (i < PALETTE.length) return PALETTE[i];
+    const j = i - PALETTE.length;
+    return hslHex((15 + j * 137.508) % 360, 0.6, j % 2 === 0 ? 0.36 : 0.52);
+  }
   // A surrogate error (relative, of an index or a channel's L2) above this stands out.
   const LARGE_ERROR = 0.10;
   // Opacity of the bands' fill (the channel's colour); the sweep's band is the surrogate's.
@@ -111,20 +131,7 @@
   // Small helpers
   // ---------------------------------------------------------------------------------------
 
-  const { $, el } = window.pinoDom;
-
-  /** A number for people: 4 significant digits, exponent form when very large or small. */
-  function fmt(v, digits = 4) {
-    if (v == null) return '—';
-    if (typeof v !== 'number') return String(v);
-    if (!Number.isFinite(v)) return String(v);
-    const a = Math.abs(v);
-    if (a !== 0 && (a >= 1e5 || a < 1e-3)) {
-      const [m, e] = v.toExponential(digits - 1).split('e');
-      return `${m.includes('.') ? m.replace(/\.?0+$/, '') : m}e${e.replace('+', '')}`;
-    }
-    return String(Number(v.toPrecision(digits)));
-  }
+  const { $, el, fmt } = window.pinoDom;
 
   function fmtSigned(v, digits = 4) {
     if (v == null || !Number.isFinite(v)) return fmt(v, digits);
@@ -354,15 +361,28 @@
   /** Rounds a slider-derived value so the number field shows what is sent. */
   const roundForDisplay = (v) => Number(v.toPrecision(6));
 
+  /** The slider step of parameter `p`: a thousandth of its training range. */
+  const sliderStep = (p) => (p.max - p.min) / 1000;
+
+  /**
+   * `v` as parameter `p`'s number field shows it when the design comes from elsewhere (a test
+   * sample): rounded to the decimals of the slider's step, so the field does not overflow.
+   */
+  function fieldValue(p, v) {
+    const step = sliderStep(p);
+    if (!(step > 0) || !Number.isFinite(v)) return roundForDisplay(v);
+    const decimals = Math.min(12, Math.max(0, Math.ceil(-Math.log10(step))));
+    return Number(v.toFixed(decimals));
+  }
+
   function buildParams(summary) {
     const host = $('#params');
     host.textContent = '';
     summary.parameters.forEach((p, i) => {
       const id = `param-${i}`;
-      const span = p.max - p.min;
       const slider = el('input', {
         type: 'range', id: `${id}-range`, min: String(p.min), max: String(p.max),
-        step: span > 0 ? String(span / 1000) : 'any', 'aria-label': `${p.name} slider`,
+        step: sliderStep(p) > 0 ? String(sliderStep(p)) : 'any', 'aria-label': `${p.name} slider`,
       });
       const number = el('input', { type: 'number', id, step: 'any', 'aria-label': `${p.name} value` });
       const flag = el('span', { class: 'outside-flag', hidden: true }, 'outside training range');
@@ -416,20 +436,30 @@
   }
 
   function setParam(name, v) {
+    offerUndo(null);
+    const row = paramRow(name);
+    if (row) $('input[type=number]', row).title = '';
     st.design[name] = v;
     st.rev += 1;
     publishState();
     renderPinInfo();
   }
 
-  /** Writes a whole design into the panel (sliders, numbers, flags). */
+  /**
+   * Writes a whole design into the panel (sliders, numbers, flags). The design keeps the exact
+   * values; a number field shows its value rounded to the slider's step when that differs,
+   * with the exact value as its tooltip.
+   */
   function setDesign(design) {
     for (const p of st.summary.parameters) {
       const v = design[p.name] != null ? design[p.name] : p.nominal;
       st.design[p.name] = v;
       const row = paramRow(p.name);
       $('input[type=range]', row).value = String(Math.min(p.max, Math.max(p.min, v)));
-      $('input[type=number]', row).value = String(v);
+      const number = $('input[type=number]', row);
+      const shown = fieldValue(p, v);
+      number.value = String(shown);
+      number.title = shown === v ? '' : `exactly ${v}`;
       markOutside(p, v);
     }
     st.rev += 1;
@@ -503,7 +533,11 @@
       const t0 = performance.now();
       readExcitation();
       const sample = selectedTestSample();
-      if (sample) setDesign({ ...nominalDesign(), ...(sample.design || {}) });
+      if (sample) {
+        const previous = { ...st.design };
+        setDesign({ ...nominalDesign(), ...(sample.design || {}) });
+        offerUndo(previous, `Undo: back to the design before test sample ${sample.sample_id}`);
+      }
       st.rev += 1;
       predict(t0);
     });
@@ -515,6 +549,26 @@
         predict(t0);
       });
     }
+  }
+
+  /**
+   * Offers to put `previous` back (the design a test sample's replaced), or withdraws the
+   * offer (`previous` null: the user has changed the design since).
+   */
+  function offerUndo(previous, text) {
+    const button = $('#undo-design');
+    st.undoDesign = previous;
+    button.hidden = !previous;
+    if (previous) button.textContent = text;
+  }
+
+  function undoDesign() {
+    const previous = st.undoDesign;
+    if (!previous) return;
+    const t0 = performance.now();
+    setDesign(previous);
+    offerUndo(null);
+    predict(t0);
   }
 
   function selectedTestSample() {
@@ -756,13 +810,11 @@
     const host = $('#charts');
     host.textContent = '';
     st.groups = [];
-    let colorIndex = 0;
     for (const g of GROUPS) {
-      // Copies of the summary's channels with a colour each (the summary stays as received).
-      const channels = summary.channels.filter((c) => c.group === g.key).map((c) => {
-        const ci = colorIndex++ % PALETTE.length;
-        return { ...c, colorIndex: ci, color: PALETTE[ci] };
-      });
+      // Copies of the summary's channels with a colour each, distinct within the group (the
+      // summary stays as received).
+      const channels = summary.channels.filter((c) => c.group === g.key)
+        .map((c, i) => ({ ...c, color: channelColor(i) }));
       if (!channels.length) continue;
       const group = { ...g, channels, selected: new Set(), chart: null, structure: '' };
       channels.forEach((c, i) => {
@@ -779,16 +831,19 @@
           if (box.checked && st.coverage != null && g.key !== 'excitation' && pred
             && !(pred.bands && pred.bands[c.name])) predict();
         });
+        const swatch = el('span', { class: 'swatch' });
+        swatch.style.backgroundColor = c.color;
         picker.append(el('label', { class: 'channel', dataset: { channel: c.name } },
           box,
-          el('span', { class: `swatch c${c.colorIndex}` }),
+          swatch,
           el('span', { class: 'channel-name' }, c.name),
           el('span', { class: 'channel-unit' }, c.unit ? `[${c.unit}]` : ''),
           el('span', { class: 'channel-error' })));
       }
       group.chartEl = el('div', { class: 'chart' });
+      group.lineKey = el('span', { class: 'line-key', 'aria-label': 'line styles' });
       group.section = el('section', { class: `card chart-section group-${g.key}`, dataset: { group: g.key } },
-        el('div', { class: 'card-head' }, el('h2', {}, g.title)),
+        el('div', { class: 'card-head' }, el('h2', {}, g.title), group.lineKey),
         picker,
         group.chartEl);
       host.append(group.section);
@@ -796,9 +851,22 @@
     }
   }
 
-  /** A tick / legend number formatter for the y axes. */
-  function tickValues(_u, splits) {
-    return splits.map((v) => (v == null ? '' : fmt(v, 3)));
+  /** A tick number formatter for the axes (the values drawn kept in `u.explorerTicks`). */
+  function tickValues(u, splits, axisIdx) {
+    const out = splits.map((v) => (v == null ? '' : fmt(v, 3)));
+    u.explorerTicks = u.explorerTicks || {};
+    u.explorerTicks[axisIdx] = out;
+    return out;
+  }
+
+  /** The key of a chart's line styles: the surrogate's, the solver's and A's when shown. */
+  function renderLineKey(group, solve, pinned) {
+    const item = (kind, text) => el('span', { class: 'key-item', dataset: { kind } },
+      el('span', { class: `key-line ${kind}` }), text);
+    const items = [item('surrogate', 'surrogate')];
+    if (solve) items.push(item('solver', 'solver'));
+    if (pinned) items.push(item('pinned', 'A (pinned)'));
+    group.lineKey.replaceChildren(...items);
   }
 
   function legendValue(_u, v) {
@@ -841,6 +909,7 @@
     const solve = solveOverlay();
     const pinned = st.pinned;
     const selected = group.channels.filter((c) => group.selected.has(c.name));
+    renderLineKey(group, solve, pinned);
 
     // Per channel: its prediction, the solver's (dashed) and A's (grey) when present.
     const plan = [];
@@ -893,11 +962,13 @@
     });
     const axes = [{ label: 't [s]', values: tickValues }];
     units.forEach((u, i) => {
+      // One channel's name with its unit, else the unit alone (the legend names the lines),
+      // so the label fits the axis.
       const names = selected.filter((c) => (c.unit || '') === u).map((c) => c.name);
-      const shown = names.length > 3 ? `${names.slice(0, 3).join(', ')}, …` : names.join(', ');
+      const label = names.length === 1 ? withUnit(names[0], u) : (u ? `[${u}]` : '');
       axes.push({
         scale: scaleOf(u),
-        label: withUnit(shown, u),
+        label,
         values: tickValues,
         side: i % 2 === 0 ? 3 : 1,
         size: 64,
@@ -1459,10 +1530,12 @@
     $('#error-dismiss').addEventListener('click', clearError);
     $('#reset').addEventListener('click', () => {
       const t0 = performance.now();
+      offerUndo(null);
       setDesign(nominalDesign());
       predict(t0);
     });
     $('#solve').addEventListener('click', solve);
+    $('#undo-design').addEventListener('click', undoDesign);
     $('#pin').addEventListener('click', pin);
     $('#unpin').addEventListener('click', unpin);
     $('#download-design').addEventListener('click', (e) =>

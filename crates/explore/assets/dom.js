@@ -1,7 +1,7 @@
 /*
  * The pages' DOM helpers (served as /assets/dom.js, loaded before app.js, pipeline.js and
- * studies.js): `pinoDom.$(selector, root)`, `pinoDom.el(tag, attrs, ...children)` and
- * `pinoDom.poll(path, ms, draw)` for the read-only pages.
+ * studies.js): `pinoDom.$(selector, root)`, `pinoDom.el(tag, attrs, ...children)`,
+ * `pinoDom.fmt(number, digits)` and `pinoDom.poll(path, ms, draw)` for the read-only pages.
  * Plain ES2020, no inline scripts, no eval.
  */
 'use strict';
@@ -24,6 +24,19 @@ window.pinoDom = (() => {
       node.append(c instanceof Node ? c : String(c));
     }
     return node;
+  }
+
+  /** A number for people: 4 significant digits, exponent form when very large or small. */
+  function fmt(v, digits = 4) {
+    if (v == null) return '—';
+    if (typeof v !== 'number') return String(v);
+    if (!Number.isFinite(v)) return String(v);
+    const a = Math.abs(v);
+    if (a !== 0 && (a >= 1e5 || a < 1e-3)) {
+      const [m, e] = v.toExponential(digits - 1).split('e');
+      return `${m.includes('.') ? m.replace(/\.?0+$/, '') : m}e${e.replace('+', '')}`;
+    }
+    return String(Number(v.toPrecision(digits)));
   }
 
   /**
@@ -58,5 +71,5 @@ window.pinoDom = (() => {
     else once();
   }
 
-  return { $, el, poll };
+  return { $, el, fmt, poll };
 })();

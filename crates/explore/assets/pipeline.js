@@ -14,7 +14,7 @@
 
 (() => {
   const POLL_MS = 2000;
-  const { $, el } = window.pinoDom;
+  const { $, el, fmt } = window.pinoDom;
   let lastTable4 = '';
   let lastPlots = '';
   window.pipelineState = null;
@@ -65,8 +65,11 @@
     const numeric = header.map((_, j) => j > 0 && rows.length > 0 && rows.every((r) => isNum(r[j])));
     table.tHead.replaceChildren(el('tr', {}, ...header.map((h, j) =>
       el('th', { class: numeric[j] ? 'num' : '' }, h))));
-    table.tBodies[0].replaceChildren(...rows.map((r) =>
-      el('tr', {}, ...r.map((c, j) => el('td', { class: numeric[j] ? 'num' : '' }, c == null ? '' : c)))));
+    // Numbers to 4 significant digits (the file's exact value as the cell's tooltip).
+    const cell = (c, j) => (numeric[j]
+      ? el('td', { class: 'num', title: String(c) }, fmt(Number(c)))
+      : el('td', {}, c == null ? '' : c));
+    table.tBodies[0].replaceChildren(...rows.map((r) => el('tr', {}, ...r.map(cell))));
   }
 
   function renderPlots(plots) {
