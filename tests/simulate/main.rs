@@ -1,18 +1,17 @@
 //! End-to-end tests of the `simulate` stage binary on the vehicle-track description: schema
-//! and row order, the stored columns against the hand-written vehicle equations (`vtcd`, an
-//! independent reference), determinism across thread counts and shard layouts, the start
+//! and row order, the stored columns against the hand-written vehicle equations
+//! (`mbd_test_models::vehicle_track`, an independent reference), determinism across thread counts and shard layouts, the start
 //! modes, and refusal of bad input. The inputs come from the real `sample-params` and
 //! `irregularity` stages; a reduced track (150 fasteners, 90 m, through `system_values`) and
 //! 0.2 s runs keep them fast in the dev profile; the stage's logic does not depend on sizes.
 //!
 //! Needs the binaries: `cargo build -p sample-params -p irregularity -p simulate`.
 
+use mbd_test_models::vehicle_track::{HalfVehicle, CONTACTS, DOFS, NUM_DOFS};
 use pino_data::{read_parquet, read_parquet_files, schema, write_parquet, Column};
 use pino_mbd_tests::{output_text, run_stage, stage_context, system, system_path};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
-use vtcd::params::{SampleParams, PARAMETER_NAMES};
-use vtcd::vehicle::Vehicle;
 
 const N_SAMPLES: i64 = 6;
 
@@ -71,17 +70,15 @@ fn simulate(
     (o.status.success(), output_text(&o), out)
 }
 
-/// The vehicle parameters of sample `id`, read by their public names.
-fn vehicle_of(params: &pino_data::Table, id: i64) -> SampleParams {
+/// The hand-written half vehicle of sample `id`, its parameters read by their public names.
+fn vehicle_of(params: &pino_data::Table, id: i64) -> HalfVehicle {
     let row = params
         .i64(schema::SAMPLE_ID)
         .unwrap()
         .iter()
         .position(|&i| i == id)
         .unwrap();
-    SampleParams::from_array(std::array::from_fn(|j| {
-        params.f64(PARAMETER_NAMES[j]).unwrap()[row]
-    }))
+    HalfVehicle::new(|name| params.f64(name).unwrap()[row], 9.81)
 }
 
 #[test]
@@ -114,18 +111,15 @@ fn output_has_the_schema_sorted_rows_and_consistent_physics() {
     // The ten vehicle equations of the hand-written reference on the stored columns (read by
     // their public names) are round-off: < 1e-6 of each equation's force scale.
     let params = read_parquet(&inputs.0.join("params.parquet"), None).unwrap();
-    let dofs = [
-        "z_c", "beta_c", "z_t1", "beta_t1", "z_t2", "beta_t2", "z_w1", "z_w2", "z_w3", "z_w4",
-    ];
     let f = |name: &str| t.f64(name).unwrap();
-    let vz: Vec<&[f64]> = dofs.iter().map(|n| f(n)).collect();
-    let vv: Vec<&[f64]> = dofs.iter().map(|n| f(&format!("{n}_v"))).collect();
-    let va: Vec<&[f64]> = dofs.iter().map(|n| f(&format!("{n}_a"))).collect();
-    let vp: Vec<&[f64]> = ["p_1", "p_2", "p_3", "p_4"].iter().map(|n| f(n)).collect();
+    let vz: Vec<&[f64]> = DOFS.iter().map(|n| f(n)).collect();
+    let vv: Vec<&[f64]> = DOFS.iter().map(|n| f(&format!("{n}_v"))).collect();
+    let va: Vec<&[f64]> = DOFS.iter().map(|n| f(&format!("{n}_a"))).collect();
+    let vp: Vec<&[f64]> = CONTACTS.iter().map(|n| f(n)).collect();
     for sample in 0..N_SAMPLES {
-        let veh = Vehicle::new(&vehicle_of(&params, sample), 9.81);
+        let veh = vehicle_of(&params, sample);
         let rows: Vec<usize> = (0..ids.len()).filter(|&r| ids[r] == sample).collect();
-        let (mut res, mut scale) = ([0.0f64; 10], [0.0f64; 10]);
+        let (mut res, mut scale) = ([0.0f64; NUM_DOFS], [0.0f64; NUM_DOFS]);
         for &r in &rows {
             let z = std::array::from_fn(|i| vz[i][r]);
             let v = std::array::from_fn(|i| vv[i][r]);
@@ -133,16 +127,16 @@ fn output_has_the_schema_sorted_rows_and_consistent_physics() {
             let pr = std::array::from_fn(|i| vp[i][r]);
             let rr = veh.residuals(&z, &v, &a, &pr);
             let ff = veh.forces(&z, &v, &pr);
-            for i in 0..10 {
+            for i in 0..NUM_DOFS {
                 res[i] = res[i].max(rr[i].abs());
                 scale[i] = scale[i].max(ff[i].abs());
             }
         }
-        for i in 0..10 {
+        for i in 0..NUM_DOFS {
             assert!(
                 res[i] <= 1e-6 * scale[i],
                 "sample {sample} {}: {} vs {}",
-                dofs[i],
+                DOFS[i],
                 res[i],
                 scale[i]
             );
@@ -303,7 +297,7 @@ fn start_mode_selects_the_initial_state() {
     let eq = first_rows(json!({"duration": 0.05}), "eq");
     let params = read_parquet(&inputs.0.join("params.parquet"), None).unwrap();
     for (id, ((&z_c, &p1), &p4)) in eq.0.iter().zip(&eq.1).zip(&eq.2).enumerate() {
-        let w = Vehicle::new(&vehicle_of(&params, id as i64), 9.81).w;
+        let w = vehicle_of(&params, id as i64).w;
         assert!(
             (p1 / w - 1.0).abs() < 1e-9 && (p4 / w - 1.0).abs() < 1e-9,
             "{p1} {p4} {w}"

@@ -6,6 +6,7 @@
 use super::*;
 use mbd_system::system::ParamSource;
 use mbd_system::SystemSource;
+use mbd_test_models::vehicle_track;
 use pino_data::{Column, Table};
 use pino_indices::{IndexParams, Record};
 
@@ -260,7 +261,7 @@ fn cfg(fraction: f64) -> IndexConfig {
 fn the_polars_aggregation_equals_the_plain_rust_fold() {
     let fx = vtcd(&|_, _| {});
     // The vehicle-track description samples the 14 parameters of the public schema, in order.
-    assert_eq!(fx.system.sampled_names(), vtcd::params::PARAMETER_NAMES);
+    assert_eq!(fx.system.sampled_names(), vehicle_track::PARAMETERS);
     let c = cfg(0.1);
     let got = fx.compute(&c).unwrap();
     assert!(got.railway);
@@ -286,14 +287,17 @@ fn the_polars_aggregation_equals_the_plain_rust_fold() {
         assert_eq!(first, 150);
         let win = rec.tail(first);
         let p = params_of(&fx.system, row.id);
-        let l_c = p[9];
+        let value = |name: &str| {
+            p[fx.system
+                .sampled_names()
+                .iter()
+                .position(|n| *n == name)
+                .unwrap()]
+        };
+        let l_c = value("l_c");
         // The binding's W is the hand-written vehicle's, bit for bit (the outputs of the
         // vehicle-track pipeline stay as they were).
-        let w = vtcd::vehicle::Vehicle::new(
-            &vtcd::params::SampleParams::from_array(p.clone().try_into().unwrap()),
-            9.81,
-        )
-        .w;
+        let w = vehicle_track::HalfVehicle::new(value, 9.81).w;
         let binding = fx.system.railway.as_ref().unwrap();
         let values = fx.system.values(&p);
         assert_eq!(
@@ -331,7 +335,7 @@ fn the_polars_aggregation_equals_the_plain_rust_fold() {
     let t = pino_data::read_parquet(&fx.dir.path().join("indices.parquet"), None).unwrap();
     let names: Vec<&str> = t.names().collect();
     assert_eq!(names.len(), 2 + 14 + 14 + 3);
-    assert_eq!(names[2..16], vtcd::params::PARAMETER_NAMES);
+    assert_eq!(names[2..16], vehicle_track::PARAMETERS);
     let index_names: Vec<&str> = pino_indices::INDEX_COLUMNS.iter().map(|c| c.name).collect();
     assert_eq!(names[16..30], index_names);
     assert_eq!(names[30..], ["window_s", "pass", "failed"]);

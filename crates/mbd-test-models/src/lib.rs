@@ -13,6 +13,8 @@
 //! - [`ode`]: an adaptive Dormand-Prince 5(4) Runge-Kutta integrator.
 //! - [`moving_mass`]: a sprung mass crossing a modal beam (Biggs 1964; Yang and Yau 1997), its
 //!   modal ODEs written out and solved by [`ode`] to a tight tolerance.
+//! - [`vehicle_track`]: the railway half vehicle's ten equations of motion written out by hand,
+//!   its static wheel load and Hertz's wheel-rail contact.
 //!
 //! Units are SI throughout. Each module states its sign convention.
 //!
@@ -31,3 +33,4 @@ pub mod moving_mass;
 pub mod ode;
 pub mod quarter_car;
 pub mod road;
+pub mod vehicle_track;

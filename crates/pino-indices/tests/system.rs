@@ -159,7 +159,7 @@ fn the_railway_family_through_the_binding_is_compute_with_the_vehicle_w() {
     let cfg = IndexParams::default().validate().unwrap();
     let (got, railway) = set.compute(&system, &values, &get, dt, &cfg).unwrap();
     // The static wheel load of the half vehicle as the hand-written vehicle computes it
-    // (`vtcd::vehicle::Vehicle::new`, g = 9.81), and l_c.
+    // (`mbd_test_models::vehicle_track::HalfVehicle`, g = 9.81), and l_c.
     let v = |name: &str| values[system.parameter(name).unwrap()];
     let (m_c, m_t, m_w) = (v("m_c") / 2.0, v("m_t") / 2.0, v("m_w") / 2.0);
     let w = (m_c + 2.0 * m_t + 4.0 * m_w) * 9.81 / 4.0;

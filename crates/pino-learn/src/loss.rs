@@ -289,6 +289,7 @@ pub struct LossValues {
 mod tests {
     use super::*;
     use candle_core::Device;
+    use mbd_test_models::vehicle_track::{self, NUM_DOFS};
 
     #[test]
     fn relative_l2_is_per_sample_then_averaged() {
@@ -374,17 +375,19 @@ mod tests {
                 &ctx.norm.velocities,
                 &ctx.norm.accelerations,
             );
-            // The residuals of the hand-written vehicle-track model (crate `vtcd`, the
-            // reference the generic engine is held equal to), independent of the description.
+            // The residuals of the hand-written vehicle-track model
+            // (`mbd_test_models::vehicle_track`), independent of the description.
             let layout = &ctx.layout;
             let col = |name: &str| layout.outputs.iter().position(|o| o == name).unwrap();
+            // The vehicle's DOFs are the first outputs, in its equation order.
+            assert_eq!(layout.outputs[..NUM_DOFS], vehicle_track::DOFS);
             let (np, ne, nq) = (
                 layout.params.len(),
                 layout.n_excitations(),
                 layout.equations.len(),
             );
             let wheel_radius = 0.43;
-            let g = vtcd::contact::hertz_constant(wheel_radius);
+            let g = vehicle_track::hertz_constant(wheel_radius);
             let f_ref = ctx.f_ref.unwrap();
             for k in 0..b {
                 let sample = |x: &[f64], n: usize, ch: usize| x[(k * t + n) * c + ch];
@@ -395,21 +398,19 @@ mod tests {
                     du += y * y;
                 }
                 data += rel(nu, du) / b as f64;
-                let p: [f64; 14] = std::array::from_fn(|j| {
-                    let name = vtcd::params::PARAMETER_NAMES[j];
-                    params[k * np + layout.params.iter().position(|n| n == name).unwrap()]
-                });
-                let veh =
-                    vtcd::vehicle::Vehicle::new(&vtcd::params::SampleParams::from_array(p), 9.81);
+                let veh = vehicle_track::HalfVehicle::new(
+                    |name| params[k * np + layout.params.iter().position(|n| n == name).unwrap()],
+                    9.81,
+                );
                 let mut sums = [0.0f64; 4];
                 for n in 1..t - 1 {
-                    let (mut z, mut v, mut a) = ([0.0; 10], [0.0; 10], [0.0; 10]);
-                    for i in 0..10 {
+                    let (mut z, mut v, mut a) = ([0.0; NUM_DOFS], [0.0; NUM_DOFS], [0.0; NUM_DOFS]);
+                    for i in 0..NUM_DOFS {
                         let phys = |m: usize| sample(&pred, m, i) * out.std[i] + out.mean[i];
                         z[i] = phys(n);
                         v[i] = (phys(n + 1) - phys(n - 1)) / (2.0 * ctx.dt);
                         a[i] = (phys(n + 1) - 2.0 * phys(n) + phys(n - 1)) / (ctx.dt * ctx.dt);
-                        let j = (k * (t - 2) + n - 1) * 10 + i;
+                        let j = (k * (t - 2) + n - 1) * NUM_DOFS + i;
                         let zv = (v[i] - vel.mean[i]) / vel.std[i];
                         let za = (a[i] - acc.mean[i]) / acc.std[i];
                         sums[0] += (zv - v_t[j]).powi(2);
@@ -421,11 +422,11 @@ mod tests {
                         let r = col(&format!("z_r{}", w + 1));
                         let z_r = sample(&pred, n, r) * out.std[r] + out.mean[r];
                         let e = eta[(k * t + n) * ne + w];
-                        vtcd::contact::contact_force(z[col(&format!("z_w{}", w + 1))] - z_r - e, g)
+                        vehicle_track::contact_force(z[col(&format!("z_w{}", w + 1))] - z_r - e, g)
                     });
                     let r = veh.residuals(&z, &v, &a, &contact);
                     let count = (b * (t - 2) * nq) as f64;
-                    for i in 0..10 {
+                    for i in 0..NUM_DOFS {
                         ode_global += r[i].abs() / f_ref / count;
                         ode_phi += ctx.config.rho * r[i].abs() / phi[k * nq + i] / count;
                     }

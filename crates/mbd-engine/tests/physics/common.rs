@@ -92,15 +92,33 @@ pub fn short_track(text: &str, overrides: &[(&str, f64)]) -> Arc<System> {
     load(text, &all)
 }
 
-/// A TB/T 3352 profile of the vtcd generator's defaults over 120 m (sample `id`).
-pub fn track_profile(id: u64) -> Profile {
-    let generator = vtcd::irregularity::IrregularityParams {
-        length: 120.0,
-        ..vtcd::irregularity::IrregularityParams::with_seed(11)
-    }
-    .validate()
-    .unwrap();
+/// The first generated profile of `system` from the live generator (`mbd_dataset`, as the
+/// `irregularity` stage draws it): `seed`, spacing `dx` and `length` (m), sample `id`.
+pub fn generated_profile(system: &System, seed: u64, dx: f64, length: f64, id: u64) -> Profile {
+    let generator = first_generator(system, seed, dx, length);
     Profile::new(generator.positions(), generator.profile(id)).unwrap()
+}
+
+/// The live generator of the first generated profile of `system`.
+pub fn first_generator(
+    system: &System,
+    seed: u64,
+    dx: f64,
+    length: f64,
+) -> mbd_dataset::ProfileGenerator {
+    let params = mbd_dataset::ProfileParams { seed, dx, length };
+    mbd_dataset::profile_generators(system, &params)
+        .unwrap()
+        .into_iter()
+        .flatten()
+        .next()
+        .expect("a generated profile")
+}
+
+/// The vehicle-track description's TB/T 3352 track over 120 m (seed 11, 0.1 m spacing),
+/// sample `id`.
+pub fn track_profile(id: u64) -> Profile {
+    generated_profile(&load(&system_text("vtcd.yaml"), &[]), 11, 0.1, 120.0, id)
 }
 
 /// The value of parameter `name` in a sample's model.

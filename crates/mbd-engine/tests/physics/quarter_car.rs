@@ -153,23 +153,7 @@ fn random_road_rms_matches_the_generators_spectral_sum() {
     };
     // dx: the interpolation gain at the band's top (2 /m) is 1 - 1.3e-3.
     let dx = 0.01;
-    let generator = vtcd::irregularity::IrregularityParams {
-        seed: 7,
-        dx,
-        length: 400.0,
-        wavelength_min: wavelengths[0],
-        wavelength_max: wavelengths[1],
-        psd: segments
-            .iter()
-            .map(|s| vtcd::irregularity::PsdSegment {
-                f_start: s.f_start,
-                a: s.a,
-                n: s.n,
-            })
-            .collect(),
-    }
-    .validate()
-    .unwrap();
+    let generator = first_generator(&system, 7, dx, 400.0);
     let n = generator.len();
     let period = n as f64 * generator.dx();
     let bins: Vec<(f64, f64)> = generator
