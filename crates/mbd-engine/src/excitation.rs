@@ -23,7 +23,7 @@ pub struct Excitations {
 impl Excitations {
     /// The excitations of `model` (of `system`) under `config`, with `profiles[p]` the points
     /// of generated profile `p` (`None`: level). Refuses, as the engine does, a run that
-    /// leaves a refusing beam or the profiles ([`crate::engine::check_coverage`]).
+    /// leaves a refusing beam or the profiles (the engine's own coverage check).
     pub fn new(
         system: &System,
         model: &Model,

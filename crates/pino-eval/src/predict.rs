@@ -134,8 +134,9 @@ impl DesignSpace {
     /// parameters the field is computed from, the first whose value differs from its nominal
     /// one (what the user changed), else the first of them. The error's field is
     /// `{label}.{name}`, its value the design's, and what is allowed says which field it made
-    /// invalid and its value there (with the other changed parameters it was computed with). A field that
-    /// no design parameter reaches is named as the description's (`{label}: {path}`).
+    /// invalid and its value there (with the other changed parameters it was computed with).
+    /// A field that no design parameter reaches is named as the description's
+    /// (`{label}: {path}`).
     pub fn blame(&self, design: &[f64], label: &str, e: &FieldError) -> Error {
         let position = |name: &str| self.names.iter().position(|n| n == name);
         let changed = |k: &usize| design[*k] != self.nominal[*k];
