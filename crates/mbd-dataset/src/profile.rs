@@ -28,6 +28,7 @@
 
 use crate::rng::SampleStream;
 use crate::{Error, Result};
+use mbd_system::system::GENERATED_PROFILE_START;
 use rustfft::num_complex::Complex;
 use rustfft::{Fft, FftPlanner};
 use serde::{Deserialize, Serialize};
@@ -265,9 +266,12 @@ impl ProfileGenerator {
         self.dx
     }
 
-    /// Positions `x_n = n dx` (m).
+    /// Positions `x_n = x_s + n dx` (m), from the start `x_s` every generated profile has
+    /// ([`GENERATED_PROFILE_START`], 0).
     pub fn positions(&self) -> Vec<f64> {
-        (0..self.n).map(|i| i as f64 * self.dx).collect()
+        (0..self.n)
+            .map(|i| GENERATED_PROFILE_START + i as f64 * self.dx)
+            .collect()
     }
 
     /// The band `[f_lo, f_hi]` (1/m).

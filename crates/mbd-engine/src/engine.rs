@@ -31,12 +31,12 @@
 
 use crate::beam::{ModalBeam, LANES};
 use crate::config::{RunConfig, StartMode};
+use crate::coverage::check_coverage;
 use crate::dst::SineTransform;
 use crate::integrator;
 use crate::profile::{Profile, ProfileSource};
 use crate::{Error, Result};
 use mbd_system::model::{Model, ModelEnd, ModelProfile, ModelSupports};
-use mbd_system::schema::Outside;
 use mbd_system::system::{Quantity, Source};
 use mbd_system::System;
 use std::ops::Range;
@@ -795,92 +795,6 @@ pub(crate) fn profile_sources(
             (ModelProfile::Generated, None) => ProfileSource::Level,
         })
         .collect()
-}
-
-/// Checks that the run stays where the model is defined: the moving points on a beam that
-/// refuses leaving it stay strictly inside it for the whole run, and every sampled profile
-/// covers the positions its elements read from the moment the profile comes on
-/// ([`RunConfig::profile_on`]) to the end of the run. Positions in m along the track, a point
-/// at `x0 + speed t + offset`.
-pub(crate) fn check_coverage(
-    system: &System,
-    model: &Model,
-    c: &RunConfig,
-    sources: &[ProfileSource],
-) -> Result<()> {
-    let (t_end, speed) = (c.t_end(), model.speed);
-    for (b, beam) in model.beams.iter().enumerate() {
-        let offsets = || {
-            model
-                .points
-                .iter()
-                .filter(move |p| p.0 == Some(b))
-                .map(|p| p.1)
-        };
-        if beam.outside != Outside::Refuse || offsets().next().is_none() {
-            continue;
-        }
-        let lo = offsets().map(|o| c.x0 + o).fold(f64::INFINITY, f64::min);
-        let hi = offsets()
-            .map(|o| c.x0 + speed * t_end + o)
-            .fold(f64::NEG_INFINITY, f64::max);
-        let length = beam.length;
-        if !(lo > 0.0 && hi < length) {
-            return Err(Error::TooShort {
-                what: format!("beam `{}` (length {length} m)", system.beams[b].name),
-                have_lo: 0.0,
-                have_hi: length,
-                need_lo: lo,
-                need_hi: hi,
-                hint: "lengthen the beam, shorten the run (duration) or move x0; or let points leave it (`outside: rigid`)".to_owned(),
-            });
-        }
-    }
-    check_profile_coverage(system, model, c, sources)
-}
-
-/// Checks that every sampled profile covers the positions its elements read from the moment
-/// the profile comes on ([`RunConfig::profile_on`]) to the end of the run.
-fn check_profile_coverage(
-    system: &System,
-    model: &Model,
-    c: &RunConfig,
-    sources: &[ProfileSource],
-) -> Result<()> {
-    let (t_end, t_on) = (c.t_end(), c.profile_on());
-    if t_on > t_end {
-        return Ok(());
-    }
-    for (e, el) in model.elements.iter().enumerate() {
-        let (Some(p), ModelEnd::Moving(pt)) = (el.profile, el.to) else {
-            continue;
-        };
-        let ProfileSource::Points(prof) = &sources[p] else {
-            continue;
-        };
-        let offset = model.points[pt].1;
-        let need = [
-            c.x0 + model.speed * t_on + offset,
-            c.x0 + model.speed * t_end + offset,
-        ];
-        let have = prof.range();
-        if need[0] < have[0] || need[1] > have[1] {
-            return Err(Error::TooShort {
-                what: format!(
-                    "profile `{}` under element `{}`",
-                    system.profiles[p].name(),
-                    system.elements[e].name
-                ),
-                have_lo: have[0],
-                have_hi: have[1],
-                need_lo: need[0],
-                need_hi: need[1],
-                hint: "generate profiles that cover the whole run plus the vehicle length"
-                    .to_owned(),
-            });
-        }
-    }
-    Ok(())
 }
 
 /// Displacement of an end given the rigid state and the point quantities.

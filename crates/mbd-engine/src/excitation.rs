@@ -5,7 +5,8 @@
 //! evaluation reads at the same `t`, so a learned operator (`predict`) sees the inputs the
 //! solver saw.
 
-use crate::engine::{check_coverage, profile_sources};
+use crate::coverage::check_coverage;
+use crate::engine::profile_sources;
 use crate::{Profile, ProfileSource, Result, RunConfig};
 use mbd_system::model::{Model, ModelEnd};
 use mbd_system::System;

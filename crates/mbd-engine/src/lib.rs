@@ -10,6 +10,8 @@
 //! - [`beam`]: modal simply supported beams; [`dst`]: the sine transform of uniform supports;
 //!   [`supports`]: the support chains.
 //! - [`statics`]: the static-equilibrium start; [`stability`]: the time-step bound.
+//! - [`coverage`]: whether a run stays on its beams and profiles, per sample and over the box
+//!   of sampling ranges;
 //! - [`residual`]: the ODE residuals of the rigid DOFs for learning, by the same element code;
 //! - [`integrator`]: Zhai's two-step method; [`profile`]: profiles under moving points;
 //!   [`excitation`]: those profiles over a run without running it (inputs of a surrogate);
@@ -22,6 +24,7 @@
 
 pub mod beam;
 pub mod config;
+pub mod coverage;
 pub mod dst;
 pub mod engine;
 pub mod excitation;
@@ -89,6 +92,14 @@ pub enum Error {
         /// How to fix it.
         hint: String,
     },
+    /// A moving point reads a generated profile before its start somewhere in the box of
+    /// sampling ranges ([`coverage::check_profile_starts`]).
+    #[error("{0}")]
+    BeforeProfile(Box<coverage::EarlyRead>),
+    /// Problems placed in the system description, `file:line:col: message` each (a refusal
+    /// of [`coverage::check_profile_starts_described`]).
+    #[error("{0}")]
+    Described(mbd_system::Diagnostics),
     /// An iterative solve did not reach its tolerance.
     #[error(
         "{what} did not converge: relative residual {residual:e} after {iterations} iterations"

@@ -370,29 +370,12 @@ pub fn parameter_box(
     let ranges = system.ranges();
     let names = system.sampled_names();
     let n = ranges.len();
-    let corners: Vec<u64> = if n <= 16 {
-        (0..1u64 << n).collect()
-    } else {
-        // A fixed odd-multiplier sequence of corner masks (splitmix64): deterministic.
-        let mut z = 0x9e37_79b9_7f4a_7c15u64;
-        (0..MAX_CORNERS)
-            .map(|_| {
-                z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-                let mut x = z;
-                x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-                x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-                x ^ (x >> 31)
-            })
-            .collect()
-    };
+    let corners = box_corners(n);
     use rayon::prelude::*;
     let bounds: Vec<(Bound, u64)> = corners
         .into_par_iter()
         .map(|mask| {
-            let values: Vec<f64> = (0..n)
-                .map(|j| ranges[j][((mask >> (j % 64)) & 1) as usize])
-                .collect();
-            let model = system.instantiate(&values)?;
+            let model = system.instantiate(&corner_values(&ranges, mask))?;
             let engine = Engine::assemble(
                 system.clone(),
                 model,
@@ -412,13 +395,10 @@ pub fn parameter_box(
             _ => Some(b),
         });
     let &(b, mask) = worst.expect("at least one corner");
-    let corner = (0..n)
-        .map(|j| {
-            (
-                names[j].to_owned(),
-                ranges[j][((mask >> (j % 64)) & 1) as usize],
-            )
-        })
+    let corner = names
+        .iter()
+        .map(|n| n.to_string())
+        .zip(corner_values(&ranges, mask))
         .collect();
     Ok((
         Bound {
@@ -427,6 +407,36 @@ pub fn parameter_box(
         },
         corner,
     ))
+}
+
+/// The corners of a box of `n` sampled parameters that the box checks visit, as masks (bit
+/// `j % 64` set: parameter `j` at its maximum): all `2^n` up to 16 parameters, else
+/// [`MAX_CORNERS`] drawn from a fixed sequence (deterministic).
+pub fn box_corners(n: usize) -> Vec<u64> {
+    if n <= 16 {
+        (0..1u64 << n).collect()
+    } else {
+        // A fixed odd-multiplier sequence of corner masks (splitmix64).
+        let mut z = 0x9e37_79b9_7f4a_7c15u64;
+        (0..MAX_CORNERS)
+            .map(|_| {
+                z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+                let mut x = z;
+                x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+                x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+                x ^ (x >> 31)
+            })
+            .collect()
+    }
+}
+
+/// The sampled values at corner `mask` ([`box_corners`]) of the box `ranges`.
+pub fn corner_values(ranges: &[[f64; 2]], mask: u64) -> Vec<f64> {
+    ranges
+        .iter()
+        .enumerate()
+        .map(|(j, r)| r[((mask >> (j % 64)) & 1) as usize])
+        .collect()
 }
 
 fn mb_mu(engine: &Engine, b: usize) -> f64 {

@@ -20,7 +20,7 @@ const PIVOT_TOLERANCE: f64 = 1e-10;
 
 /// Where the field `path` (`bodies.c.mass`, `beams.r.supports.levels[0].link.k`) was written:
 /// the field itself when the description wrote it, else its entry, else the top.
-fn position(raw: &RawDescription, path: &str) -> Pos {
+pub(crate) fn position(raw: &RawDescription, path: &str) -> Pos {
     let parts: Vec<&str> = path.split('.').collect();
     let section = parts[0];
     let name = parts

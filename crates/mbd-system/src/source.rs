@@ -68,6 +68,25 @@ impl SystemSource {
         load_str(&self.text, &self.file, &self.values).map_err(SourceError::Invalid)
     }
 
+    /// A problem found outside the description's own checks (a run control that does not fit
+    /// it) reported as those are: at the line of the field `path` (`profiles.track`,
+    /// `moving.points.road`; else its entry, else the top), `file:line:col: message`.
+    pub fn problem_at(&self, path: &str, message: impl Into<String>) -> Diagnostics {
+        let mut diag = Diagnostics {
+            file: self.file.clone(),
+            items: Vec::new(),
+        };
+        let pos = match crate::yaml::parse(&self.text) {
+            Ok(root) => {
+                let raw = crate::schema::read(&root, &mut Diagnostics::default());
+                crate::checks::position(&raw, path)
+            }
+            Err(_) => crate::yaml::Pos { line: 1, col: 1 },
+        };
+        diag.push(pos, message);
+        diag
+    }
+
     /// blake3 of the text and the overrides (hex).
     pub fn hash(&self) -> String {
         let mut h = blake3::Hasher::new();
@@ -137,5 +156,19 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("`nope` is not a parameter"));
+    }
+
+    /// A problem is placed at its field's line, else its entry's, else the top.
+    #[test]
+    fn problems_are_placed_at_the_field_they_name() {
+        let a = SystemSource {
+            file: "t.yaml".into(),
+            text: TEXT.into(),
+            values: BTreeMap::new(),
+        };
+        let report = |path: &str| a.problem_at(path, format!("{path}: wrong")).to_string();
+        assert_eq!(report("elements.s"), "t.yaml:9:3: elements.s: wrong");
+        assert_eq!(report("bodies.b.mass"), "t.yaml:7:13: bodies.b.mass: wrong");
+        assert_eq!(report("profiles.none"), "t.yaml:1:1: profiles.none: wrong");
     }
 }

@@ -162,10 +162,15 @@ pub struct Sensor {
     pub x: Expr,
 }
 
+/// Where a generated profile starts (m): it covers `[GENERATED_PROFILE_START, length)`, its
+/// `length` a control of the stage that makes it (`mbd_dataset::profile`).
+pub const GENERATED_PROFILE_START: f64 = 0.0;
+
 /// A compiled profile.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Profile {
-    /// Random-phase per sample (the `irregularity` stage makes it).
+    /// Random-phase per sample (the `irregularity` stage makes it), covering
+    /// `[GENERATED_PROFILE_START, length)`.
     Generated {
         /// Name.
         name: String,

@@ -9,6 +9,12 @@
 //! refused, and so are documents nested deeper than [`MAX_DEPTH`] (a fuzzer's favourite) or
 //! larger than [`MAX_NODES`] nodes with the aliases expanded (nested aliases grow a short text
 //! exponentially: the "billion laughs").
+//!
+//! A flow collection (`{...}`, `[...]`) left open is reported where it was opened, not where
+//! the parser gives up (often a line or two later, on the next key): when the parser fails, a
+//! scan of the text for flow brackets (`unclosed_flow`: quoted strings, comments and block
+//! scalars skipped) names the bracket never closed, and the parser's own position is kept
+//! whenever that bracket is not one the parser had open when it failed.
 
 use saphyr_parser::{Event, Parser, ScalarStyle};
 use std::collections::HashMap;
@@ -92,6 +98,14 @@ enum Open {
     Map(Pos, usize, Vec<(Key, Node)>, Option<Key>),
 }
 
+impl Open {
+    fn pos(&self) -> Pos {
+        match self {
+            Open::Seq(p, ..) | Open::Map(p, ..) => *p,
+        }
+    }
+}
+
 /// Parses one YAML document (an empty text is an empty mapping).
 pub fn parse(text: &str) -> Result<Node, SyntaxError> {
     let mut stack: Vec<Open> = Vec::new();
@@ -113,10 +127,7 @@ pub fn parse(text: &str) -> Result<Node, SyntaxError> {
     let mut root: Option<Node> = None;
     let mut documents = 0;
     for item in Parser::new_from_str(text) {
-        let (event, span) = item.map_err(|e| SyntaxError {
-            pos: pos_of(e.marker()),
-            message: e.info().to_owned(),
-        })?;
+        let (event, span) = item.map_err(|e| syntax_error(text, &stack, &e))?;
         let pos = pos_of(&span.start);
         let complete = match event {
             Event::StreamStart | Event::StreamEnd | Event::DocumentEnd | Event::Nothing => None,
@@ -265,6 +276,163 @@ fn depth_check(depth: usize, pos: Pos) -> Result<(), SyntaxError> {
     } else {
         Ok(())
     }
+}
+
+/// The parser's error `e`, or, when the text leaves a flow collection open that the parser
+/// had open when it failed (`stack`), that collection's opening bracket.
+fn syntax_error(text: &str, stack: &[Open], e: &saphyr_parser::ScanError) -> SyntaxError {
+    let at = pos_of(e.marker());
+    let parser = SyntaxError {
+        pos: at,
+        message: e.info().to_owned(),
+    };
+    let Some(u) = unclosed_flow(text) else {
+        return parser;
+    };
+    if !stack.iter().any(|o| o.pos() == u.pos) {
+        return parser;
+    }
+    let (kind, close) = match u.open {
+        '{' => ("mapping", '}'),
+        _ => ("sequence", ']'),
+    };
+    let message = match u.wrong_close {
+        Some((c, p)) => format!(
+            "unclosed flow {kind} `{}` opened here: close it with `{close}` before the `{c}` at line {}, column {}",
+            u.open, p.line, p.col
+        ),
+        None => format!(
+            "unclosed flow {kind} `{}` opened here: close it with `{close}` (the parser stopped at line {}, column {}: {})",
+            u.open, at.line, at.col, parser.message
+        ),
+    };
+    SyntaxError {
+        pos: u.pos,
+        message,
+    }
+}
+
+/// A flow collection's opening bracket that the text does not close ([`unclosed_flow`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Unclosed {
+    /// `{` or `[`.
+    open: char,
+    /// Where it was written.
+    pos: Pos,
+    /// The closing bracket of the other kind met while it was the innermost open one, if that
+    /// is how it was found.
+    wrong_close: Option<(char, Pos)>,
+}
+
+/// The first flow collection the text leaves open, by a scan of its brackets: the innermost
+/// one open when a closing bracket of the other kind comes, when a line is indented no deeper
+/// than the block the outermost open one sits in (its content must be indented deeper), or
+/// at the end of the text. Quoted strings (escapes included), comments and block scalars
+/// (`|`, `>`) are skipped, and outside flow collections a bracket or a quote counts only where
+/// a node starts (after `key: `, `- `, at a line's start): `doc: it's [so]` is plain text.
+fn unclosed_flow(text: &str) -> Option<Unclosed> {
+    let mut open: Vec<(char, Pos)> = Vec::new();
+    // Lines indented no deeper than this close the block the outermost open collection is in.
+    let mut limit = 0isize;
+    let mut quote: Option<char> = None;
+    // The indentation of the line a block scalar starts on: deeper lines are its text.
+    let mut block_scalar: Option<usize> = None;
+    let left = |open: &mut Vec<(char, Pos)>| {
+        open.pop().map(|(c, pos)| Unclosed {
+            open: c,
+            pos,
+            wrong_close: None,
+        })
+    };
+    for (l, line) in text.lines().enumerate() {
+        let chars: Vec<char> = line.chars().collect();
+        let indent = chars.iter().take_while(|&&c| c == ' ').count();
+        let blank = matches!(chars.get(indent), None | Some('#'));
+        if let Some(n) = block_scalar {
+            if blank || indent > n {
+                continue;
+            }
+            block_scalar = None;
+        }
+        if quote.is_none() && !open.is_empty() && !blank && (indent as isize) <= limit {
+            return left(&mut open);
+        }
+        // Whether a node may start here.
+        let mut start = true;
+        let mut i = 0;
+        while i < chars.len() {
+            let c = chars[i];
+            let next = chars.get(i + 1).copied();
+            let flow = !open.is_empty();
+            if let Some(q) = quote {
+                match (q, c) {
+                    ('"', '\\') => i += 1,
+                    ('\'', '\'') if next == Some('\'') => i += 1,
+                    ('"', '"') | ('\'', '\'') => quote = None,
+                    _ => {}
+                }
+                i += 1;
+                continue;
+            }
+            match c {
+                ' ' | '\t' => {}
+                '#' if i == 0 || chars[i - 1].is_whitespace() => break,
+                '"' | '\'' if start => {
+                    quote = Some(c);
+                    start = false;
+                }
+                '{' | '[' if start || flow => {
+                    if !flow {
+                        // Content lines of a collection that opens its line belong to the
+                        // block above it; else to the line's own block.
+                        let opens_line = i == indent;
+                        limit = indent as isize - isize::from(opens_line);
+                    }
+                    open.push((
+                        c,
+                        Pos {
+                            line: l + 1,
+                            col: i + 1,
+                        },
+                    ));
+                    start = true;
+                }
+                '}' | ']' if flow => {
+                    let (o, pos) = open.pop()?;
+                    if (o == '{') != (c == '}') {
+                        return Some(Unclosed {
+                            open: o,
+                            pos,
+                            wrong_close: Some((
+                                c,
+                                Pos {
+                                    line: l + 1,
+                                    col: i + 1,
+                                },
+                            )),
+                        });
+                    }
+                    start = false;
+                }
+                ',' if flow => start = true,
+                ':' if flow || next.is_none_or(char::is_whitespace) => start = true,
+                '-' | '?' if start && !flow && next.is_none_or(char::is_whitespace) => {}
+                '|' | '>' if start && !flow => {
+                    block_scalar = Some(indent);
+                    break;
+                }
+                // An anchor or a tag: the node follows.
+                '&' | '!' if start => {
+                    while chars.get(i + 1).is_some_and(|c| !c.is_whitespace()) {
+                        i += 1;
+                    }
+                }
+                _ => start = false,
+            }
+            i += 1;
+        }
+    }
+    left(&mut open)
 }
 
 fn unbalanced(pos: Pos) -> SyntaxError {
@@ -429,6 +597,75 @@ mod tests {
         let e = parse(&text).unwrap_err();
         assert!(e.message.contains("aliases expanded"), "{e}");
         assert_eq!(e.pos.line, 5); // a4 would hold 111 111 nodes
+    }
+
+    /// The error of `text`, which must not parse.
+    fn error(text: &str) -> SyntaxError {
+        parse(text).expect_err("must be refused")
+    }
+
+    /// An unclosed `{` in a nested map is reported at the brace, not where the parser stopped
+    /// (the next key, a line later), with the parser's words kept.
+    #[test]
+    fn an_unclosed_flow_mapping_is_reported_where_it_opens() {
+        let text = "a:\n  b: {x: 1, y: 2\n  c: 3\nd: 4\n";
+        let e = error(text);
+        assert_eq!(e.pos, Pos { line: 2, col: 6 }, "{e}");
+        assert!(
+            e.message
+                .starts_with("unclosed flow mapping `{` opened here"),
+            "{e}"
+        );
+        assert!(e.message.contains("close it with `}`"), "{e}");
+        assert!(e.message.contains("the parser stopped at line 3"), "{e}");
+        // At the end of the text too.
+        let e = error("a: 1\nb: {x: 1,\n    y: 2\n");
+        assert_eq!(e.pos, Pos { line: 2, col: 4 }, "{e}");
+        assert!(e.message.contains("flow mapping"), "{e}");
+    }
+
+    /// An unclosed `[`, at the end of its line or closed by the wrong bracket.
+    #[test]
+    fn an_unclosed_flow_sequence_is_reported_where_it_opens() {
+        let e = error("a:\n  b: [1, 2\n  c: 3\n");
+        assert_eq!(e.pos, Pos { line: 2, col: 6 }, "{e}");
+        assert!(
+            e.message
+                .starts_with("unclosed flow sequence `[` opened here"),
+            "{e}"
+        );
+        assert!(e.message.contains("close it with `]`"), "{e}");
+        let e = error("a: {r: {f: [0.8, 1.2}, d: x}\nb: 1\n");
+        assert_eq!(e.pos, Pos { line: 1, col: 12 }, "{e}");
+        assert!(
+            e.message.contains("before the `}` at line 1, column 21"),
+            "{e}"
+        );
+    }
+
+    /// Brackets inside quoted strings, comments, block scalars and plain text do not count:
+    /// the `{` left open is the real one, and a document whose only fault is elsewhere keeps
+    /// the parser's message and position.
+    #[test]
+    fn quoted_and_plain_brackets_are_not_mistaken_for_flow_collections() {
+        let text = concat!(
+            "doc: >-\n  text with { and [\nnote: it's [so] {or} (not\n",
+            "a:\n  b: {d: \"}{\", e: '[''{', f: 1  # a } in a comment\n",
+            "  c: 3\n"
+        );
+        let e = error(text);
+        assert_eq!(e.pos, Pos { line: 5, col: 6 }, "{e}");
+        assert!(e.message.contains("flow mapping"), "{e}");
+        assert_eq!(unclosed_flow(&text.replace("f: 1 ", "f: 1}")), None);
+        // Balanced brackets, a different fault: the parser's own report.
+        let e = error("a: {x: 1 y: 2}\n");
+        assert!(!e.message.contains("unclosed"), "{e}");
+        assert_eq!(e.pos.line, 1);
+        // A bracket the scan finds unclosed but the parser never opened (it stopped before):
+        // the parser's report.
+        let e = error("a: b: c\nd: [1\n");
+        assert_eq!(e.pos.line, 1, "{e}");
+        assert!(!e.message.contains("unclosed"), "{e}");
     }
 
     #[test]

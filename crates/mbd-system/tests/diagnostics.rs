@@ -612,3 +612,31 @@ fn one_problem_is_one_line() {
     assert_eq!(r.lines().count(), 1, "{r}");
     assert!(r.contains("`m\\n+ 1 $`"), "{r}");
 }
+
+/// A flow mapping left open is reported at its `{` (file, line and column), not at the next
+/// key where the parser stops; so is a flow list closed by the wrong bracket.
+#[test]
+fn an_unclosed_flow_collection_is_reported_where_it_opens() {
+    let text = edit(
+        BASE,
+        "m: {unit: kg, nominal: 2, range: [1, 3]}",
+        "m: {unit: kg, nominal: 2, range: [1, 3]",
+    );
+    let r = report(&text);
+    let line = line_of(&text, "m: {unit: kg");
+    assert!(
+        r.starts_with(&format!(
+            "bad.yaml:{line}:6: not valid YAML: unclosed flow mapping `{{` opened here"
+        )),
+        "{r}"
+    );
+    assert_eq!(r.lines().count(), 1, "{r}");
+    let text = edit(BASE, "range: [1, 3]}", "range: [1, 3}");
+    let r = report(&text);
+    assert!(
+        r.starts_with(&format!(
+            "bad.yaml:{line}:36: not valid YAML: unclosed flow sequence `[` opened here"
+        )),
+        "{r}"
+    );
+}

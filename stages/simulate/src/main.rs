@@ -17,7 +17,9 @@
 //! `equilibrium` or `rest`, `startup_zero_fraction`, `startup_ramp_fraction`, `x0`), all
 //! required, and `system_values`. Everything is checked (the time step against each sample's
 //! stability bound included) before the first sample runs. In check mode: the description,
-//! the run controls, and the time step against the bound over the whole box of sampling ranges.
+//! the run controls, the moving points against the start of every generated profile they read
+//! (`file:line:col` of the profile) and the time step against the bound, both over the whole
+//! box of sampling ranges.
 
 use anyhow::{bail, Context, Result};
 use mbd_engine::{Profile, RunConfig, SampleInput, StartMode};
@@ -60,6 +62,8 @@ fn run() -> Result<String> {
     let (source, system) = pino_data::system::load(&p.system_values)?;
     let system = Arc::new(system);
     if ctx.is_check() {
+        mbd_engine::coverage::check_profile_starts_described(&source, &system, &config)
+            .with_context(|| format!("stage `{}`", ctx.stage))?;
         let (bound, corner) = mbd_engine::stability::parameter_box(&system, &config)
             .with_context(|| format!("stage `{}`: {}", ctx.stage, source.file))?;
         if let Err(e) = bound.check(config.dt) {
