@@ -6,7 +6,8 @@
 //! what the page plotted against the real `predict` and `simulate` outputs.
 //!
 //! Needs Node.js (20+) on PATH, `npm ci --prefix tests/browser` once, and Chromium at
-//! `/usr/bin/chromium` (or `CHROMIUM`); it fails, never skips, without them. With
+//! `/usr/bin/chromium` (or `CHROMIUM`), which `scripts/test` installs when they are missing;
+//! it fails, never skips, without them. With
 //! `EXPLORE_BENCH=1` the script also prints the slider-release-to-redraw latency (p50/p99 over
 //! 30 moves, measured in the page); nothing is asserted about it.
 
@@ -41,7 +42,8 @@ fn a_user_explores_designs_in_a_real_browser() {
         .unwrap_or_else(|e| {
             panic!(
                 "`node` (Node.js 20 or newer, from PATH) does not run: {e}; install it \
-                 (apt-get install nodejs npm), then `npm ci --prefix tests/browser`"
+                 (apt-get install nodejs npm), then `npm ci --prefix tests/browser` (or run \
+                 `scripts/test`, which installs what is missing)"
             )
         });
     println!("{}", output_text(&o));

@@ -8,30 +8,41 @@
 //! so the pipeline file's `bin_dir` (inside the workspace, as the orchestrator requires) and
 //! the README's `target/release/pipeline show` work there unchanged.
 //!
-//! Needs Python 3 with the pinned readers (`pip install -r tests/interop/requirements.txt`;
-//! `PINO_PYTHON` names another interpreter): without them this test fails, it never skips.
+//! Needs Python 3 with the pinned readers: `PINO_PYTHON` when set, else the virtual environment
+//! `scripts/test` installs them into (`target/test-env/python`) when it exists, else `python3`
+//! (`pip install -r tests/interop/requirements.txt`); without them this test fails, it never
+//! skips.
 
 use pino_mbd_tests::output_text;
 use pino_mbd_tests::{bin, pipeline_bin_dir, product_workspace, workspace_root, TINY};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-const INSTALL: &str = "pip install -r tests/interop/requirements.txt";
+const INSTALL: &str = "scripts/test --install-only` (into target/test-env/python) or `pip \
+     install -r tests/interop/requirements.txt";
 
-/// The Python interpreter, checked for the readers before any work is done.
+/// The Python interpreter (`PINO_PYTHON`, else `scripts/test`'s virtual environment when it
+/// exists, else `python3`), checked for the readers before any work is done.
 fn python() -> String {
-    let python = std::env::var("PINO_PYTHON").unwrap_or_else(|_| "python3".to_owned());
+    let venv = workspace_root().join("target/test-env/python/bin/python");
+    let python = std::env::var("PINO_PYTHON").unwrap_or_else(|_| {
+        if venv.is_file() {
+            venv.display().to_string()
+        } else {
+            "python3".to_owned()
+        }
+    });
     let probe = Command::new(&python)
         .args(["-c", "import pyarrow, polars, duckdb, pandas"])
         .output();
     match probe {
         Err(e) => panic!(
             "the interop test needs Python 3 (`{python}`: {e}) with pyarrow, polars, duckdb and \
-             pandas: install Python 3, then `{INSTALL}` (or set PINO_PYTHON)"
+             pandas: install Python 3, then run `{INSTALL}`, or set PINO_PYTHON"
         ),
         Ok(o) if !o.status.success() => panic!(
             "the interop test needs pyarrow, polars, duckdb and pandas in `{python}`: run \
-             `{INSTALL}` (or set PINO_PYTHON to an interpreter that has them)\n{}",
+             `{INSTALL}`, or set PINO_PYTHON to an interpreter that has them\n{}",
             String::from_utf8_lossy(&o.stderr)
         ),
         Ok(_) => python,
