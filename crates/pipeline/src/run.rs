@@ -315,38 +315,10 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
     let board = Board::open(&store.root, &p.key)?;
     executor.start();
     let mut rec = store.read_lock_record()?;
-    let mut entries = rec.pipelines.get(&p.key).cloned().unwrap_or_default();
+    let entries = rec.pipelines.get(&p.key).cloned().unwrap_or_default();
     let t_run = Instant::now();
 
-    let pos: HashMap<&str, usize> = units
-        .iter()
-        .enumerate()
-        .map(|(i, u)| (u.key.as_str(), i))
-        .collect();
-    let deps: Vec<Vec<(String, Vec<usize>)>> = units
-        .iter()
-        .map(|u| {
-            p.stages[u.stage]
-                .inputs
-                .iter()
-                .map(|(name, up)| {
-                    let ui = p.index(up).expect("validated");
-                    (
-                        name.clone(),
-                        units_of(p, ui)
-                            .iter()
-                            .map(|x| pos[x.key.as_str()])
-                            .collect(),
-                    )
-                })
-                .collect()
-        })
-        .collect();
-    let mut state = vec![State::Pending; units.len()];
-    let mut rows: Vec<Option<Vec<String>>> = vec![None; units.len()];
-    let mut failures = Vec::new();
-    let mut changed = false;
-    let mut ran = 0usize;
+    let mut ledger = Ledger::new(p, &units, entries);
     let cx = Ctx {
         p,
         store: &store,
@@ -362,68 +334,22 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
         let (tx, rx) = std::sync::mpsc::channel::<(usize, Outcome)>();
         let mut running = 0;
         loop {
-            let mut dispatch = Vec::new();
-            for i in 0..units.len() {
-                if !matches!(state[i], State::Pending) {
-                    continue;
-                }
-                let blocked = deps[i]
-                    .iter()
-                    .flat_map(|(_, v)| v)
-                    .find(|&&d| matches!(state[d], State::Failed | State::Skipped));
-                if let Some(&d) = blocked {
-                    state[i] = State::Skipped;
-                    rows[i] = Some(vec![
-                        units[i].key.clone(),
-                        "skipped".into(),
-                        "-".into(),
-                        format!("upstream {} did not finish", units[d].key),
-                    ]);
-                    continue;
-                }
-                let ready = deps[i]
-                    .iter()
-                    .flat_map(|(_, v)| v)
-                    .all(|&d| matches!(state[d], State::Done { .. }));
-                if !ready || running + dispatch.len() >= jobs {
-                    continue;
-                }
-                let mut inputs = BTreeMap::new();
-                let mut dirs = BTreeMap::new();
-                for (name, ups) in &deps[i] {
-                    let mut hashes = Vec::new();
-                    let mut ds = Vec::new();
-                    for &d in ups {
-                        if let State::Done {
-                            identity,
-                            output_hash,
-                        } = &state[d]
-                        {
-                            hashes.push(output_hash.clone());
-                            ds.push(store.out_dir(identity).to_string_lossy().into_owned());
-                        }
-                    }
-                    inputs.insert(name.clone(), hashes);
-                    dirs.insert(name.clone(), ds);
-                }
-                state[i] = State::Running;
-                dispatch.push((i, inputs, dirs));
-            }
+            let dispatch = ledger.dispatch(&store, jobs.saturating_sub(running));
             // Units of one stage expansion dispatched together form a batch (one Slurm
             // array job); the local executor ignores batches.
             let groups: Vec<(usize, usize)> = dispatch
                 .iter()
-                .map(|(i, _, _)| (units[*i].stage, units[*i].expansion))
+                .map(|d| (units[d.unit].stage, units[d.unit].expansion))
                 .collect();
             let tickets = executor.tickets(&groups);
-            for ((i, inputs, dirs), ticket) in dispatch.into_iter().zip(tickets) {
+            for (d, ticket) in dispatch.into_iter().zip(tickets) {
                 running += 1;
                 let tx = tx.clone();
-                let u = &units[i];
+                let u = &units[d.unit];
                 let force = forced.contains(&u.key);
                 let cx = &cx;
                 s.spawn(move || {
-                    let _ = tx.send((i, work(cx, u, inputs, dirs, force, ticket)));
+                    let _ = tx.send((d.unit, work(cx, u, d.inputs, d.dirs, force, ticket)));
                 });
             }
             if running == 0 {
@@ -431,54 +357,8 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
             }
             let (i, outcome) = rx.recv().expect("a worker is running");
             running -= 1;
-            let key = units[i].key.clone();
-            let (entry, manifest, row) = match outcome {
-                Outcome::Cached(e, m) => {
-                    let row = vec![
-                        key.clone(),
-                        "cached".into(),
-                        "-".into(),
-                        m.summary.clone().unwrap_or_default(),
-                    ];
-                    (e, m, row)
-                }
-                Outcome::Ran(e, m, took) => {
-                    ran += 1;
-                    let row = vec![
-                        key.clone(),
-                        "ran".into(),
-                        fmt_duration(took),
-                        m.summary.clone().unwrap_or_default(),
-                    ];
-                    (e, m, row)
-                }
-                Outcome::Failed(msg, took) => {
-                    ui.line(&format!(
-                        "[{key}] FAILED after {}: {msg}",
-                        fmt_duration(took)
-                    ));
-                    state[i] = State::Failed;
-                    rows[i] = Some(vec![
-                        key.clone(),
-                        "FAILED".into(),
-                        fmt_duration(took),
-                        String::new(),
-                    ]);
-                    failures.push(key);
-                    continue;
-                }
-            };
-            let mut entry = entry;
-            entry.output_hash = manifest.output_hash.clone();
-            state[i] = State::Done {
-                identity: entry.identity.clone(),
-                output_hash: manifest.output_hash.clone(),
-            };
-            rows[i] = Some(row);
-            if entries.get(&key) != Some(&entry) {
-                entries.insert(key, entry);
-                changed = true;
-                prune(&mut rec, p, &entries);
+            if ledger.record(i, outcome, ui) {
+                prune(&mut rec, p, &ledger.entries);
                 if let Err(err) = store.write_lock_record(&rec) {
                     save_error.get_or_insert(err);
                 }
@@ -489,30 +369,200 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
     if let Some(e) = save_error {
         return Err(e);
     }
-    let rows: Vec<Vec<String>> = rows.into_iter().flatten().collect();
-    if ran == 0 && failures.is_empty() && !changed {
-        println!(
-            "Nothing to do: all {} units of {} are up to date.",
-            rows.len(),
-            p.file
-        );
-        return Ok(());
+    ledger.report(&p.file, t_run.elapsed())
+}
+
+/// A ready unit handed to a worker: its upstream outputs' content hashes (for its identity)
+/// and directories (for its context), by input name.
+struct Dispatch {
+    unit: usize,
+    inputs: BTreeMap<String, Vec<String>>,
+    dirs: BTreeMap<String, Vec<String>>,
+}
+
+/// The run's account of its units: what each waits for, where each stands, the rows of the
+/// final table and the lock-record entries as they change.
+struct Ledger<'a> {
+    units: &'a [Unit],
+    /// Per unit, per input name: the positions of the upstream units it reads.
+    deps: Vec<Vec<(String, Vec<usize>)>>,
+    state: Vec<State>,
+    rows: Vec<Option<Vec<String>>>,
+    failures: Vec<String>,
+    /// This pipeline's lock-record entries, updated as units finish.
+    entries: BTreeMap<String, LockEntry>,
+    changed: bool,
+    ran: usize,
+}
+
+impl<'a> Ledger<'a> {
+    fn new(p: &Pipeline, units: &'a [Unit], entries: BTreeMap<String, LockEntry>) -> Self {
+        let pos: HashMap<&str, usize> = units
+            .iter()
+            .enumerate()
+            .map(|(i, u)| (u.key.as_str(), i))
+            .collect();
+        let deps = units
+            .iter()
+            .map(|u| {
+                p.stages[u.stage]
+                    .inputs
+                    .iter()
+                    .map(|(name, up)| {
+                        let ui = p.index(up).expect("validated");
+                        let ups = units_of(p, ui)
+                            .iter()
+                            .map(|x| pos[x.key.as_str()])
+                            .collect();
+                        (name.clone(), ups)
+                    })
+                    .collect()
+            })
+            .collect();
+        Self {
+            units,
+            deps,
+            state: vec![State::Pending; units.len()],
+            rows: vec![None; units.len()],
+            failures: Vec::new(),
+            entries,
+            changed: false,
+            ran: 0,
+        }
     }
-    print!("{}", table(&["UNIT", "RESULT", "TIME", "SUMMARY"], &rows));
-    let cached = rows.iter().filter(|r| r[1] == "cached").count();
-    let skipped = rows.iter().filter(|r| r[1] == "skipped").count();
-    println!(
-        "{ran} ran, {cached} cached, {} failed, {skipped} skipped in {}",
-        failures.len(),
-        fmt_duration(t_run.elapsed())
-    );
-    if failures.is_empty() {
-        Ok(())
-    } else {
-        Err(Error::StageFailed {
-            count: failures.len(),
-            names: failures.join(", "),
-        })
+
+    /// Marks the pending units whose upstream failed as skipped, and takes up to `free` ready
+    /// ones (every upstream unit done) as running, in unit order.
+    fn dispatch(&mut self, store: &Store, free: usize) -> Vec<Dispatch> {
+        let mut out = Vec::new();
+        for i in 0..self.units.len() {
+            if !matches!(self.state[i], State::Pending) {
+                continue;
+            }
+            let mut upstream = self.deps[i].iter().flat_map(|(_, v)| v);
+            if let Some(&d) =
+                upstream.find(|&&d| matches!(self.state[d], State::Failed | State::Skipped))
+            {
+                self.state[i] = State::Skipped;
+                self.rows[i] = Some(vec![
+                    self.units[i].key.clone(),
+                    "skipped".into(),
+                    "-".into(),
+                    format!("upstream {} did not finish", self.units[d].key),
+                ]);
+                continue;
+            }
+            let ready = self.deps[i]
+                .iter()
+                .flat_map(|(_, v)| v)
+                .all(|&d| matches!(self.state[d], State::Done { .. }));
+            if !ready || out.len() >= free {
+                continue;
+            }
+            let mut inputs = BTreeMap::new();
+            let mut dirs = BTreeMap::new();
+            for (name, ups) in &self.deps[i] {
+                let mut hashes = Vec::new();
+                let mut ds = Vec::new();
+                for &d in ups {
+                    if let State::Done {
+                        identity,
+                        output_hash,
+                    } = &self.state[d]
+                    {
+                        hashes.push(output_hash.clone());
+                        ds.push(store.out_dir(identity).to_string_lossy().into_owned());
+                    }
+                }
+                inputs.insert(name.clone(), hashes);
+                dirs.insert(name.clone(), ds);
+            }
+            self.state[i] = State::Running;
+            out.push(Dispatch {
+                unit: i,
+                inputs,
+                dirs,
+            });
+        }
+        out
+    }
+
+    /// Books a finished unit; true when the lock-record entries changed (to be saved).
+    fn record(&mut self, i: usize, outcome: Outcome, ui: &Ui) -> bool {
+        let key = self.units[i].key.clone();
+        let (mut entry, manifest, row) = match outcome {
+            Outcome::Cached(e, m) => {
+                let summary = m.summary.clone().unwrap_or_default();
+                (
+                    e,
+                    m,
+                    vec![key.clone(), "cached".into(), "-".into(), summary],
+                )
+            }
+            Outcome::Ran(e, m, took) => {
+                self.ran += 1;
+                let summary = m.summary.clone().unwrap_or_default();
+                let row = vec![key.clone(), "ran".into(), fmt_duration(took), summary];
+                (e, m, row)
+            }
+            Outcome::Failed(msg, took) => {
+                ui.line(&format!(
+                    "[{key}] FAILED after {}: {msg}",
+                    fmt_duration(took)
+                ));
+                self.state[i] = State::Failed;
+                self.rows[i] = Some(vec![
+                    key.clone(),
+                    "FAILED".into(),
+                    fmt_duration(took),
+                    String::new(),
+                ]);
+                self.failures.push(key);
+                return false;
+            }
+        };
+        entry.output_hash = manifest.output_hash.clone();
+        self.state[i] = State::Done {
+            identity: entry.identity.clone(),
+            output_hash: manifest.output_hash,
+        };
+        self.rows[i] = Some(row);
+        if self.entries.get(&key) == Some(&entry) {
+            return false;
+        }
+        self.entries.insert(key, entry);
+        self.changed = true;
+        true
+    }
+
+    /// Prints the run's table and totals (or that nothing was to do); the failures as the
+    /// error.
+    fn report(self, file: &str, elapsed: Duration) -> Result<()> {
+        let rows: Vec<Vec<String>> = self.rows.into_iter().flatten().collect();
+        if self.ran == 0 && self.failures.is_empty() && !self.changed {
+            println!(
+                "Nothing to do: all {} units of {file} are up to date.",
+                rows.len()
+            );
+            return Ok(());
+        }
+        print!("{}", table(&["UNIT", "RESULT", "TIME", "SUMMARY"], &rows));
+        let cached = rows.iter().filter(|r| r[1] == "cached").count();
+        let skipped = rows.iter().filter(|r| r[1] == "skipped").count();
+        println!(
+            "{} ran, {cached} cached, {} failed, {skipped} skipped in {}",
+            self.ran,
+            self.failures.len(),
+            fmt_duration(elapsed)
+        );
+        if self.failures.is_empty() {
+            Ok(())
+        } else {
+            Err(Error::StageFailed {
+                count: self.failures.len(),
+                names: self.failures.join(", "),
+            })
+        }
     }
 }
 

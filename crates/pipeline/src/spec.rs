@@ -323,9 +323,371 @@ fn render(v: &Value) -> String {
     }
 }
 
+/// The pipeline file being loaded, for errors that name it and a line of it.
+struct SourceFile<'a> {
+    /// The file as named on the command line.
+    display: &'a str,
+    /// Finds the lines of stages, fields and words.
+    loc: Locator<'a>,
+}
+
+impl SourceFile<'_> {
+    /// A semantic error at `line`.
+    fn err(&self, line: usize, message: String) -> Error {
+        Error::Spec {
+            file: self.display.to_owned(),
+            line,
+            message,
+        }
+    }
+
+    /// The names of `map`'s keys, for "known: ..." lists in messages.
+    fn known<V>(map: &BTreeMap<String, V>) -> String {
+        map.keys()
+            .map(String::as_str)
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// A stage while the pipeline is loaded: its definition, and its parameters and matrix before
+/// the overrides, constants and expansion are applied.
+struct Draft {
+    stage: Stage,
+    params: Map<String, Value>,
+    matrix: BTreeMap<String, Vec<Value>>,
+}
+
+/// Parses the YAML strictly; an error names the file, line and column (a duplicate key at the
+/// duplicate itself).
+fn parse_yaml(text: &str, display: &str) -> Result<RawPipeline> {
+    serde_yaml::from_str(text).map_err(|e| {
+        let (mut line, mut column) = e.location().map_or((1, 1), |l| (l.line(), l.column()));
+        // serde_yaml places a duplicate-key error at the mapping's start; point at the
+        // duplicate itself when the text shows it.
+        let msg = e.to_string();
+        if let Some(key) = msg
+            .split("duplicate key `")
+            .nth(1)
+            .and_then(|r| r.split('`').next())
+        {
+            if let Some(l) = Locator::new(text).duplicate_line(line, key) {
+                (line, column) = (l, 1);
+            }
+        }
+        Error::Yaml {
+            file: display.to_owned(),
+            line,
+            column,
+            message: msg,
+        }
+    })
+}
+
+/// Checks one stage's own fields (its name, command, shards, resources, input names and
+/// matrix keys) and drafts it.
+fn draft_stage(
+    src: &SourceFile,
+    workspace: &Path,
+    base: &Path,
+    name: String,
+    rs: RawStage,
+) -> Result<Draft> {
+    let loc = &src.loc;
+    let line = loc.stage_line(&name);
+    if !valid_name(&name) {
+        return Err(src.err(
+            line,
+            format!("stage name `{name}` may only use letters, digits, `_` and `-`"),
+        ));
+    }
+    if rs.cmd.is_empty() || rs.cmd[0].is_empty() {
+        return Err(src.err(
+            loc.field_line(&name, "cmd"),
+            format!("stage `{name}`: `cmd` must name a program"),
+        ));
+    }
+    let exe = &rs.cmd[0];
+    if exe.contains('/') {
+        if let Some(why) = escape(workspace, base, exe) {
+            return Err(src.err(
+                loc.field_line(&name, "cmd"),
+                format!("stage `{name}`: command `{exe}` {why} (or use a bare name)"),
+            ));
+        }
+    }
+    let shards = rs.shards.unwrap_or(1);
+    if shards == 0 {
+        return Err(src.err(
+            loc.field_line(&name, "shards"),
+            format!("stage `{name}`: `shards` must be at least 1"),
+        ));
+    }
+    let resources = rs.resources.unwrap_or_default();
+    resources.check().map_err(|why| {
+        src.err(
+            loc.field_line(&name, "resources"),
+            format!("stage `{name}`: {why}"),
+        )
+    })?;
+    let inputs = rs.inputs.map(|m| m.0).unwrap_or_default();
+    if let Some(input) = inputs.keys().find(|i| !valid_name(i)) {
+        return Err(src.err(
+            loc.field_line(&name, "inputs"),
+            format!(
+                "stage `{name}`: input name `{input}` may only use letters, digits, `_` and `-`"
+            ),
+        ));
+    }
+    let params: Map<String, Value> = rs
+        .params
+        .map(|m| m.0.into_iter().collect())
+        .unwrap_or_default();
+    let matrix = rs.matrix.map(|m| m.0).unwrap_or_default();
+    for (k, values) in &matrix {
+        let l = loc.word_line(&name, "matrix", k);
+        if params.contains_key(k) {
+            return Err(src.err(
+                l,
+                format!(
+                    "stage `{name}`: matrix key `{k}` is also a parameter; keep it in one place"
+                ),
+            ));
+        }
+        if values.is_empty() {
+            return Err(src.err(l, format!("stage `{name}`: matrix key `{k}` has no values")));
+        }
+        let mut seen = std::collections::BTreeSet::new();
+        if let Some(v) = values.iter().find(|v| !seen.insert(render(v))) {
+            return Err(src.err(
+                l,
+                format!("stage `{name}`: matrix key `{k}` has the value `{}` twice (values name units: give each its own)", render(v)),
+            ));
+        }
+    }
+    Ok(Draft {
+        stage: Stage {
+            name,
+            line,
+            cmd: rs.cmd,
+            inputs,
+            shards,
+            expansions: Vec::new(),
+            overrides: Vec::new(),
+            resources,
+            check: rs.check.unwrap_or(false),
+        },
+        params,
+        matrix,
+    })
+}
+
+/// Every input names a stage of the pipeline.
+fn check_inputs(src: &SourceFile, drafts: &BTreeMap<String, Draft>) -> Result<()> {
+    for (name, draft) in drafts {
+        for (input, up) in &draft.stage.inputs {
+            if !drafts.contains_key(up) {
+                return Err(src.err(
+                    src.loc.word_line(name, "inputs", up),
+                    format!(
+                        "stage `{name}`: input `{input}` depends on unknown stage `{up}` (stages: {})",
+                        SourceFile::known(drafts)
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Applies one `--set STAGE.KEY=VALUE` (or `constants.NAME[.KEY]=VALUE`): the target must
+/// exist, and the value takes the type of the value it replaces.
+fn apply_set(
+    src: &SourceFile,
+    set: &str,
+    constants: &mut Map<String, Value>,
+    drafts: &mut BTreeMap<String, Draft>,
+) -> Result<()> {
+    let usage = || Error::Usage(format!("--set `{set}`: expected STAGE.KEY=VALUE"));
+    let (lhs, raw_value) = set.split_once('=').ok_or_else(usage)?;
+    let (sname, key) = lhs.split_once('.').ok_or_else(usage)?;
+    if sname == crate::constants::SECTION {
+        return set_constant(src, set, key, raw_value, constants);
+    }
+    let Some(draft) = drafts.get_mut(sname) else {
+        return Err(src.err(
+            src.loc.top_line("stages"),
+            format!(
+                "--set {set}: no stage `{sname}` in this pipeline (stages: {})",
+                SourceFile::known(drafts)
+            ),
+        ));
+    };
+    if draft.matrix.contains_key(key) {
+        return Err(src.err(
+            src.loc.word_line(sname, "matrix", key),
+            format!("--set {set}: `{key}` is a matrix key of stage `{sname}`; run one expansion with `pipeline run '{sname}[{key}=...]'`"),
+        ));
+    }
+    let Some(existing) = draft.params.get(key) else {
+        let known: Vec<&str> = draft.params.keys().map(String::as_str).collect();
+        return Err(src.err(
+            src.loc.field_line(sname, "params"),
+            format!(
+                "--set {set}: stage `{sname}` has no parameter `{key}` (parameters: {})",
+                known.join(", ")
+            ),
+        ));
+    };
+    if let Some(name) = crate::constants::reference(existing) {
+        return Err(src.err(
+            src.loc.word_line(sname, "params", key),
+            format!("--set {set}: `{sname}.{key}` takes its value from constant `{name}`; set it for every stage with `--set constants.{name}=...`"),
+        ));
+    }
+    let value = override_value(set, raw_value, existing, &format!("`{sname}.{key}`"), |m| {
+        src.err(src.loc.word_line(sname, "params", key), m)
+    })?;
+    draft.params.insert(key.to_owned(), value);
+    draft.stage.overrides.push(format!("{key}={raw_value}"));
+    Ok(())
+}
+
+/// `--set constants.NAME=VALUE`, or `constants.NAME.KEY=VALUE` for one entry of a mapping
+/// constant (its consumer checks the names: a system description's parameter overrides, for
+/// one).
+fn set_constant(
+    src: &SourceFile,
+    set: &str,
+    key: &str,
+    raw_value: &str,
+    constants: &mut Map<String, Value>,
+) -> Result<()> {
+    let line = src.loc.top_line(crate::constants::SECTION);
+    let what = format!("constant `{key}`");
+    if let Some((name, sub)) = key.split_once('.') {
+        let Some(Value::Object(map)) = constants.get_mut(name) else {
+            return Err(src.err(
+                line,
+                format!("--set {set}: `constants.{name}` is not a mapping constant, so `{sub}` cannot be set inside it"),
+            ));
+        };
+        let existing = map.get(sub).cloned().unwrap_or(Value::Null);
+        let value = override_value(set, raw_value, &existing, &what, |m| src.err(line, m))?;
+        map.insert(sub.to_owned(), value);
+        return Ok(());
+    }
+    let Some(existing) = constants.get(key) else {
+        let known: Vec<&str> = constants.keys().map(String::as_str).collect();
+        return Err(src.err(
+            line,
+            format!(
+                "--set {set}: no constant `{key}` in this pipeline (constants: {})",
+                known.join(", ")
+            ),
+        ));
+    };
+    let value = override_value(set, raw_value, existing, &what, |m| src.err(line, m))?;
+    constants.insert(key.to_owned(), value);
+    Ok(())
+}
+
+/// Every `${constants.NAME}` of the stage's parameters becomes the (possibly overridden)
+/// value; so does a whole command argument that is one (a system description's path, say,
+/// so the file it names is hashed as any argument).
+fn substitute_constants(
+    src: &SourceFile,
+    draft: &mut Draft,
+    constants: &Map<String, Value>,
+) -> Result<()> {
+    let known = || {
+        constants
+            .keys()
+            .map(String::as_str)
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let stage = &mut draft.stage;
+    for (key, value) in draft.params.iter_mut() {
+        crate::constants::substitute(value, constants).map_err(|name| {
+            src.err(
+                src.loc.word_line(&stage.name, "params", key),
+                format!(
+                    "stage `{}`: parameter `{key}` refers to unknown constant `{name}` (constants: {})",
+                    stage.name,
+                    known()
+                ),
+            )
+        })?;
+    }
+    for arg in stage.cmd.iter_mut().skip(1) {
+        let Some(name) =
+            crate::constants::reference(&Value::String(arg.clone())).map(str::to_owned)
+        else {
+            continue;
+        };
+        let line = src.loc.field_line(&stage.name, "cmd");
+        *arg = match constants.get(&name) {
+            Some(Value::String(text)) => text.clone(),
+            Some(v @ (Value::Number(_) | Value::Bool(_))) => v.to_string(),
+            Some(_) => {
+                return Err(src.err(line, format!("stage `{}`: command argument `${{constants.{name}}}` must name a string or number constant, not a list or mapping", stage.name)))
+            }
+            None => {
+                return Err(src.err(line, format!("stage `{}`: command argument refers to unknown constant `{name}` (constants: {})", stage.name, known())));
+            }
+        };
+    }
+    Ok(())
+}
+
+/// The stage's expansions: the cartesian product of its matrix values over the keys in
+/// sorted order, each named `stage[key=value,...]` (the stage's own name without a matrix).
+fn expand_matrix(draft: &mut Draft) {
+    let mut combos: Vec<Vec<(String, Value)>> = vec![Vec::new()];
+    for (k, values) in &draft.matrix {
+        combos = combos
+            .into_iter()
+            .flat_map(|c| {
+                values.iter().map(move |v| {
+                    let mut c = c.clone();
+                    c.push((k.clone(), v.clone()));
+                    c
+                })
+            })
+            .collect();
+    }
+    let stage = &mut draft.stage;
+    stage.expansions = combos
+        .into_iter()
+        .map(|combo| {
+            let mut p = draft.params.clone();
+            let label: Vec<String> = combo
+                .iter()
+                .map(|(k, v)| format!("{k}={}", render(v)))
+                .collect();
+            for (k, v) in combo {
+                p.insert(k, v);
+            }
+            Expansion {
+                name: if label.is_empty() {
+                    stage.name.clone()
+                } else {
+                    format!("{}[{}]", stage.name, label.join(","))
+                },
+                params: Value::Object(p),
+            }
+        })
+        .collect();
+}
+
 impl Pipeline {
     /// Reads, parses and validates the pipeline file `file` (relative to the current
     /// directory) of the workspace `workspace`.
+    ///
+    /// The phases, in order: the YAML, each stage's own fields ([`draft_stage`]), the
+    /// dependencies, the `--set` overrides ([`apply_set`]), the constants
+    /// ([`substitute_constants`]), the matrix ([`expand_matrix`]) and the dependency order.
     pub fn load(workspace: &Path, file: &Path, opts: &LoadOptions) -> Result<Self> {
         let display = file.display().to_string();
         let text = std::fs::read_to_string(file)
@@ -338,41 +700,16 @@ impl Pipeline {
             .unwrap_or_else(|_| abs_file.to_string_lossy().into_owned());
         let base = abs_file.parent().unwrap_or(&workspace).to_path_buf();
 
-        let raw: RawPipeline = serde_yaml::from_str(&text).map_err(|e| {
-            let (mut line, mut column) = e.location().map_or((1, 1), |l| (l.line(), l.column()));
-            // serde_yaml places a duplicate-key error at the mapping's start; point at the
-            // duplicate itself when the text shows it.
-            let msg = e.to_string();
-            if let Some(key) = msg
-                .split("duplicate key `")
-                .nth(1)
-                .and_then(|r| r.split('`').next())
-            {
-                if let Some(l) = Locator::new(&text).duplicate_line(line, key) {
-                    (line, column) = (l, 1);
-                }
-            }
-            Error::Yaml {
-                file: display.clone(),
-                line,
-                column,
-                message: e.to_string(),
-            }
-        })?;
-        let loc = Locator::new(&text);
-        let spec_err = |line: usize, message: String| Error::Spec {
-            file: display.clone(),
-            line,
-            message,
+        let raw = parse_yaml(&text, &display)?;
+        let src = SourceFile {
+            display: &display,
+            loc: Locator::new(&text),
         };
 
         // bin_dir: the command line wins, then the environment, then the file.
         if let Some(d) = &raw.bin_dir {
             if let Some(why) = escape(&workspace, &base, d) {
-                return Err(spec_err(
-                    loc.top_line("bin_dir"),
-                    format!("bin_dir `{d}` {why}"),
-                ));
+                return Err(src.err(src.loc.top_line("bin_dir"), format!("bin_dir `{d}` {why}")));
             }
         }
         let bin_dir = match (&opts.bin_dir, &raw.bin_dir) {
@@ -382,294 +719,35 @@ impl Pipeline {
         };
 
         let mut constants: Map<String, Value> = raw.constants.0.into_iter().collect();
-        let mut stages = BTreeMap::new();
+        let mut drafts = BTreeMap::new();
         for (name, rs) in raw.stages.0 {
-            let line = loc.stage_line(&name);
-            if !valid_name(&name) {
-                return Err(spec_err(
-                    line,
-                    format!("stage name `{name}` may only use letters, digits, `_` and `-`"),
-                ));
-            }
-            if rs.cmd.is_empty() || rs.cmd[0].is_empty() {
-                return Err(spec_err(
-                    loc.field_line(&name, "cmd"),
-                    format!("stage `{name}`: `cmd` must name a program"),
-                ));
-            }
-            let exe = &rs.cmd[0];
-            if exe.contains('/') {
-                if let Some(why) = escape(&workspace, &base, exe) {
-                    return Err(spec_err(
-                        loc.field_line(&name, "cmd"),
-                        format!("stage `{name}`: command `{exe}` {why} (or use a bare name)"),
-                    ));
-                }
-            }
-            let shards = rs.shards.unwrap_or(1);
-            if shards == 0 {
-                return Err(spec_err(
-                    loc.field_line(&name, "shards"),
-                    format!("stage `{name}`: `shards` must be at least 1"),
-                ));
-            }
-            let resources = rs.resources.unwrap_or_default();
-            resources.check().map_err(|why| {
-                spec_err(
-                    loc.field_line(&name, "resources"),
-                    format!("stage `{name}`: {why}"),
-                )
-            })?;
-            let inputs = rs.inputs.map(|m| m.0).unwrap_or_default();
-            for input in inputs.keys() {
-                if !valid_name(input) {
-                    return Err(spec_err(
-                        loc.field_line(&name, "inputs"),
-                        format!("stage `{name}`: input name `{input}` may only use letters, digits, `_` and `-`"),
-                    ));
-                }
-            }
-            let params: Map<String, Value> = rs
-                .params
-                .map(|m| m.0.into_iter().collect())
-                .unwrap_or_default();
-            let matrix = rs.matrix.map(|m| m.0).unwrap_or_default();
-            for (k, values) in &matrix {
-                let l = loc.word_line(&name, "matrix", k);
-                if params.contains_key(k) {
-                    return Err(spec_err(l, format!("stage `{name}`: matrix key `{k}` is also a parameter; keep it in one place")));
-                }
-                if values.is_empty() {
-                    return Err(spec_err(
-                        l,
-                        format!("stage `{name}`: matrix key `{k}` has no values"),
-                    ));
-                }
-                let mut seen = std::collections::BTreeSet::new();
-                if let Some(v) = values.iter().find(|v| !seen.insert(render(v))) {
-                    return Err(spec_err(
-                        l,
-                        format!("stage `{name}`: matrix key `{k}` has the value `{}` twice (values name units: give each its own)", render(v)),
-                    ));
-                }
-            }
-            stages.insert(
-                name.clone(),
-                (
-                    Stage {
-                        name,
-                        line,
-                        cmd: rs.cmd,
-                        inputs,
-                        shards,
-                        expansions: Vec::new(),
-                        overrides: Vec::new(),
-                        resources,
-                        check: rs.check.unwrap_or(false),
-                    },
-                    params,
-                    matrix,
-                ),
-            );
+            let draft = draft_stage(&src, &workspace, &base, name.clone(), rs)?;
+            drafts.insert(name, draft);
         }
-
-        // Dependencies exist.
-        for (name, (stage, _, _)) in &stages {
-            for (input, up) in &stage.inputs {
-                if !stages.contains_key(up) {
-                    let known: Vec<&str> = stages.keys().map(String::as_str).collect();
-                    return Err(spec_err(
-                        loc.word_line(name, "inputs", up),
-                        format!("stage `{name}`: input `{input}` depends on unknown stage `{up}` (stages: {})", known.join(", ")),
-                    ));
-                }
-            }
-        }
-
-        // --set overrides.
+        check_inputs(&src, &drafts)?;
         for set in &opts.sets {
-            let (lhs, raw_value) = set
-                .split_once('=')
-                .ok_or_else(|| Error::Usage(format!("--set `{set}`: expected STAGE.KEY=VALUE")))?;
-            let (sname, key) = lhs
-                .split_once('.')
-                .ok_or_else(|| Error::Usage(format!("--set `{set}`: expected STAGE.KEY=VALUE")))?;
-            if sname == crate::constants::SECTION {
-                // `constants.NAME.KEY=VALUE` sets one entry of a mapping constant (its consumer
-                // checks the names: a system description's parameter overrides, for one).
-                if let Some((name, sub)) = key.split_once('.') {
-                    let Some(Value::Object(map)) = constants.get_mut(name) else {
-                        return Err(spec_err(
-                            loc.top_line(crate::constants::SECTION),
-                            format!("--set {set}: `constants.{name}` is not a mapping constant, so `{sub}` cannot be set inside it"),
-                        ));
-                    };
-                    let existing = map.get(sub).cloned().unwrap_or(Value::Null);
-                    let value = override_value(
-                        set,
-                        raw_value,
-                        &existing,
-                        &format!("constant `{key}`"),
-                        |m| spec_err(loc.top_line(crate::constants::SECTION), m),
-                    )?;
-                    map.insert(sub.to_owned(), value);
-                    continue;
-                }
-                let Some(existing) = constants.get(key) else {
-                    let known: Vec<&str> = constants.keys().map(String::as_str).collect();
-                    return Err(spec_err(
-                        loc.top_line(crate::constants::SECTION),
-                        format!(
-                            "--set {set}: no constant `{key}` in this pipeline (constants: {})",
-                            known.join(", ")
-                        ),
-                    ));
-                };
-                let value = override_value(
-                    set,
-                    raw_value,
-                    existing,
-                    &format!("constant `{key}`"),
-                    |m| spec_err(loc.top_line(crate::constants::SECTION), m),
-                )?;
-                constants.insert(key.to_owned(), value);
-                continue;
-            }
-            if !stages.contains_key(sname) {
-                let known: Vec<&str> = stages.keys().map(String::as_str).collect();
-                return Err(spec_err(
-                    loc.top_line("stages"),
-                    format!(
-                        "--set {set}: no stage `{sname}` in this pipeline (stages: {})",
-                        known.join(", ")
-                    ),
-                ));
-            }
-            let (stage, params, matrix) = stages.get_mut(sname).expect("checked");
-            if matrix.contains_key(key) {
-                return Err(spec_err(
-                    loc.word_line(sname, "matrix", key),
-                    format!("--set {set}: `{key}` is a matrix key of stage `{sname}`; run one expansion with `pipeline run '{sname}[{key}=...]'`"),
-                ));
-            }
-            let Some(existing) = params.get(key) else {
-                let known: Vec<&str> = params.keys().map(String::as_str).collect();
-                return Err(spec_err(
-                    loc.field_line(sname, "params"),
-                    format!(
-                        "--set {set}: stage `{sname}` has no parameter `{key}` (parameters: {})",
-                        known.join(", ")
-                    ),
-                ));
-            };
-            if let Some(name) = crate::constants::reference(existing) {
-                return Err(spec_err(
-                    loc.word_line(sname, "params", key),
-                    format!("--set {set}: `{sname}.{key}` takes its value from constant `{name}`; set it for every stage with `--set constants.{name}=...`"),
-                ));
-            }
-            let value =
-                override_value(set, raw_value, existing, &format!("`{sname}.{key}`"), |m| {
-                    spec_err(loc.word_line(sname, "params", key), m)
-                })?;
-            params.insert(key.to_owned(), value);
-            stage.overrides.push(format!("{key}={raw_value}"));
+            apply_set(&src, set, &mut constants, &mut drafts)?;
         }
-
-        // Constants: every `${constants.NAME}` becomes the (possibly overridden) value.
-        for (stage, params, _) in stages.values_mut() {
-            for (key, value) in params.iter_mut() {
-                crate::constants::substitute(value, &constants).map_err(|name| {
-                    let known: Vec<&str> = constants.keys().map(String::as_str).collect();
-                    spec_err(
-                        loc.word_line(&stage.name, "params", key),
-                        format!(
-                            "stage `{}`: parameter `{key}` refers to unknown constant `{name}` (constants: {})",
-                            stage.name,
-                            known.join(", ")
-                        ),
-                    )
-                })?;
-            }
-        }
-
-        // Constants in command arguments (a system description's path, say): a whole-argument
-        // reference takes the constant's text, so the file it names is hashed as any argument.
-        for (stage, _, _) in stages.values_mut() {
-            for arg in stage.cmd.iter_mut().skip(1) {
-                let Some(name) =
-                    crate::constants::reference(&Value::String(arg.clone())).map(str::to_owned)
-                else {
-                    continue;
-                };
-                let line = loc.field_line(&stage.name, "cmd");
-                *arg = match constants.get(&name) {
-                    Some(Value::String(text)) => text.clone(),
-                    Some(v @ (Value::Number(_) | Value::Bool(_))) => v.to_string(),
-                    Some(_) => {
-                        return Err(spec_err(line, format!("stage `{}`: command argument `${{constants.{name}}}` must name a string or number constant, not a list or mapping", stage.name)))
-                    }
-                    None => {
-                        let known: Vec<&str> = constants.keys().map(String::as_str).collect();
-                        return Err(spec_err(line, format!("stage `{}`: command argument refers to unknown constant `{name}` (constants: {})", stage.name, known.join(", "))));
-                    }
-                };
-            }
-        }
-
-        // Matrix expansion: the cartesian product over the keys in sorted order.
-        for (stage, params, matrix) in stages.values_mut() {
-            let mut combos: Vec<Vec<(String, Value)>> = vec![Vec::new()];
-            for (k, values) in matrix.iter() {
-                combos = combos
-                    .into_iter()
-                    .flat_map(|c| {
-                        values.iter().map(move |v| {
-                            let mut c = c.clone();
-                            c.push((k.clone(), v.clone()));
-                            c
-                        })
-                    })
-                    .collect();
-            }
-            stage.expansions = combos
-                .into_iter()
-                .map(|combo| {
-                    let mut p = params.clone();
-                    let label: Vec<String> = combo
-                        .iter()
-                        .map(|(k, v)| format!("{k}={}", render(v)))
-                        .collect();
-                    for (k, v) in combo {
-                        p.insert(k, v);
-                    }
-                    Expansion {
-                        name: if label.is_empty() {
-                            stage.name.clone()
-                        } else {
-                            format!("{}[{}]", stage.name, label.join(","))
-                        },
-                        params: Value::Object(p),
-                    }
-                })
-                .collect();
+        for draft in drafts.values_mut() {
+            substitute_constants(&src, draft, &constants)?;
+            expand_matrix(draft);
         }
 
         let order = topo_order(
-            &stages
+            &drafts
                 .iter()
-                .map(|(k, v)| (k.clone(), v.0.inputs.values().cloned().collect()))
+                .map(|(k, d)| (k.clone(), d.stage.inputs.values().cloned().collect()))
                 .collect(),
         )
         .map_err(|cycle| {
-            spec_err(
-                loc.word_line(&cycle[0], "inputs", &cycle[1]),
+            src.err(
+                src.loc.word_line(&cycle[0], "inputs", &cycle[1]),
                 format!("dependency cycle: {}", cycle.join(" -> ")),
             )
         })?;
         let stages = order
             .into_iter()
-            .map(|n| stages.remove(&n).expect("known stage").0)
+            .map(|n| drafts.remove(&n).expect("known stage").stage)
             .collect();
         Ok(Self {
             file: display,
