@@ -713,57 +713,21 @@ pub fn evaluate(
     let mut index_sets: Vec<ModelIndices> = Vec::new();
     let mut coverage = CoverageReport::default();
     // One load per (window, statistics): models trained on the same data share it.
-    let mut cache: Vec<(
-        WindowConfig,
-        Normalisation,
-        Dataset,
-        Prepared,
-        StoredColumns,
-    )> = Vec::new();
+    let mut cache: Vec<ScoredData> = Vec::new();
     for (m, dir) in model_dirs.iter().enumerate() {
         let (model, meta) = load_model(dir, opts.transform, device)?;
-        if meta.system.hash() != info.source.hash() || meta.layout != layout {
-            return Err(Error::Format {
-                path: dir.join("model.json"),
-                message: format!(
-                    "the model was trained on another system description ({}) than the dataset's ({}): retrain it on this dataset",
-                    meta.system.file, info.source.file
-                ),
-            });
-        }
-        let key = |w: &WindowConfig, n: &Normalisation| *w == meta.window && *n == meta.norm;
-        if !cache.iter().any(|(w, n, ..)| key(w, n)) {
-            let (ds, items) = load_split(
-                info,
-                params_file,
-                simulation_files,
-                &meta.window,
-                split,
-                &meta.norm,
-            )?;
-            let stored = if index_inputs.computable() {
-                let ids = (0..items.len()).map(|i| items.id(i)).collect();
-                StoredColumns::read(simulation_files, &index_inputs, &ids, &meta.window)?
-            } else {
-                StoredColumns::default()
-            };
-            cache.push((meta.window, meta.norm.clone(), ds, items, stored));
-        }
-        let (_, _, ds, items, stored) = cache.iter().find(|(w, n, ..)| key(w, n)).expect("cached");
-        if ds.t_points() != meta.grid.t_points || (ds.dt - meta.grid.dt).abs() > 1e-9 * meta.grid.dt
-        {
-            return Err(Error::Dataset {
-                path: simulation_files.first().cloned().unwrap_or_default(),
-                message: format!(
-                    "model {} was trained on {} points at dt {} s, the dataset window has {} points at dt {} s",
-                    dir.display(),
-                    meta.grid.t_points,
-                    meta.grid.dt,
-                    ds.t_points(),
-                    ds.dt
-                ),
-            });
-        }
+        check_same_system(dir, &meta, info, &layout)?;
+        let at = match cache.iter().position(|c| c.serves(&meta)) {
+            Some(at) => at,
+            None => {
+                cache.push(ScoredData::load(data, split, &meta, &index_inputs)?);
+                cache.len() - 1
+            }
+        };
+        let ScoredData {
+            ds, items, stored, ..
+        } = &cache[at];
+        check_same_grid(dir, &meta, ds, simulation_files)?;
         let idx: Vec<usize> = (0..items.len()).collect();
         if idx.is_empty() {
             return Err(Error::Dataset {
@@ -868,6 +832,96 @@ pub fn evaluate(
     Ok(evaluation)
 }
 
+/// The scored split as models of one (window, statistics) see it: loaded once, shared by
+/// every model trained on the same data.
+struct ScoredData {
+    window: WindowConfig,
+    norm: Normalisation,
+    ds: Dataset,
+    items: Prepared,
+    /// The stored columns the indices read (empty when the description has none).
+    stored: StoredColumns,
+}
+
+impl ScoredData {
+    /// Whether a model with `meta` reads this data.
+    fn serves(&self, meta: &ModelMeta) -> bool {
+        self.window == meta.window && self.norm == meta.norm
+    }
+
+    /// Loads `split` of `data` in the window and statistics of `meta`.
+    fn load(
+        data: &EvalData<'_>,
+        split: Split,
+        meta: &ModelMeta,
+        index_inputs: &IndexInputs,
+    ) -> Result<Self> {
+        let (ds, items) = load_split(
+            data.info,
+            data.params_file,
+            data.simulation_files,
+            &meta.window,
+            split,
+            &meta.norm,
+        )?;
+        let stored = if index_inputs.computable() {
+            let ids = (0..items.len()).map(|i| items.id(i)).collect();
+            StoredColumns::read(data.simulation_files, index_inputs, &ids, &meta.window)?
+        } else {
+            StoredColumns::default()
+        };
+        Ok(Self {
+            window: meta.window,
+            norm: meta.norm.clone(),
+            ds,
+            items,
+            stored,
+        })
+    }
+}
+
+/// Refuses a model trained on another description than the dataset's.
+fn check_same_system(
+    dir: &Path,
+    meta: &ModelMeta,
+    info: &DatasetInfo,
+    layout: &Layout,
+) -> Result<()> {
+    if meta.system.hash() == info.source.hash() && meta.layout == *layout {
+        return Ok(());
+    }
+    Err(Error::Format {
+        path: dir.join("model.json"),
+        message: format!(
+            "the model was trained on another system description ({}) than the dataset's ({}): retrain it on this dataset",
+            meta.system.file, info.source.file
+        ),
+    })
+}
+
+/// Refuses a model trained on another time grid than the dataset window's.
+fn check_same_grid(
+    dir: &Path,
+    meta: &ModelMeta,
+    ds: &Dataset,
+    simulation_files: &[PathBuf],
+) -> Result<()> {
+    if ds.t_points() == meta.grid.t_points && (ds.dt - meta.grid.dt).abs() <= 1e-9 * meta.grid.dt {
+        return Ok(());
+    }
+    Err(Error::Dataset {
+        path: simulation_files.first().cloned().unwrap_or_default(),
+        message: format!(
+            "model {} was trained on {} points at dt {} s, the dataset window has {} points at dt {} s",
+            dir.display(),
+            meta.grid.t_points,
+            meta.grid.dt,
+            ds.t_points(),
+            ds.dt
+        ),
+    })
+}
+
 /// The calibrated models' coverage on the scored split, gathered model by model.
 #[derive(Default)]
 struct CoverageReport {
@@ -905,24 +959,37 @@ impl CoverageReport {
     }
 }
 
+/// Writes what `evaluate` leaves for people: Table 4 (Parquet, CSV, Markdown), the speed
+/// figures, the per-channel errors and the plots' legend.
 fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOptions) -> Result<()> {
-    let results = &ev.models;
+    let rows = table4_rows(ev, opts);
     let split = ev.split.as_str();
-    let fallback = ev.split != Split::Test;
-    // Rows: the truth (algorithm 0) first, then the models.
-    struct Row {
-        algorithm: i64,
-        name: String,
-        depth: i64,
-        t4: [f64; 3],
-        forces: f64,
-        peak: f64,
-        paper: [f64; 3],
-        samples: i64,
-    }
-    let mut rows: Vec<Row> = Vec::new();
+    write_table4(out, split, &rows)?;
+    write_speed(out, split, &ev.models)?;
+    let md = table4_markdown(split, ev.split != Split::Test, &rows, layout);
+    write_atomic(&out.join("table4.md"), md.as_bytes())?;
+    write_channel_errors(out, &ev.models)?;
+    write_plots_doc(out, &ev.models)
+}
+
+/// One row of Table 4: the truth (algorithm 0) or a model.
+struct Table4Row {
+    algorithm: i64,
+    name: String,
+    depth: i64,
+    t4: [f64; 3],
+    forces: f64,
+    peak: f64,
+    paper: [f64; 3],
+    samples: i64,
+}
+
+/// Table 4's rows: the truth first (when scored), then the models.
+fn table4_rows(ev: &Evaluation, opts: &EvalOptions) -> Vec<Table4Row> {
+    let results = &ev.models;
+    let mut rows: Vec<Table4Row> = Vec::new();
     if let Some(tr) = ev.truth {
-        rows.push(Row {
+        rows.push(Table4Row {
             algorithm: 0,
             name: TRUTH_NAME.into(),
             depth: 0,
@@ -935,7 +1002,7 @@ fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOption
     }
     for r in results {
         let a = r.meta.train.algorithm;
-        rows.push(Row {
+        rows.push(Table4Row {
             algorithm: a.id(),
             name: a.name().to_owned(),
             depth: r.meta.model.depth as i64,
@@ -950,8 +1017,13 @@ fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOption
             samples: r.samples as i64,
         });
     }
+    rows
+}
+
+/// `table4.parquet` and `table4.csv`.
+fn write_table4(out: &Path, split: &str, rows: &[Table4Row]) -> Result<()> {
     let mut t = Table::default();
-    let f = |g: &dyn Fn(&Row) -> f64| Column::F64(rows.iter().map(g).collect());
+    let f = |g: &dyn Fn(&Table4Row) -> f64| Column::F64(rows.iter().map(g).collect());
     t.push(
         "algorithm",
         Column::I64(rows.iter().map(|r| r.algorithm).collect()),
@@ -980,6 +1052,12 @@ fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOption
     write_parquet(&out.join("table4.parquet"), &t)?;
     write_csv(&out.join("table4.csv"), &t)?;
 
+    Ok(())
+}
+
+/// `table4.md`: the table, a warning when scored on validation, the metric's definition and
+/// where the speed figures are.
+fn table4_markdown(split: &str, fallback: bool, rows: &[Table4Row], layout: &Layout) -> String {
     let n = rows.first().map_or(0, |r| r.samples);
     let mut md = format!("# Table 4: relative L2 error (%) on the {split} split ({n} samples)\n\n");
     if fallback {
@@ -1059,8 +1137,16 @@ fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOption
         },
         layout.dofs.join(", "),
     ));
-    // Wall-clock figures live in their own file so that every other artifact is a pure
-    // function of the inputs (byte-identical on a rerun).
+    md.push_str(
+        "\nPrediction speed (simulated seconds per wall second of forward passes) is in \
+         `speed.csv`, the one file of this artifact that depends on the machine.\n",
+    );
+    md
+}
+
+/// `speed.csv`: the wall-clock figures, in their own file so that every other artifact is a
+/// pure function of the inputs (byte-identical on a rerun).
+fn write_speed(out: &Path, split: &str, results: &[ModelResult]) -> Result<()> {
     let mut speed = Table::default();
     speed.push(
         "algorithm",
@@ -1093,12 +1179,11 @@ fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOption
         Column::F64(results.iter().map(|r| r.speed).collect()),
     )?;
     write_csv(&out.join("speed.csv"), &speed)?;
-    md.push_str(
-        "\nPrediction speed (simulated seconds per wall second of forward passes) is in \
-         `speed.csv`, the one file of this artifact that depends on the machine.\n",
-    );
-    write_atomic(&out.join("table4.md"), md.as_bytes())?;
+    Ok(())
+}
 
+/// `channel_errors.parquet` and `.csv`: every model's relative L2 error per channel.
+fn write_channel_errors(out: &Path, results: &[ModelResult]) -> Result<()> {
     let mut c = Table::default();
     let rows: Vec<(i64, &ChannelError)> = results
         .iter()
@@ -1151,6 +1236,11 @@ fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOption
     write_parquet(&out.join("channel_errors.parquet"), &c)?;
     write_csv(&out.join("channel_errors.csv"), &c)?;
 
+    Ok(())
+}
+
+/// `training_curves.png` (when there is history) and `plots.md`, the legend of the plots.
+fn write_plots_doc(out: &Path, results: &[ModelResult]) -> Result<()> {
     let curves = plot_training_curves(&out.join("training_curves.png"), results)?;
     let mut doc = String::from(
         "# Plots\n\n\

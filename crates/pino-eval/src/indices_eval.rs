@@ -539,26 +539,10 @@ pub fn write_indices(
     models: &[ModelIndices],
 ) -> Result<()> {
     if !inputs.computable() {
-        let mut md = String::from(
-            "# Engineering indices: surrogate against solver
-
-",
+        return write_atomic(
+            &out.join("indices_errors.md"),
+            not_computed(inputs).as_bytes(),
         );
-        if inputs.set.is_empty() {
-            md.push_str("The system description defines no index (`indices:`, `railway:`).\n");
-        } else {
-            md.push_str(
-                "Not computed: the indices read columns the model's predictions cannot give.\n\n",
-            );
-            for (name, why) in &inputs.underivable {
-                md.push_str(&format!("- `{name}`: {why}\n"));
-            }
-            md.push_str(
-                "\nList the columns (or the displacements they follow from) among the \
-                 description's `outputs:` and retrain to score them.\n",
-            );
-        }
-        return write_atomic(&out.join("indices_errors.md"), md.as_bytes());
     }
     let columns = inputs.columns();
     // Every index and its exact value beside it carry the index's unit.
@@ -572,6 +556,54 @@ pub fn write_indices(
         })
         .collect();
     pino_data::units::declare(units.iter().map(|(n, u)| (n.as_str(), u.as_str())))?;
+    let stats = write_errors_table(out, split, inputs, models)?;
+    let md = errors_markdown(split, inputs, layout, models, &stats);
+    write_atomic(&out.join("indices_errors.md"), md.as_bytes())?;
+    write_samples_table(out, inputs, models)?;
+    for (j, c) in columns.iter().enumerate() {
+        scatter(
+            &out.join(format!("indices_scatter_{}.png", c.name)),
+            j,
+            c,
+            models,
+        )?;
+    }
+    Ok(())
+}
+
+/// `indices_errors.md` when the indices cannot be computed: why.
+fn not_computed(inputs: &IndexInputs) -> String {
+    let mut md = String::from(
+        "# Engineering indices: surrogate against solver
+
+",
+    );
+    if inputs.set.is_empty() {
+        md.push_str("The system description defines no index (`indices:`, `railway:`).\n");
+    } else {
+        md.push_str(
+            "Not computed: the indices read columns the model's predictions cannot give.\n\n",
+        );
+        for (name, why) in &inputs.underivable {
+            md.push_str(&format!("- `{name}`: {why}\n"));
+        }
+        md.push_str(
+            "\nList the columns (or the displacements they follow from) among the \
+                 description's `outputs:` and retrain to score them.\n",
+        );
+    }
+    md
+}
+
+/// `indices_errors.parquet` and `.csv`: one row per (algorithm, index); the rows' errors, in
+/// that order.
+fn write_errors_table(
+    out: &Path,
+    split: Split,
+    inputs: &IndexInputs,
+    models: &[ModelIndices],
+) -> Result<Vec<IndexError>> {
+    let columns = inputs.columns();
     let value = |rows: &[Vec<f64>], s: usize, k: usize| rows[s][k];
     // Errors table: one row per (algorithm, index).
     let (mut alg, mut name, mut unit) = (Vec::new(), Vec::new(), Vec::new());
@@ -609,7 +641,18 @@ pub fn write_indices(
     t.push("correlation", f(&|s| s.correlation))?;
     write_parquet(&out.join("indices_errors.parquet"), &t)?;
     write_csv(&out.join("indices_errors.csv"), &t)?;
+    Ok(stats)
+}
 
+/// `indices_errors.md`: the errors' table for people, index by algorithm.
+fn errors_markdown(
+    split: Split,
+    inputs: &IndexInputs,
+    layout: &Layout,
+    models: &[ModelIndices],
+    stats: &[IndexError],
+) -> String {
+    let columns = inputs.columns();
     let n = models.first().map_or(0, |m| m.ids.len());
     let mut md = format!(
         "# Engineering indices: surrogate against solver on the {} split ({n} samples)\n\n\
@@ -658,9 +701,12 @@ pub fn write_indices(
         md.push('\n');
     }
     md.push_str("\nScatter plots: `indices_scatter_<index>.png` (predicted against exact, one panel per algorithm, black line: equality).\n");
-    write_atomic(&out.join("indices_errors.md"), md.as_bytes())?;
+    md
+}
 
-    // Per-sample values.
+/// `indices_samples.parquet`: every sample's predicted and exact index values.
+fn write_samples_table(out: &Path, inputs: &IndexInputs, models: &[ModelIndices]) -> Result<()> {
+    let columns = inputs.columns();
     let mut s = Table::default();
     let rows: Vec<(usize, usize)> = models
         .iter()
@@ -690,15 +736,6 @@ pub fn write_indices(
         )?;
     }
     write_parquet(&out.join("indices_samples.parquet"), &s)?;
-
-    for (j, c) in columns.iter().enumerate() {
-        scatter(
-            &out.join(format!("indices_scatter_{}.png", c.name)),
-            j,
-            c,
-            models,
-        )?;
-    }
     Ok(())
 }
 

@@ -8,6 +8,7 @@
 //! error at each time), validation again (each channel's band error against the now fixed
 //! scale), calibration (the scores under every normaliser).
 
+use super::answer::Difficulty;
 use super::difficulty::{reference_levels, relative_residual};
 use super::scored::{band_channels, Named, Run, ScoredSample, Scorer};
 use super::{
@@ -288,18 +289,7 @@ impl Fitting<'_> {
         } else {
             Vec::new()
         };
-        let mut features: Vec<String> = Vec::new();
-        for input in &self.params.head_inputs {
-            match input {
-                HeadInput::Parameters => {
-                    features.extend(design.ranges.iter().map(|(n, _)| n.clone()))
-                }
-                HeadInput::Residual if self.scorer.has_residual() => {
-                    features.push(RESIDUAL_FEATURE.into())
-                }
-                HeadInput::Residual => {}
-            }
-        }
+        let features = self.head_features(&design);
         let mut calibration = Calibration {
             format: CALIBRATION_FORMAT.into(),
             model,
@@ -334,25 +324,8 @@ impl Fitting<'_> {
                 allowed: "`none` or `error_head`: no DOF of this model has an equation with its outputs, so its predictions have no physics residual".into(),
             });
         }
-        // Pass 1: each channel's mean absolute error at each time over the validation split.
-        let mut sums: Vec<Vec<f64>> = Vec::new();
-        self.each(fit, &mut |s| {
-            if sums.is_empty() {
-                sums = s.predicted.iter().map(|c| vec![0.0; c.len()]).collect();
-            }
-            for ((acc, p), x) in sums.iter_mut().zip(&s.predicted).zip(&s.exact) {
-                for ((a, p), x) in acc.iter_mut().zip(p).zip(x) {
-                    *a += (x - p).abs();
-                }
-            }
-            Ok(())
-        })?;
-        let n_fit = fit.0.len() as f64;
-        let scales: Vec<Vec<f64>> = sums
-            .iter()
-            .map(|s| time_scale(&s.iter().map(|v| v / n_fit).collect::<Vec<_>>()))
-            .map(|s| s.into_iter().map(|v| v as f32 as f64).collect())
-            .collect();
+        // Pass 1: each channel's time scale over the validation split.
+        let scales = self.time_scales(fit)?;
         // Pass 2: the validation errors against the fixed scales.
         let mut val = SplitErrors::default();
         self.each(fit, &mut |s| val.add(s, &scales))?;
@@ -371,48 +344,13 @@ impl Fitting<'_> {
             .map(|k| calibration.difficulty_of(&calib.params[k], g_of(&calib.rms, k)))
             .collect();
         let feats: Vec<Vec<f64>> = val_difficulty.iter().map(|d| d.features.clone()).collect();
-        let quantity =
-            |name: &Named, val_err: Vec<f64>, errors: Vec<f64>| -> Result<QuantityScores> {
-                let head = match ErrorHead::fit(&feats, &val_err, self.params.ridge) {
-                    Ok(h) => Some(h),
-                    Err(e) if self.params.normaliser == Normaliser::ErrorHead => {
-                        return Err(Error::OutOfRange {
-                            field: format!("normaliser (`{}`)", name.name),
-                            value: "error_head".into(),
-                            allowed: format!("an error head fitted on the validation split: {e}"),
-                        })
-                    }
-                    Err(_) => None,
-                };
-                let mut q = QuantityScores {
-                    name: name.name.clone(),
-                    unit: name.unit.clone(),
-                    scores: BTreeMap::new(),
-                    head,
-                    quantiles: BTreeMap::new(),
-                };
-                for normaliser in Normaliser::ALL {
-                    let sigmas: Result<Vec<f64>> = cal_difficulty
-                        .iter()
-                        .map(|d| calibration.sigma(normaliser, &q, d))
-                        .collect();
-                    let Ok(sigmas) = sigmas else { continue };
-                    let scores = errors.iter().zip(&sigmas).map(|(e, s)| e / s).collect();
-                    let set = ScoreSet::new(scores).map_err(|e| Error::Dataset {
-                        path: PathBuf::from("calibrate"),
-                        message: format!("`{}` ({}): {e}", name.name, normaliser.as_str()),
-                    })?;
-                    q.scores.insert(normaliser, set);
-                }
-                if let Some(chosen) = q.scores.get(&calibration.normaliser) {
-                    for level in REPORTED_LEVELS {
-                        if let Ok(v) = chosen.quantile(level) {
-                            q.quantiles.insert(level.to_string(), v);
-                        }
-                    }
-                }
-                Ok(q)
+        let quantity = |name: &Named, val_err: Vec<f64>, errors: Vec<f64>| {
+            let errors = QuantityErrors {
+                validation: val_err,
+                calibration: errors,
             };
+            self.quantity_scores(&calibration, name, &feats, &cal_difficulty, errors)
+        };
         let mut indices = Vec::with_capacity(index_names.len());
         let column =
             |rows: &[Vec<f64>], j: usize| -> Vec<f64> { rows.iter().map(|r| r[j]).collect() };
@@ -434,6 +372,111 @@ impl Fitting<'_> {
         calibration.channels = bands;
         Ok(calibration)
     }
+
+    /// The error heads' input features: the design's parameters and the residual, as the
+    /// stage's `head_inputs` ask (the residual only where the model has one).
+    fn head_features(&self, design: &DesignIdentity) -> Vec<String> {
+        let mut features: Vec<String> = Vec::new();
+        for input in &self.params.head_inputs {
+            match input {
+                HeadInput::Parameters => {
+                    features.extend(design.ranges.iter().map(|(n, _)| n.clone()))
+                }
+                HeadInput::Residual if self.scorer.has_residual() => {
+                    features.push(RESIDUAL_FEATURE.into())
+                }
+                HeadInput::Residual => {}
+            }
+        }
+        features
+    }
+
+    /// Each channel's time scale: its mean absolute error at each time over the fitting split,
+    /// smoothed ([`time_scale`]) and rounded to f32 as it is stored.
+    fn time_scales(&self, fit: &(Prepared, StoredColumns)) -> Result<Vec<Vec<f64>>> {
+        let mut sums: Vec<Vec<f64>> = Vec::new();
+        self.each(fit, &mut |s| {
+            if sums.is_empty() {
+                sums = s.predicted.iter().map(|c| vec![0.0; c.len()]).collect();
+            }
+            for ((acc, p), x) in sums.iter_mut().zip(&s.predicted).zip(&s.exact) {
+                for ((a, p), x) in acc.iter_mut().zip(p).zip(x) {
+                    *a += (x - p).abs();
+                }
+            }
+            Ok(())
+        })?;
+        let n_fit = fit.0.len() as f64;
+        Ok(sums
+            .iter()
+            .map(|s| time_scale(&s.iter().map(|v| v / n_fit).collect::<Vec<_>>()))
+            .map(|s| s.into_iter().map(|v| v as f32 as f64).collect())
+            .collect())
+    }
+
+    /// One quantity's conformal scores under every normaliser that applies, its error head
+    /// (fitted on the validation errors against `feats`) and the chosen normaliser's
+    /// quantiles at the reported levels.
+    fn quantity_scores(
+        &self,
+        calibration: &Calibration,
+        name: &Named,
+        feats: &[Vec<f64>],
+        cal_difficulty: &[Difficulty],
+        errors: QuantityErrors,
+    ) -> Result<QuantityScores> {
+        let head = match ErrorHead::fit(feats, &errors.validation, self.params.ridge) {
+            Ok(h) => Some(h),
+            Err(e) if self.params.normaliser == Normaliser::ErrorHead => {
+                return Err(Error::OutOfRange {
+                    field: format!("normaliser (`{}`)", name.name),
+                    value: "error_head".into(),
+                    allowed: format!("an error head fitted on the validation split: {e}"),
+                })
+            }
+            Err(_) => None,
+        };
+        let mut q = QuantityScores {
+            name: name.name.clone(),
+            unit: name.unit.clone(),
+            scores: BTreeMap::new(),
+            head,
+            quantiles: BTreeMap::new(),
+        };
+        for normaliser in Normaliser::ALL {
+            let sigmas: Result<Vec<f64>> = cal_difficulty
+                .iter()
+                .map(|d| calibration.sigma(normaliser, &q, d))
+                .collect();
+            let Ok(sigmas) = sigmas else { continue };
+            let scores = errors
+                .calibration
+                .iter()
+                .zip(&sigmas)
+                .map(|(e, s)| e / s)
+                .collect();
+            let set = ScoreSet::new(scores).map_err(|e| Error::Dataset {
+                path: PathBuf::from("calibrate"),
+                message: format!("`{}` ({}): {e}", name.name, normaliser.as_str()),
+            })?;
+            q.scores.insert(normaliser, set);
+        }
+        if let Some(chosen) = q.scores.get(&calibration.normaliser) {
+            for level in REPORTED_LEVELS {
+                if let Ok(v) = chosen.quantile(level) {
+                    q.quantiles.insert(level.to_string(), v);
+                }
+            }
+        }
+        Ok(q)
+    }
+}
+
+/// One quantity's errors, per sample: on the validation split (the error head's targets) and
+/// on the calibration split (the conformal scores' numerators).
+struct QuantityErrors {
+    validation: Vec<f64>,
+    calibration: Vec<f64>,
 }
 
 /// A channel's time scale from its mean absolute error profile: a centred moving average of

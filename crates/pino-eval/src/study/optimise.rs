@@ -185,15 +185,14 @@ fn design_key(design: &[f64]) -> Vec<u64> {
     design.iter().map(|x| x.to_bits()).collect()
 }
 
-/// Runs `study` (an optimisation `o`); `parameters` are the model's sampled parameters with
-/// their training ranges.
-pub fn run(
+/// The objective's terms and the upper limits as (index column, weight or limit): the
+/// study's limits over the description's.
+#[allow(clippy::type_complexity)]
+fn objective_and_limits(
     ev: &Evaluator<'_>,
     study: &Study,
     o: &Optimise,
-    parameters: &[(String, [f64; 2])],
-) -> Result<Optimisation> {
-    let p = ev.params;
+) -> Result<(Vec<(usize, f64)>, Vec<(usize, f64)>)> {
     let columns = ev.predictor.index_inputs().columns();
     let column = |name: &str| {
         columns
@@ -214,33 +213,115 @@ pub fn run(
         .predictor
         .index_inputs()
         .limits(ev.predictor.system(), &ev.cfg);
-    let constraints: Vec<(usize, f64)> = columns
+    let constraints = columns
         .iter()
         .zip(described)
         .enumerate()
         .filter_map(|(j, (c, d))| o.limits.get(&c.name).copied().or(d).map(|l| (j, l)))
         .collect();
-    let bounds: Vec<[f64; 2]> = study
-        .distributions(parameters)
-        .iter()
-        .map(|d| match *d {
-            Distribution::Fixed(v) => [v, v],
-            other => {
-                let (lo, hi) = other.support();
-                [lo, hi]
-            }
-        })
-        .collect();
-    let varying: Vec<usize> = (0..bounds.len())
-        .filter(|&k| bounds[k][0] < bounds[k][1])
-        .collect();
-    let to_design = |u: &[f64]| -> Vec<f64> {
-        let mut d: Vec<f64> = bounds.iter().map(|b| b[0]).collect();
-        for (&k, &x) in varying.iter().zip(u) {
-            d[k] = bounds[k][0] + x * (bounds[k][1] - bounds[k][0]);
+    Ok((terms, constraints))
+}
+
+/// The box searched: every sampled parameter's bounds (equal for a fixed one) and the
+/// positions of those that vary, the unit cube's axes.
+struct SearchBox {
+    bounds: Vec<[f64; 2]>,
+    varying: Vec<usize>,
+}
+
+impl SearchBox {
+    fn of(study: &Study, parameters: &[(String, [f64; 2])]) -> Self {
+        let bounds: Vec<[f64; 2]> = study
+            .distributions(parameters)
+            .iter()
+            .map(|d| match *d {
+                Distribution::Fixed(v) => [v, v],
+                other => {
+                    let (lo, hi) = other.support();
+                    [lo, hi]
+                }
+            })
+            .collect();
+        let varying = (0..bounds.len())
+            .filter(|&k| bounds[k][0] < bounds[k][1])
+            .collect();
+        Self { bounds, varying }
+    }
+
+    /// The design at the point `u` of the unit cube.
+    fn design(&self, u: &[f64]) -> Vec<f64> {
+        let mut d: Vec<f64> = self.bounds.iter().map(|b| b[0]).collect();
+        for (&k, &x) in self.varying.iter().zip(u) {
+            d[k] = self.bounds[k][0] + x * (self.bounds[k][1] - self.bounds[k][0]);
         }
         d
+    }
+}
+
+/// The candidates the solver runs, as (history position, role): the optimum first, then the
+/// best of up to `runners_up` other starts (distinct designs, best first), then `spread`
+/// candidates over the history.
+fn solver_candidates(
+    outcome: &pino_studies::optimise::Outcome,
+    history: &[Candidate],
+    runners_up: usize,
+    spread_count: usize,
+) -> Vec<(usize, Role)> {
+    let position = |s: &Step| {
+        outcome
+            .history
+            .iter()
+            .position(|h| h.start == s.start && h.evaluation == s.evaluation)
+            .expect("a best step is one of the history's")
     };
+    let mut roles: Vec<(usize, Role)> = vec![(position(&outcome.best), Role::Optimum)];
+    let mut others: Vec<&Step> = outcome
+        .best_of_start
+        .iter()
+        .filter(|s| s.start != outcome.best.start)
+        .collect();
+    others.sort_by(|a, b| {
+        if better(a, b) {
+            std::cmp::Ordering::Less
+        } else if better(b, a) {
+            std::cmp::Ordering::Greater
+        } else {
+            a.start.cmp(&b.start)
+        }
+    });
+    for s in others {
+        if roles.iter().filter(|r| r.1 == Role::RunnerUp).count() == runners_up {
+            break;
+        }
+        let k = position(s);
+        if roles
+            .iter()
+            .all(|&(c, _)| history[c].design != history[k].design)
+        {
+            roles.push((k, Role::RunnerUp));
+        }
+    }
+    for k in spread(history.len(), spread_count) {
+        if roles.iter().all(|&(c, _)| c != k) {
+            roles.push((k, Role::Spread));
+        }
+    }
+    roles
+}
+
+/// Runs `study` (an optimisation `o`); `parameters` are the model's sampled parameters with
+/// their training ranges.
+pub fn run(
+    ev: &Evaluator<'_>,
+    study: &Study,
+    o: &Optimise,
+    parameters: &[(String, [f64; 2])],
+) -> Result<Optimisation> {
+    let p = ev.params;
+    let (terms, constraints) = objective_and_limits(ev, study, o)?;
+    let search_box = SearchBox::of(study, parameters);
+    let varying = &search_box.varying;
+    let to_design = |u: &[f64]| search_box.design(u);
     let excitation: Vec<u64> = (0..o.excitations as u64).collect();
     // Each distinct design's answers, kept for the tables (Nelder-Mead revisits points).
     let cache: Mutex<HashMap<Vec<u64>, Vec<DesignAnswer>>> = Mutex::new(HashMap::new());
@@ -326,47 +407,8 @@ pub fn run(
         });
         answers.push(a);
     }
-    let position = |s: &Step| {
-        outcome
-            .history
-            .iter()
-            .position(|h| h.start == s.start && h.evaluation == s.evaluation)
-            .expect("a best step is one of the history's")
-    };
-    let best = position(&outcome.best);
-    // The solver's candidates: the optimum, the best of other starts, a spread.
-    let mut roles: Vec<(usize, Role)> = vec![(best, Role::Optimum)];
-    let mut others: Vec<&Step> = outcome
-        .best_of_start
-        .iter()
-        .filter(|s| s.start != outcome.best.start)
-        .collect();
-    others.sort_by(|a, b| {
-        if better(a, b) {
-            std::cmp::Ordering::Less
-        } else if better(b, a) {
-            std::cmp::Ordering::Greater
-        } else {
-            a.start.cmp(&b.start)
-        }
-    });
-    for s in others {
-        if roles.iter().filter(|r| r.1 == Role::RunnerUp).count() == o.runners_up {
-            break;
-        }
-        let k = position(s);
-        if roles
-            .iter()
-            .all(|&(c, _)| history[c].design != history[k].design)
-        {
-            roles.push((k, Role::RunnerUp));
-        }
-    }
-    for k in spread(history.len(), study.solver_check) {
-        if roles.iter().all(|&(c, _)| c != k) {
-            roles.push((k, Role::Spread));
-        }
-    }
+    let roles = solver_candidates(&outcome, &history, o.runners_up, study.solver_check);
+    let best = roles[0].0;
     let m = excitation.len();
     let t1 = Instant::now();
     let designs: Vec<Vec<f64>> = roles
@@ -390,7 +432,7 @@ pub fn run(
         })
         .collect();
     Ok(Optimisation {
-        bounds,
+        bounds: search_box.bounds,
         constraints,
         feasible: outcome.feasible,
         history,

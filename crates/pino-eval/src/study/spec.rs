@@ -313,220 +313,36 @@ impl Study {
         parameters: &[(String, [f64; 2])],
         indices: &[String],
     ) -> Result<Self, SpecError> {
-        let err = |study: &str, field: &str, message: String| SpecError {
-            study: study.to_owned(),
-            field: field.to_owned(),
-            message,
-        };
         let Value::Object(map) = value else {
-            return Err(err(
-                "?",
-                "",
-                "a study is a mapping with `name` and `kind`".into(),
-            ));
+            return Err(SpecError {
+                study: "?".into(),
+                field: String::new(),
+                message: "a study is a mapping with `name` and `kind`".into(),
+            });
         };
-        let name = match map.get("name") {
-            Some(Value::String(s))
-                if !s.is_empty()
-                    && s.chars()
-                        .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') =>
-            {
-                s.clone()
-            }
-            other => {
-                return Err(err(
-                    "?",
-                    "name",
-                    format!("{other:?}: a name of letters, digits, `_` and `-`"),
-                ))
-            }
+        let name = study_name(map)?;
+        let cx = ParseContext {
+            name: &name,
+            parameters,
+            indices,
         };
         let mut rest = map.clone();
         rest.remove("name");
         let kind = rest.remove("kind");
         let solver_check = match rest.remove("solver_check") {
             None => 0,
-            Some(v) => v.as_u64().ok_or_else(|| {
-                err(
-                    &name,
-                    "solver_check",
-                    format!("{v}: a count of designs >= 0"),
-                )
-            })? as usize,
+            Some(v) => v
+                .as_u64()
+                .ok_or_else(|| cx.err("solver_check", format!("{v}: a count of designs >= 0")))?
+                as usize,
         };
-        let declared = match rest.remove("parameters") {
-            None => serde_json::Map::new(),
-            Some(Value::Object(p)) => p,
-            Some(v) => {
-                return Err(err(
-                    &name,
-                    "parameters",
-                    format!("{v}: a mapping from parameter names to distributions"),
-                ))
-            }
-        };
-        let mut dists = BTreeMap::new();
-        for (p, v) in declared {
-            let Some((_, range)) = parameters.iter().find(|(n, _)| *n == p) else {
-                let known: Vec<&str> = parameters.iter().map(|(n, _)| n.as_str()).collect();
-                return Err(err(
-                    &name,
-                    &format!("parameters.{p}"),
-                    format!(
-                        "not a sampled parameter of the model (parameters: {})",
-                        known.join(", ")
-                    ),
-                ));
-            };
-            let field = format!("parameters.{p}");
-            let d = parse_distribution(&v, *range).map_err(|m| err(&name, &field, m))?;
-            d.validate(&field)
-                .map_err(|e| err(&name, &field, e.to_string()))?;
-            dists.insert(p, d);
-        }
-        let check_index = |field: &str, i: &str| -> Result<(), SpecError> {
-            if indices.iter().any(|x| x == i) {
-                Ok(())
-            } else {
-                Err(err(
-                    &name,
-                    field,
-                    format!(
-                        "`{i}` is not an index of the model (indices: {})",
-                        indices.join(", ")
-                    ),
-                ))
-            }
-        };
+        let dists = cx.distributions(rest.remove("parameters"))?;
         let kind = match kind.as_ref().and_then(Value::as_str) {
-            Some(MONTE_CARLO) => {
-                let s: MonteCarloSpec = serde_json::from_value(Value::Object(rest))
-                    .map_err(|e| err(&name, "", e.to_string()))?;
-                if !(1..=MAX_MONTE_CARLO).contains(&s.n) {
-                    return Err(err(
-                        &name,
-                        "n",
-                        format!("{}: allowed 1 to {MAX_MONTE_CARLO}", s.n),
-                    ));
-                }
-                if solver_check > s.n {
-                    return Err(err(
-                        &name,
-                        "solver_check",
-                        format!("{solver_check} is more than the study's {} designs", s.n),
-                    ));
-                }
-                for (i, l) in &s.limits {
-                    check_index(&format!("limits.{i}"), i)?;
-                    if !l.is_finite() {
-                        return Err(err(
-                            &name,
-                            &format!("limits.{i}"),
-                            format!("{l}: a finite limit"),
-                        ));
-                    }
-                }
-                StudyKind::MonteCarlo {
-                    n: s.n,
-                    limits: s.limits,
-                }
-            }
-            Some(SENSITIVITY) => {
-                let s: SensitivitySpec = serde_json::from_value(Value::Object(rest))
-                    .map_err(|e| err(&name, "", e.to_string()))?;
-                let varying = parameters
-                    .iter()
-                    .filter(|(p, _)| dists.get(p).is_none_or(Distribution::varies))
-                    .count();
-                if varying == 0 {
-                    return Err(err(
-                        &name,
-                        "parameters",
-                        "every parameter is fixed: a sensitivity study needs one that varies"
-                            .into(),
-                    ));
-                }
-                let factors = varying + 1;
-                let most = (MAX_SENSITIVITY_EVALUATIONS / (factors + 2))
-                    .min(pino_studies::sobol::MAX_ROWS);
-                if !(MIN_SENSITIVITY_ROWS..=most).contains(&s.n) || !s.n.is_power_of_two() {
-                    return Err(err(
-                        &name,
-                        "n",
-                        format!(
-                            "{}: a power of two from {MIN_SENSITIVITY_ROWS} to {most} rows \
-                             (N ({factors} factors + 2) evaluations, at most \
-                             {MAX_SENSITIVITY_EVALUATIONS})",
-                            s.n
-                        ),
-                    ));
-                }
-                if solver_check != 0 && (solver_check < 2 || !solver_check.is_power_of_two()) {
-                    return Err(err(
-                        &name,
-                        "solver_check",
-                        format!(
-                            "{solver_check}: 0 or a power of two >= 2 (rows of the design the \
-                             solver also runs)"
-                        ),
-                    ));
-                }
-                if solver_check > s.n {
-                    return Err(err(
-                        &name,
-                        "solver_check",
-                        format!("{solver_check} is more than the study's {} rows", s.n),
-                    ));
-                }
-                StudyKind::Sensitivity { n: s.n }
-            }
-            Some(OPTIMISE) => {
-                let s: OptimiseSpec = serde_json::from_value(Value::Object(rest))
-                    .map_err(|e| err(&name, "", e.to_string()))?;
-                let field_err = |field: &str, message: String| err(&name, field, message);
-                let o = parse_optimise(s, &field_err)?;
-                for (i, _) in &o.objective {
-                    check_index(&format!("objective.{i}"), i)?;
-                }
-                for (i, l) in &o.limits {
-                    check_index(&format!("limits.{i}"), i)?;
-                    if !l.is_finite() {
-                        return Err(field_err(
-                            &format!("limits.{i}"),
-                            format!("{l}: a finite limit"),
-                        ));
-                    }
-                }
-                for (p, d) in &dists {
-                    if !matches!(d, Distribution::Uniform { .. } | Distribution::Fixed(_)) {
-                        return Err(field_err(
-                            &format!("parameters.{p}"),
-                            "an optimisation searches a box: `uniform: [lo, hi]` (a sub-box) \
-                             or `fixed`"
-                                .into(),
-                        ));
-                    }
-                }
-                if !dists.values().any(Distribution::varies) && dists.len() == parameters.len() {
-                    return Err(field_err(
-                        "parameters",
-                        "every parameter is fixed: an optimisation needs one that varies".into(),
-                    ));
-                }
-                if solver_check > MAX_OPTIMISE_SOLVER_CHECK {
-                    return Err(field_err(
-                        "solver_check",
-                        format!(
-                            "{solver_check}: at most {MAX_OPTIMISE_SOLVER_CHECK} candidates of the \
-                             history (beside the optimum and the runners-up)"
-                        ),
-                    ));
-                }
-                StudyKind::Optimise(o)
-            }
+            Some(MONTE_CARLO) => cx.monte_carlo(rest, solver_check)?,
+            Some(SENSITIVITY) => cx.sensitivity(rest, &dists, solver_check)?,
+            Some(OPTIMISE) => cx.optimise(rest, &dists, solver_check)?,
             other => {
-                return Err(err(
-                    &name,
+                return Err(cx.err(
                     "kind",
                     format!("{other:?}: one of monte_carlo, sensitivity, optimise"),
                 ))
@@ -552,6 +368,224 @@ impl Study {
                     .unwrap_or(Distribution::Uniform { lo: *lo, hi: *hi })
             })
             .collect()
+    }
+}
+
+/// The study's `name`: letters, digits, `_` and `-`.
+fn study_name(map: &serde_json::Map<String, Value>) -> Result<String, SpecError> {
+    match map.get("name") {
+        Some(Value::String(s))
+            if !s.is_empty()
+                && s.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') =>
+        {
+            Ok(s.clone())
+        }
+        other => Err(SpecError {
+            study: "?".into(),
+            field: "name".into(),
+            message: format!("{other:?}: a name of letters, digits, `_` and `-`"),
+        }),
+    }
+}
+
+/// What a study's fields are checked against: its name (for messages), the model's sampled
+/// parameters with their training ranges and its index names.
+struct ParseContext<'a> {
+    name: &'a str,
+    parameters: &'a [(String, [f64; 2])],
+    indices: &'a [String],
+}
+
+impl ParseContext<'_> {
+    /// An error of this study's `field`.
+    fn err(&self, field: &str, message: String) -> SpecError {
+        SpecError {
+            study: self.name.to_owned(),
+            field: field.to_owned(),
+            message,
+        }
+    }
+
+    /// `i` (written in `field`) is an index of the model.
+    fn check_index(&self, field: &str, i: &str) -> Result<(), SpecError> {
+        if self.indices.iter().any(|x| x == i) {
+            return Ok(());
+        }
+        Err(self.err(
+            field,
+            format!(
+                "`{i}` is not an index of the model (indices: {})",
+                self.indices.join(", ")
+            ),
+        ))
+    }
+
+    /// Upper limits by index: known indices, finite values.
+    fn check_limits(&self, limits: &BTreeMap<String, f64>) -> Result<(), SpecError> {
+        for (i, l) in limits {
+            let field = format!("limits.{i}");
+            self.check_index(&field, i)?;
+            if !l.is_finite() {
+                return Err(self.err(&field, format!("{l}: a finite limit")));
+            }
+        }
+        Ok(())
+    }
+
+    /// The declared `parameters:`, each a sampled parameter of the model with a valid
+    /// distribution.
+    fn distributions(
+        &self,
+        declared: Option<Value>,
+    ) -> Result<BTreeMap<String, Distribution>, SpecError> {
+        let declared = match declared {
+            None => serde_json::Map::new(),
+            Some(Value::Object(p)) => p,
+            Some(v) => {
+                return Err(self.err(
+                    "parameters",
+                    format!("{v}: a mapping from parameter names to distributions"),
+                ))
+            }
+        };
+        let mut dists = BTreeMap::new();
+        for (p, v) in declared {
+            let field = format!("parameters.{p}");
+            let Some((_, range)) = self.parameters.iter().find(|(n, _)| *n == p) else {
+                let known: Vec<&str> = self.parameters.iter().map(|(n, _)| n.as_str()).collect();
+                return Err(self.err(
+                    &field,
+                    format!(
+                        "not a sampled parameter of the model (parameters: {})",
+                        known.join(", ")
+                    ),
+                ));
+            };
+            let d = parse_distribution(&v, *range).map_err(|m| self.err(&field, m))?;
+            d.validate(&field)
+                .map_err(|e| self.err(&field, e.to_string()))?;
+            dists.insert(p, d);
+        }
+        Ok(dists)
+    }
+
+    /// The fields of a `monte_carlo` study.
+    fn monte_carlo(
+        &self,
+        rest: serde_json::Map<String, Value>,
+        solver_check: usize,
+    ) -> Result<StudyKind, SpecError> {
+        let s: MonteCarloSpec =
+            serde_json::from_value(Value::Object(rest)).map_err(|e| self.err("", e.to_string()))?;
+        if !(1..=MAX_MONTE_CARLO).contains(&s.n) {
+            return Err(self.err("n", format!("{}: allowed 1 to {MAX_MONTE_CARLO}", s.n)));
+        }
+        if solver_check > s.n {
+            return Err(self.err(
+                "solver_check",
+                format!("{solver_check} is more than the study's {} designs", s.n),
+            ));
+        }
+        self.check_limits(&s.limits)?;
+        Ok(StudyKind::MonteCarlo {
+            n: s.n,
+            limits: s.limits,
+        })
+    }
+
+    /// The fields of a `sensitivity` study: N a power of two within the evaluation budget
+    /// of the varying factors.
+    fn sensitivity(
+        &self,
+        rest: serde_json::Map<String, Value>,
+        dists: &BTreeMap<String, Distribution>,
+        solver_check: usize,
+    ) -> Result<StudyKind, SpecError> {
+        let s: SensitivitySpec =
+            serde_json::from_value(Value::Object(rest)).map_err(|e| self.err("", e.to_string()))?;
+        let varying = self
+            .parameters
+            .iter()
+            .filter(|(p, _)| dists.get(p).is_none_or(Distribution::varies))
+            .count();
+        if varying == 0 {
+            return Err(self.err(
+                "parameters",
+                "every parameter is fixed: a sensitivity study needs one that varies".into(),
+            ));
+        }
+        let factors = varying + 1;
+        let most = (MAX_SENSITIVITY_EVALUATIONS / (factors + 2)).min(pino_studies::sobol::MAX_ROWS);
+        if !(MIN_SENSITIVITY_ROWS..=most).contains(&s.n) || !s.n.is_power_of_two() {
+            return Err(self.err(
+                "n",
+                format!(
+                    "{}: a power of two from {MIN_SENSITIVITY_ROWS} to {most} rows \
+                     (N ({factors} factors + 2) evaluations, at most \
+                     {MAX_SENSITIVITY_EVALUATIONS})",
+                    s.n
+                ),
+            ));
+        }
+        if solver_check != 0 && (solver_check < 2 || !solver_check.is_power_of_two()) {
+            return Err(self.err(
+                "solver_check",
+                format!(
+                    "{solver_check}: 0 or a power of two >= 2 (rows of the design the \
+                     solver also runs)"
+                ),
+            ));
+        }
+        if solver_check > s.n {
+            return Err(self.err(
+                "solver_check",
+                format!("{solver_check} is more than the study's {} rows", s.n),
+            ));
+        }
+        Ok(StudyKind::Sensitivity { n: s.n })
+    }
+
+    /// The fields of an `optimise` study: its objective and limits on known indices, a box
+    /// (uniform or fixed parameters, one varying), a bounded solver check.
+    fn optimise(
+        &self,
+        rest: serde_json::Map<String, Value>,
+        dists: &BTreeMap<String, Distribution>,
+        solver_check: usize,
+    ) -> Result<StudyKind, SpecError> {
+        let s: OptimiseSpec =
+            serde_json::from_value(Value::Object(rest)).map_err(|e| self.err("", e.to_string()))?;
+        let o = parse_optimise(s, &|field: &str, message: String| self.err(field, message))?;
+        for (i, _) in &o.objective {
+            self.check_index(&format!("objective.{i}"), i)?;
+        }
+        self.check_limits(&o.limits)?;
+        for (p, d) in dists {
+            if !matches!(d, Distribution::Uniform { .. } | Distribution::Fixed(_)) {
+                return Err(self.err(
+                    &format!("parameters.{p}"),
+                    "an optimisation searches a box: `uniform: [lo, hi]` (a sub-box) or `fixed`"
+                        .into(),
+                ));
+            }
+        }
+        if !dists.values().any(Distribution::varies) && dists.len() == self.parameters.len() {
+            return Err(self.err(
+                "parameters",
+                "every parameter is fixed: an optimisation needs one that varies".into(),
+            ));
+        }
+        if solver_check > MAX_OPTIMISE_SOLVER_CHECK {
+            return Err(self.err(
+                "solver_check",
+                format!(
+                    "{solver_check}: at most {MAX_OPTIMISE_SOLVER_CHECK} candidates of the \
+                     history (beside the optimum and the runners-up)"
+                ),
+            ));
+        }
+        Ok(StudyKind::Optimise(o))
     }
 }
 

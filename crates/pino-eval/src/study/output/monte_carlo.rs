@@ -17,14 +17,14 @@ use pino_learn::Result;
 use pino_studies::stats::Interval;
 use std::path::Path;
 
-/// Writes a Monte Carlo study's files into `out`.
+/// Writes a Monte Carlo study's files into `out`: every evaluation, the solver beside the
+/// surrogate, the statistics, the plots and the summary.
 pub fn write_monte_carlo(
     out: &Path,
     predictor: &Predictor,
     study: &Study,
     mc: &MonteCarlo,
 ) -> Result<()> {
-    let columns = predictor.index_inputs().columns();
     let mut extra: Vec<(String, &str)> = vec![
         ("limit".into(), PER_ROW),
         ("p_exceed".into(), DIMENSIONLESS),
@@ -45,7 +45,22 @@ pub fn write_monte_carlo(
     let extra: Vec<(&str, &str)> = extra.iter().map(|(n, u)| (n.as_str(), *u)).collect();
     declare_units(predictor, &extra)?;
 
-    // Every evaluation.
+    let n = mc.designs.len();
+    let calibrated = write_evaluations(out, predictor, mc)?;
+    write_solver(out, predictor, mc)?;
+    write_summary_table(out, predictor, mc)?;
+    write_plots(out, predictor, study, mc)?;
+    finish(
+        out,
+        (n, mc.surrogate_s),
+        (mc.checked.len(), mc.solver_s),
+        &summary_markdown(study, mc, calibrated),
+    )
+}
+
+/// `evaluations.parquet`: every design with its answers; whether they carry calibrated
+/// intervals.
+fn write_evaluations(out: &Path, predictor: &Predictor, mc: &MonteCarlo) -> Result<bool> {
     let n = mc.designs.len();
     let mut t = Table::default();
     t.push(DESIGN, Column::I64((0..n as i64).collect()))?;
@@ -60,8 +75,11 @@ pub fn write_monte_carlo(
     }
     t.push(SOLVER_CHECKED, Column::I64(checked))?;
     pino_data::write_parquet(&out.join("evaluations.parquet"), &t)?;
+    Ok(calibrated)
+}
 
-    // The solver beside the surrogate.
+/// `solver.parquet`: the checked designs through the solver, beside the surrogate.
+fn write_solver(out: &Path, predictor: &Predictor, mc: &MonteCarlo) -> Result<()> {
     let mut s = Table::default();
     s.push(
         DESIGN,
@@ -80,8 +98,13 @@ pub fn write_monte_carlo(
     let answers: Vec<&DesignAnswer> = mc.checked.iter().map(|&k| &mc.answers[k]).collect();
     push_solver(&mut s, predictor, &designs, &mc.solved, &answers)?;
     pino_data::write_parquet(&out.join("solver.parquet"), &s)?;
+    Ok(())
+}
 
-    // The statistics.
+/// `summary.parquet` and its CSV: each index's statistics with their bootstrap intervals and
+/// its exceedance of the limit, by source.
+fn write_summary_table(out: &Path, predictor: &Predictor, mc: &MonteCarlo) -> Result<()> {
+    let columns = predictor.index_inputs().columns();
     let rows = &mc.summaries;
     let mut m = Table::default();
     let unit_of = |name: &str| {
@@ -154,7 +177,12 @@ pub fn write_monte_carlo(
         ex(&|e| e.surrogate.map_or(f64::NAN, |s| s.hi)),
     )?;
     pino_data::write_parquet(&out.join("summary.parquet"), &m)?;
-    report::csv::write_csv(&out.join(super::MONTE_CARLO_TABLE_FILE), &m).map_err(report_err)?;
+    report::csv::write_csv(&out.join(super::MONTE_CARLO_TABLE_FILE), &m).map_err(report_err)
+}
+
+/// The histograms with the limits, the exceedance curves (surrogate and solver) and the
+/// surrogate against the solver.
+fn write_plots(out: &Path, predictor: &Predictor, study: &Study, mc: &MonteCarlo) -> Result<()> {
     let q = quantities(predictor);
     let values: Vec<Vec<f64>> = (0..q.len())
         .map(|j| mc.answers.iter().map(|a| a.indices.values[j]).collect())
@@ -179,14 +207,7 @@ pub fn write_monte_carlo(
         &mc.limits,
     )
     .map_err(report_err)?;
-    plots::surrogate_vs_solver(&out.join(SCATTER_FILE), &study.name, &q, &pairs)
-        .map_err(report_err)?;
-    finish(
-        out,
-        (n, mc.surrogate_s),
-        (mc.checked.len(), mc.solver_s),
-        &summary_markdown(study, mc, calibrated),
-    )
+    plots::surrogate_vs_solver(&out.join(SCATTER_FILE), &study.name, &q, &pairs).map_err(report_err)
 }
 
 /// The Markdown summary: what ran, the statistics, the exceedances side by side.

@@ -12,6 +12,7 @@ use super::{
     SOLVER_CHECKED, SPEED_FILE,
 };
 use crate::predict::{DesignAnswer, Predictor};
+use crate::study::evaluate::Solved;
 use crate::study::optimise::{describe, Judged, Optimisation, Role};
 use crate::study::source;
 use crate::study::spec::{Optimise, Study};
@@ -78,7 +79,9 @@ fn push_judged(
     )
 }
 
-/// Writes an optimisation's files into `out`.
+/// Writes an optimisation's files into `out`: the search's history, every surrogate
+/// evaluation, the solver's runs beside them, the checked candidates judged by both, the
+/// plots and the summary.
 pub fn write_optimise(
     out: &Path,
     predictor: &Predictor,
@@ -111,7 +114,34 @@ pub fn write_optimise(
     declare_units(predictor, &extra)?;
     let m = r.excitation.len();
 
-    // The search's history.
+    let designs: Vec<Vec<f64>> = r.history.iter().map(|c| c.design.clone()).collect();
+    write_history(out, predictor, r, &designs)?;
+    let calibrated = write_evaluations(out, predictor, r, &designs)?;
+    let beside: Vec<&DesignAnswer> = r
+        .checked
+        .iter()
+        .flat_map(|c| r.answers[c.candidate].iter())
+        .collect();
+    let solved: Vec<_> = r.checked.iter().flat_map(|c| c.solved.clone()).collect();
+    write_solver(out, predictor, r, &designs, &solved, &beside)?;
+    write_optimum(out, predictor, r, &designs)?;
+    write_plots(out, predictor, study, o, r, &solved, &beside)?;
+    let solves = r.checked.len() * m;
+    finish(
+        out,
+        (r.distinct * m, r.surrogate_s),
+        (solves, r.solver_s),
+        &summary_markdown(predictor, study, o, r, calibrated, &objective_unit),
+    )
+}
+
+/// `history.parquet`: the search's candidates in order, with their designs and judgements.
+fn write_history(
+    out: &Path,
+    predictor: &Predictor,
+    r: &Optimisation,
+    designs: &[Vec<f64>],
+) -> Result<()> {
     let mut h = Table::default();
     let rows = r.history.len();
     h.push(CANDIDATE, Column::I64((0..rows as i64).collect()))?;
@@ -123,8 +153,7 @@ pub fn write_optimise(
         EVALUATION,
         Column::I64(r.history.iter().map(|c| c.evaluation as i64).collect()),
     )?;
-    let designs: Vec<Vec<f64>> = r.history.iter().map(|c| c.design.clone()).collect();
-    predictor.space.push_columns(&mut h, &designs)?;
+    predictor.space.push_columns(&mut h, designs)?;
     let judged: Vec<&Judged> = r.history.iter().map(|c| &c.judged).collect();
     push_judged(&mut h, predictor, r, &judged)?;
     h.push(
@@ -132,8 +161,18 @@ pub fn write_optimise(
         Column::F64(r.history.iter().map(|c| c.penalised).collect()),
     )?;
     pino_data::write_parquet(&out.join("history.parquet"), &h)?;
+    Ok(())
+}
 
-    // Every surrogate evaluation: candidate by excitation.
+/// `evaluations.parquet`: every surrogate evaluation, candidate by excitation; whether the
+/// answers carry calibrated intervals.
+fn write_evaluations(
+    out: &Path,
+    predictor: &Predictor,
+    r: &Optimisation,
+    designs: &[Vec<f64>],
+) -> Result<bool> {
+    let (rows, m) = (r.history.len(), r.excitation.len());
     let mut e = Table::default();
     let candidate: Vec<i64> = (0..rows as i64)
         .flat_map(|c| std::iter::repeat_n(c, m))
@@ -166,8 +205,19 @@ pub fn write_optimise(
         ),
     )?;
     pino_data::write_parquet(&out.join("evaluations.parquet"), &e)?;
+    Ok(calibrated)
+}
 
-    // The solver beside the surrogate, candidate by excitation.
+/// `solver.parquet`: the solver beside the surrogate, checked candidate by excitation.
+fn write_solver(
+    out: &Path,
+    predictor: &Predictor,
+    r: &Optimisation,
+    designs: &[Vec<f64>],
+    solved: &[Solved],
+    beside: &[&DesignAnswer],
+) -> Result<()> {
+    let m = r.excitation.len();
     let mut v = Table::default();
     v.push(
         CANDIDATE,
@@ -201,16 +251,19 @@ pub fn write_optimise(
         .iter()
         .flat_map(|c| std::iter::repeat_n(designs[c.candidate].clone(), m))
         .collect();
-    let solved: Vec<_> = r.checked.iter().flat_map(|c| c.solved.clone()).collect();
-    let beside: Vec<&DesignAnswer> = r
-        .checked
-        .iter()
-        .flat_map(|c| r.answers[c.candidate].iter())
-        .collect();
-    push_solver(&mut v, predictor, &solver_designs, &solved, &beside)?;
+    push_solver(&mut v, predictor, &solver_designs, solved, beside)?;
     pino_data::write_parquet(&out.join("solver.parquet"), &v)?;
+    Ok(())
+}
 
-    // The checked candidates judged by each source.
+/// `optimum.parquet` and its CSV: each checked candidate judged by the surrogate and by the
+/// solver.
+fn write_optimum(
+    out: &Path,
+    predictor: &Predictor,
+    r: &Optimisation,
+    designs: &[Vec<f64>],
+) -> Result<()> {
     let mut t = Table::default();
     let both = |f: &dyn Fn(usize) -> i64| -> Vec<i64> {
         (0..r.checked.len()).flat_map(|k| [f(k), f(k)]).collect()
@@ -250,8 +303,19 @@ pub fn write_optimise(
         .collect();
     push_judged(&mut t, predictor, r, &judged)?;
     pino_data::write_parquet(&out.join("optimum.parquet"), &t)?;
-    report::csv::write_csv(&out.join(super::OPTIMUM_TABLE_FILE), &t).map_err(super::report_err)?;
+    report::csv::write_csv(&out.join(super::OPTIMUM_TABLE_FILE), &t).map_err(super::report_err)
+}
 
+/// `history.png` (the search with each limit) and the surrogate against the solver.
+fn write_plots(
+    out: &Path,
+    predictor: &Predictor,
+    study: &Study,
+    o: &Optimise,
+    r: &Optimisation,
+    solved: &[Solved],
+    beside: &[&DesignAnswer],
+) -> Result<()> {
     let q = super::quantities(predictor);
     let steps: Vec<plots::Step> = r
         .history
@@ -274,17 +338,9 @@ pub fn write_optimise(
         o.maximise,
     )
     .map_err(super::report_err)?;
-    let pairs = super::solver_pairs(q.len(), &beside, &solved);
+    let pairs = super::solver_pairs(q.len(), beside, solved);
     plots::surrogate_vs_solver(&out.join(SCATTER_FILE), &study.name, &q, &pairs)
-        .map_err(super::report_err)?;
-
-    let solves = r.checked.len() * m;
-    finish(
-        out,
-        (r.distinct * m, r.surrogate_s),
-        (solves, r.solver_s),
-        &summary_markdown(predictor, study, o, r, calibrated, &objective_unit),
-    )
+        .map_err(super::report_err)
 }
 
 /// The Markdown summary: the problem, the optimum (or the least-violating design), the
