@@ -9,7 +9,7 @@
 #
 # What it does, idempotently (a second source only exports):
 # 1. `pip install --target` the pinned NVIDIA wheels (nvcc, headers, runtime, NVRTC, cuBLAS,
-#    cuRAND; CUDA 13.4) into target/cuda/toolkit; nothing is installed system-wide.
+#    cuRAND; CUDA 13.0) into target/cuda/toolkit; nothing is installed system-wide.
 # 2. Gives the wheels' libraries the unversioned names the linker asks for
 #    (libcublas.so -> libcublas.so.13, ...) in the wheels' lib/ directory.
 # 3. Builds lib/stubs/libcuda.so, a link-time stand-in for the driver library: cudarc (with
@@ -25,17 +25,20 @@
 # Needs python3 with pip, a C and C++ compiler (nvcc's host compiler); the CI script installs
 # them with apt-get when missing.
 
-# Pinned wheel set: the `cuda-toolkit==13.4.3` meta-package's components (cudarc 0.19 knows
-# CUDA up to 13.4; the 13.5 wheels would be built against as 13.4 anyway).
+# Pinned wheel set: the `cuda-toolkit==13.0.2` meta-package's components. CUDA 13.0, the
+# oldest 13.x, because the driver must know the PTX version nvcc writes into candle's kernels:
+# a 13.0 toolkit's kernels load on every driver for CUDA 13.0 or newer (R580+), a 13.4
+# toolkit's only on drivers for 13.4 or newer (a 13.0 driver refuses them as an unsupported
+# PTX version). cudarc 0.19 is built for the same version (CUDARC_CUDA_VERSION below).
 PINO_CUDA_WHEELS=(
-    nvidia-cuda-nvcc==13.4.92
-    nvidia-cuda-crt==13.4.92
-    nvidia-nvvm==13.4.92
-    nvidia-cuda-runtime==13.4.92
-    nvidia-cuda-cccl==13.3.4.3.1
-    nvidia-cuda-nvrtc==13.4.92
-    nvidia-cublas==13.8.0.4
-    nvidia-curand==10.4.4.72
+    nvidia-cuda-nvcc==13.0.88
+    nvidia-cuda-crt==13.0.88
+    nvidia-nvvm==13.0.88
+    nvidia-cuda-runtime==13.0.96
+    nvidia-cuda-cccl==13.0.85
+    nvidia-cuda-nvrtc==13.0.88
+    nvidia-cublas==13.1.0.3
+    nvidia-curand==10.4.0.35
 )
 
 pino_cuda_setup() {
@@ -56,6 +59,10 @@ pino_cuda_setup() {
             return 1
         }
         printf '%s' "$want" >"$stamp"
+        # candle's kernels compiled by another toolkit: candle-kernels' build script caches
+        # its PTX by source and flags, not by compiler, so a new toolkit would keep the old
+        # PTX (which a driver older than that toolkit refuses: CUDA_ERROR_UNSUPPORTED_PTX_VERSION).
+        rm -rf "$repo"/target/{,cuda/}{debug,release}/{build,.fingerprint}/candle-kernels-*
     fi
 
     # Unversioned names for the linker (-lcublas, ...), next to the versioned ones.
@@ -101,7 +108,7 @@ pino_cuda_setup() {
         *":$root/bin:"*) ;;
         *) export PATH="$root/bin:$PATH" ;;
     esac
-    export CUDARC_CUDA_VERSION=13040
+    export CUDARC_CUDA_VERSION=13000
     export CUDA_COMPUTE_CAP="${CUDA_COMPUTE_CAP:-90}"
     export CARGO_TARGET_DIR="${PINO_CUDA_TARGET_DIR:-$repo/target/cuda}"
     # For running the binaries: the wheels' runtime libraries (the driver comes from the

@@ -8,8 +8,12 @@
 //! Builds a synthetic dataset of `points` time points per record (after the 10% start-up
 //! window), runs `steps` optimizer steps of `algorithm` (default 4) and reports
 //! the median step time, samples per second, and the forward time for 40 samples.
-use candle_core::Device;
-use pino_learn::config::{ModelConfig, TrainParams};
+//!
+//! `PINO_BENCH_DEVICE=cuda` runs on the first CUDA GPU (a build with `--features
+//! pino-learn/cuda`); the transform is then always the matrix DFT (the fused kernels are CPU
+//! code), and every phase ends with a device synchronisation so that its time is the GPU's
+//! work, not the launch.
+use pino_learn::config::{DeviceKind, ModelConfig, TrainParams};
 use pino_learn::data::{make_batch, prepare};
 use pino_learn::loss::LossContext;
 use pino_learn::model::Fno;
@@ -27,7 +31,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let depth: usize = arg(2, "3").parse()?;
     let batch: usize = arg(3, "8").parse()?;
     let points: usize = arg(4, "1800").parse()?;
+    let device_kind = match std::env::var("PINO_BENCH_DEVICE").as_deref() {
+        Err(_) | Ok("cpu") => DeviceKind::Cpu,
+        Ok("cuda") => DeviceKind::Cuda,
+        Ok(other) => return Err(format!("PINO_BENCH_DEVICE `{other}`: allowed cpu, cuda").into()),
+    };
+    let dev = device_kind.device()?;
     let transform = match arg(5, "fused").as_str() {
+        _ if !dev.is_cpu() => Transform::Matmul,
         "matmul" => Transform::Matmul,
         "fused" => Transform::Fused,
         other => return Err(format!("transform `{other}`: allowed fused, matmul").into()),
@@ -63,7 +74,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         padding_percent: arg(8, "0").parse()?,
         ..model_cfg
     };
-    let dev = Device::Cpu;
     let model = Fno::new(cfg, ds.t_points(), 1, transform, &dev)?;
     let norm = ds.normalisation()?;
     let loss = LossContext {
@@ -81,14 +91,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut times = Vec::new();
     let mut phases = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
     for _ in 0..steps {
+        dev.synchronize()?;
         let t0 = Instant::now();
         let u = model.forward(&b.x)?;
+        dev.synchronize()?;
         let t1 = Instant::now();
         let (total, _) = loss.loss(&u, &b)?;
+        dev.synchronize()?;
         let t2 = Instant::now();
         let g = total.backward()?;
+        dev.synchronize()?;
         let t3 = Instant::now();
         adam.step(model.vars(), &g, 1e-4)?;
+        dev.synchronize()?;
         let t4 = Instant::now();
         times.push((t4 - t0).as_secs_f64());
         for (k, d) in [t1 - t0, t2 - t1, t3 - t2, t4 - t3].into_iter().enumerate() {
@@ -129,7 +144,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     inf.sort_by(f64::total_cmp);
     println!(
-        "width {width} modes {modes} depth {depth} batch {batch} T {} {transform:?}: params {}, step median {:.4} s, {:.1} samples/s, inference {n_infer} samples {:.3} s",
+        "{device_kind:?} width {width} modes {modes} depth {depth} batch {batch} T {} {transform:?}: params {}, step median {:.4} s, {:.1} samples/s, inference {n_infer} samples {:.3} s",
         ds.t_points(),
         model.num_parameters(),
         med,

@@ -599,7 +599,10 @@ pub fn composed_residuals(
     parts.extend(w_rate);
     parts.extend(e);
     parts.extend(e_rate);
-    let state = Tensor::cat(&parts, 2)?; // [B, T-2, C]
+    // [B, T-2, C]. Contiguous: `cat` along the last axis of strided parts (the narrowed
+    // excitations) leaves a permuted layout, which the CPU's matmul reads but cuBLAS refuses
+    // ("matmul is only supported for contiguous tensors"; found by the CUDA parity test).
+    let state = Tensor::cat(&parts, 2)?.contiguous()?;
     let cols = map.columns();
     let q = map.equations.len();
     // Nonlinear elements: Hertz of the deflection terms (same elements in every sample).
