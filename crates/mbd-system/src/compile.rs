@@ -14,11 +14,18 @@
 //!   [`System::instantiate`] checks each sample again;
 //! - every column name (the naming rule of `docs/systems.md`) is unique, and `outputs` and
 //!   `indices` name columns that exist.
+//!
+//! [`compile`] runs one phase per section of the description, each a method of a small
+//! compilation context (the description, the parameter scope that records which names are
+//! used, the problems found), so the problems are found in the order of the sections.
 
 use crate::diag::Diagnostics;
 use crate::expr::Expr;
 use crate::reader::Field;
-use crate::schema::{self, DofKind, ParamKind, RawDescription, RawLaw, RawLink, RawProfileKind};
+use crate::schema::{
+    self, DofKind, Named, ParamKind, RawBeam, RawBody, RawDescription, RawLaw, RawLink,
+    RawProfileKind, RawSupports,
+};
 use crate::system::*;
 use crate::yaml::Pos;
 use std::collections::{BTreeMap, HashMap};
@@ -139,586 +146,32 @@ pub fn apply_overrides(
 }
 
 /// Validates and compiles a parsed description; every problem found goes to `diag`.
+///
+/// The phases run in the order of the description's sections, so the problems are found in
+/// that order: the parameter table, bodies and their DOFs, beams, the moving frame, sensors,
+/// profiles, elements, loads, the columns (`outputs`), `indices`, `railway`, the parameters
+/// never used; then, when nothing was found, the checks at the nominal values.
 pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
-    let n_params = raw.parameters.len();
-    let mut scope = Scope {
-        names: HashMap::new(),
-        used: vec![false; n_params],
+    let mut cx = Compiler::new(raw, diag);
+    let parameters = cx.parameters();
+    let derived_order = derived_order(raw, &parameters, cx.diag);
+    let (bodies, dofs) = cx.bodies();
+    let beams = cx.beams(&parameters, &derived_order);
+    let (points, speed) = cx.moving(&beams);
+    let sensors = cx.sensors(&beams);
+    let profiles = cx.profiles();
+    let ends = Ends {
+        bodies: &bodies,
+        points: &points,
     };
-    for (i, p) in raw.parameters.iter().enumerate() {
-        if crate::expr::is_reserved(&p.name) {
-            diag.push(
-                p.pos,
-                format!(
-                    "parameters.{}: `{}` is reserved (a constant or function of expressions)",
-                    p.name, p.name
-                ),
-            );
-        }
-        if p.name.starts_with(|c: char| c.is_ascii_digit()) {
-            diag.push(
-                p.pos,
-                format!(
-                    "parameters.{}: a parameter name starts with a letter or `_`",
-                    p.name
-                ),
-            );
-        }
-        scope.names.insert(&p.name, i);
-    }
-    // Parameters.
-    let mut parameters = Vec::with_capacity(n_params);
-    for p in &raw.parameters {
-        let source = match &p.kind {
-            ParamKind::Sampled { nominal, range } => ParamSource::Sampled {
-                nominal: *nominal,
-                range: *range,
-            },
-            ParamKind::Fixed { value } => ParamSource::Fixed(*value),
-            ParamKind::Derived { expr } => {
-                let mut e = expr.expr.clone();
-                let names = &scope.names;
-                match e.resolve(&|n| names.get(n).copied()) {
-                    Ok(()) => ParamSource::Derived(e),
-                    Err(name) => {
-                        diag.push(
-                            expr.pos,
-                            format!(
-                                "parameters.{}.expr: unknown parameter `{name}`; parameters: {}",
-                                p.name,
-                                scope.known()
-                            ),
-                        );
-                        scope.mark_used(&expr.expr);
-                        ParamSource::Fixed(f64::NAN)
-                    }
-                }
-            }
-        };
-        parameters.push(Parameter {
-            name: p.name.clone(),
-            unit: p.unit.clone(),
-            doc: p.doc.clone(),
-            source,
-        });
-    }
-    let derived_order = derived_order(raw, &parameters, diag);
-
-    // Bodies and DOFs.
-    let mut bodies = Vec::new();
-    let mut dofs = Vec::new();
-    for b in &raw.bodies {
-        let what = format!("bodies.{}", b.name);
-        let mass = scope.req(&b.mass, &format!("{what}.mass"), diag);
-        let pitches = b.dofs.iter().any(|d| d.0 == DofKind::Pitch);
-        let inertia = match (&b.inertia, pitches) {
-            (Some(f), true) => scope.resolve(f, &format!("{what}.inertia"), diag),
-            (None, true) => {
-                diag.push(
-                    b.pos,
-                    format!("{what}: a body with a pitch DOF needs `inertia` (kg m^2)"),
-                );
-                None
-            }
-            (Some(f), false) => {
-                diag.push(
-                    f.pos,
-                    format!(
-                        "{what}.inertia: the body has no pitch DOF (dofs: [z, pitch] to add one)"
-                    ),
-                );
-                None
-            }
-            (None, false) => None,
-        };
-        let mut body = Body {
-            name: b.name.clone(),
-            doc: b.doc.clone(),
-            mass: mass.unwrap_or(Expr::Num(f64::NAN)),
-            inertia,
-            z: None,
-            pitch: None,
-            points: Vec::new(),
-        };
-        for (kind, _) in &b.dofs {
-            let i = dofs.len();
-            dofs.push(Dof {
-                name: format!("{}_{}", kind.symbol(), b.name),
-                body: bodies.len(),
-                kind: *kind,
-            });
-            match kind {
-                DofKind::Z => body.z = Some(i),
-                DofKind::Pitch => body.pitch = Some(i),
-            }
-        }
-        for (name, _, x) in &b.points {
-            if let Some(e) = scope.resolve(x, &format!("{what}.points.{name}"), diag) {
-                body.points.push((name.clone(), e));
-            }
-        }
-        bodies.push(body);
-    }
-
-    // Beams.
-    let structural = structural_values(&parameters, &derived_order);
-    let mut beams = Vec::new();
-    for b in &raw.beams {
-        let what = format!("beams.{}", b.name);
-        let count_of =
-            |scope: &mut Scope, f: &Option<Field>, field: &str, diag: &mut Diagnostics| -> usize {
-                let Some(f) = f else { return 0 };
-                let Some(e) = scope.resolve(f, &format!("{what}.{field}"), diag) else {
-                    return 0;
-                };
-                match structural_count(&e, &parameters, &structural) {
-                    Ok(n) => n,
-                    Err(why) => {
-                        diag.push(f.pos, format!("{what}.{field}: {why}"));
-                        0
-                    }
-                }
-            };
-        let modes = count_of(&mut scope, &b.modes, "modes", diag);
-        let supports = b.supports.as_ref().map(|s| {
-            let w = format!("{what}.supports");
-            let count = count_of(&mut scope, &s.count, "supports.count", diag);
-            if s.levels.is_empty() {
-                diag.push(s.pos, format!("{w}.levels: at least one level (a mass under each support)"));
-            }
-            let n_levels = s.levels.len();
-            let levels = s
-                .levels
-                .iter()
-                .enumerate()
-                .map(|(i, l)| {
-                    let lw = format!("{w}.levels[{i}]");
-                    if l.shear.is_some() && i + 1 != n_levels {
-                        diag.push(l.pos, format!("{lw}.shear: shear coupling is supported on the last level (the one on the ground) only"));
-                    }
-                    Level {
-                        name: l.name.clone(),
-                        mass: scope.req(&l.mass, &format!("{lw}.mass"), diag).unwrap_or(Expr::Num(f64::NAN)),
-                        link: link(&mut scope, l.link.as_ref(), &format!("{lw}.link"), diag),
-                        shear: l.shear.as_ref().map(|s| link(&mut scope, Some(s), &format!("{lw}.shear"), diag)),
-                    }
-                })
-                .collect();
-            Supports {
-                spacing: scope.req(&s.spacing, &format!("{w}.spacing"), diag).unwrap_or(Expr::Num(f64::NAN)),
-                count,
-                first: scope.opt(&s.first, 0.0, &format!("{w}.first"), diag).unwrap_or(Expr::Num(0.0)),
-                levels,
-                ground: link(&mut scope, s.ground.as_ref(), &format!("{w}.ground"), diag),
-            }
-        });
-        if let Some(s) = &supports {
-            if s.count >= 2 && modes >= s.count {
-                diag.push(b.pos, format!("{what}.modes: {modes} modes need fewer than supports.count = {} supports (discrete sine orthogonality)", s.count));
-            }
-        }
-        beams.push(Beam {
-            name: b.name.clone(),
-            doc: b.doc.clone(),
-            length: scope
-                .req(&b.length, &format!("{what}.length"), diag)
-                .unwrap_or(Expr::Num(f64::NAN)),
-            modes,
-            mass_per_length: scope
-                .req(&b.mass_per_length, &format!("{what}.mass_per_length"), diag)
-                .unwrap_or(Expr::Num(f64::NAN)),
-            bending_stiffness: scope
-                .req(
-                    &b.bending_stiffness,
-                    &format!("{what}.bending_stiffness"),
-                    diag,
-                )
-                .unwrap_or(Expr::Num(f64::NAN)),
-            damping_ratio: scope
-                .opt(
-                    &b.damping_ratio,
-                    0.0,
-                    &format!("{what}.damping_ratio"),
-                    diag,
-                )
-                .unwrap_or(Expr::Num(0.0)),
-            outside: b.outside,
-            supports,
-        });
-    }
-    let beam_index = |name: &str| beams.iter().position(|b| b.name == name);
-
-    // The moving frame.
-    let mut points = Vec::new();
-    let speed = match &raw.moving {
-        Some(m) => {
-            for p in &m.points {
-                let what = format!("moving.points.{}", p.name);
-                let beam = match &p.on {
-                    Some((on, _)) if on == "ground" => None,
-                    Some((on, pos)) => match beam_index(on) {
-                        Some(b) => Some(b),
-                        None => {
-                            diag.push(
-                                *pos,
-                                format!(
-                                    "{what}.on: unknown beam `{on}`; beams: {}; or `ground`",
-                                    names(raw.beams.iter().map(|b| &b.name))
-                                ),
-                            );
-                            // A point meant for a beam keeps its column `z_<point>` (no
-                            // follow-on problem in `outputs`); the system is refused anyway.
-                            Some(beams.len())
-                        }
-                    },
-                    None => None,
-                };
-                points.push(MovingPoint {
-                    name: p.name.clone(),
-                    beam,
-                    offset: scope
-                        .req(&p.offset, &format!("{what}.offset"), diag)
-                        .unwrap_or(Expr::Num(0.0)),
-                });
-            }
-            scope
-                .req(&m.speed, "moving.speed", diag)
-                .unwrap_or(Expr::Num(0.0))
-        }
-        None => Expr::Num(0.0),
-    };
-
-    // Sensors.
-    let mut sensors = Vec::new();
-    for s in &raw.sensors {
-        let what = format!("sensors.{}", s.name);
-        // A sensor whose beam or position fails keeps its columns (no follow-on problem in
-        // `outputs`); the system is refused anyway.
-        let beam = match &s.on {
-            Some((on, pos)) => match beam_index(on) {
-                Some(b) => b,
-                None => {
-                    diag.push(
-                        *pos,
-                        format!(
-                            "{what}.on: unknown beam `{on}`; beams: {}",
-                            names(raw.beams.iter().map(|b| &b.name))
-                        ),
-                    );
-                    beams.len()
-                }
-            },
-            None => beams.len(),
-        };
-        let x = scope.req(&s.x, &format!("{what}.x"), diag);
-        sensors.push(Sensor {
-            name: s.name.clone(),
-            beam,
-            x: x.unwrap_or(Expr::Num(f64::NAN)),
-        });
-    }
-
-    // Profiles.
-    let mut profiles = Vec::new();
-    for p in &raw.profiles {
-        let what = format!("profiles.{}", p.name);
-        profiles.push(match &p.kind {
-            RawProfileKind::Generated {
-                segments,
-                wavelengths,
-            } => Profile::Generated {
-                name: p.name.clone(),
-                segments: segments.clone(),
-                wavelengths: *wavelengths,
-            },
-            RawProfileKind::Harmonic {
-                amplitude,
-                wavelength,
-                phase,
-            } => Profile::Harmonic {
-                name: p.name.clone(),
-                amplitude: scope
-                    .req(amplitude, &format!("{what}.amplitude"), diag)
-                    .unwrap_or(Expr::Num(0.0)),
-                wavelength: scope
-                    .req(wavelength, &format!("{what}.wavelength"), diag)
-                    .unwrap_or(Expr::Num(1.0)),
-                phase: scope
-                    .opt(phase, 0.0, &format!("{what}.phase"), diag)
-                    .unwrap_or(Expr::Num(0.0)),
-            },
-        });
-    }
-
-    // Ends: `ground`, `body`, `body.point`, a moving point.
-    let resolve_end = |name: &str, pos: Pos, what: &str, diag: &mut Diagnostics| -> Option<End> {
-        if name == "ground" {
-            return Some(End::Ground);
-        }
-        let (body_name, point) = match name.split_once('.') {
-            Some((b, p)) => (b, Some(p)),
-            None => (name, None),
-        };
-        if let Some(bi) = bodies.iter().position(|b| b.name == body_name) {
-            let x = match point {
-                None => None,
-                Some(p) => match bodies[bi].points.iter().find(|(n, _)| n == p) {
-                    Some((_, x)) => Some(x.clone()),
-                    None => {
-                        diag.push(
-                            pos,
-                            format!(
-                                "{what}: body `{body_name}` has no point `{p}`; its points: {}",
-                                names(bodies[bi].points.iter().map(|p| &p.0))
-                            ),
-                        );
-                        return None;
-                    }
-                },
-            };
-            return Some(End::Body { body: bi, x });
-        }
-        if point.is_none() {
-            if let Some(pi) = points.iter().position(|p| p.name == name) {
-                return Some(End::Moving(pi));
-            }
-        }
-        diag.push(
-            pos,
-            format!(
-                "{what}: unknown point `{name}`; expected `ground`, a body ({}), `body.point`, or a moving point ({})",
-                names(bodies.iter().map(|b| &b.name)),
-                names(points.iter().map(|p| &p.name))
-            ),
-        );
-        None
-    };
-
-    // Elements.
-    let mut elements = Vec::new();
-    for e in &raw.elements {
-        let what = format!("elements.{}", e.name);
-        let from = e
-            .from
-            .as_ref()
-            .and_then(|(n, p)| resolve_end(n, *p, &format!("{what}.from"), diag));
-        let to =
-            e.to.as_ref()
-                .and_then(|(n, p)| resolve_end(n, *p, &format!("{what}.to"), diag));
-        if let (Some(f), Some(t)) = (&from, &to) {
-            if !matches!(f, End::Body { .. }) {
-                diag.push(
-                    e.pos,
-                    format!("{what}.from: the upper end of an element is a body or body point"),
-                );
-            }
-            if f == t {
-                diag.push(e.pos, format!("{what}: `from` and `to` are the same point"));
-            }
-        }
-        let profile = match &e.profile {
-            None => None,
-            Some((name, pos)) => {
-                if to.as_ref().is_some_and(|t| !matches!(t, End::Moving(_))) {
-                    diag.push(*pos, format!("{what}.profile: a profile lies under a moving point; `to` must be one ({})", names(points.iter().map(|p| &p.name))));
-                }
-                match profiles.iter().position(|p| p.name() == name) {
-                    Some(i) => Some(i),
-                    None => {
-                        diag.push(
-                            *pos,
-                            format!(
-                                "{what}.profile: unknown profile `{name}`; profiles: {}",
-                                names(profiles.iter().map(|p| p.name()))
-                            ),
-                        );
-                        // Keeps the column `eta_<element>`; the system is refused anyway.
-                        Some(profiles.len())
-                    }
-                }
-            }
-        };
-        let law = match &e.law {
-            RawLaw::SpringDamper { k, c, preload } => Law::SpringDamper {
-                k: scope
-                    .req(k, &format!("{what}.k"), diag)
-                    .unwrap_or(Expr::Num(f64::NAN)),
-                c: scope
-                    .opt(c, 0.0, &format!("{what}.c"), diag)
-                    .unwrap_or(Expr::Num(0.0)),
-                preload: scope
-                    .opt(preload, 0.0, &format!("{what}.preload"), diag)
-                    .unwrap_or(Expr::Num(0.0)),
-            },
-            RawLaw::Hertz { g, exponent } => Law::Hertz {
-                g: scope
-                    .req(g, &format!("{what}.g"), diag)
-                    .unwrap_or(Expr::Num(f64::NAN)),
-                exponent: scope
-                    .opt(exponent, 1.5, &format!("{what}.exponent"), diag)
-                    .unwrap_or(Expr::Num(1.5)),
-            },
-            RawLaw::Table {
-                deflection,
-                force,
-                c,
-            } => Law::Table {
-                deflection: deflection
-                    .iter()
-                    .filter_map(|f| scope.resolve(f, &format!("{what}.deflection"), diag))
-                    .collect(),
-                force: force
-                    .iter()
-                    .filter_map(|f| scope.resolve(f, &format!("{what}.force"), diag))
-                    .collect(),
-                c: scope
-                    .opt(c, 0.0, &format!("{what}.c"), diag)
-                    .unwrap_or(Expr::Num(0.0)),
-            },
-        };
-        // An element whose end fails keeps its columns (no follow-on problem in `outputs`);
-        // the system is refused anyway.
-        elements.push(Element {
-            name: e.name.clone(),
-            law,
-            from: from.unwrap_or(End::Ground),
-            to: to.unwrap_or(End::Ground),
-            profile,
-        });
-    }
-
-    // Loads.
-    let mut loads = Vec::new();
-    for l in &raw.loads {
-        let what = format!("loads.{}", l.name);
-        let at =
-            l.at.as_ref()
-                .and_then(|(n, p)| resolve_end(n, *p, &format!("{what}.at"), diag));
-        if let Some(End::Moving(pi)) = &at {
-            if points[*pi].beam.is_none() {
-                diag.push(
-                    l.pos,
-                    format!("{what}.at: a load on a point on the ground acts on nothing"),
-                );
-            }
-        }
-        if matches!(at, Some(End::Ground)) {
-            diag.push(
-                l.pos,
-                format!("{what}.at: a load on the ground acts on nothing"),
-            );
-        }
-        let force = scope.req(&l.force, &format!("{what}.force"), diag);
-        if let (Some(at), Some(force)) = (at, force) {
-            loads.push(Load {
-                name: l.name.clone(),
-                at,
-                force,
-            });
-        }
-    }
-
-    for p in &parameters {
-        if let ParamSource::Derived(e) = &p.source {
-            let mut ids = Vec::new();
-            collect_ids(e, &mut ids);
-            for j in ids {
-                scope.used[j] = true;
-            }
-        }
-    }
-    let channel_table = channel_table(&bodies, &dofs, &points, &sensors, &elements, raw, diag);
-    let channels = stored_channels(&dofs, &channel_table, raw, diag);
-    let mut indices = Vec::new();
-    for ix in &raw.indices {
-        let what = format!("indices.{}", ix.name);
-        let channel = ix.channel.as_ref().and_then(|(name, pos)| {
-            match channels.iter().position(|c| &c.name == name) {
-                Some(i) => Some(i),
-                None => {
-                    diag.push(
-                        *pos,
-                        format!(
-                            "{what}.channel: `{name}` is not a stored column; stored: {}",
-                            names(channels.iter().map(|c| &c.name))
-                        ),
-                    );
-                    None
-                }
-            }
-        });
-        let subtract = scope.opt(&ix.subtract, 0.0, &format!("{what}.subtract"), diag);
-        let divide = scope.opt(&ix.divide, 1.0, &format!("{what}.divide"), diag);
-        if let (Some(channel), Some((stat, _)), Some(subtract), Some(divide)) =
-            (channel, ix.stat, subtract, divide)
-        {
-            let unit = ix.unit.clone().unwrap_or_else(|| {
-                if matches!(divide, Expr::Num(v) if v == 1.0) {
-                    channels[channel].unit.clone()
-                } else {
-                    "1".to_owned()
-                }
-            });
-            indices.push(Index {
-                name: ix.name.clone(),
-                doc: ix.doc.clone(),
-                stat,
-                channel,
-                subtract,
-                divide,
-                unit,
-                limit: ix.limit,
-            });
-        }
-    }
-    let railway = raw.railway.as_ref().and_then(|r| {
-        let col = |n: &(String, Pos), diag: &mut Diagnostics| -> Option<usize> {
-            let found = channels.iter().position(|c| c.name == n.0);
-            if found.is_none() {
-                diag.push(
-                    n.1,
-                    format!(
-                        "railway: `{}` is not a stored column; stored: {}",
-                        n.0,
-                        names(channels.iter().map(|c| &c.name))
-                    ),
-                );
-            }
-            found
-        };
-        let cols = |v: &[(String, Pos)], diag: &mut Diagnostics| -> Option<Vec<usize>> {
-            v.iter().map(|n| col(n, diag)).collect()
-        };
-        let contact_forces = cols(&r.contact_forces, diag);
-        let bogies = cols(&r.bogies, diag);
-        let rails = cols(&r.rails, diag);
-        let (cv, cp) = match &r.car_body {
-            Some((v, p)) => (col(v, diag), col(p, diag)),
-            None => (None, None),
-        };
-        let half_length = scope.req(&r.half_length, "railway.half_length", diag);
-        let static_wheel_load = scope.req(&r.static_wheel_load, "railway.static_wheel_load", diag);
-        Some(Railway {
-            contact_forces: contact_forces?,
-            car_body_vertical: cv?,
-            car_body_pitch: cp?,
-            half_length: half_length?,
-            bogies: bogies?,
-            rails: rails?,
-            static_wheel_load: static_wheel_load?,
-        })
-    });
-    for (i, p) in raw.parameters.iter().enumerate() {
-        if !scope.used[i] {
-            diag.push(
-                p.pos,
-                format!(
-                    "parameters.{}: declared but never used (remove it, or use it in a field)",
-                    p.name
-                ),
-            );
-        }
-    }
+    let elements = cx.elements(&ends, &profiles);
+    let loads = cx.loads(&ends);
+    cx.mark_derived_used(&parameters);
+    let table = channel_table(&bodies, &dofs, &points, &sensors, &elements, raw, cx.diag);
+    let channels = stored_channels(&dofs, &table, raw, cx.diag);
+    let indices = cx.indices(&channels);
+    let railway = cx.railway(&channels);
+    cx.report_unused();
     let assembly = assemble(&bodies, &dofs, &elements, &loads);
     let system = System {
         name: raw.name.clone(),
@@ -746,29 +199,725 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
     diag.is_empty().then_some(system)
 }
 
+/// One compilation in progress: the description, its parameter scope (which names are used)
+/// and the problems found so far.
+struct Compiler<'a, 'd> {
+    raw: &'a RawDescription,
+    scope: Scope<'a>,
+    diag: &'d mut Diagnostics,
+}
+
+/// What an end name can resolve to: the compiled bodies (with their points) and moving points.
+struct Ends<'s> {
+    bodies: &'s [Body],
+    points: &'s [MovingPoint],
+}
+
+impl<'a, 'd> Compiler<'a, 'd> {
+    /// The scope of the parameter names, each name checked (not reserved, not starting with
+    /// a digit).
+    fn new(raw: &'a RawDescription, diag: &'d mut Diagnostics) -> Self {
+        let mut scope = Scope {
+            names: HashMap::new(),
+            used: vec![false; raw.parameters.len()],
+        };
+        for (i, p) in raw.parameters.iter().enumerate() {
+            if crate::expr::is_reserved(&p.name) {
+                diag.push(
+                    p.pos,
+                    format!(
+                        "parameters.{}: `{}` is reserved (a constant or function of expressions)",
+                        p.name, p.name
+                    ),
+                );
+            }
+            if p.name.starts_with(|c: char| c.is_ascii_digit()) {
+                diag.push(
+                    p.pos,
+                    format!(
+                        "parameters.{}: a parameter name starts with a letter or `_`",
+                        p.name
+                    ),
+                );
+            }
+            scope.names.insert(&p.name, i);
+        }
+        Compiler { raw, scope, diag }
+    }
+
+    /// A required field, `fallback` where it is absent or fails (the system is refused then).
+    fn req_or(&mut self, f: &Option<Field>, what: &str, fallback: f64) -> Expr {
+        self.scope
+            .req(f, what, self.diag)
+            .unwrap_or(Expr::Num(fallback))
+    }
+
+    /// An optional field, `default` where it is absent or fails.
+    fn opt_or(&mut self, f: &Option<Field>, default: f64, what: &str) -> Expr {
+        self.scope
+            .opt(f, default, what, self.diag)
+            .unwrap_or(Expr::Num(default))
+    }
+
+    /// The parameter table: sampled, fixed and derived sources (a derived expression naming
+    /// an unknown parameter becomes a NaN fixed value, its known names counted as used).
+    fn parameters(&mut self) -> Vec<Parameter> {
+        let mut parameters = Vec::with_capacity(self.raw.parameters.len());
+        for p in &self.raw.parameters {
+            let source = match &p.kind {
+                ParamKind::Sampled { nominal, range } => ParamSource::Sampled {
+                    nominal: *nominal,
+                    range: *range,
+                },
+                ParamKind::Fixed { value } => ParamSource::Fixed(*value),
+                ParamKind::Derived { expr } => {
+                    let mut e = expr.expr.clone();
+                    let names = &self.scope.names;
+                    match e.resolve(&|n| names.get(n).copied()) {
+                        Ok(()) => ParamSource::Derived(e),
+                        Err(name) => {
+                            self.diag.push(
+                                expr.pos,
+                                format!(
+                                    "parameters.{}.expr: unknown parameter `{name}`; parameters: {}",
+                                    p.name,
+                                    self.scope.known()
+                                ),
+                            );
+                            self.scope.mark_used(&expr.expr);
+                            ParamSource::Fixed(f64::NAN)
+                        }
+                    }
+                }
+            };
+            parameters.push(Parameter {
+                name: p.name.clone(),
+                unit: p.unit.clone(),
+                doc: p.doc.clone(),
+                source,
+            });
+        }
+        parameters
+    }
+
+    /// The bodies with their points, and the DOFs in body order (each body's in the order
+    /// written).
+    fn bodies(&mut self) -> (Vec<Body>, Vec<Dof>) {
+        let mut bodies = Vec::new();
+        let mut dofs = Vec::new();
+        for b in &self.raw.bodies {
+            let what = format!("bodies.{}", b.name);
+            let mass = self.scope.req(&b.mass, &format!("{what}.mass"), self.diag);
+            let inertia = self.inertia(b, &what);
+            let mut body = Body {
+                name: b.name.clone(),
+                doc: b.doc.clone(),
+                mass: mass.unwrap_or(Expr::Num(f64::NAN)),
+                inertia,
+                z: None,
+                pitch: None,
+                points: Vec::new(),
+            };
+            for (kind, _) in &b.dofs {
+                let i = dofs.len();
+                dofs.push(Dof {
+                    name: format!("{}_{}", kind.symbol(), b.name),
+                    body: bodies.len(),
+                    kind: *kind,
+                });
+                match kind {
+                    DofKind::Z => body.z = Some(i),
+                    DofKind::Pitch => body.pitch = Some(i),
+                }
+            }
+            for (name, _, x) in &b.points {
+                if let Some(e) = self
+                    .scope
+                    .resolve(x, &format!("{what}.points.{name}"), self.diag)
+                {
+                    body.points.push((name.clone(), e));
+                }
+            }
+            bodies.push(body);
+        }
+        (bodies, dofs)
+    }
+
+    /// A body's pitch inertia: required with a pitch DOF, refused without one.
+    fn inertia(&mut self, b: &RawBody, what: &str) -> Option<Expr> {
+        let pitches = b.dofs.iter().any(|d| d.0 == DofKind::Pitch);
+        match (&b.inertia, pitches) {
+            (Some(f), true) => self.scope.resolve(f, &format!("{what}.inertia"), self.diag),
+            (None, true) => {
+                self.diag.push(
+                    b.pos,
+                    format!("{what}: a body with a pitch DOF needs `inertia` (kg m^2)"),
+                );
+                None
+            }
+            (Some(f), false) => {
+                self.diag.push(
+                    f.pos,
+                    format!(
+                        "{what}.inertia: the body has no pitch DOF (dofs: [z, pitch] to add one)"
+                    ),
+                );
+                None
+            }
+            (None, false) => None,
+        }
+    }
+
+    /// The beams, their counts (`modes`, `supports.count`) evaluated from the parameters that
+    /// are the same for every sample.
+    fn beams(&mut self, parameters: &[Parameter], derived_order: &[usize]) -> Vec<Beam> {
+        let structural = structural_values(parameters, derived_order);
+        let counts = Counts {
+            parameters,
+            structural: &structural,
+        };
+        self.raw
+            .beams
+            .iter()
+            .map(|b| self.beam(b, &counts))
+            .collect()
+    }
+
+    /// One beam: its modes, its supports (fewer modes than supports), then its fields.
+    fn beam(&mut self, b: &RawBeam, counts: &Counts) -> Beam {
+        let what = format!("beams.{}", b.name);
+        let modes = self.count(&b.modes, &what, "modes", counts);
+        let supports = b.supports.as_ref().map(|s| self.supports(s, &what, counts));
+        if let Some(s) = &supports {
+            if s.count >= 2 && modes >= s.count {
+                self.diag.push(b.pos, format!("{what}.modes: {modes} modes need fewer than supports.count = {} supports (discrete sine orthogonality)", s.count));
+            }
+        }
+        Beam {
+            name: b.name.clone(),
+            doc: b.doc.clone(),
+            length: self.req_or(&b.length, &format!("{what}.length"), f64::NAN),
+            modes,
+            mass_per_length: self.req_or(
+                &b.mass_per_length,
+                &format!("{what}.mass_per_length"),
+                f64::NAN,
+            ),
+            bending_stiffness: self.req_or(
+                &b.bending_stiffness,
+                &format!("{what}.bending_stiffness"),
+                f64::NAN,
+            ),
+            damping_ratio: self.opt_or(&b.damping_ratio, 0.0, &format!("{what}.damping_ratio")),
+            outside: b.outside,
+            supports,
+        }
+    }
+
+    /// A count field of a beam (`what.field`), 0 where it is absent or fails.
+    fn count(&mut self, f: &Option<Field>, what: &str, field: &str, counts: &Counts) -> usize {
+        let Some(f) = f else { return 0 };
+        let Some(e) = self.scope.resolve(f, &format!("{what}.{field}"), self.diag) else {
+            return 0;
+        };
+        match structural_count(&e, counts.parameters, counts.structural) {
+            Ok(n) => n,
+            Err(why) => {
+                self.diag.push(f.pos, format!("{what}.{field}: {why}"));
+                0
+            }
+        }
+    }
+
+    /// A beam's periodic supports: the count, the levels (shear on the last one only), the
+    /// spacing, the first support and the link to the ground.
+    fn supports(&mut self, s: &RawSupports, what: &str, counts: &Counts) -> Supports {
+        let w = format!("{what}.supports");
+        let count = self.count(&s.count, what, "supports.count", counts);
+        if s.levels.is_empty() {
+            self.diag.push(
+                s.pos,
+                format!("{w}.levels: at least one level (a mass under each support)"),
+            );
+        }
+        let n_levels = s.levels.len();
+        let levels = s
+            .levels
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                let lw = format!("{w}.levels[{i}]");
+                if l.shear.is_some() && i + 1 != n_levels {
+                    self.diag.push(l.pos, format!("{lw}.shear: shear coupling is supported on the last level (the one on the ground) only"));
+                }
+                Level {
+                    name: l.name.clone(),
+                    mass: self.req_or(&l.mass, &format!("{lw}.mass"), f64::NAN),
+                    link: self.link(l.link.as_ref(), &format!("{lw}.link")),
+                    shear: l
+                        .shear
+                        .as_ref()
+                        .map(|s| self.link(Some(s), &format!("{lw}.shear"))),
+                }
+            })
+            .collect();
+        Supports {
+            spacing: self.req_or(&s.spacing, &format!("{w}.spacing"), f64::NAN),
+            count,
+            first: self.opt_or(&s.first, 0.0, &format!("{w}.first")),
+            levels,
+            ground: self.link(s.ground.as_ref(), &format!("{w}.ground")),
+        }
+    }
+
+    /// A spring-damper link (an absent one: NaN stiffness, the system is refused anyway).
+    fn link(&mut self, l: Option<&RawLink>, what: &str) -> Link {
+        match l {
+            Some(l) => Link {
+                k: self.req_or(&l.k, &format!("{what}.k"), f64::NAN),
+                c: self.opt_or(&l.c, 0.0, &format!("{what}.c")),
+            },
+            None => Link {
+                k: Expr::Num(f64::NAN),
+                c: Expr::Num(0.0),
+            },
+        }
+    }
+
+    /// The moving frame: its points (each on a beam or the ground) and its speed (0 without
+    /// a frame).
+    fn moving(&mut self, beams: &[Beam]) -> (Vec<MovingPoint>, Expr) {
+        let Some(m) = &self.raw.moving else {
+            return (Vec::new(), Expr::Num(0.0));
+        };
+        let mut points = Vec::new();
+        for p in &m.points {
+            let what = format!("moving.points.{}", p.name);
+            let beam = match &p.on {
+                Some((on, _)) if on == "ground" => None,
+                // A point meant for a beam keeps its column `z_<point>` (no follow-on problem
+                // in `outputs`); the system is refused anyway.
+                Some((on, pos)) => Some(
+                    self.beam_on(beams, on, *pos, &what, "; or `ground`")
+                        .unwrap_or(beams.len()),
+                ),
+                None => None,
+            };
+            points.push(MovingPoint {
+                name: p.name.clone(),
+                beam,
+                offset: self.req_or(&p.offset, &format!("{what}.offset"), 0.0),
+            });
+        }
+        let speed = self.req_or(&m.speed, "moving.speed", 0.0);
+        (points, speed)
+    }
+
+    /// The index of the beam named `on` (`what.on`); an unknown name is reported with the
+    /// beams and `alternatives`.
+    fn beam_on(
+        &mut self,
+        beams: &[Beam],
+        on: &str,
+        pos: Pos,
+        what: &str,
+        alternatives: &str,
+    ) -> Option<usize> {
+        let found = beams.iter().position(|b| b.name == on);
+        if found.is_none() {
+            self.diag.push(
+                pos,
+                format!(
+                    "{what}.on: unknown beam `{on}`; beams: {}{alternatives}",
+                    names(self.raw.beams.iter().map(|b| &b.name))
+                ),
+            );
+        }
+        found
+    }
+
+    /// The sensors: a beam and a position on it.
+    fn sensors(&mut self, beams: &[Beam]) -> Vec<Sensor> {
+        let mut sensors = Vec::new();
+        for s in &self.raw.sensors {
+            let what = format!("sensors.{}", s.name);
+            // A sensor whose beam or position fails keeps its columns (no follow-on problem
+            // in `outputs`); the system is refused anyway.
+            let beam = match &s.on {
+                Some((on, pos)) => self.beam_on(beams, on, *pos, &what, ""),
+                None => None,
+            };
+            let x = self.req_or(&s.x, &format!("{what}.x"), f64::NAN);
+            sensors.push(Sensor {
+                name: s.name.clone(),
+                beam: beam.unwrap_or(beams.len()),
+                x,
+            });
+        }
+        sensors
+    }
+
+    /// The profiles: generated (from a PSD) or harmonic.
+    fn profiles(&mut self) -> Vec<Profile> {
+        let mut profiles = Vec::new();
+        for p in &self.raw.profiles {
+            let what = format!("profiles.{}", p.name);
+            profiles.push(match &p.kind {
+                RawProfileKind::Generated {
+                    segments,
+                    wavelengths,
+                } => Profile::Generated {
+                    name: p.name.clone(),
+                    segments: segments.clone(),
+                    wavelengths: *wavelengths,
+                },
+                RawProfileKind::Harmonic {
+                    amplitude,
+                    wavelength,
+                    phase,
+                } => Profile::Harmonic {
+                    name: p.name.clone(),
+                    amplitude: self.req_or(amplitude, &format!("{what}.amplitude"), 0.0),
+                    wavelength: self.req_or(wavelength, &format!("{what}.wavelength"), 1.0),
+                    phase: self.opt_or(phase, 0.0, &format!("{what}.phase")),
+                },
+            });
+        }
+        profiles
+    }
+
+    /// The elements: ends, profile and law of each.
+    fn elements(&mut self, ends: &Ends, profiles: &[Profile]) -> Vec<Element> {
+        let mut elements = Vec::new();
+        for e in &self.raw.elements {
+            let what = format!("elements.{}", e.name);
+            let from = self.end(ends, &e.from, &what, "from");
+            let to = self.end(ends, &e.to, &what, "to");
+            if let (Some(f), Some(t)) = (&from, &to) {
+                if !matches!(f, End::Body { .. }) {
+                    self.diag.push(
+                        e.pos,
+                        format!("{what}.from: the upper end of an element is a body or body point"),
+                    );
+                }
+                if f == t {
+                    self.diag
+                        .push(e.pos, format!("{what}: `from` and `to` are the same point"));
+                }
+            }
+            let profile = e
+                .profile
+                .as_ref()
+                .map(|named| self.element_profile(named, to.as_ref(), ends, profiles, &what));
+            let law = self.law(&e.law, &what);
+            // An element whose end fails keeps its columns (no follow-on problem in
+            // `outputs`); the system is refused anyway.
+            elements.push(Element {
+                name: e.name.clone(),
+                law,
+                from: from.unwrap_or(End::Ground),
+                to: to.unwrap_or(End::Ground),
+                profile,
+            });
+        }
+        elements
+    }
+
+    /// The end `what.field` of an element or load, where it is given and resolves.
+    fn end(&mut self, ends: &Ends, named: &Option<Named>, what: &str, field: &str) -> Option<End> {
+        named
+            .as_ref()
+            .and_then(|(n, p)| ends.resolve(n, *p, &format!("{what}.{field}"), self.diag))
+    }
+
+    /// The profile of an element: under a moving point `to`, and one of the profiles (an
+    /// unknown one keeps the column `eta_<element>`; the system is refused anyway).
+    fn element_profile(
+        &mut self,
+        (name, pos): &Named,
+        to: Option<&End>,
+        ends: &Ends,
+        profiles: &[Profile],
+        what: &str,
+    ) -> usize {
+        if to.is_some_and(|t| !matches!(t, End::Moving(_))) {
+            self.diag.push(
+                *pos,
+                format!(
+                    "{what}.profile: a profile lies under a moving point; `to` must be one ({})",
+                    names(ends.points.iter().map(|p| &p.name))
+                ),
+            );
+        }
+        profiles
+            .iter()
+            .position(|p| p.name() == name)
+            .unwrap_or_else(|| {
+                self.diag.push(
+                    *pos,
+                    format!(
+                        "{what}.profile: unknown profile `{name}`; profiles: {}",
+                        names(profiles.iter().map(|p| p.name()))
+                    ),
+                );
+                profiles.len()
+            })
+    }
+
+    /// An element's force law.
+    fn law(&mut self, law: &RawLaw, what: &str) -> Law {
+        match law {
+            RawLaw::SpringDamper { k, c, preload } => Law::SpringDamper {
+                k: self.req_or(k, &format!("{what}.k"), f64::NAN),
+                c: self.opt_or(c, 0.0, &format!("{what}.c")),
+                preload: self.opt_or(preload, 0.0, &format!("{what}.preload")),
+            },
+            RawLaw::Hertz { g, exponent } => Law::Hertz {
+                g: self.req_or(g, &format!("{what}.g"), f64::NAN),
+                exponent: self.opt_or(exponent, 1.5, &format!("{what}.exponent")),
+            },
+            RawLaw::Table {
+                deflection,
+                force,
+                c,
+            } => Law::Table {
+                deflection: self.each(deflection, &format!("{what}.deflection")),
+                force: self.each(force, &format!("{what}.force")),
+                c: self.opt_or(c, 0.0, &format!("{what}.c")),
+            },
+        }
+    }
+
+    /// Every field of a list that resolves (a failed one is reported).
+    fn each(&mut self, fields: &[Field], what: &str) -> Vec<Expr> {
+        fields
+            .iter()
+            .filter_map(|f| self.scope.resolve(f, what, self.diag))
+            .collect()
+    }
+
+    /// The loads: a point that is not the ground, and a force (a load with either failed is
+    /// left out; the system is refused anyway).
+    fn loads(&mut self, ends: &Ends) -> Vec<Load> {
+        let mut loads = Vec::new();
+        for l in &self.raw.loads {
+            let what = format!("loads.{}", l.name);
+            let at = self.end(ends, &l.at, &what, "at");
+            if let Some(End::Moving(pi)) = &at {
+                if ends.points[*pi].beam.is_none() {
+                    self.diag.push(
+                        l.pos,
+                        format!("{what}.at: a load on a point on the ground acts on nothing"),
+                    );
+                }
+            }
+            if matches!(at, Some(End::Ground)) {
+                self.diag.push(
+                    l.pos,
+                    format!("{what}.at: a load on the ground acts on nothing"),
+                );
+            }
+            let force = self
+                .scope
+                .req(&l.force, &format!("{what}.force"), self.diag);
+            if let (Some(at), Some(force)) = (at, force) {
+                loads.push(Load {
+                    name: l.name.clone(),
+                    at,
+                    force,
+                });
+            }
+        }
+        loads
+    }
+
+    /// Counts the parameters a derived parameter reads as used.
+    fn mark_derived_used(&mut self, parameters: &[Parameter]) {
+        for p in parameters {
+            if let ParamSource::Derived(e) = &p.source {
+                let mut ids = Vec::new();
+                collect_ids(e, &mut ids);
+                for j in ids {
+                    self.scope.used[j] = true;
+                }
+            }
+        }
+    }
+
+    /// The indices: a stored column, a statistic, `subtract` and `divide` (an index with a
+    /// part missing or failed is left out; the system is refused anyway).
+    fn indices(&mut self, channels: &[Channel]) -> Vec<Index> {
+        let mut indices = Vec::new();
+        for ix in &self.raw.indices {
+            let what = format!("indices.{}", ix.name);
+            let channel = ix.channel.as_ref().and_then(|named| {
+                stored_column(channels, named, &format!("{what}.channel"), self.diag)
+            });
+            let subtract =
+                self.scope
+                    .opt(&ix.subtract, 0.0, &format!("{what}.subtract"), self.diag);
+            let divide = self
+                .scope
+                .opt(&ix.divide, 1.0, &format!("{what}.divide"), self.diag);
+            if let (Some(channel), Some((stat, _)), Some(subtract), Some(divide)) =
+                (channel, ix.stat, subtract, divide)
+            {
+                let unit = ix.unit.clone().unwrap_or_else(|| {
+                    if matches!(divide, Expr::Num(v) if v == 1.0) {
+                        channels[channel].unit.clone()
+                    } else {
+                        "1".to_owned()
+                    }
+                });
+                indices.push(Index {
+                    name: ix.name.clone(),
+                    doc: ix.doc.clone(),
+                    stat,
+                    channel,
+                    subtract,
+                    divide,
+                    unit,
+                    limit: ix.limit,
+                });
+            }
+        }
+        indices
+    }
+
+    /// The `railway` section: the stored columns its indices read and its two values (none
+    /// where a part fails).
+    fn railway(&mut self, channels: &[Channel]) -> Option<Railway> {
+        let r = self.raw.railway.as_ref()?;
+        let diag = &mut *self.diag;
+        let mut cols = |v: &[Named]| -> Option<Vec<usize>> {
+            v.iter()
+                .map(|n| stored_column(channels, n, "railway", diag))
+                .collect()
+        };
+        let contact_forces = cols(&r.contact_forces);
+        let bogies = cols(&r.bogies);
+        let rails = cols(&r.rails);
+        let (cv, cp) = match &r.car_body {
+            Some((v, p)) => (
+                stored_column(channels, v, "railway", self.diag),
+                stored_column(channels, p, "railway", self.diag),
+            ),
+            None => (None, None),
+        };
+        let half_length = self
+            .scope
+            .req(&r.half_length, "railway.half_length", self.diag);
+        let static_wheel_load =
+            self.scope
+                .req(&r.static_wheel_load, "railway.static_wheel_load", self.diag);
+        Some(Railway {
+            contact_forces: contact_forces?,
+            car_body_vertical: cv?,
+            car_body_pitch: cp?,
+            half_length: half_length?,
+            bogies: bogies?,
+            rails: rails?,
+            static_wheel_load: static_wheel_load?,
+        })
+    }
+
+    /// Reports every parameter never used.
+    fn report_unused(&mut self) {
+        for (i, p) in self.raw.parameters.iter().enumerate() {
+            if !self.scope.used[i] {
+                self.diag.push(
+                    p.pos,
+                    format!(
+                        "parameters.{}: declared but never used (remove it, or use it in a field)",
+                        p.name
+                    ),
+                );
+            }
+        }
+    }
+}
+
+/// The parameters and the values of those that are the same for every sample: what a count
+/// is evaluated from.
+struct Counts<'p> {
+    parameters: &'p [Parameter],
+    structural: &'p [Option<f64>],
+}
+
+impl Ends<'_> {
+    /// Resolves an end: `ground`, `body`, `body.point` or a moving point; an unknown name
+    /// is reported with what exists.
+    fn resolve(&self, name: &str, pos: Pos, what: &str, diag: &mut Diagnostics) -> Option<End> {
+        if name == "ground" {
+            return Some(End::Ground);
+        }
+        let (body_name, point) = match name.split_once('.') {
+            Some((b, p)) => (b, Some(p)),
+            None => (name, None),
+        };
+        if let Some(bi) = self.bodies.iter().position(|b| b.name == body_name) {
+            let x = match point {
+                None => None,
+                Some(p) => match self.bodies[bi].points.iter().find(|(n, _)| n == p) {
+                    Some((_, x)) => Some(x.clone()),
+                    None => {
+                        diag.push(
+                            pos,
+                            format!(
+                                "{what}: body `{body_name}` has no point `{p}`; its points: {}",
+                                names(self.bodies[bi].points.iter().map(|p| &p.0))
+                            ),
+                        );
+                        return None;
+                    }
+                },
+            };
+            return Some(End::Body { body: bi, x });
+        }
+        if point.is_none() {
+            if let Some(pi) = self.points.iter().position(|p| p.name == name) {
+                return Some(End::Moving(pi));
+            }
+        }
+        diag.push(
+            pos,
+            format!(
+                "{what}: unknown point `{name}`; expected `ground`, a body ({}), `body.point`, or a moving point ({})",
+                names(self.bodies.iter().map(|b| &b.name)),
+                names(self.points.iter().map(|p| &p.name))
+            ),
+        );
+        None
+    }
+}
+
+/// The index of the stored column `name` (`what` in the message when there is none).
+fn stored_column(
+    channels: &[Channel],
+    (name, pos): &Named,
+    what: &str,
+    diag: &mut Diagnostics,
+) -> Option<usize> {
+    let found = channels.iter().position(|c| &c.name == name);
+    if found.is_none() {
+        diag.push(
+            *pos,
+            format!(
+                "{what}: `{name}` is not a stored column; stored: {}",
+                names(channels.iter().map(|c| &c.name))
+            ),
+        );
+    }
+    found
+}
+
+/// Names for a message, `none` for none.
 fn names<S: AsRef<str>>(it: impl Iterator<Item = S>) -> String {
     let v: Vec<String> = it.map(|s| s.as_ref().to_owned()).collect();
     if v.is_empty() {
         "none".to_owned()
     } else {
         v.join(", ")
-    }
-}
-
-fn link(scope: &mut Scope, l: Option<&RawLink>, what: &str, diag: &mut Diagnostics) -> Link {
-    match l {
-        Some(l) => Link {
-            k: scope
-                .req(&l.k, &format!("{what}.k"), diag)
-                .unwrap_or(Expr::Num(f64::NAN)),
-            c: scope
-                .opt(&l.c, 0.0, &format!("{what}.c"), diag)
-                .unwrap_or(Expr::Num(0.0)),
-        },
-        None => Link {
-            k: Expr::Num(f64::NAN),
-            c: Expr::Num(0.0),
-        },
     }
 }
 
@@ -984,23 +1133,22 @@ fn channel_table(
             Role::Other,
         );
     }
-    // Unique names: a collision (a body `c_v` beside a body `c`, a sensor named like a body)
-    // is reported once per pair of producers, at the later declaration.
-    let declared = |(kind, name): (&str, &str)| -> Pos {
-        let found = match kind {
-            "body" => raw.bodies.iter().find(|b| b.name == name).map(|b| b.pos),
-            "moving point" => raw
-                .moving
-                .as_ref()
-                .and_then(|m| m.points.iter().find(|p| p.name == name).map(|p| p.pos)),
-            "sensor" => raw.sensors.iter().find(|s| s.name == name).map(|s| s.pos),
-            _ => raw.elements.iter().find(|e| e.name == name).map(|e| e.pos),
-        };
-        found.unwrap_or_default()
-    };
+    report_column_clashes(&out, &owners, raw, diag);
+    out
+}
+
+/// Unique column names: a collision (a body `c_v` beside a body `c`, a sensor named like a
+/// body) is reported once per pair of producers (`owners`, one per column), at the later
+/// declaration.
+fn report_column_clashes(
+    columns: &[Channel],
+    owners: &[(&str, &str)],
+    raw: &RawDescription,
+    diag: &mut Diagnostics,
+) {
     let mut seen: HashMap<&str, usize> = HashMap::new();
     let mut clashes: Vec<(usize, usize, Vec<&str>)> = Vec::new();
-    for (i, c) in out.iter().enumerate() {
+    for (i, c) in columns.iter().enumerate() {
         match seen.get(c.name.as_str()) {
             Some(&j) => match clashes
                 .iter_mut()
@@ -1023,14 +1171,27 @@ fn channel_table(
             String::new()
         };
         diag.push(
-            declared(first).max(declared(second)),
+            declared(raw, first).max(declared(raw, second)),
             format!(
                 "column `{}` is produced by both {} `{}` and {} `{}`{also}; rename one of them",
                 columns[0], first.0, first.1, second.0, second.1
             ),
         );
     }
-    out
+}
+
+/// Where the producer of a column (its kind and name) is declared.
+fn declared(raw: &RawDescription, (kind, name): (&str, &str)) -> Pos {
+    let found = match kind {
+        "body" => raw.bodies.iter().find(|b| b.name == name).map(|b| b.pos),
+        "moving point" => raw
+            .moving
+            .as_ref()
+            .and_then(|m| m.points.iter().find(|p| p.name == name).map(|p| p.pos)),
+        "sensor" => raw.sensors.iter().find(|s| s.name == name).map(|s| s.pos),
+        _ => raw.elements.iter().find(|e| e.name == name).map(|e| e.pos),
+    };
+    found.unwrap_or_default()
 }
 
 /// The stored columns: DOF displacements, the listed displacement columns, DOF velocities,

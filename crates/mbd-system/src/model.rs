@@ -6,7 +6,7 @@
 
 use crate::expr::Expr;
 use crate::schema::Outside;
-use crate::system::{End, Law, ParamSource, Profile, Source, System};
+use crate::system::{Beam, End, Law, ParamSource, Profile, Source, Supports, System};
 
 /// A field out of its domain: which, its value and what is allowed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -401,234 +401,15 @@ impl System {
             values: &v,
             errors: Vec::new(),
         };
-        let ev = |e: &Expr| e.eval(&v);
-
-        let mut dof_mass = vec![0.0; self.dofs.len()];
-        for b in &self.bodies {
-            let m = c.positive(|| format!("bodies.{}.mass", b.name), &b.mass);
-            if let Some(z) = b.z {
-                dof_mass[z] = m;
-            }
-            if let (Some(p), Some(j)) = (b.pitch, &b.inertia) {
-                dof_mass[p] = c.positive(|| format!("bodies.{}.inertia", b.name), j);
-            }
-            for (name, x) in &b.points {
-                c.finite(|| format!("bodies.{}.points.{name}", b.name), x);
-            }
-        }
-        let end = |e: &End| -> ModelEnd {
-            match e {
-                End::Ground => ModelEnd::Ground,
-                End::Moving(i) => ModelEnd::Moving(*i),
-                End::Body { body, x } => {
-                    let b = &self.bodies[*body];
-                    let c = x.as_ref().map_or(0.0, |x| -ev(x));
-                    ModelEnd::Body(PointTerms {
-                        z: b.z,
-                        pitch: b
-                            .pitch
-                            .filter(|_| x.as_ref().is_some_and(|x| !x.is_zero()))
-                            .map(|p| (p, c)),
-                    })
-                }
-            }
-        };
-        let mut elements = Vec::with_capacity(self.elements.len());
-        for e in &self.elements {
-            let w = || format!("elements.{}", e.name);
-            let law = match &e.law {
-                Law::SpringDamper {
-                    k,
-                    c: damping,
-                    preload,
-                } => ModelLaw::SpringDamper {
-                    k: c.non_negative(|| format!("{}.k", w()), k),
-                    c: c.non_negative(|| format!("{}.c", w()), damping),
-                    preload: c.finite(|| format!("{}.preload", w()), preload),
-                },
-                Law::Hertz { g, exponent } => ModelLaw::Hertz {
-                    g: c.positive(|| format!("{}.g", w()), g),
-                    exponent: c.positive(|| format!("{}.exponent", w()), exponent),
-                },
-                Law::Table {
-                    deflection,
-                    force,
-                    c: damping,
-                } => {
-                    let d: Vec<f64> = deflection.iter().map(ev).collect();
-                    let f: Vec<f64> = force.iter().map(ev).collect();
-                    c.check(
-                        || format!("{}.deflection", w()),
-                        d.len() as f64,
-                        d.len() >= 2 && d.len() == f.len(),
-                        || "as many points as `force`, at least 2".to_owned(),
-                        &[],
-                    );
-                    for (i, pair) in d.windows(2).enumerate() {
-                        c.check(
-                            || format!("{}.deflection[{}]", w(), i + 1),
-                            pair[1],
-                            pair[1] > pair[0],
-                            || "finite and above the previous point".to_owned(),
-                            &[&deflection[i], &deflection[i + 1]],
-                        );
-                    }
-                    for (i, x) in force.iter().enumerate() {
-                        c.finite(|| format!("{}.force[{i}]", w()), x);
-                    }
-                    ModelLaw::Table {
-                        deflection: d,
-                        force: f,
-                        c: c.non_negative(|| format!("{}.c", w()), damping),
-                    }
-                }
-            };
-            elements.push(ModelElement {
-                law,
-                from: end(&e.from),
-                to: end(&e.to),
-                profile: e.profile,
-            });
-        }
-        let mut loads = Vec::with_capacity(self.loads.len());
-        for l in &self.loads {
-            loads.push(ModelLoad {
-                at: end(&l.at),
-                force: c.finite(|| format!("loads.{}.force", l.name), &l.force),
-            });
-        }
-        let assembly = self
-            .assembly
-            .iter()
-            .map(|groups| {
-                groups
-                    .iter()
-                    .map(|g| crate::model::ModelGroup {
-                        coefficient: g.coefficient.as_ref().map(ev),
-                        terms: g.terms.clone(),
-                    })
-                    .collect()
-            })
-            .collect();
-        let mut beams = Vec::with_capacity(self.beams.len());
-        // Whether each beam's length is valid (the sensors on it are checked against it).
-        let mut length_valid = Vec::with_capacity(self.beams.len());
-        for b in &self.beams {
-            let w = || format!("beams.{}", b.name);
-            let before = c.errors.len();
-            let length = c.positive(|| format!("{}.length", w()), &b.length);
-            length_valid.push(c.errors.len() == before);
-            let supports = match &b.supports {
-                None => None,
-                Some(s) => {
-                    let spacing = c.positive(|| format!("{}.supports.spacing", w()), &s.spacing);
-                    let first = c.non_negative(|| format!("{}.supports.first", w()), &s.first);
-                    let last = first + (s.count.max(1) - 1) as f64 * spacing;
-                    // Only with a valid length, spacing and start (no follow-on problem).
-                    if c.errors.len() == before {
-                        c.check(
-                            || format!("{}.supports.count", w()),
-                            s.count as f64,
-                            last < length,
-                            || format!("supports from {first} m every {spacing} m must end inside the beam (length {length} m)"),
-                            &[&b.length, &s.spacing, &s.first],
-                        );
-                    }
-                    let mut levels = Vec::new();
-                    for (i, l) in s.levels.iter().enumerate() {
-                        let lw = || format!("{}.supports.levels[{i}]", w());
-                        levels.push(ModelLevel {
-                            mass: c.positive(|| format!("{}.mass", lw()), &l.mass),
-                            k: c.positive(|| format!("{}.link.k", lw()), &l.link.k),
-                            c: c.non_negative(|| format!("{}.link.c", lw()), &l.link.c),
-                            shear: l.shear.as_ref().map(|sh| {
-                                (
-                                    c.non_negative(|| format!("{}.shear.k", lw()), &sh.k),
-                                    c.non_negative(|| format!("{}.shear.c", lw()), &sh.c),
-                                )
-                            }),
-                        });
-                    }
-                    Some(ModelSupports {
-                        spacing,
-                        count: s.count,
-                        first,
-                        levels,
-                        ground: (
-                            c.positive(|| format!("{}.supports.ground.k", w()), &s.ground.k),
-                            c.non_negative(|| format!("{}.supports.ground.c", w()), &s.ground.c),
-                        ),
-                    })
-                }
-            };
-            let zeta = ev(&b.damping_ratio);
-            beams.push(ModelBeam {
-                length,
-                modes: b.modes,
-                mass_per_length: c
-                    .positive(|| format!("{}.mass_per_length", w()), &b.mass_per_length),
-                bending_stiffness: c.positive(
-                    || format!("{}.bending_stiffness", w()),
-                    &b.bending_stiffness,
-                ),
-                damping_ratio: c.check(
-                    || format!("{}.damping_ratio", w()),
-                    zeta,
-                    (0.0..1.0).contains(&zeta),
-                    || "in [0, 1)".to_owned(),
-                    &[&b.damping_ratio],
-                ),
-                outside: b.outside,
-                supports,
-            });
-        }
+        let dof_mass = c.bodies();
+        let elements = c.elements();
+        let loads = c.loads();
+        let assembly = c.assembly();
+        let (beams, length_valid) = c.beams();
         let speed = c.non_negative(|| "moving.speed".to_owned(), &self.speed);
-        let mut points = Vec::with_capacity(self.points.len());
-        for p in &self.points {
-            points.push((
-                p.beam,
-                c.finite(|| format!("moving.points.{}.offset", p.name), &p.offset),
-            ));
-        }
-        let mut sensors = Vec::with_capacity(self.sensors.len());
-        for s in &self.sensors {
-            let x = ev(&s.x);
-            let path = || format!("sensors.{}.x", s.name);
-            match beams.get(s.beam) {
-                Some(beam) if length_valid[s.beam] => {
-                    let length = beam.length;
-                    c.check(
-                        path,
-                        x,
-                        (0.0..=length).contains(&x),
-                        || format!("on the beam: in [0, {length}] m"),
-                        &[&s.x, &self.beams[s.beam].length],
-                    );
-                }
-                // Its beam's length is out of its domain, reported already.
-                Some(_) => {}
-                None => {
-                    c.check(path, x, false, || "on a beam".to_owned(), &[&s.x]);
-                }
-            }
-            sensors.push((s.beam, x));
-        }
-        let mut profiles = Vec::with_capacity(self.profiles.len());
-        for p in &self.profiles {
-            profiles.push(match p {
-                Profile::Generated { .. } => ModelProfile::Generated,
-                Profile::Harmonic {
-                    name,
-                    amplitude,
-                    wavelength,
-                    phase,
-                } => ModelProfile::Harmonic {
-                    amplitude: c.finite(|| format!("profiles.{name}.amplitude"), amplitude),
-                    wavelength: c.positive(|| format!("profiles.{name}.wavelength"), wavelength),
-                    phase: c.finite(|| format!("profiles.{name}.phase"), phase),
-                },
-            });
-        }
+        let points = c.points();
+        let sensors = c.sensors(&beams, &length_valid);
+        let profiles = c.profiles();
         if !c.errors.is_empty() {
             return Err(c.errors);
         }
@@ -648,7 +429,9 @@ impl System {
 }
 
 /// The domain checks of one instantiation: each records a field out of its domain (its path
-/// and the sampled parameters it comes from, built only then) and passes the value on.
+/// and the sampled parameters it comes from, built only then) and passes the value on. The
+/// phases of [`System::instantiate_all`] (one per section of the description) are its
+/// methods too.
 struct Checker<'a> {
     system: &'a System,
     values: &'a [f64],
@@ -679,19 +462,330 @@ impl Checker<'_> {
         x
     }
 
+    /// The value of `e`, checked finite and > 0.
     fn positive(&mut self, path: impl FnOnce() -> String, e: &Expr) -> f64 {
         let x = e.eval(self.values);
         self.check(path, x, x > 0.0, || "finite and > 0".to_owned(), &[e])
     }
 
+    /// The value of `e`, checked finite and >= 0.
     fn non_negative(&mut self, path: impl FnOnce() -> String, e: &Expr) -> f64 {
         let x = e.eval(self.values);
         self.check(path, x, x >= 0.0, || "finite and >= 0".to_owned(), &[e])
     }
 
+    /// The value of `e`, checked finite.
     fn finite(&mut self, path: impl FnOnce() -> String, e: &Expr) -> f64 {
         let x = e.eval(self.values);
         self.check(path, x, true, || "finite".to_owned(), &[e])
+    }
+
+    /// The value of `e`, unchecked.
+    fn eval(&self, e: &Expr) -> f64 {
+        e.eval(self.values)
+    }
+
+    /// The mass or inertia of each DOF (masses and inertias > 0, body points finite).
+    fn bodies(&mut self) -> Vec<f64> {
+        let system = self.system;
+        let mut dof_mass = vec![0.0; system.dofs.len()];
+        for b in &system.bodies {
+            let m = self.positive(|| format!("bodies.{}.mass", b.name), &b.mass);
+            if let Some(z) = b.z {
+                dof_mass[z] = m;
+            }
+            if let (Some(p), Some(j)) = (b.pitch, &b.inertia) {
+                dof_mass[p] = self.positive(|| format!("bodies.{}.inertia", b.name), j);
+            }
+            for (name, x) in &b.points {
+                self.finite(|| format!("bodies.{}.points.{name}", b.name), x);
+            }
+        }
+        dof_mass
+    }
+
+    /// An end in numbers: a body point's rigid-DOF participation (no pitch term at `x = 0`).
+    fn end(&self, e: &End) -> ModelEnd {
+        match e {
+            End::Ground => ModelEnd::Ground,
+            End::Moving(i) => ModelEnd::Moving(*i),
+            End::Body { body, x } => {
+                let b = &self.system.bodies[*body];
+                let c = x.as_ref().map_or(0.0, |x| -self.eval(x));
+                ModelEnd::Body(PointTerms {
+                    z: b.z,
+                    pitch: b
+                        .pitch
+                        .filter(|_| x.as_ref().is_some_and(|x| !x.is_zero()))
+                        .map(|p| (p, c)),
+                })
+            }
+        }
+    }
+
+    /// The elements: each law checked, the ends in numbers.
+    fn elements(&mut self) -> Vec<ModelElement> {
+        let system = self.system;
+        let mut elements = Vec::with_capacity(system.elements.len());
+        for e in &system.elements {
+            let law = self.law(&e.name, &e.law);
+            elements.push(ModelElement {
+                law,
+                from: self.end(&e.from),
+                to: self.end(&e.to),
+                profile: e.profile,
+            });
+        }
+        elements
+    }
+
+    /// The law of element `name`: stiffness and damping >= 0, a Hertz constant and
+    /// exponent > 0, a table's points.
+    fn law(&mut self, name: &str, law: &Law) -> ModelLaw {
+        let w = || format!("elements.{name}");
+        match law {
+            Law::SpringDamper {
+                k,
+                c: damping,
+                preload,
+            } => ModelLaw::SpringDamper {
+                k: self.non_negative(|| format!("{}.k", w()), k),
+                c: self.non_negative(|| format!("{}.c", w()), damping),
+                preload: self.finite(|| format!("{}.preload", w()), preload),
+            },
+            Law::Hertz { g, exponent } => ModelLaw::Hertz {
+                g: self.positive(|| format!("{}.g", w()), g),
+                exponent: self.positive(|| format!("{}.exponent", w()), exponent),
+            },
+            Law::Table {
+                deflection,
+                force,
+                c: damping,
+            } => {
+                let (d, f) = self.table(&w, deflection, force);
+                ModelLaw::Table {
+                    deflection: d,
+                    force: f,
+                    c: self.non_negative(|| format!("{}.c", w()), damping),
+                }
+            }
+        }
+    }
+
+    /// A table law's deflections and forces (`w()` the element's path): as many of each, at
+    /// least 2, the deflections increasing, the forces finite.
+    fn table(
+        &mut self,
+        w: &dyn Fn() -> String,
+        deflection: &[Expr],
+        force: &[Expr],
+    ) -> (Vec<f64>, Vec<f64>) {
+        let d: Vec<f64> = deflection.iter().map(|e| self.eval(e)).collect();
+        let f: Vec<f64> = force.iter().map(|e| self.eval(e)).collect();
+        self.check(
+            || format!("{}.deflection", w()),
+            d.len() as f64,
+            d.len() >= 2 && d.len() == f.len(),
+            || "as many points as `force`, at least 2".to_owned(),
+            &[],
+        );
+        for (i, pair) in d.windows(2).enumerate() {
+            self.check(
+                || format!("{}.deflection[{}]", w(), i + 1),
+                pair[1],
+                pair[1] > pair[0],
+                || "finite and above the previous point".to_owned(),
+                &[&deflection[i], &deflection[i + 1]],
+            );
+        }
+        for (i, x) in force.iter().enumerate() {
+            self.finite(|| format!("{}.force[{i}]", w()), x);
+        }
+        (d, f)
+    }
+
+    /// The loads: a finite force at a point in numbers.
+    fn loads(&mut self) -> Vec<ModelLoad> {
+        let system = self.system;
+        let mut loads = Vec::with_capacity(system.loads.len());
+        for l in &system.loads {
+            loads.push(ModelLoad {
+                at: self.end(&l.at),
+                force: self.finite(|| format!("loads.{}.force", l.name), &l.force),
+            });
+        }
+        loads
+    }
+
+    /// The generalised-force groups of each DOF, their coefficients evaluated.
+    fn assembly(&self) -> Vec<Vec<ModelGroup>> {
+        self.system
+            .assembly
+            .iter()
+            .map(|groups| {
+                groups
+                    .iter()
+                    .map(|g| ModelGroup {
+                        coefficient: g.coefficient.as_ref().map(|e| self.eval(e)),
+                        terms: g.terms.clone(),
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The beams, and whether each one's length is valid (the sensors on it are checked
+    /// against it).
+    fn beams(&mut self) -> (Vec<ModelBeam>, Vec<bool>) {
+        let system = self.system;
+        let mut beams = Vec::with_capacity(system.beams.len());
+        let mut length_valid = Vec::with_capacity(system.beams.len());
+        for b in &system.beams {
+            let w = || format!("beams.{}", b.name);
+            let before = self.errors.len();
+            let length = self.positive(|| format!("{}.length", w()), &b.length);
+            length_valid.push(self.errors.len() == before);
+            let supports = b
+                .supports
+                .as_ref()
+                .map(|s| self.supports(&w, b, s, length, before));
+            let zeta = self.eval(&b.damping_ratio);
+            beams.push(ModelBeam {
+                length,
+                modes: b.modes,
+                mass_per_length: self
+                    .positive(|| format!("{}.mass_per_length", w()), &b.mass_per_length),
+                bending_stiffness: self.positive(
+                    || format!("{}.bending_stiffness", w()),
+                    &b.bending_stiffness,
+                ),
+                damping_ratio: self.check(
+                    || format!("{}.damping_ratio", w()),
+                    zeta,
+                    (0.0..1.0).contains(&zeta),
+                    || "in [0, 1)".to_owned(),
+                    &[&b.damping_ratio],
+                ),
+                outside: b.outside,
+                supports,
+            });
+        }
+        (beams, length_valid)
+    }
+
+    /// The supports of beam `b` (`w()` its path, `length` its length, `before` the number of
+    /// errors before it): spacing, start, every support inside the beam, the levels and the
+    /// link to the ground.
+    fn supports(
+        &mut self,
+        w: &dyn Fn() -> String,
+        b: &Beam,
+        s: &Supports,
+        length: f64,
+        before: usize,
+    ) -> ModelSupports {
+        let spacing = self.positive(|| format!("{}.supports.spacing", w()), &s.spacing);
+        let first = self.non_negative(|| format!("{}.supports.first", w()), &s.first);
+        let last = first + (s.count.max(1) - 1) as f64 * spacing;
+        // Only with a valid length, spacing and start (no follow-on problem).
+        if self.errors.len() == before {
+            self.check(
+                || format!("{}.supports.count", w()),
+                s.count as f64,
+                last < length,
+                || format!("supports from {first} m every {spacing} m must end inside the beam (length {length} m)"),
+                &[&b.length, &s.spacing, &s.first],
+            );
+        }
+        let mut levels = Vec::new();
+        for (i, l) in s.levels.iter().enumerate() {
+            let lw = || format!("{}.supports.levels[{i}]", w());
+            levels.push(ModelLevel {
+                mass: self.positive(|| format!("{}.mass", lw()), &l.mass),
+                k: self.positive(|| format!("{}.link.k", lw()), &l.link.k),
+                c: self.non_negative(|| format!("{}.link.c", lw()), &l.link.c),
+                shear: l.shear.as_ref().map(|sh| {
+                    (
+                        self.non_negative(|| format!("{}.shear.k", lw()), &sh.k),
+                        self.non_negative(|| format!("{}.shear.c", lw()), &sh.c),
+                    )
+                }),
+            });
+        }
+        ModelSupports {
+            spacing,
+            count: s.count,
+            first,
+            levels,
+            ground: (
+                self.positive(|| format!("{}.supports.ground.k", w()), &s.ground.k),
+                self.non_negative(|| format!("{}.supports.ground.c", w()), &s.ground.c),
+            ),
+        }
+    }
+
+    /// The moving points: beam and finite offset.
+    fn points(&mut self) -> Vec<(Option<usize>, f64)> {
+        let system = self.system;
+        let mut points = Vec::with_capacity(system.points.len());
+        for p in &system.points {
+            points.push((
+                p.beam,
+                self.finite(|| format!("moving.points.{}.offset", p.name), &p.offset),
+            ));
+        }
+        points
+    }
+
+    /// The sensors: each on its beam (checked only where the beam's length is valid).
+    fn sensors(&mut self, beams: &[ModelBeam], length_valid: &[bool]) -> Vec<(usize, f64)> {
+        let system = self.system;
+        let mut sensors = Vec::with_capacity(system.sensors.len());
+        for s in &system.sensors {
+            let x = self.eval(&s.x);
+            let path = || format!("sensors.{}.x", s.name);
+            match beams.get(s.beam) {
+                Some(beam) if length_valid[s.beam] => {
+                    let length = beam.length;
+                    self.check(
+                        path,
+                        x,
+                        (0.0..=length).contains(&x),
+                        || format!("on the beam: in [0, {length}] m"),
+                        &[&s.x, &system.beams[s.beam].length],
+                    );
+                }
+                // Its beam's length is out of its domain, reported already.
+                Some(_) => {}
+                None => {
+                    self.check(path, x, false, || "on a beam".to_owned(), &[&s.x]);
+                }
+            }
+            sensors.push((s.beam, x));
+        }
+        sensors
+    }
+
+    /// The profiles: a harmonic one's amplitude and phase finite, its wavelength > 0.
+    fn profiles(&mut self) -> Vec<ModelProfile> {
+        let system = self.system;
+        let mut profiles = Vec::with_capacity(system.profiles.len());
+        for p in &system.profiles {
+            profiles.push(match p {
+                Profile::Generated { .. } => ModelProfile::Generated,
+                Profile::Harmonic {
+                    name,
+                    amplitude,
+                    wavelength,
+                    phase,
+                } => ModelProfile::Harmonic {
+                    amplitude: self.finite(|| format!("profiles.{name}.amplitude"), amplitude),
+                    wavelength: self.positive(|| format!("profiles.{name}.wavelength"), wavelength),
+                    phase: self.finite(|| format!("profiles.{name}.phase"), phase),
+                },
+            });
+        }
+        profiles
     }
 }
 
