@@ -687,6 +687,31 @@ fn weights_params(noise_ratio: f64) -> Value {
 }
 
 #[test]
+fn simulate_check_mode_refuses_a_start_before_a_generated_profile() {
+    // The check mode (what `pipeline run` runs before anything, `check: true`; a failure
+    // there stops the run with exit 2) of `simulate` refuses x0 < 0 under the quarter car's generated road, at the profile's line, with the
+    // least x0 that passes; the shipped start passes. No input is read in check mode.
+    let dir = tempfile::tempdir().unwrap();
+    let quarter = system_path("quarter-car");
+    let text = std::fs::read_to_string(&quarter).unwrap();
+    let line = 1 + text.lines().position(|l| l.starts_with("  road:")).unwrap();
+    let run = |x0: f64| {
+        json!({"duration": 0.3, "dt": 2e-4, "output_every": 5, "start": "equilibrium",
+               "startup_zero_fraction": 0.0, "startup_ramp_fraction": 0.0, "x0": x0})
+    };
+    let (ctx, _) = stage_context(dir.path(), "sim-before", run(-20.0), json!({}), true);
+    let err = fails("simulate", Some(&quarter), &ctx);
+    assert!(
+        err.contains(&format!("quarter-car.yaml:{line}:"))
+            && err.contains("x0 = -20 m")
+            && err.contains("set x0 >= 0 m"),
+        "{err}"
+    );
+    let (ctx, _) = stage_context(dir.path(), "sim-shipped", run(5.0), json!({}), true);
+    ok("simulate", &quarter, &ctx, 1);
+}
+
+#[test]
 fn weights_are_the_residual_peaks_of_every_training_sample_from_any_shard_layout() {
     let dir = tempfile::tempdir().unwrap();
     let quarter = system_path("quarter-car");

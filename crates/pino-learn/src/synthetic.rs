@@ -174,33 +174,16 @@ impl SyntheticFiles {
     }
 }
 
-/// Simulates the dataset of `spec` into `dir` (with `run.json`, as `simulate` writes it).
-pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles> {
-    let bad = |message: String| Error::Dataset {
-        path: dir.to_owned(),
-        message,
-    };
-    let system = Arc::new(spec.system.compile().map_err(|e| bad(e.to_string()))?);
-    pino_data::system::declare_units(&system)?;
-    // A sampling plan has all three splits (as every pipeline's data); a synthetic dataset may
-    // leave out the test split (the validation fallback of `evaluate`): the plan then holds one
-    // test id that is not written. Ids before it are drawn and split alike either way.
-    if spec.n_test == 0 && spec.n_calibration > 0 {
-        return Err(bad(
-            "a synthetic calibration split needs a test split (its ids follow the test ids)".into(),
-        ));
-    }
-    let sizes = SplitSizes {
-        seed: spec.seed,
-        n_train: spec.n_train,
-        n_validation: spec.n_validation,
-        n_test: spec.n_test.max(1),
-        n_calibration: spec.n_calibration,
-    };
-    let plan = SamplingPlan::new(sizes, &system).map_err(|e| bad(e.to_string()))?;
-    let n = spec.n_train + spec.n_validation + spec.n_test + spec.n_calibration;
+/// `params.parquet` (each sample's id, split and draws; its path returned) and
+/// `ranges.parquet` (each sampled parameter's range), as `sample-params` writes them.
+fn write_params(
+    dir: &Path,
+    system: &mbd_system::System,
+    plan: &SamplingPlan,
+    draws: &[Vec<f64>],
+) -> Result<PathBuf> {
     let names = system.sampled_names();
-    let draws: Vec<Vec<f64>> = (0..n).map(|id| plan.draw(id)).collect();
+    let n = draws.len() as u64;
     let mut params = Table::default();
     params.push(schema::SAMPLE_ID, Column::I64((0..n as i64).collect()))?;
     params.push(
@@ -230,15 +213,17 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         Column::F64(plan.ranges().iter().map(|r| r[1]).collect()),
     )?;
     write_parquet(&dir.join("ranges.parquet"), &ranges)?;
-    pino_data::system::write_record(dir, &spec.system)?;
+    Ok(params_path)
+}
 
-    // Profiles over the longest beam (or 1 km of road), then the runs.
+/// The profiles' controls: spacing 0.1 m over the longest beam (or 1 km of road), and at
+/// least the longest wavelength of any generated profile (the generator's band must fit).
+fn profile_controls(system: &mbd_system::System, seed: u64) -> ProfileParams {
     let length = system
         .beams
         .iter()
         .map(|b| b.length.eval(&system.values(&system.nominal())))
         .fold(0.0, f64::max);
-    // At least the longest wavelength of any profile (the generator's band must fit).
     let longest = system
         .profiles
         .iter()
@@ -247,15 +232,62 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
             _ => None,
         })
         .fold(0.0, f64::max);
-    let controls = ProfileParams {
-        seed: spec.seed,
+    ProfileParams {
+        seed,
         dx: 0.1,
         length: if length > 0.0 {
             length.max(longest)
         } else {
             1000.0_f64.max(longest)
         },
+    }
+}
+
+/// `weights.parquet`: the magnitude weights phi of the training samples, by id.
+fn write_weights(path: &Path, layout: &Layout, phi: &[(i64, Vec<f64>)]) -> Result<()> {
+    let mut wt = Table::default();
+    wt.push(
+        schema::SAMPLE_ID,
+        Column::I64(phi.iter().map(|p| p.0).collect()),
+    )?;
+    for (i, name) in layout.phi_columns().iter().enumerate() {
+        wt.push(name, Column::F64(phi.iter().map(|p| p.1[i]).collect()))?;
+    }
+    write_parquet(path, &wt)?;
+    Ok(())
+}
+
+/// Simulates the dataset of `spec` into `dir` (with `run.json`, as `simulate` writes it).
+pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles> {
+    let bad = |message: String| Error::Dataset {
+        path: dir.to_owned(),
+        message,
     };
+    let system = Arc::new(spec.system.compile().map_err(|e| bad(e.to_string()))?);
+    pino_data::system::declare_units(&system)?;
+    // A sampling plan has all three splits (as every pipeline's data); a synthetic dataset may
+    // leave out the test split (the validation fallback of `evaluate`): the plan then holds one
+    // test id that is not written. Ids before it are drawn and split alike either way.
+    if spec.n_test == 0 && spec.n_calibration > 0 {
+        return Err(bad(
+            "a synthetic calibration split needs a test split (its ids follow the test ids)".into(),
+        ));
+    }
+    let sizes = SplitSizes {
+        seed: spec.seed,
+        n_train: spec.n_train,
+        n_validation: spec.n_validation,
+        n_test: spec.n_test.max(1),
+        n_calibration: spec.n_calibration,
+    };
+    let plan = SamplingPlan::new(sizes, &system).map_err(|e| bad(e.to_string()))?;
+    let n = spec.n_train + spec.n_validation + spec.n_test + spec.n_calibration;
+    let draws: Vec<Vec<f64>> = (0..n).map(|id| plan.draw(id)).collect();
+    let params_path = write_params(dir, &system, &plan, &draws)?;
+    pino_data::system::write_record(dir, &spec.system)?;
+
+    // Profiles, then the runs.
+    let controls = profile_controls(&system, spec.seed);
     let generators =
         mbd_dataset::profile_generators(&system, &controls).map_err(|e| bad(e.to_string()))?;
     let inputs: Vec<SampleInput> = (0..n)
@@ -330,16 +362,8 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         Ok(())
     })?;
     writer.ok_or_else(|| bad("no samples".into()))?.finish()?;
-    let mut wt = Table::default();
-    wt.push(
-        schema::SAMPLE_ID,
-        Column::I64(phi.iter().map(|p| p.0).collect()),
-    )?;
-    for (i, name) in layout.phi_columns().iter().enumerate() {
-        wt.push(name, Column::F64(phi.iter().map(|p| p.1[i]).collect()))?;
-    }
     let weights_path = dir.join("weights.parquet");
-    write_parquet(&weights_path, &wt)?;
+    write_weights(&weights_path, &layout, &phi)?;
     let settings = crate::checkpoint::DataSettings {
         run: config,
         profiles: generators.iter().any(Option::is_some).then_some(controls),
