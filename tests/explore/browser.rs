@@ -1,7 +1,9 @@
 //! The explorer as a user sees it: Chromium (Debian's, driven by the pinned `playwright-core`
 //! of `tests/browser`) opens the page `explore` serves for a small trained model of the real
 //! pipeline and works it (`tests/browser/explore.mjs`: parameters, test sample, "Solve
-//! exactly", a slider move, a value outside the training range, a sweep, the design download),
+//! exactly", a slider move, a value outside the training range, a sweep, the design download,
+//! "Pin as A" and a solve while requests are in flight or failed, a model without sampled
+//! parameters),
 //! saving a screenshot of each step under `target/explore-browser/`. This test then checks
 //! what the page plotted against the real `predict` and `simulate` outputs.
 //!
@@ -85,6 +87,10 @@ fn a_user_explores_designs_in_a_real_browser() {
             "invalid",
             "sweep",
             "download",
+            "pin-in-flight",
+            "solve-after-failed-prediction",
+            "solve-cancelled",
+            "no-parameters",
             "pipeline",
             "study-start",
             "studies"

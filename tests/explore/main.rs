@@ -2,7 +2,8 @@
 //! pipeline (the TINY overrides of the end-to-end test), the real `explore` binary serves it,
 //! and the tests talk to it as a script would (`api`: validation, the numbers against
 //! `predict` and `simulate`, the solve gate, cancellation, host and token checks) and as a user
-//! would, in a real browser (`browser`: Chromium driven by Playwright).
+//! would, in a real browser (`browser`: Chromium driven by Playwright); `page_logic` runs the
+//! page's own unit tests under Node.js's test runner.
 
 use pino_explore::client::Client;
 use pino_mbd_tests::{output_text, TempWorkspace, TINY};
@@ -15,6 +16,7 @@ use std::time::Duration;
 
 mod api;
 mod browser;
+mod page_logic;
 
 /// The shared workspace's targets: every stage but the studies (the explorer serves the
 /// models, their calibration, Table 4 and the indices; the studies are left unrun).

@@ -8,13 +8,12 @@
  *
  * Test hooks: body[data-state] = loading | idle (after each answer drawn), body[data-polls]
  * counts the answers drawn, window.pipelineState = the last answer.
- * Plain ES2020, no inline scripts, no eval.
+ * An ES module (dom.js's helpers); plain ES2020, no inline scripts, no eval.
  */
-'use strict';
+import { $, el, fmt, poll } from './dom.js';
 
 (() => {
   const POLL_MS = 2000;
-  const { $, el, fmt } = window.pinoDom;
   let lastTable4 = '';
   let lastPlots = '';
   window.pipelineState = null;
@@ -86,7 +85,7 @@
     $('#plots-empty').hidden = (plots || []).length > 0;
   }
 
-  window.pinoDom.poll('/api/pipeline', POLL_MS, (answer) => {
+  poll('/api/pipeline', POLL_MS, (answer) => {
     window.pipelineState = answer;
     $('#pipeline-file').textContent = answer.file || '—';
     renderUnits(answer.units);

@@ -11,13 +11,12 @@
  *
  * Test hooks: body[data-state] = loading | idle (after each answer drawn), body[data-polls]
  * counts the answers drawn, window.studiesState = the last answer.
- * Plain ES2020, no inline scripts, no eval, no innerHTML.
+ * An ES module (dom.js's helpers); plain ES2020, no inline scripts, no eval, no innerHTML.
  */
-'use strict';
+import { $, el, poll } from './dom.js';
 
 (() => {
   const POLL_MS = 2000;
-  const { $, el } = window.pinoDom;
   const drawn = new Map(); // card id -> the JSON it was drawn from
   window.studiesState = null;
 
@@ -167,7 +166,7 @@
     }
   }
 
-  window.pinoDom.poll('/api/studies', POLL_MS, (answer, polls) => {
+  poll('/api/studies', POLL_MS, (answer, polls) => {
     window.studiesState = answer;
     $('#pipeline-file').textContent = answer.file || '—';
     $('#study-dir').textContent = answer.dir || '—';
