@@ -685,9 +685,9 @@ impl Pipeline {
     /// Reads, parses and validates the pipeline file `file` (relative to the current
     /// directory) of the workspace `workspace`.
     ///
-    /// The phases, in order: the YAML, each stage's own fields ([`draft_stage`]), the
-    /// dependencies, the `--set` overrides ([`apply_set`]), the constants
-    /// ([`substitute_constants`]), the matrix ([`expand_matrix`]) and the dependency order.
+    /// The phases, in order: the YAML, each stage's own fields (`draft_stage`), the
+    /// dependencies, the `--set` overrides (`apply_set`), the constants
+    /// (`substitute_constants`), the matrix (`expand_matrix`) and the dependency order.
     pub fn load(workspace: &Path, file: &Path, opts: &LoadOptions) -> Result<Self> {
         let display = file.display().to_string();
         let text = std::fs::read_to_string(file)
