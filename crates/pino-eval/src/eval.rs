@@ -834,13 +834,13 @@ pub fn evaluate(
 
 /// The scored split as models of one (window, statistics) see it: loaded once, shared by
 /// every model trained on the same data.
-struct ScoredData {
+pub(crate) struct ScoredData {
     window: WindowConfig,
     norm: Normalisation,
-    ds: Dataset,
-    items: Prepared,
+    pub(crate) ds: Dataset,
+    pub(crate) items: Prepared,
     /// The stored columns the indices read (empty when the description has none).
-    stored: StoredColumns,
+    pub(crate) stored: StoredColumns,
 }
 
 impl ScoredData {
@@ -850,7 +850,7 @@ impl ScoredData {
     }
 
     /// Loads `split` of `data` in the window and statistics of `meta`.
-    fn load(
+    pub(crate) fn load(
         data: &EvalData<'_>,
         split: Split,
         meta: &ModelMeta,

@@ -15,12 +15,12 @@ use super::{
     Calibration, ChannelBand, DesignIdentity, HeadInput, ModelIdentity, Normaliser, QuantityScores,
     CALIBRATION_FORMAT, REPORTED_LEVELS, RESIDUAL_FEATURE,
 };
-use crate::eval::EvalData;
+use crate::eval::{EvalData, ScoredData};
 use crate::indices_eval::{IndexInputs, StoredColumns};
 use candle_core::Device;
 use pino_conformal::{sup_score, ErrorHead, ScoreSet};
 use pino_learn::checkpoint::{load_model, ModelMeta};
-use pino_learn::data::{load_split, Prepared, Split};
+use pino_learn::data::{Prepared, Split};
 use pino_learn::layout::Layout;
 use pino_learn::spectral::Transform;
 use pino_learn::{Error, Result};
@@ -121,21 +121,8 @@ pub fn calibrate(
             });
         }
         let load = |split: Split| -> Result<(Prepared, StoredColumns)> {
-            let (_, items) = load_split(
-                data.info,
-                data.params_file,
-                data.simulation_files,
-                &meta.window,
-                split,
-                &meta.norm,
-            )?;
-            let stored = if inputs.computable() {
-                let ids = (0..items.len()).map(|i| items.id(i)).collect();
-                StoredColumns::read(data.simulation_files, &inputs, &ids, &meta.window)?
-            } else {
-                StoredColumns::default()
-            };
-            Ok((items, stored))
+            let scored = ScoredData::load(data, split, &meta, &inputs)?;
+            Ok((scored.items, scored.stored))
         };
         let fit = load(Split::Validation)?;
         let cal = load(Split::Calibration)?;
