@@ -217,6 +217,15 @@ impl Store {
         self.object_dir(identity).join("out")
     }
 
+    /// How long the stage that made the object for `identity` ran (its manifest's
+    /// `duration_ms`), without checking its files; `None` when there is no readable manifest.
+    /// A scheduling estimate, never trusted for content.
+    pub fn recorded_duration(&self, identity: &str) -> Option<std::time::Duration> {
+        let bytes = std::fs::read(self.object_dir(identity).join("manifest.json")).ok()?;
+        let manifest: Manifest = serde_json::from_slice(&bytes).ok()?;
+        Some(std::time::Duration::from_millis(manifest.duration_ms))
+    }
+
     /// Checks the object for `identity` against its manifest.
     pub fn verify(&self, identity: &str) -> Cached {
         let dir = self.object_dir(identity);
