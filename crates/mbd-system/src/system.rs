@@ -462,6 +462,15 @@ impl System {
         self.channels.iter().position(|c| c.name == name)
     }
 
+    /// The name of the stored column holding `quantity`, if one does (a rigid moving point has
+    /// no deflection column, an element without a profile no excitation column).
+    pub fn column_of(&self, quantity: Quantity) -> Option<&str> {
+        self.channels
+            .iter()
+            .find(|c| c.quantity == quantity)
+            .map(|c| c.name.as_str())
+    }
+
     /// The DOFs that have an equation when a learner predicts the columns `outputs` and is
     /// given `inputs`: every element acting on the DOF has both ends among the rigid DOFs (all
     /// predicted), the ground, points on the ground, or moving points whose deflection column
@@ -469,16 +478,21 @@ impl System {
     pub fn equation_dofs(&self, outputs: &[&str], inputs: &[&str]) -> Vec<usize> {
         let point_known = |p: usize| {
             self.points[p].beam.is_none()
-                || outputs.contains(&format!("z_{}", self.points[p].name).as_str())
+                || self
+                    .column_of(Quantity::Point(p))
+                    .is_some_and(|c| outputs.contains(&c))
         };
-        let closes = |e: &Element| {
+        let closes = |i: usize, e: &Element| {
             let end_known = |end: &End| match end {
                 End::Ground | End::Body { .. } => true,
                 End::Moving(p) => point_known(*p),
             };
             end_known(&e.from)
                 && end_known(&e.to)
-                && (e.profile.is_none() || inputs.contains(&format!("eta_{}", e.name).as_str()))
+                && (e.profile.is_none()
+                    || self
+                        .column_of(Quantity::Excitation(i))
+                        .is_some_and(|c| inputs.contains(&c)))
         };
         (0..self.dofs.len())
             .filter(|&i| {
@@ -486,7 +500,7 @@ impl System {
                     .iter()
                     .flat_map(|g| &g.terms)
                     .all(|(s, _)| match s {
-                        Source::Element(e) => closes(&self.elements[*e]),
+                        Source::Element(e) => closes(*e, &self.elements[*e]),
                         Source::Load(_) => true,
                     })
             })

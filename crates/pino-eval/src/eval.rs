@@ -23,6 +23,7 @@ use crate::calibration::{Calibration, ModelIdentity};
 use crate::indices_eval::{
     model_indices, truth_indices, write_indices, IndexInputs, ModelIndices, StoredColumns,
 };
+use atomic_file::write_atomic;
 use candle_core::{DType, Device, Tensor};
 use pino_learn::checkpoint::{load_model, ModelMeta};
 use pino_learn::config::WindowConfig;
@@ -36,7 +37,7 @@ use pino_learn::model::Fno;
 use pino_learn::norm::Normalisation;
 use pino_learn::spectral::Transform;
 use pino_learn::train::read_history;
-use pino_learn::{write_atomic, Error, Result};
+use pino_learn::{Error, Result};
 
 /// Name of Table 4's truth row.
 pub const TRUTH_NAME: &str = "truth (exact solutions, central differences)";
@@ -221,7 +222,7 @@ pub fn exact_physical(
 /// interior points), and of the forces (z-scored; NaN without force outputs).
 pub fn table4_per_sample(ctx: &LossContext, u_n: &Tensor, batch: &Batch) -> Result<[Vec<f64>; 4]> {
     let [sol, first, second] = ctx.metrics_per_sample(u_n, batch)?;
-    let r = ctx.layout.forces();
+    let r = ctx.layout().forces();
     let f = if r.is_empty() {
         vec![f64::NAN; sol.len()]
     } else {
@@ -259,7 +260,7 @@ fn score_split(
     let score = |(chunk, pred): (&[usize], &[Vec<f32>])| -> Result<[[Vec<f64>; 4]; 2]> {
         let batch = make_batch(items, chunk, t, device)?;
         let flat: Vec<f32> = pred.concat();
-        let u = Tensor::from_vec(flat, (chunk.len(), t, ctx.layout.n_outputs()), device)?;
+        let u = Tensor::from_vec(flat, (chunk.len(), t, ctx.layout().n_outputs()), device)?;
         Ok([
             table4_per_sample(ctx, &u, &batch)?,
             table4_per_sample(ctx, &batch.u, &batch)?,
@@ -735,14 +736,14 @@ pub fn evaluate(
                 message: format!("no simulated sample of split `{}`", split.as_str()),
             });
         }
-        let ctx = LossContext {
-            config: meta.train,
-            norm: meta.norm.clone(),
-            dt: meta.grid.dt,
-            f_ref: meta.f_ref,
-            layout: meta.layout.clone(),
-            system: system.clone(),
-        };
+        let ctx = LossContext::new(
+            meta.train,
+            meta.norm.clone(),
+            meta.grid.dt,
+            meta.f_ref,
+            meta.layout.clone(),
+            system.clone(),
+        );
         let sc = score_split(&model, &ctx, items, &idx, opts.batch_size, device)?;
         let mean = |v: &[f64]| 100.0 * v.iter().sum::<f64>() / v.len() as f64;
         let table4 = [mean(&sc.model[0]), mean(&sc.model[1]), mean(&sc.model[2])];
@@ -1298,14 +1299,14 @@ mod tests {
         let meta = model_meta(&ds, m, t, w).unwrap();
         // The scored split alone, as `evaluate` reads it.
         let (_, items) = files.load_split(&w, Split::Test, &meta.norm).unwrap();
-        let ctx = LossContext {
-            config: meta.train,
-            norm: meta.norm.clone(),
-            dt: meta.grid.dt,
-            f_ref: meta.f_ref,
-            layout: meta.layout.clone(),
-            system: ds.system().clone(),
-        };
+        let ctx = LossContext::new(
+            meta.train,
+            meta.norm.clone(),
+            meta.grid.dt,
+            meta.f_ref,
+            meta.layout.clone(),
+            ds.system().clone(),
+        );
         let test: Vec<usize> = (0..items.len()).collect();
         assert_eq!(test.len(), 2);
         Fixture {

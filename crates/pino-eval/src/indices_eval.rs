@@ -20,6 +20,7 @@
 //! (per algorithm and sample: predicted and exact) and `indices_scatter_<index>.png`.
 
 use crate::eval::{alg_label, exact_physical, to_physical, Physical};
+use atomic_file::write_atomic;
 use mbd_system::system::Quantity;
 use mbd_system::System;
 use pino_data::{schema, write_parquet, Column, Table};
@@ -30,7 +31,7 @@ use pino_learn::config::WindowConfig;
 use pino_learn::data::{Prepared, Split};
 use pino_learn::layout::Layout;
 use pino_learn::residual::ChannelMap;
-use pino_learn::{write_atomic, Error, Result};
+use pino_learn::{Error, Result};
 use report::csv::write_csv;
 use report::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
 use std::collections::{BTreeMap, BTreeSet};
@@ -539,10 +540,10 @@ pub fn write_indices(
     models: &[ModelIndices],
 ) -> Result<()> {
     if !inputs.computable() {
-        return write_atomic(
+        return Ok(write_atomic(
             &out.join("indices_errors.md"),
             not_computed(inputs).as_bytes(),
-        );
+        )?);
     }
     let columns = inputs.columns();
     // Every index and its exact value beside it carry the index's unit.

@@ -76,14 +76,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let model = Fno::new(cfg, ds.t_points(), 1, transform, &dev)?;
     let norm = ds.normalisation()?;
-    let loss = LossContext {
-        config: train,
-        norm: norm.clone(),
-        dt: ds.dt,
-        f_ref: ds.force_scale(),
-        layout: ds.layout.clone(),
-        system: ds.system().clone(),
-    };
+    let loss = LossContext::new(
+        train,
+        norm.clone(),
+        ds.dt,
+        ds.force_scale(),
+        ds.layout.clone(),
+        ds.system().clone(),
+    );
     let items = prepare(&ds, &norm)?;
     let idx: Vec<usize> = (0..batch).collect();
     let b = make_batch(&items, &idx, ds.t_points(), &dev)?;

@@ -21,7 +21,7 @@ use crate::model::Fno;
 use crate::norm::Normalisation;
 use crate::optim::Adam;
 use crate::spectral::Transform;
-use crate::{io_err, write_atomic, Error, Result};
+use crate::{io_err, Error, Result};
 use candle_core::{Device, Tensor};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
@@ -243,7 +243,7 @@ fn save_tensors(
         path: path.to_owned(),
         message: format!("cannot serialise tensors: {e}"),
     })?;
-    write_atomic(path, &bytes)
+    Ok(atomic_file::write_atomic(path, &bytes)?)
 }
 
 /// Reads a safetensors file: its tensors and its header metadata.
@@ -269,7 +269,7 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
         path: path.to_owned(),
         message: e.to_string(),
     })?;
-    write_atomic(path, text.as_bytes())
+    Ok(atomic_file::write_atomic(path, text.as_bytes())?)
 }
 
 fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {

@@ -121,25 +121,23 @@ impl Groups {
     }
 }
 
-/// Reads `params.parquet`: `(sample_id, split, params)` rows, the parameters of `layout`.
+/// Reads `params.parquet` ([`pino_data::records::read_params`]): `(sample_id, split, params)`
+/// rows, the parameters of `layout`, each split label known.
 pub fn read_params(path: &Path, layout: &Layout) -> Result<Vec<(i64, Split, Vec<f64>)>> {
-    let mut cols = vec![schema::SAMPLE_ID, schema::SPLIT];
-    cols.extend(layout.params.iter().map(String::as_str));
-    let t = read_parquet(path, Some(&cols))?;
-    let ids = t.i64(schema::SAMPLE_ID)?;
-    let splits = t.str(schema::SPLIT)?;
-    let values: Vec<&[f64]> = layout
-        .params
-        .iter()
-        .map(|p| t.f64(p))
-        .collect::<pino_data::Result<_>>()?;
-    let mut out = Vec::with_capacity(ids.len());
-    for (r, (&id, split)) in ids.iter().zip(splits).enumerate() {
-        let split = Split::from_label(split)
-            .ok_or_else(|| dataset_err(path, format!("sample {id}: {}", unknown_split(split))))?;
-        out.push((id, split, values.iter().map(|v| v[r]).collect()));
-    }
-    Ok(out)
+    let names: Vec<&str> = layout.params.iter().map(String::as_str).collect();
+    let table = pino_data::records::read_params(std::slice::from_ref(&path.to_path_buf()), &names)?;
+    table
+        .ids
+        .into_iter()
+        .zip(&table.splits)
+        .zip(table.values)
+        .map(|((id, label), values)| {
+            let split = Split::from_label(label).ok_or_else(|| {
+                dataset_err(path, format!("sample {id}: {}", unknown_split(label)))
+            })?;
+            Ok((id, split, values))
+        })
+        .collect()
 }
 
 /// Reads `weights.parquet` into `(sample_id, phi)` rows (the `phi_<dof>` of each equation of

@@ -169,18 +169,22 @@ pub enum Error {
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, Error>;
 
+/// A failed atomic write ([`atomic_file::write_atomic`]) is an I/O error on its path.
+impl From<atomic_file::Error> for Error {
+    fn from(e: atomic_file::Error) -> Self {
+        Error::Io {
+            path: e.path,
+            source: e.source,
+        }
+    }
+}
+
 /// An [`Error::Io`] on `path`.
 pub fn io_err(path: &std::path::Path, source: std::io::Error) -> Error {
     Error::Io {
         path: path.to_owned(),
         source,
     }
-}
-
-/// Writes `bytes` to `path` atomically ([`atomic_file::write_atomic`]: temporary sibling,
-/// fsync, rename, fsync of the directory; the temporary file is removed on every error).
-pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
-    atomic_file::write_atomic(path, bytes).map_err(|e| io_err(&e.path, e.source))
 }
 
 /// Makes candle (and rayon) single-threaded unless `CANDLE_NUM_THREADS` / `RAYON_NUM_THREADS`

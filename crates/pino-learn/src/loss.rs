@@ -22,7 +22,8 @@ use crate::residual::{
 use crate::{Error, Result};
 use candle_core::{DType, Tensor};
 use mbd_system::System;
-use std::sync::Arc;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 
 /// Per-sample relative L2 `||p - y|| / ||y||` over all but the first axis: `[B]`.
 pub fn rel_l2_per_sample(pred: &Tensor, truth: &Tensor) -> Result<Tensor> {
@@ -39,6 +40,12 @@ pub fn rel_l2(pred: &Tensor, truth: &Tensor) -> Result<Tensor> {
 }
 
 /// Everything the losses need besides the batch.
+///
+/// Built by [`LossContext::new`], which also builds the residual's channel map once; each
+/// sample's equations and their Jacobian ([`SampleEquations`]) are built the first time a batch
+/// holds the sample and kept (keyed by the exact bits of its parameters: a sample of another
+/// split with the same parameters shares them), so an epoch after the first builds none. The
+/// layout and the system are read-only for that reason. Clones share the kept equations.
 #[derive(Debug, Clone)]
 pub struct LossContext {
     /// Algorithm and weights.
@@ -49,13 +56,49 @@ pub struct LossContext {
     pub dt: f64,
     /// Force scale of the global ODE loss (N), when the description has one.
     pub f_ref: Option<f64>,
-    /// The channel layout.
-    pub layout: Layout,
-    /// The system description (the residual's element code).
-    pub system: Arc<System>,
+    layout: Layout,
+    system: Arc<System>,
+    map: Arc<ChannelMap>,
+    equations: EquationCache,
 }
 
+/// Each sample's equations by the bits of its physical parameters, shared by clones.
+type EquationCache = Arc<Mutex<HashMap<Vec<u64>, Arc<SampleEquations>>>>;
+
 impl LossContext {
+    /// The losses of `config` over `layout` of `system`, on windows of step `dt` (s)
+    /// normalised by `norm`; `f_ref` (N) scales the global ODE loss where there is one.
+    pub fn new(
+        config: TrainConfig,
+        norm: Normalisation,
+        dt: f64,
+        f_ref: Option<f64>,
+        layout: Layout,
+        system: Arc<System>,
+    ) -> Self {
+        let map = Arc::new(ChannelMap::new(&system, &layout));
+        Self {
+            config,
+            norm,
+            dt,
+            f_ref,
+            layout,
+            system,
+            map,
+            equations: EquationCache::default(),
+        }
+    }
+
+    /// The channel layout.
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// The system description (the residual's element code).
+    pub fn system(&self) -> &Arc<System> {
+        &self.system
+    }
+
     fn dofs(&self) -> usize {
         self.layout.n_dofs()
     }
@@ -77,17 +120,13 @@ impl LossContext {
     }
 
     /// The channel map of the residual.
-    pub fn channel_map(&self) -> ChannelMap {
-        ChannelMap::new(&self.system, &self.layout)
+    pub fn channel_map(&self) -> &Arc<ChannelMap> {
+        &self.map
     }
 
-    /// The equations of the batch's samples.
-    pub fn sample_equations(
-        &self,
-        map: &ChannelMap,
-        batch: &Batch,
-    ) -> Result<Vec<SampleEquations>> {
-        if map.equations.is_empty() {
+    /// The equations of the batch's samples, built on a sample's first batch and kept.
+    pub fn sample_equations(&self, batch: &Batch) -> Result<Vec<Arc<SampleEquations>>> {
+        if self.map.equations.is_empty() {
             return Err(Error::OutOfRange {
                 field: "algorithm".into(),
                 value: self.config.algorithm.id().to_string(),
@@ -100,15 +139,37 @@ impl LossContext {
         let params = batch.params.to_dtype(DType::F64)?.to_vec2::<f64>()?;
         params
             .iter()
-            .map(|p| SampleEquations::new(&self.system, map, p))
+            .map(|p| {
+                let key: Vec<u64> = p.iter().map(|x| x.to_bits()).collect();
+                if let Some(kept) = self.kept_equations().get(&key) {
+                    return Ok(kept.clone());
+                }
+                // Built outside the lock: another thread may build the same sample meanwhile
+                // (the same value; the first one kept wins).
+                let built = Arc::new(SampleEquations::new(&self.system, &self.map, p)?);
+                Ok(self.kept_equations().entry(key).or_insert(built).clone())
+            })
             .collect()
+    }
+
+    fn kept_equations(&self) -> std::sync::MutexGuard<'_, HashMap<Vec<u64>, Arc<SampleEquations>>> {
+        // A panic while holding the lock cannot leave a half-inserted entry: keep going.
+        self.equations
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
     /// ODE residuals `[B, T-2, Q]` (N, N m) of a z-scored prediction, as candle ops.
     pub fn residuals(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
-        let map = self.channel_map();
-        let samples = self.sample_equations(&map, batch)?;
-        composed_residuals(&map, &samples, u_n, &batch.eta, &self.norm.outputs, self.dt)
+        let samples = self.sample_equations(batch)?;
+        composed_residuals(
+            &self.map,
+            &samples,
+            u_n,
+            &batch.eta,
+            &self.norm.outputs,
+            self.dt,
+        )
     }
 
     fn f_ref(&self) -> Result<f64> {
@@ -163,11 +224,9 @@ impl LossContext {
         if !(u_n.device().is_cpu() && u_n.dtype() == DType::F32) {
             return Ok(None);
         }
-        let map = self.channel_map();
-        let samples = self.sample_equations(&map, batch)?;
         let op = OdeLoss {
-            map,
-            samples,
+            map: self.map.clone(),
+            samples: self.sample_equations(batch)?,
             eta: batch.eta.to_dtype(DType::F64)?.flatten_all()?.to_vec1()?,
             n_eta: self.layout.n_excitations(),
             mean: self.norm.outputs.mean.clone(),
@@ -332,20 +391,42 @@ mod tests {
         let dev = Device::Cpu;
         let batch = make_batch(&items, &[0, 1, 2], ds.t_points(), &dev).unwrap();
         let (_, config, _) = TrainParams::small(algorithm).configs(&ds.layout).unwrap();
-        let ctx = LossContext {
+        let ctx = LossContext::new(
             config,
             norm,
-            dt: ds.dt,
-            f_ref: ds.force_scale(),
-            layout: ds.layout.clone(),
-            system: ds.system().clone(),
-        };
+            ds.dt,
+            ds.force_scale(),
+            ds.layout.clone(),
+            ds.system().clone(),
+        );
         let mut s = mbd_dataset::rng::SampleStream::new(9, mbd_dataset::rng::Purpose::Training, 1);
         let noise: Vec<f32> = (0..batch.u.elem_count())
             .map(|_| 0.05 * s.normal() as f32)
             .collect();
         let u0 = (&batch.u + Tensor::from_vec(noise, batch.u.shape(), &dev).unwrap()).unwrap();
         (ctx, batch, u0)
+    }
+
+    /// A sample's equations are built on its first batch and kept: a later batch (or a
+    /// clone of the context) gets the same ones, and the loss is bit for bit the one of a
+    /// fresh context that builds them again.
+    #[test]
+    fn sample_equations_are_built_once_and_kept() {
+        let (ctx, batch, u) = tiny_case(3);
+        let first = ctx.sample_equations(&batch).unwrap();
+        let again = ctx.clone().sample_equations(&batch).unwrap();
+        assert_eq!(first.len(), 3);
+        assert!(first.iter().zip(&again).all(|(a, b)| Arc::ptr_eq(a, b)));
+        assert!(!Arc::ptr_eq(&first[0], &first[1]));
+        let kept = ctx.loss(&u, &batch).unwrap().0.to_scalar::<f32>().unwrap();
+        let (fresh, _, _) = tiny_case(3);
+        let built = fresh
+            .loss(&u, &batch)
+            .unwrap()
+            .0
+            .to_scalar::<f32>()
+            .unwrap();
+        assert_eq!(kept.to_bits(), built.to_bits());
     }
 
     /// Each algorithm's total loss against its combination computed by hand with plain loops
@@ -377,7 +458,7 @@ mod tests {
             );
             // The residuals of the hand-written vehicle-track model
             // (`mbd_test_models::vehicle_track`), independent of the description.
-            let layout = &ctx.layout;
+            let layout = ctx.layout();
             let col = |name: &str| layout.outputs.iter().position(|o| o == name).unwrap();
             // The vehicle's DOFs are the first outputs, in its equation order.
             assert_eq!(layout.outputs[..NUM_DOFS], vehicle_track::DOFS);

@@ -23,6 +23,7 @@ use crate::{Error, Result};
 use candle_core::{CpuStorage, CustomOp1, DType, Layout as CLayout, Shape, Tensor};
 use mbd_engine::residual::{EquationState, Equations, StateEntry};
 use mbd_system::model::ModelLaw;
+use mbd_system::system::Quantity;
 use mbd_system::System;
 
 /// Where the residual's state comes from in the learner's channels (the same for every
@@ -42,25 +43,16 @@ pub struct ChannelMap {
 impl ChannelMap {
     /// The map of `layout` over `system`.
     pub fn new(system: &System, layout: &Layout) -> Self {
-        let point = system
-            .points
-            .iter()
-            .map(|p| {
-                layout
-                    .outputs
-                    .iter()
-                    .position(|o| *o == format!("z_{}", p.name))
-            })
+        // The layout's column holding `quantity` (the description names it, once).
+        let find = |columns: &[String], quantity| {
+            let name = system.column_of(quantity)?;
+            columns.iter().position(|c| c == name)
+        };
+        let point = (0..system.points.len())
+            .map(|p| find(&layout.outputs, Quantity::Point(p)))
             .collect();
-        let eta = system
-            .elements
-            .iter()
-            .map(|e| {
-                layout
-                    .excitations
-                    .iter()
-                    .position(|x| *x == format!("eta_{}", e.name))
-            })
+        let eta = (0..system.elements.len())
+            .map(|e| find(&layout.excitations, Quantity::Excitation(e)))
             .collect();
         Self {
             dofs: layout.n_dofs(),
@@ -275,9 +267,9 @@ pub enum OdeWeights {
 /// Everything the residual loss of one batch needs besides the prediction.
 pub struct OdeLoss {
     /// The channel map.
-    pub map: ChannelMap,
+    pub map: std::sync::Arc<ChannelMap>,
     /// One sample's equations per batch row.
-    pub samples: Vec<SampleEquations>,
+    pub samples: Vec<std::sync::Arc<SampleEquations>>,
     /// Excitations `[B, T, E]` (m).
     pub eta: Vec<f64>,
     /// Number of excitation channels `E`.
@@ -543,7 +535,7 @@ pub fn derivatives(
 /// the contacts' deflections `d = D state`. Tables are refused (the CPU's fused op has them).
 pub fn composed_residuals(
     map: &ChannelMap,
-    samples: &[SampleEquations],
+    samples: &[std::sync::Arc<SampleEquations>],
     u_n: &Tensor,
     eta: &Tensor,
     outputs: &ChannelStats,

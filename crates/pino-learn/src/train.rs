@@ -188,14 +188,14 @@ pub fn train(
         };
         (model, adam, state, None)
     };
-    let loss = LossContext {
-        config: cfg,
-        norm: meta.norm.clone(),
-        dt: ds.dt,
-        f_ref: meta.f_ref,
-        layout: ds.layout.clone(),
-        system: ds.system().clone(),
-    };
+    let loss = LossContext::new(
+        cfg,
+        meta.norm.clone(),
+        ds.dt,
+        meta.f_ref,
+        ds.layout.clone(),
+        ds.system().clone(),
+    );
     let items = prepare(ds, &meta.norm)?;
     let t_points = ds.t_points();
     let started = Instant::now();
@@ -536,14 +536,14 @@ mod tests {
         let norm = ds.normalisation().unwrap();
         let items = prepare(&ds, &norm).unwrap();
         let model = Fno::new(m, ds.t_points(), 1, Transform::Fused, &dev).unwrap();
-        let loss = LossContext {
-            config: t,
+        let loss = LossContext::new(
+            t,
             norm,
-            dt: ds.dt,
-            f_ref: ds.force_scale(),
-            layout: ds.layout.clone(),
-            system: ds.system().clone(),
-        };
+            ds.dt,
+            ds.force_scale(),
+            ds.layout.clone(),
+            ds.system().clone(),
+        );
         let batch = make_batch(&items, &[0, 1], ds.t_points(), &dev).unwrap();
         let mut adam = Adam::new(model.vars()).unwrap();
         let mut first = None;
@@ -574,14 +574,14 @@ mod tests {
         let items = prepare(&ds, &norm).unwrap();
         let (_, t) = small(2, 1);
         let dev = Device::Cpu;
-        let ctx = LossContext {
-            config: t,
+        let ctx = LossContext::new(
+            t,
             norm,
-            dt: ds.dt,
-            f_ref: ds.force_scale(),
-            layout: ds.layout.clone(),
-            system: ds.system().clone(),
-        };
+            ds.dt,
+            ds.force_scale(),
+            ds.layout.clone(),
+            ds.system().clone(),
+        );
         let idx: Vec<usize> = (0..ds.samples.len()).collect();
         let batch = make_batch(&items, &idx, ds.t_points(), &dev).unwrap();
         let level = |noise: f64| -> f64 {

@@ -73,14 +73,14 @@ fn run(ds: &Dataset, algorithm: i64, device: &Device) -> Outcome {
     let (model_cfg, train_cfg, _) = p.configs(&ds.layout).expect("configs");
     let norm = ds.normalisation().expect("normalisation");
     let items = prepare(ds, &norm).expect("prepare");
-    let ctx = LossContext {
-        config: train_cfg,
+    let ctx = LossContext::new(
+        train_cfg,
         norm,
-        dt: ds.dt,
-        f_ref: ds.force_scale(),
-        layout: ds.layout.clone(),
-        system: ds.system().clone(),
-    };
+        ds.dt,
+        ds.force_scale(),
+        ds.layout.clone(),
+        ds.system().clone(),
+    );
     let idx: Vec<usize> = (0..ds.samples.len()).collect();
     let batch = make_batch(&items, &idx, ds.t_points(), device).expect("batch");
     // The CPU runs its fused kernels, CUDA the candle composition: the comparison covers both.

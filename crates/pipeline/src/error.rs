@@ -81,6 +81,13 @@ pub enum Error {
     },
 }
 
+/// A failed atomic write ([`atomic_file::write_atomic`]) is an I/O error on its path.
+impl From<atomic_file::Error> for Error {
+    fn from(e: atomic_file::Error) -> Self {
+        Error::io(e.path, e.source)
+    }
+}
+
 impl Error {
     /// The process exit status for this error.
     pub fn exit_code(&self) -> u8 {

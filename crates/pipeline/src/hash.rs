@@ -198,7 +198,7 @@ impl HashCache {
             .filter(|(k, _)| Path::new(k).exists())
             .collect();
         let bytes = serde_json::to_vec(&live).expect("serialisable");
-        crate::store::write_atomic(path, &bytes)?;
+        atomic_file::write_atomic(path, &bytes)?;
         *dirty = false;
         Ok(())
     }

@@ -227,7 +227,7 @@ fn write_record(path: &Path, r: &RunningUnit) -> Result<()> {
         path: path.to_owned(),
         message: e.to_string(),
     })?;
-    crate::store::write_atomic(path, &bytes)
+    Ok(atomic_file::write_atomic(path, &bytes)?)
 }
 
 /// What the run knows of one unit's record.

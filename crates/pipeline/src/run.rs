@@ -225,10 +225,9 @@ fn compute(
             "[{}] re-attaching to Slurm job {job} of an earlier run",
             u.key
         )),
-        None => crate::store::write_atomic(
-            &work.join(stage_protocol::CONTEXT_FILE),
-            &context.to_json(),
-        )?,
+        None => {
+            atomic_file::write_atomic(&work.join(stage_protocol::CONTEXT_FILE), &context.to_json())?
+        }
     }
     let view = cx.ui.start(&u.key);
     // Removed when this function returns, however the unit ended.

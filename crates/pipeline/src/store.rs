@@ -33,6 +33,7 @@
 
 use crate::hash::{hash_file, HashCache, Stamp};
 use crate::{Error, Result};
+use atomic_file::write_atomic;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -45,11 +46,6 @@ pub use stage_protocol::PROTOCOL_VERSION;
 /// Format version of `manifest.json` (independent of the stage protocol: the store's layout
 /// can change without any stage noticing). Version 1 manifests called this field `protocol`.
 pub const MANIFEST_VERSION: u32 = 1;
-
-/// Writes `bytes` to `path` atomically ([`atomic_file::write_atomic`]).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    atomic_file::write_atomic(path, bytes).map_err(|e| Error::io(e.path, e.source))
-}
 
 /// One output file in a manifest.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -436,10 +432,10 @@ impl Store {
     pub fn write_lock_record(&self, rec: &LockRecord) -> Result<()> {
         let mut rec = rec.clone();
         rec.version = 1;
-        write_atomic(
+        Ok(write_atomic(
             &self.lock_record_path(),
             &serde_json::to_vec_pretty(&rec).expect("serialisable"),
-        )
+        )?)
     }
 }
 

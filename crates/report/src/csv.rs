@@ -45,7 +45,7 @@ pub fn write_csv(path: &Path, t: &Table) -> Result<()> {
         path: path.to_owned(),
         source,
     })?;
-    crate::write_atomic(path, &bytes)
+    Ok(atomic_file::write_atomic(path, &bytes)?)
 }
 
 #[cfg(test)]

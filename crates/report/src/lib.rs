@@ -49,7 +49,7 @@ mod font;
 pub mod markdown;
 pub mod plot;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Errors of the reporting crate; each names the file or figure at fault.
 #[derive(Debug, thiserror::Error)]
@@ -91,10 +91,12 @@ pub enum Error {
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, Error>;
 
-/// Writes `bytes` to `path` atomically ([`atomic_file::write_atomic`]).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    atomic_file::write_atomic(path, bytes).map_err(|e| Error::Io {
-        path: e.path,
-        source: e.source,
-    })
+/// A failed atomic write ([`atomic_file::write_atomic`]) is an I/O error on its path.
+impl From<atomic_file::Error> for Error {
+    fn from(e: atomic_file::Error) -> Self {
+        Error::Io {
+            path: e.path,
+            source: e.source,
+        }
+    }
 }

@@ -489,7 +489,7 @@ pub fn write_png(path: &Path, fig: &Figure) -> Result<()> {
         let mut w = enc.write_header().map_err(fmt)?;
         w.write_image_data(&cv.px).map_err(fmt)?;
     }
-    crate::write_atomic(path, &bytes)
+    Ok(atomic_file::write_atomic(path, &bytes)?)
 }
 
 #[cfg(test)]

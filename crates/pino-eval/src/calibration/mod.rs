@@ -368,7 +368,10 @@ impl Calibration {
             path: dir.join(CALIBRATION_FILE),
             message: e.to_string(),
         })?;
-        pino_learn::write_atomic(&dir.join(CALIBRATION_FILE), text.as_bytes())
+        Ok(atomic_file::write_atomic(
+            &dir.join(CALIBRATION_FILE),
+            text.as_bytes(),
+        )?)
     }
 }
 

@@ -3,8 +3,9 @@
 
 use super::coverage::{ConditionalRow, CoverageRow};
 use super::{Calibration, Normaliser, DEFAULT_COVERAGE};
+use atomic_file::write_atomic;
 use pino_data::{write_parquet, Column, Table};
-use pino_learn::{write_atomic, Result};
+use pino_learn::Result;
 use report::csv::write_csv;
 use std::path::Path;
 
@@ -60,10 +61,10 @@ pub fn write_coverage(
     write_parquet(&out.join("coverage_conditional.parquet"), &c)?;
     write_csv(&out.join("coverage_conditional.csv"), &c)?;
 
-    write_atomic(
+    Ok(write_atomic(
         &out.join("coverage.md"),
         markdown(calibrations, rows, conditional).as_bytes(),
-    )
+    )?)
 }
 
 fn markdown(

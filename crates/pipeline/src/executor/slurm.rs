@@ -25,8 +25,9 @@
 
 use super::{Job, Resources, Ticket, Work};
 use crate::exec::{parse_progress, Outcome, ProgressLine, CONTEXT_ENV, TAIL_LINES};
-use crate::store::{remove_tree, write_atomic};
+use crate::store::remove_tree;
 use crate::{Error, Result};
+use atomic_file::write_atomic;
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};

@@ -224,7 +224,10 @@ fn solver_pairs(
 /// and [`SUMMARY_MD_FILE`].
 fn finish(out: &Path, surrogate: (usize, f64), solver: (usize, f64), summary: &str) -> Result<()> {
     write_speed(out, surrogate, solver)?;
-    report::write_atomic(&out.join(SUMMARY_MD_FILE), summary.as_bytes()).map_err(report_err)
+    Ok(atomic_file::write_atomic(
+        &out.join(SUMMARY_MD_FILE),
+        summary.as_bytes(),
+    )?)
 }
 
 /// Writes [`SPEED_FILE`]: each side's evaluations, wall time and time per evaluation.
@@ -239,5 +242,8 @@ fn write_speed(out: &Path, surrogate: (usize, f64), solver: (usize, f64)) -> Res
         solver.1,
         per(solver)
     );
-    report::write_atomic(&out.join(SPEED_FILE), speed.as_bytes()).map_err(report_err)
+    Ok(atomic_file::write_atomic(
+        &out.join(SPEED_FILE),
+        speed.as_bytes(),
+    )?)
 }
