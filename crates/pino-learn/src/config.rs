@@ -73,17 +73,6 @@ impl Algorithm {
     pub fn needs_phi(self) -> bool {
         self == Algorithm::PinoMbdWeights
     }
-
-    /// The paper's Table 4 (solutions, first, second derivatives; relative L2 %).
-    pub fn paper_table4(self) -> [f64; 3] {
-        match self {
-            Algorithm::Fno => [4.24, 13.58, 1404.42],
-            Algorithm::Pino => [7.41, 23.06, 202.42],
-            Algorithm::PinoMbdWeights => [8.29, 14.90, 20.79],
-            Algorithm::PinoMbdDerivatives => [6.75, 6.12, 6.73],
-            Algorithm::PinoMbdDerivativesDeep => [6.77, 4.90, 3.20],
-        }
-    }
 }
 
 impl TryFrom<i64> for Algorithm {
