@@ -369,8 +369,9 @@ impl System {
             .collect()
     }
 
-    /// The model of one sample (`sampled` in [`System::sampled`] order), every field checked;
-    /// the first field out of its domain is the error.
+    /// The model of one sample (`sampled` in [`System::sampled`] order, one value per sampled
+    /// parameter: another count is refused), every field checked; the first field out of its
+    /// domain is the error.
     pub fn instantiate(&self, sampled: &[f64]) -> Result<Model, FieldError> {
         self.instantiate_all(sampled)
             .map_err(|errors| errors.into_iter().next().expect("at least one"))
@@ -380,6 +381,19 @@ impl System {
     /// description's sections), not only the first: the checks of a description at its
     /// nominal values list all of them at once.
     pub fn instantiate_all(&self, sampled: &[f64]) -> Result<Model, Vec<FieldError>> {
+        let names = self.sampled_names();
+        if sampled.len() != names.len() {
+            return Err(vec![FieldError {
+                path: "parameters".to_owned(),
+                value: sampled.len() as f64,
+                allowed: format!(
+                    "exactly {} sampled values, in the description's order: {}",
+                    names.len(),
+                    names.join(", ")
+                ),
+                sources: Vec::new(),
+            }]);
+        }
         let v = self.values(sampled);
         let non_finite: Vec<FieldError> = self
             .parameters

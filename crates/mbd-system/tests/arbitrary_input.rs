@@ -423,9 +423,20 @@ fn the_real_descriptions_compile_and_instantiate() {
     for file in FILES {
         let text = description(file);
         let system = load_str(&text, file, &BTreeMap::new()).unwrap_or_else(|d| panic!("{d}"));
+        let nominal = system.nominal();
         system
-            .instantiate(&system.nominal())
+            .instantiate(&nominal)
             .unwrap_or_else(|e| panic!("{file}: {e}"));
+        // One value short or one too many: refused, naming the parameters in their order.
+        let short = &nominal[..nominal.len() - 1];
+        let long: Vec<f64> = nominal.iter().copied().chain([1.0]).collect();
+        for wrong in [short, &long[..]] {
+            let e = system.instantiate(wrong).unwrap_err();
+            assert_eq!(e.path, "parameters", "{file}");
+            assert_eq!(e.value, wrong.len() as f64, "{file}");
+            let names = system.sampled_names().join(", ");
+            assert!(e.allowed.contains(&names), "{file}: {}", e.allowed);
+        }
     }
 }
 
