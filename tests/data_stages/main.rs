@@ -686,6 +686,56 @@ fn weights_params(noise_ratio: f64) -> Value {
     json!({"seed": 3, "noise_ratio": noise_ratio, "window_start_fraction": 0.0})
 }
 
+/// A profile read by a cubic spline needs 4 points: run controls giving fewer (`length / dx`
+/// rounded up to even) are refused by `irregularity`, in check mode (before `pipeline run`
+/// starts anything) as in a run, at the line of the profile's `interpolation:` in the
+/// description (the shipped bridge asks for cubic), with the allowed length. The same controls
+/// under a linear profile fail on the generator's own limits, not on the interpolation.
+#[test]
+fn irregularity_refuses_a_cubic_profile_of_fewer_than_four_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let bridge = system_path("bridge");
+    let text = std::fs::read_to_string(&bridge).unwrap();
+    let line = 1 + text
+        .lines()
+        .position(|l| l.trim_start().starts_with("interpolation: cubic"))
+        .expect("the shipped bridge reads its deck profile by a cubic");
+    let short = json!({"seed": 1, "dx": 0.1, "length": 0.2});
+    for check in [true, false] {
+        let (ctx, _) = stage_context(dir.path(), "ir-short", short.clone(), json!({}), check);
+        let err = fails("irregularity", Some(&bridge), &ctx);
+        assert!(
+            err.contains(&format!("bridge.yaml:{line}:"))
+                && err.contains("profiles.deck.interpolation")
+                && err.contains("cubic needs at least 4 profile points")
+                && err.contains("give 2")
+                && err.contains("length >= 4 dx = 0.4 m"),
+            "check mode {check}: {err}"
+        );
+    }
+    let linear = dir.path().join("linear.yaml");
+    std::fs::write(
+        &linear,
+        text.replace("interpolation: cubic", "interpolation: linear"),
+    )
+    .unwrap();
+    let (ctx, _) = stage_context(dir.path(), "ir-linear", short, json!({}), true);
+    let err = fails("irregularity", Some(&linear), &ctx);
+    assert!(
+        !err.contains("interpolation") && err.contains("length"),
+        "{err}"
+    );
+    // The shipped controls pass the check.
+    let (ctx, _) = stage_context(
+        dir.path(),
+        "ir-shipped",
+        json!({"seed": 1, "dx": 0.1, "length": 120.0}),
+        json!({}),
+        true,
+    );
+    ok("irregularity", &bridge, &ctx, 1);
+}
+
 #[test]
 fn simulate_check_mode_refuses_a_start_before_a_generated_profile() {
     // The check mode (what `pipeline run` runs before anything, `check: true`; a failure
@@ -1128,11 +1178,13 @@ fn the_readme_description_is_the_shipped_quarter_car() {
 /// car's equations read only stored exact columns (displacements, the solver's `_v` and `_a`,
 /// the rail under each wheel, the profile): round-off, < 1e-9 of the static contact force, and
 /// with r = 2 % every phi is far above it. The bridge's suspension damper also reads the rate
-/// of the profile under the vehicle: the solver takes the slope of the linearly interpolated
-/// profile (piecewise constant, jumping at every profile point), the residual a central
-/// difference of the stored profile, which differ by up to half a slope jump at each profile
-/// point whatever the output rate (measured 2.6 % of the weight at 10 kHz, 3.4 % at 1 kHz):
-/// a floor, asserted below 5 %, that 2 % noise does not raise.
+/// of the profile under the vehicle: the solver takes the slope of the interpolated profile,
+/// the residual a central difference of the stored profile over `2 h` (h = 1 ms). With the
+/// bridge's cubic profile (continuous slope) the two differ by the difference's own error,
+/// `h^2 v^3 eta''' / 6` (the spline's third derivative, up to ~1 /m^2 on the class-A deck):
+/// measured 2.6e-3 of the weight here, asserted below 5e-3. With a linear profile the slope
+/// jumps at every profile point and the floor was 3.4e-2 (this chain with `interpolation:
+/// linear`; 2.6 % at 10 kHz): what the cubic removes. 2 % noise does not stand far above it.
 #[test]
 fn weights_without_noise_are_each_descriptions_residual_floor() {
     let vtcd_track = json!({"n_f": 150, "n_m": 75});
@@ -1141,7 +1193,7 @@ fn weights_without_noise_are_each_descriptions_residual_floor() {
     for (name, values, length, duration, x0, floor, noise_above_floor) in [
         ("vtcd", vtcd_track, 120.0, 0.2, 5.0, 1e-9, true),
         ("quarter-car", json!({}), 200.0, 0.3, 5.0, 1e-9, true),
-        ("bridge", json!({}), 120.0, 0.5, 0.0, 5e-2, false),
+        ("bridge", json!({}), 120.0, 0.5, 0.0, 5e-3, false),
     ] {
         let dir = tempfile::tempdir().unwrap();
         let path = system_path(name);
@@ -1179,6 +1231,7 @@ fn weights_without_noise_are_each_descriptions_residual_floor() {
             .map(str::to_owned)
             .collect();
         assert!(!columns.is_empty(), "{name}: no equation");
+        let mut worst = 0.0f64;
         for (row, id) in phi[0].i64("sample_id").unwrap().iter().enumerate() {
             let p = params
                 .i64("sample_id")
@@ -1195,6 +1248,7 @@ fn weights_without_noise_are_each_descriptions_residual_floor() {
             let scale = mbd_engine::statics::contact_scale(&described, &model).unwrap();
             for c in &columns {
                 let (clean, noised) = (phi[0].f64(c).unwrap()[row], phi[1].f64(c).unwrap()[row]);
+                worst = worst.max(clean / scale);
                 assert!(
                     clean < floor * scale,
                     "{name} sample {id} {c}: clean residual {clean} vs scale {scale}"
@@ -1205,5 +1259,6 @@ fn weights_without_noise_are_each_descriptions_residual_floor() {
                 );
             }
         }
+        println!("{name}: clean residual up to {worst:.2e} of the static force");
     }
 }

@@ -54,13 +54,34 @@ pub enum Error {
         /// The length required.
         expected: usize,
     },
+    /// A profile whose interpolation needs more points than its controls give.
+    #[error(
+        "profiles.{profile}.interpolation: {interpolation} needs at least {min} profile points, \
+         dx = {dx} m and length = {length} m give {points}; allowed: length >= {min} dx = {} m",
+        *min as f64 * dx
+    )]
+    TooFewPoints {
+        /// The profile.
+        profile: String,
+        /// The interpolation's keyword.
+        interpolation: &'static str,
+        /// Points it needs.
+        min: usize,
+        /// Points the controls give.
+        points: usize,
+        /// Spacing (m).
+        dx: f64,
+        /// Length (m).
+        length: f64,
+    },
 }
 
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, Error>;
 
 /// The profile generators of a description, one per profile (`None` for analytic ones), with
-/// the run controls `params`.
+/// the run controls `params`. Refuses first controls that give a profile fewer points than its
+/// interpolation needs ([`Error::TooFewPoints`]).
 pub fn profile_generators(
     system: &mbd_system::System,
     params: &ProfileParams,
@@ -71,10 +92,22 @@ pub fn profile_generators(
         .enumerate()
         .map(|(i, p)| match p {
             mbd_system::system::Profile::Generated {
+                name,
                 segments,
                 wavelengths,
-                ..
+                interpolation,
             } => {
+                let min = interpolation.min_points();
+                if let Some(points) = params.points().filter(|&n| n < min) {
+                    return Err(Error::TooFewPoints {
+                        profile: name.clone(),
+                        interpolation: interpolation.keyword(),
+                        min,
+                        points,
+                        dx: params.dx,
+                        length: params.length,
+                    });
+                }
                 let psd = Psd::new(
                     segments
                         .iter()

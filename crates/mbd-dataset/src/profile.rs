@@ -146,6 +146,17 @@ pub struct ProfileParams {
 }
 
 impl ProfileParams {
+    /// The number of points `N = ceil(length / dx)` rounded up to even, or `None` when `dx` or
+    /// `length` is not a finite positive number or `N` exceeds [`MAX_POINTS`].
+    pub fn points(&self) -> Option<usize> {
+        let points = (self.length / self.dx).ceil();
+        if !(self.dx > 0.0 && points.is_finite() && points >= 0.0 && points <= MAX_POINTS as f64) {
+            return None;
+        }
+        let n = points as usize;
+        Some(if n % 2 == 1 { n + 1 } else { n })
+    }
+
     /// Checks the values against the band `[wavelength_min, wavelength_max]` (m) of `psd`
     /// and precomputes the bin amplitudes and the FFT plan. `code` keys the random phases
     /// ([`crate::rng::profile_code`]).
@@ -189,16 +200,13 @@ impl ProfileParams {
                 ),
             });
         }
-        let points = (self.length / self.dx).ceil();
-        if points > MAX_POINTS as f64 {
+        let Some(n) = self.points() else {
             return Err(out(
                 "length",
                 self.length,
                 format!("at most {MAX_POINTS} points of dx = {} m", self.dx),
             ));
-        }
-        let n = points as usize;
-        let n = if n % 2 == 1 { n + 1 } else { n };
+        };
         let df = 1.0 / (n as f64 * self.dx);
         let (f_lo, f_hi) = (1.0 / lmax, 1.0 / lmin);
         let mut bins = Vec::new();

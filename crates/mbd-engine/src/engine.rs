@@ -226,7 +226,7 @@ impl Engine {
         route: Route,
     ) -> Result<Self> {
         config.validate()?;
-        let sources = profile_sources(&model, profiles);
+        let sources = profile_sources(&model, profiles)?;
         // Layout and beams.
         let rigid = model.dof_mass.len();
         let mut at = rigid;
@@ -768,11 +768,12 @@ impl Engine {
 }
 
 /// The profile each of `model`'s profiles reads: its analytic form, the points `profiles[p]`
-/// supply for a generated one, or a level profile where none is given.
+/// supply for a generated one, read by the description's interpolation, or a level profile
+/// where none is given. Refuses a cubic profile of fewer than 4 points.
 pub(crate) fn profile_sources(
     model: &Model,
     mut profiles: Vec<Option<Profile>>,
-) -> Vec<ProfileSource> {
+) -> Result<Vec<ProfileSource>> {
     profiles.resize(model.profiles.len(), None);
     model
         .profiles
@@ -786,13 +787,15 @@ pub(crate) fn profile_sources(
                     phase,
                 },
                 _,
-            ) => ProfileSource::Harmonic {
+            ) => Ok(ProfileSource::Harmonic {
                 amplitude: *amplitude,
                 wavelength: *wavelength,
                 phase: *phase,
-            },
-            (ModelProfile::Generated, Some(p)) => ProfileSource::Points(p),
-            (ModelProfile::Generated, None) => ProfileSource::Level,
+            }),
+            (ModelProfile::Generated { interpolation }, Some(p)) => {
+                Ok(ProfileSource::Points(p.interpolated(*interpolation)?))
+            }
+            (ModelProfile::Generated { .. }, None) => Ok(ProfileSource::Level),
         })
         .collect()
 }

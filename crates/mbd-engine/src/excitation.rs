@@ -32,7 +32,7 @@ impl Excitations {
         profiles: Vec<Option<Profile>>,
     ) -> Result<Self> {
         config.validate()?;
-        let sources = profile_sources(model, profiles);
+        let sources = profile_sources(model, profiles)?;
         check_coverage(system, model, config, &sources)?;
         let reads = model
             .elements

@@ -1,22 +1,43 @@
 //! Profiles under the moving points: the vertical level of the track or road (m, positive
 //! downward: a dip), read by an element at its lower end's position `x`.
 //!
-//! A generated profile comes per sample as points `(x_n, eta_n)`, linearly interpolated
-//! (clamped to its ends; coverage is checked before a run). A harmonic profile is analytic,
+//! A generated profile comes per sample as points `(x_n, eta_n)`, read between them as its
+//! description says (`interpolation:`):
+//!
+//! - **linear** (the default): straight segments. The level is continuous but the slope, which a
+//!   damper on the profile reads as `v d eta / dx`, jumps at every point, so the fixed-step
+//!   solver loses its second order wherever a damper reads the profile.
+//! - **cubic**: the not-a-knot cubic spline through the points (C2: level, slope and curvature
+//!   continuous). Not-a-knot rather than natural: a natural spline forces zero curvature at the
+//!   ends, which a random profile does not have, while not-a-knot (one cubic across the first
+//!   two and across the last two cells) invents no end condition and reproduces any cubic
+//!   polynomial exactly. A monotone Hermite (PCHIP, Akima) would be C1 only and flattens
+//!   extrema. The slopes `s_n` at the points solve one tridiagonal system at construction
+//!   (O(N), no pivoting needed: every pivot is positive for N >= 4); each cell then keeps the
+//!   coefficients of `eta_n + s_n t + c2_n t^2 + c3_n t^3`, `t = x - x_n`.
+//!
+//! Both read a point in O(log N) (a binary search for the cell) and are clamped outside the
+//! points: `eta` keeps its end value and the slope is 0 beyond the ends (coverage is checked
+//! before a run, so a run never reads there). A harmonic profile is analytic,
 //! `eta(x) = a sin(2 pi x / lambda + phi)`, so a test can compare against a closed form without
 //! the interpolation's loss of amplitude.
 
 use crate::{Error, Result};
+use mbd_system::system::Interpolation;
 
-/// Sampled profile points.
+/// Sampled profile points and how they are read between them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Profile {
     x: Vec<f64>,
     eta: Vec<f64>,
+    /// Per cell `n` (from `x_n` to `x_{n+1}`) of a cubic profile: `[s_n, c2_n, c3_n]` of
+    /// `eta_n + s_n t + c2_n t^2 + c3_n t^3` (m/m, m/m^2, m/m^3); empty for a linear one.
+    cubic: Vec<[f64; 3]>,
 }
 
 impl Profile {
-    /// Checks lengths (equal, >= 2), strictly increasing finite `x` and finite `eta`.
+    /// Linearly interpolated points. Checks lengths (equal, >= 2), strictly increasing finite
+    /// `x` and finite `eta`.
     pub fn new(x: Vec<f64>, eta: Vec<f64>) -> Result<Self> {
         if x.len() != eta.len() || x.len() < 2 {
             return Err(Error::Shape {
@@ -42,7 +63,39 @@ impl Profile {
                 allowed: "finite".to_owned(),
             });
         }
-        Ok(Self { x, eta })
+        Ok(Self {
+            x,
+            eta,
+            cubic: Vec::new(),
+        })
+    }
+
+    /// The same points read by `interpolation`; a cubic needs at least
+    /// [`Interpolation::min_points`] points.
+    pub fn interpolated(mut self, interpolation: Interpolation) -> Result<Self> {
+        match interpolation {
+            Interpolation::Linear => self.cubic = Vec::new(),
+            Interpolation::Cubic => {
+                if self.x.len() < interpolation.min_points() {
+                    return Err(Error::Shape {
+                        name: "eta (a cubic profile)".to_owned(),
+                        found: self.x.len(),
+                        expected: interpolation.min_points(),
+                    });
+                }
+                self.cubic = spline_cells(&self.x, &self.eta);
+            }
+        }
+        Ok(self)
+    }
+
+    /// How the points are read between them.
+    pub fn interpolation(&self) -> Interpolation {
+        if self.cubic.is_empty() {
+            Interpolation::Linear
+        } else {
+            Interpolation::Cubic
+        }
     }
 
     /// Covered positions `[x_first, x_last]` (m).
@@ -56,16 +109,21 @@ impl Profile {
             .clamp(1, self.x.len() - 1)
     }
 
-    /// `eta` at `x` by linear interpolation (clamped to the ends).
+    /// `eta` at `x` (m) by the profile's interpolation (clamped to the ends).
     #[inline]
     pub fn at(&self, x: f64) -> f64 {
         let i = self.cell(x);
+        if let Some(&[s, c2, c3]) = self.cubic.get(i - 1) {
+            let t = x.clamp(self.x[i - 1], self.x[i]) - self.x[i - 1];
+            return self.eta[i - 1] + t * (s + t * (c2 + t * c3));
+        }
         let (x0, x1) = (self.x[i - 1], self.x[i]);
         let w = ((x - x0) / (x1 - x0)).clamp(0.0, 1.0);
         self.eta[i - 1] + w * (self.eta[i] - self.eta[i - 1])
     }
 
-    /// `d eta / dx` at `x` (the slope of the interpolating segment; 0 beyond the ends).
+    /// `d eta / dx` at `x` (1): the slope of the interpolant (of the segment for a linear
+    /// profile, continuous for a cubic one); 0 beyond the ends.
     #[inline]
     pub fn slope(&self, x: f64) -> f64 {
         let [lo, hi] = self.range();
@@ -73,8 +131,67 @@ impl Profile {
             return 0.0;
         }
         let i = self.cell(x);
+        if let Some(&[s, c2, c3]) = self.cubic.get(i - 1) {
+            let t = x - self.x[i - 1];
+            return s + t * (2.0 * c2 + t * 3.0 * c3);
+        }
         (self.eta[i] - self.eta[i - 1]) / (self.x[i] - self.x[i - 1])
     }
+}
+
+/// The cells of the not-a-knot cubic spline through `(x, eta)` (`x` strictly increasing, at
+/// least 4 points). The slopes `s` at the points solve, with `h_n = x_{n+1} - x_n` and the
+/// secants `d_n = (eta_{n+1} - eta_n) / h_n`,
+/// ```text
+/// h_n s_{n-1} + 2 (h_{n-1} + h_n) s_n + h_{n-1} s_{n+1} = 3 (h_n d_{n-1} + h_{n-1} d_n)
+/// ```
+/// at the interior points (continuous curvature) and, at the ends, continuity of the third
+/// derivative across the second and the second-to-last point (not-a-knot):
+/// ```text
+/// h_1 s_0 + (h_0 + h_1) s_1 = ((h_0 + 2 (h_0 + h_1)) h_1 d_0 + h_0^2 d_1) / (h_0 + h_1)
+/// (h_m + h_{m-1}) s_{m} + h_{m-1} s_{m+1} = (h_m^2 d_{m-1} + (2 (h_{m-1} + h_m) + h_m) h_{m-1} d_m)
+///                                          / (h_{m-1} + h_m),   m = N - 2
+/// ```
+/// solved by forward elimination and back substitution (the pivots after the first row are
+/// each above `h` of a neighbouring cell, so none vanishes).
+fn spline_cells(x: &[f64], eta: &[f64]) -> Vec<[f64; 3]> {
+    let n = x.len();
+    let h: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
+    let d: Vec<f64> = (0..n - 1).map(|i| (eta[i + 1] - eta[i]) / h[i]).collect();
+    // Row i: lower[i] s_{i-1} + diag[i] s_i + upper[i] s_{i+1} = rhs[i].
+    let (mut lower, mut diag, mut upper, mut rhs) =
+        (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    diag[0] = h[1];
+    upper[0] = h[0] + h[1];
+    rhs[0] = ((h[0] + 2.0 * (h[0] + h[1])) * h[1] * d[0] + h[0] * h[0] * d[1]) / (h[0] + h[1]);
+    for i in 1..n - 1 {
+        lower[i] = h[i];
+        diag[i] = 2.0 * (h[i - 1] + h[i]);
+        upper[i] = h[i - 1];
+        rhs[i] = 3.0 * (h[i] * d[i - 1] + h[i - 1] * d[i]);
+    }
+    let m = n - 2;
+    lower[n - 1] = h[m] + h[m - 1];
+    diag[n - 1] = h[m - 1];
+    rhs[n - 1] = (h[m] * h[m] * d[m - 1] + (2.0 * (h[m - 1] + h[m]) + h[m]) * h[m - 1] * d[m])
+        / (h[m - 1] + h[m]);
+    for i in 1..n {
+        let f = lower[i] / diag[i - 1];
+        diag[i] -= f * upper[i - 1];
+        rhs[i] -= f * rhs[i - 1];
+    }
+    let mut s = vec![0.0; n];
+    s[n - 1] = rhs[n - 1] / diag[n - 1];
+    for i in (0..n - 1).rev() {
+        s[i] = (rhs[i] - upper[i] * s[i + 1]) / diag[i];
+    }
+    (0..n - 1)
+        .map(|i| {
+            let c2 = (3.0 * d[i] - 2.0 * s[i] - s[i + 1]) / h[i];
+            let c3 = (s[i] + s[i + 1] - 2.0 * d[i]) / (h[i] * h[i]);
+            [s[i], c2, c3]
+        })
+        .collect()
 }
 
 /// A profile as the engine reads it.
@@ -136,5 +253,112 @@ impl ProfileSource {
             }
             ProfileSource::Level => 0.0,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Unevenly spaced points (the spline's system is not the uniform one).
+    fn uneven() -> Vec<f64> {
+        (0..12)
+            .map(|i| {
+                let i = i as f64;
+                0.5 * i + 0.07 * (1.3 * i).sin()
+            })
+            .collect()
+    }
+
+    fn cubic_of(x: &[f64], f: impl Fn(f64) -> f64) -> Profile {
+        let eta = x.iter().map(|&x| f(x)).collect();
+        Profile::new(x.to_vec(), eta)
+            .unwrap()
+            .interpolated(Interpolation::Cubic)
+            .unwrap()
+    }
+
+    /// Not-a-knot reproduces a cubic polynomial exactly (its end conditions hold for it), level
+    /// and slope, between and at the points; so does it a line.
+    #[test]
+    fn cubic_is_exact_for_a_cubic_polynomial() {
+        let x = uneven();
+        let f = |x: f64| 1e-3 * (0.3 - 0.8 * x + 0.45 * x * x - 0.09 * x * x * x);
+        let df = |x: f64| 1e-3 * (-0.8 + 0.9 * x - 0.27 * x * x);
+        let p = cubic_of(&x, f);
+        assert_eq!(p.interpolation(), Interpolation::Cubic);
+        let [lo, hi] = p.range();
+        for k in 0..=500 {
+            let s = lo + (hi - lo) * k as f64 / 500.0;
+            assert!(
+                (p.at(s) - f(s)).abs() < 1e-15,
+                "at {s}: {} vs {}",
+                p.at(s),
+                f(s)
+            );
+            assert!((p.slope(s) - df(s)).abs() < 1e-14, "slope at {s}");
+        }
+    }
+
+    /// The points are reproduced (exactly where a cell starts, to round-off at the last point,
+    /// the end of the last cell), and the slope's left and right limits agree at every
+    /// interior point (continuous; the linear profile's jump there is far larger).
+    #[test]
+    fn cubic_reproduces_its_points_with_a_continuous_slope() {
+        let x = uneven();
+        let f = |x: f64| 2e-3 * (1.7 * x).sin() + 1e-3 * (0.4 * x).cos();
+        let cubic = cubic_of(&x, f);
+        let linear = Profile::new(x.clone(), x.iter().map(|&x| f(x)).collect()).unwrap();
+        let eps = 1e-9;
+        let mut jump_linear = 0.0f64;
+        for (i, &xi) in x.iter().enumerate() {
+            if i + 1 < x.len() {
+                assert_eq!(cubic.at(xi), f(xi), "point {i}");
+            } else {
+                assert!((cubic.at(xi) - f(xi)).abs() < 1e-18, "last point");
+            }
+            if i > 0 && i + 1 < x.len() {
+                let jump = (cubic.slope(xi + eps) - cubic.slope(xi - eps)).abs();
+                assert!(jump < 1e-10, "slope jumps by {jump:e} at point {i}");
+                jump_linear =
+                    jump_linear.max((linear.slope(xi + eps) - linear.slope(xi - eps)).abs());
+            }
+        }
+        assert!(jump_linear > 1e-4, "{jump_linear:e}");
+    }
+
+    /// Clamped outside the points like the linear profile: the end values, slope 0.
+    #[test]
+    fn cubic_is_clamped_beyond_its_ends() {
+        let x = uneven();
+        let p = cubic_of(&x, |x| 1e-3 * x.sin());
+        let [lo, hi] = p.range();
+        assert_eq!(p.at(lo - 1.0), p.at(lo));
+        assert_eq!(p.at(hi + 1.0), p.at(hi));
+        assert_eq!(p.slope(lo - 1e-6), 0.0);
+        assert_eq!(p.slope(hi + 1e-6), 0.0);
+        assert!(p.slope(lo).abs() > 1e-5);
+    }
+
+    /// A cubic needs 4 points; a linear profile keeps its segments (and its values) whatever
+    /// it was before.
+    #[test]
+    fn cubic_refuses_fewer_than_four_points_and_linear_is_unchanged() {
+        let three = Profile::new(vec![0.0, 1.0, 2.0], vec![0.0, 1e-3, 0.0]).unwrap();
+        let e = three
+            .clone()
+            .interpolated(Interpolation::Cubic)
+            .unwrap_err();
+        assert!(e.to_string().contains("cubic"), "{e}");
+        let x = uneven();
+        let linear = Profile::new(x.clone(), x.iter().map(|x| 1e-3 * x.sin()).collect()).unwrap();
+        let back = cubic_of(&x, |x| 1e-3 * x.sin())
+            .interpolated(Interpolation::Linear)
+            .unwrap();
+        assert_eq!(back, linear);
+        assert_eq!(
+            linear.at(0.75),
+            1e-3 * (x[1].sin() + (0.75 - x[1]) / (x[2] - x[1]) * (x[2].sin() - x[1].sin()))
+        );
     }
 }

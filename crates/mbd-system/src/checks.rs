@@ -121,6 +121,9 @@ pub(crate) fn position(raw: &RawDescription, path: &str) -> Pos {
                 (RawProfileKind::Harmonic { amplitude, .. }, ["amplitude"]) => at(amplitude),
                 (RawProfileKind::Harmonic { wavelength, .. }, ["wavelength"]) => at(wavelength),
                 (RawProfileKind::Harmonic { phase, .. }, ["phase"]) => at(phase),
+                (RawProfileKind::Generated { interpolation, .. }, ["interpolation"]) => {
+                    Some(interpolation.1)
+                }
                 _ => None,
             }
             .unwrap_or(p.pos)

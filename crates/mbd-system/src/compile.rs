@@ -566,10 +566,12 @@ impl<'a, 'd> Compiler<'a, 'd> {
                 RawProfileKind::Generated {
                     segments,
                     wavelengths,
+                    interpolation,
                 } => Profile::Generated {
                     name: p.name.clone(),
                     segments: segments.clone(),
                     wavelengths: *wavelengths,
+                    interpolation: interpolation.0,
                 },
                 RawProfileKind::Harmonic {
                     amplitude,

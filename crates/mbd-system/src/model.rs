@@ -6,7 +6,9 @@
 
 use crate::expr::Expr;
 use crate::schema::Outside;
-use crate::system::{Beam, End, Law, ParamSource, Profile, Source, Supports, System};
+use crate::system::{
+    Beam, End, Interpolation, Law, ParamSource, Profile, Source, Supports, System,
+};
 
 /// A field out of its domain: which, its value and what is allowed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -287,8 +289,12 @@ pub struct ModelBeam {
 /// A profile in numbers.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ModelProfile {
-    /// Supplied per sample (the `irregularity` stage's profile).
-    Generated,
+    /// Supplied per sample (the `irregularity` stage's profile), read between its points
+    /// by `interpolation`.
+    Generated {
+        /// How the points are read between them.
+        interpolation: Interpolation,
+    },
     /// `amplitude sin(2 pi x / wavelength + phase)`.
     Harmonic {
         /// m.
@@ -786,7 +792,9 @@ impl Checker<'_> {
         let mut profiles = Vec::with_capacity(system.profiles.len());
         for p in &system.profiles {
             profiles.push(match p {
-                Profile::Generated { .. } => ModelProfile::Generated,
+                Profile::Generated { interpolation, .. } => ModelProfile::Generated {
+                    interpolation: *interpolation,
+                },
                 Profile::Harmonic {
                     name,
                     amplitude,

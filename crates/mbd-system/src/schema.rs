@@ -8,6 +8,7 @@
 
 use crate::diag::Diagnostics;
 use crate::reader::{read_expr, read_names, read_pair, valid_name, Field, MapReader};
+use crate::system::Interpolation;
 use crate::yaml::{Node, Pos};
 
 /// The only format version this crate reads.
@@ -241,6 +242,9 @@ pub enum RawProfileKind {
         segments: Vec<RawPsdSegment>,
         /// Wavelength band `[min, max]` (m).
         wavelengths: [f64; 2],
+        /// `interpolation:` (default linear) and where it is given (the profile's entry when
+        /// not).
+        interpolation: (Interpolation, Pos),
     },
     /// `eta(x) = amplitude sin(2 pi x / wavelength + phase)` (an analytic test input).
     Harmonic {
@@ -900,7 +904,25 @@ fn profile(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
                 let psd = m
                     .required("psd", diag)
                     .and_then(|n| psd(n, &format!("{what}.psd"), diag));
-                m.finish(&["kind", "psd", "wavelengths"], diag);
+                let interpolation = match m.string("interpolation", diag) {
+                    None => (Interpolation::default(), pos),
+                    Some((k, p)) => match Interpolation::from_keyword(&k) {
+                        Some(i) => (i, p),
+                        None => {
+                            let allowed: Vec<&str> =
+                                Interpolation::ALL.iter().map(|(_, k)| *k).collect();
+                            diag.push(
+                                p,
+                                format!(
+                                    "{what}.interpolation: `{k}`; allowed: {} (default linear)",
+                                    allowed.join(", ")
+                                ),
+                            );
+                            return None;
+                        }
+                    },
+                };
+                m.finish(&["kind", "psd", "wavelengths", "interpolation"], diag);
                 let wavelengths = wavelengths?;
                 if !(wavelengths[0] > 0.0 && wavelengths[0] < wavelengths[1]) {
                     diag.push(
@@ -914,6 +936,7 @@ fn profile(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
                 RawProfileKind::Generated {
                     segments: psd?,
                     wavelengths,
+                    interpolation,
                 }
             }
             "harmonic" => {

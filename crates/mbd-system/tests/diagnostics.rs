@@ -640,3 +640,54 @@ fn an_unclosed_flow_collection_is_reported_where_it_opens() {
         "{r}"
     );
 }
+
+#[test]
+fn a_profiles_interpolation_is_linear_by_default_cubic_on_request_and_nothing_else() {
+    use mbd_system::model::ModelProfile;
+    use mbd_system::system::Interpolation;
+    let generated = |extra: &str| {
+        edit(
+            BASE,
+            "  bumps: {kind: harmonic, amplitude: 1.0e-3, wavelength: 2}\n",
+            &format!(
+                "  bumps:\n    kind: generated\n    psd: {{iso8608: C}}\n    wavelengths: [0.5, 90.0]\n{extra}"
+            ),
+        )
+    };
+    for (extra, expected) in [
+        ("", Interpolation::Linear),
+        ("    interpolation: linear\n", Interpolation::Linear),
+        ("    interpolation: cubic\n", Interpolation::Cubic),
+    ] {
+        let system = compiles(&generated(extra));
+        let model = system.instantiate(&system.nominal()).unwrap();
+        assert_eq!(
+            model.profiles,
+            vec![ModelProfile::Generated {
+                interpolation: expected
+            }],
+            "{extra}"
+        );
+    }
+    let text = generated("    interpolation: quadratic\n");
+    only(
+        &text,
+        "interpolation: quadratic",
+        &[
+            "profiles.bumps.interpolation",
+            "`quadratic`",
+            "allowed: linear, cubic (default linear)",
+        ],
+    );
+    // An analytic profile has no points to interpolate.
+    let text = edit(
+        BASE,
+        "wavelength: 2}",
+        "wavelength: 2, interpolation: cubic}",
+    );
+    only(
+        &text,
+        "bumps:",
+        &["profiles.bumps", "unknown field `interpolation`"],
+    );
+}

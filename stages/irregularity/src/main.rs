@@ -9,8 +9,10 @@
 //! Command: `irregularity DESCRIPTION.yaml`. Input `params` (the sample ids of
 //! `params.parquet`, and its `system.json`, which must be this description). Params: `seed`,
 //! `dx` (m), `length` (m, from x = 0; must cover every point's path), `system_values`. The
-//! spectrum and the wavelength band come from the description. Samples are generated in
-//! parallel; each depends only on `(seed, profile, sample_id)`.
+//! spectrum and the wavelength band come from the description. A profile the description reads
+//! by a cubic (`interpolation: cubic`) needs at least 4 points: fewer are refused, in check mode
+//! too, at the line of its `interpolation:`. Samples are generated in parallel; each depends
+//! only on `(seed, profile, sample_id)`.
 
 use anyhow::{bail, Context, Result};
 use mbd_dataset::{ProfileGenerator, ProfileParams};
@@ -41,11 +43,20 @@ fn run() -> Result<String> {
         dx: p.dx,
         length: p.length,
     };
-    let generators = mbd_dataset::profile_generators(&system, &controls).with_context(|| {
-        format!(
+    let generators = mbd_dataset::profile_generators(&system, &controls).map_err(|e| {
+        let context = format!(
             "stage `{}`: bad profile parameters for {}",
             ctx.stage, source.file
-        )
+        );
+        match &e {
+            // A profile's own requirement, placed at its line: `file:line:col: profiles...`.
+            mbd_dataset::Error::TooFewPoints { profile, .. } => anyhow::anyhow!(
+                "{}",
+                source.problem_at(&format!("profiles.{profile}.interpolation"), e.to_string())
+            )
+            .context(context),
+            _ => anyhow::Error::new(e).context(context),
+        }
     })?;
     let generated: Vec<(&str, ProfileGenerator)> = system
         .profiles

@@ -174,7 +174,8 @@ fn crawling_force_gives_the_static_midspan_deflection() {
 fn sprung(damped: bool) -> (Arc<mbd_system::System>, Option<Harmonic>) {
     let text = system_text("bridge.yaml");
     let block = "profiles:\n  deck:\n    kind: generated\n    psd: {iso8608: A}\n    \
-                 wavelengths: [0.5, 50.0]\n";
+                 wavelengths: [0.5, 50.0]\n    interpolation: cubic   # the suspension damper \
+                 reads the profile's rate: a continuous slope\n";
     if damped {
         let h = Harmonic {
             amplitude: 1e-3,
