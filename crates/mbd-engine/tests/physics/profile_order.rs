@@ -128,6 +128,10 @@ fn halving_ratios(
         .collect()
 }
 
+/// One convergence case: name, description text, compared columns, dt (s), duration (s),
+/// whether the linear profile stalls.
+type Case<'a> = (&'a str, &'a str, &'a [&'a str], f64, f64, bool);
+
 /// Second order with a cubic profile (every ratio >= 3.5), and the stall that motivates it with
 /// the linear one (some ratio < 3) on the same profile points, for the bridge (the suspension
 /// damper reads the deck roughness) and a two-axle vehicle with damped tyres on a road. The
@@ -137,8 +141,7 @@ fn halving_ratios(
 fn a_damper_on_a_cubic_profile_keeps_second_order() {
     let bridge = system_text("bridge.yaml");
     let quarter = system_text("quarter-car.yaml");
-    // (case, description text, compared columns, dt (s), duration (s), whether linear stalls)
-    let cases: [(&str, &str, &[&str], f64, f64, bool); 3] = [
+    let cases: [Case; 3] = [
         ("bridge", &bridge, &["z_v", "f_suspension"], 1e-4, 0.6, true),
         (
             "two-axle",
