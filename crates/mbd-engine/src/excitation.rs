@@ -71,17 +71,35 @@ impl Excitations {
 mod tests {
     use super::*;
     use crate::{Engine, StartMode};
+    use mbd_system::system::Interpolation;
     use std::sync::Arc;
 
     const TEXT: &str = include_str!("../../../systems/quarter-car.yaml");
 
     /// The excitation columns of a run equal what `Excitations` computes at the stored times,
-    /// bit for bit, through the start-up ramp and after it.
+    /// bit for bit, through the start-up ramp and after it, with the road read linearly (the
+    /// shipped quarter car) and by a cubic spline.
     #[test]
     fn equals_the_engines_stored_excitation() {
+        let band = "    wavelengths: [0.5, 90.0]";
+        assert_eq!(TEXT.matches(band).count(), 1);
+        let cubic = TEXT.replace(band, &format!("    interpolation: cubic\n{band}"));
+        for (text, interpolation) in [
+            (TEXT, Interpolation::Linear),
+            (cubic.as_str(), Interpolation::Cubic),
+        ] {
+            equals_the_engines_stored_excitation_of(text, interpolation);
+        }
+    }
+
+    fn equals_the_engines_stored_excitation_of(text: &str, interpolation: Interpolation) {
         let system =
-            Arc::new(mbd_system::load_str(TEXT, "quarter-car.yaml", &Default::default()).unwrap());
+            Arc::new(mbd_system::load_str(text, "quarter-car.yaml", &Default::default()).unwrap());
         let model = system.instantiate(&system.nominal()).unwrap();
+        assert_eq!(
+            model.profiles,
+            [mbd_system::model::ModelProfile::Generated { interpolation }]
+        );
         let config = RunConfig {
             duration: 0.5,
             dt: 1e-4,

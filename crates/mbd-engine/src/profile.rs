@@ -152,8 +152,9 @@ impl Profile {
 /// (h_m + h_{m-1}) s_{m} + h_{m-1} s_{m+1} = (h_m^2 d_{m-1} + (2 (h_{m-1} + h_m) + h_m) h_{m-1} d_m)
 ///                                          / (h_{m-1} + h_m),   m = N - 2
 /// ```
-/// solved by forward elimination and back substitution (the pivots after the first row are
-/// each above `h` of a neighbouring cell, so none vanishes).
+/// solved by forward elimination and back substitution without pivoting: the pivots are
+/// `h_1`, `h_0 + h_1`, then above `2 h_{n-1} + h_n` on the interior rows and above
+/// `h_{m-1}^2 / (2 h_{m-1} + h_m)` on the last, all positive.
 fn spline_cells(x: &[f64], eta: &[f64]) -> Vec<[f64; 3]> {
     let n = x.len();
     let h: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
