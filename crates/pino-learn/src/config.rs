@@ -346,6 +346,18 @@ pub struct TrainParams {
 }
 
 impl TrainParams {
+    /// The training's work relative to other settings on the same data, for scheduling only:
+    /// epochs x Fourier layers x width^2 (each layer's channel mixing, spectral and pointwise)
+    /// / time stride (points kept). The algorithm's default depth when none is set.
+    pub fn relative_work(&self) -> Result<f64> {
+        let depth = match self.depth {
+            Some(d) => d,
+            None => Algorithm::from_id(self.algorithm)?.default_depth(),
+        };
+        let width = self.width as f64;
+        Ok(self.epochs as f64 * depth as f64 * width * width / self.time_stride.max(1) as f64)
+    }
+
     /// Small settings for tests and examples: width 8, 8 modes, projection 16, 2 epochs of
     /// batches of 2 (the product's settings are `pipeline.yaml`'s).
     pub fn small(algorithm: i64) -> Self {
@@ -441,6 +453,20 @@ impl WindowConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The default job's algorithm 5 (five layers) announces more work than algorithms 1-4
+    /// (three) with the same settings; a set depth counts; an unknown algorithm is refused.
+    #[test]
+    fn relative_work_counts_epochs_layers_and_width() {
+        let four = TrainParams::small(4).relative_work().unwrap();
+        let five = TrainParams::small(5).relative_work().unwrap();
+        assert_eq!(five / four, 5.0 / 3.0);
+        let mut deeper = TrainParams::small(4);
+        deeper.depth = Some(6);
+        deeper.width *= 2;
+        assert_eq!(deeper.relative_work().unwrap() / four, 8.0);
+        assert!(TrainParams::small(9).relative_work().is_err());
+    }
 
     #[test]
     fn algorithms_round_trip_and_unknown_is_refused() {

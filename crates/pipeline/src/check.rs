@@ -6,24 +6,33 @@
 //! any failure stops `pipeline run` with exit status 2 and the checker's message, and nothing
 //! runs. Fresh units are not checked, so a run with nothing to do stays as fast as before.
 //!
+//! A check may also say how much work its unit is relative to the other units of its stage
+//! (`::work AMOUNT`, [`stage_protocol::work_line`]); the run starts the biggest first among
+//! ready units that have no recorded duration ([`crate::run`]).
+//!
 //! The orchestrator stays physics-free: what a check means is the stage's business.
 
 use crate::plan::Unit;
 use crate::spec::Pipeline;
 use crate::status::unit_states;
 use crate::{Error, Result};
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use std::process::{Command, Stdio};
 
 /// Lines of the checker's stderr kept in the error.
 const MESSAGE_LINES: usize = 40;
 
+/// What the checks said of each checked expansion `(stage, expansion)`: its work relative to
+/// its stage's other units, when the check printed one.
+pub type Work = BTreeMap<(usize, usize), f64>;
+
 /// Runs the checks of the selected units' stages that declare one, one per expansion whose
-/// units are not all fresh, in pipeline order.
-pub fn run_checks(p: &Pipeline, units: &[Unit]) -> Result<()> {
+/// units are not all fresh, in pipeline order; the work each check announced.
+pub fn run_checks(p: &Pipeline, units: &[Unit]) -> Result<Work> {
+    let mut work = Work::new();
     if !units.iter().any(|u| p.stages[u.stage].check) {
-        return Ok(());
+        return Ok(work);
     }
     let states = unit_states(p)?;
     let stale: BTreeSet<&str> = states
@@ -37,12 +46,15 @@ pub fn run_checks(p: &Pipeline, units: &[Unit]) -> Result<()> {
         if !stage.check || !stale.contains(u.key.as_str()) || !done.insert((u.stage, u.expansion)) {
             continue;
         }
-        check_one(p, u)?;
+        if let Some(amount) = check_one(p, u)? {
+            work.insert((u.stage, u.expansion), amount);
+        }
     }
-    Ok(())
+    Ok(work)
 }
 
-fn check_one(p: &Pipeline, u: &Unit) -> Result<()> {
+/// Runs one check; the work it announced (its last `::work` line), if any.
+fn check_one(p: &Pipeline, u: &Unit) -> Result<Option<f64>> {
     let stage = &p.stages[u.stage];
     let exe = p.resolve_executable(stage)?;
     let name = &stage.expansions[u.expansion].name;
@@ -78,7 +90,14 @@ fn check_one(p: &Pipeline, u: &Unit) -> Result<()> {
     let _ = std::fs::remove_dir_all(&dir);
     let output = output?;
     if output.status.success() {
-        return Ok(());
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        return Ok(stdout
+            .lines()
+            .filter_map(|l| match stage_protocol::parse_line(l) {
+                stage_protocol::Line::Work(amount) => Some(amount),
+                _ => None,
+            })
+            .next_back());
     }
     Err(Error::Check {
         unit: name.clone(),
@@ -100,4 +119,36 @@ fn message(stderr: &[u8], exe: &Path) -> String {
         .map(|l| l.strip_prefix("error: ").unwrap_or(l))
         .collect::<Vec<_>>()
         .join("\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::units_of;
+    use crate::spec::LoadOptions;
+    use std::os::unix::fs::PermissionsExt;
+
+    /// A check's last `::work` line is the work of its expansion; a check that prints none
+    /// announces none.
+    #[test]
+    fn the_work_a_check_announces_is_kept_per_expansion() {
+        let dir = tempfile::tempdir().unwrap();
+        let script = dir.path().join("stage.sh");
+        std::fs::write(
+            &script,
+            "#!/bin/sh\ncase \"$1\" in\n  big) echo '::work 1'; echo '::work 9' ;;\n  small) echo '::work 2' ;;\nesac\necho '::summary parameters valid'\n",
+        )
+        .unwrap();
+        std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let text = "stages:\n  a:\n    cmd: [./stage.sh, big]\n    check: true\n  b:\n    cmd: [./stage.sh, small]\n    check: true\n  c:\n    cmd: [./stage.sh, none]\n    check: true\n";
+        let f = dir.path().join("p.yaml");
+        std::fs::write(&f, text).unwrap();
+        let p = Pipeline::load(dir.path(), &f, &LoadOptions::default()).unwrap();
+        let units: Vec<Unit> = (0..p.stages.len()).flat_map(|i| units_of(&p, i)).collect();
+        let work = run_checks(&p, &units).unwrap();
+        assert_eq!(
+            work.into_iter().collect::<Vec<_>>(),
+            [((0, 0), 9.0), ((1, 0), 2.0)]
+        );
+    }
 }

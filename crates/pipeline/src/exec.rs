@@ -136,7 +136,7 @@ pub fn run_stage(
                     message: message.to_owned(),
                 }),
                 stage_protocol::Line::Summary(text) => summary = Some(text.to_owned()),
-                stage_protocol::Line::Log(_) => {}
+                stage_protocol::Line::Log(_) | stage_protocol::Line::Work(_) => {}
             }
             let _ = writeln!(log.lock().unwrap_or_else(|e| e.into_inner()), "{line}");
         }

@@ -7,8 +7,10 @@
 //! its lock-record entry's object): with more ready units than free slots, the longest one no
 //! longer starts last and alone while the other slots idle (a rerun of the default job's five
 //! trainings on two slots: 21 -> 18 minutes by their recorded times). A unit without a record
-//! (never run, or its object collected) counts as the longest: what is new starts early. Ties,
-//! and a first run, keep the pipeline's unit order. A ready unit's identity
+//! (never run, or its object collected) counts as the longest: what is new starts early; among
+//! those, the bigger work its stage's check announced (`::work`, [`crate::check`]) starts
+//! first, so a first run of the default job starts algorithm 5 (five Fourier layers against
+//! three) first too. Ties keep the pipeline's unit order. A ready unit's identity
 //! is computed from its upstream outputs' content hashes; if a verified object with that
 //! identity exists it is reused (that is also the run-cache: earlier parameters map to
 //! earlier identities), otherwise the stage runs in `tmp/` and its output is committed. A
@@ -311,7 +313,7 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
             v.insert(code_of(p, &p.stages[u.stage], &store.cache)?);
         }
     }
-    crate::check::run_checks(p, &units)?;
+    let announced_work = crate::check::run_checks(p, &units)?;
     let executor = Executor::new(opts.executor.unwrap_or(p.executor), &store, &p.workspace)?;
     store.create_dirs()?;
     let _lock = RunLock::acquire_for_workspace(&store.root, opts.wait, ui)?;
@@ -324,7 +326,11 @@ pub fn run(p: &Pipeline, opts: &RunOptions, ui: &Ui) -> Result<()> {
     let t_run = Instant::now();
 
     let expected = recorded_durations(&store, &units, &entries);
-    let mut ledger = Ledger::new(p, &units, entries, expected);
+    let announced = units
+        .iter()
+        .map(|u| announced_work.get(&(u.stage, u.expansion)).copied())
+        .collect();
+    let mut ledger = Ledger::new(p, &units, entries, expected, announced);
     let cx = Ctx {
         p,
         store: &store,
@@ -413,6 +419,8 @@ struct Ledger<'a> {
     failures: Vec<String>,
     /// Per unit, how long it ran last time (the dispatch order: longest first, unknown first).
     expected: Vec<Option<Duration>>,
+    /// Per unit, the work its check announced (orders the units without a record).
+    work: Vec<Option<f64>>,
     /// This pipeline's lock-record entries, updated as units finish.
     entries: BTreeMap<String, LockEntry>,
     changed: bool,
@@ -425,6 +433,7 @@ impl<'a> Ledger<'a> {
         units: &'a [Unit],
         entries: BTreeMap<String, LockEntry>,
         expected: Vec<Option<Duration>>,
+        work: Vec<Option<f64>>,
     ) -> Self {
         let pos: HashMap<&str, usize> = units
             .iter()
@@ -455,6 +464,7 @@ impl<'a> Ledger<'a> {
             rows: vec![None; units.len()],
             failures: Vec::new(),
             expected,
+            work,
             entries,
             changed: false,
             ran: 0,
@@ -462,8 +472,7 @@ impl<'a> Ledger<'a> {
     }
 
     /// Marks the pending units whose upstream failed as skipped, and takes up to `free` ready
-    /// ones (every upstream unit done) as running: the longest by their recorded durations
-    /// first, a unit without a record before any with one, ties in unit order.
+    /// ones (every upstream unit done) as running, in [`Ledger::start_order`].
     fn dispatch(&mut self, store: &Store, free: usize) -> Vec<Dispatch> {
         let mut ready = Vec::new();
         for i in 0..self.units.len() {
@@ -491,13 +500,31 @@ impl<'a> Ledger<'a> {
                 ready.push(i);
             }
         }
-        // Stable: equal keys keep unit order. `None` (no record) sorts before every duration.
-        ready.sort_by_key(|&i| self.expected[i].map(std::cmp::Reverse));
+        // Stable: ties keep unit order.
+        ready.sort_by(|&a, &b| self.start_order(a, b));
         ready
             .into_iter()
             .take(free)
             .map(|i| self.start(store, i))
             .collect()
+    }
+
+    /// Which of two ready units starts first: the longer by recorded duration; a unit without
+    /// a record before any with one; among those, the bigger announced work first, then one
+    /// that announced none.
+    fn start_order(&self, a: usize, b: usize) -> std::cmp::Ordering {
+        use std::cmp::Ordering::{Equal, Greater, Less};
+        match (self.expected[a], self.expected[b]) {
+            (Some(x), Some(y)) => y.cmp(&x),
+            (None, Some(_)) => Less,
+            (Some(_), None) => Greater,
+            (None, None) => match (self.work[a], self.work[b]) {
+                (Some(x), Some(y)) => y.total_cmp(&x),
+                (Some(_), None) => Less,
+                (None, Some(_)) => Greater,
+                (None, None) => Equal,
+            },
+        }
     }
 
     /// Takes ready unit `i` as running: its upstream outputs' hashes and directories.
@@ -643,7 +670,7 @@ mod tests {
     }
 
     #[test]
-    fn ready_units_start_longest_first_unknown_first_ties_in_unit_order() {
+    fn ready_units_start_longest_first_unknown_first_then_by_announced_work() {
         let dir = tempfile::tempdir().unwrap();
         let f = dir.path().join("p.yaml");
         let text = "stages:\n  a:\n    cmd: [x]\n  b:\n    cmd: [x]\n    inputs: {i: a}\n    matrix: {k: [1, 2, 3, 4, 5]}\n";
@@ -654,7 +681,8 @@ mod tests {
         let minutes = |m: u64| Some(Duration::from_secs(60 * m));
         // a, then b[k=1..5]: k=2 has no record, k=1 and k=4 tie.
         let expected = vec![None, minutes(5), None, minutes(6), minutes(5), minutes(9)];
-        let mut ledger = Ledger::new(&p, &units, BTreeMap::new(), expected);
+        let work = vec![None; units.len()];
+        let mut ledger = Ledger::new(&p, &units, BTreeMap::new(), expected, work);
         // Nothing of b is ready before a is done.
         let first: Vec<usize> = ledger.dispatch(&store, 2).iter().map(|d| d.unit).collect();
         assert_eq!(first, [0]);
@@ -675,12 +703,25 @@ mod tests {
         assert_eq!(order(&mut ledger, 1), ["b[k=3]"]);
         assert_eq!(order(&mut ledger, 5), ["b[k=1]", "b[k=4]"]);
         // Without any record: the pipeline's unit order.
-        let mut fresh = Ledger::new(&p, &units, BTreeMap::new(), vec![None; units.len()]);
+        let (unrecorded, unannounced) = (vec![None; units.len()], vec![None; units.len()]);
+        let mut fresh = Ledger::new(&p, &units, BTreeMap::new(), unrecorded.clone(), unannounced);
         fresh.state[0] = State::Done {
             identity: "ia".into(),
             output_hash: "ha".into(),
         };
         assert_eq!(order(&mut fresh, 3), ["b[k=1]", "b[k=2]", "b[k=3]"]);
+        // A first run with the checks' announced work: the biggest first, then in unit order
+        // those that announced none.
+        let work = vec![None, Some(3.0), None, Some(3.0), Some(5.0), None];
+        let mut announced = Ledger::new(&p, &units, BTreeMap::new(), unrecorded, work);
+        announced.state[0] = State::Done {
+            identity: "ia".into(),
+            output_hash: "ha".into(),
+        };
+        assert_eq!(
+            order(&mut announced, 5),
+            ["b[k=4]", "b[k=1]", "b[k=3]", "b[k=2]", "b[k=5]"]
+        );
     }
 
     #[test]

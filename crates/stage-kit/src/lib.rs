@@ -52,7 +52,7 @@ mod context;
 mod progress;
 
 pub use context::{Shard, StageContext, CONTEXT_ENV, PROTOCOL_VERSION};
-pub use progress::{finish, summary, Progress, PROGRESS_PREFIX, SUMMARY_PREFIX};
+pub use progress::{finish, summary, work, Progress, PROGRESS_PREFIX, SUMMARY_PREFIX};
 
 use std::path::PathBuf;
 

@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use stage_protocol::{progress_line, summary_line};
+use stage_protocol::{progress_line, summary_line, work_line};
 pub use stage_protocol::{PROGRESS_PREFIX, SUMMARY_PREFIX};
 
 const MIN_INTERVAL: Duration = Duration::from_millis(100);
@@ -73,6 +73,15 @@ impl Progress {
 pub fn summary(text: &str) {
     let mut out = std::io::stdout().lock();
     let _ = writeln!(out, "{}", summary_line(text));
+    let _ = out.flush();
+}
+
+/// Prints, in check mode, the unit's work relative to the other units of its stage (any
+/// positive scale: epochs x layers, samples x steps): the orchestrator starts the biggest
+/// first when it has no recorded duration of them.
+pub fn work(amount: f64) {
+    let mut out = std::io::stdout().lock();
+    let _ = writeln!(out, "{}", work_line(amount));
     let _ = out.flush();
 }
 

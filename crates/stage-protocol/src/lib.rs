@@ -6,8 +6,10 @@
 //!   the path of a JSON context file ([`Context`], written by [`Context::to_json`], read by
 //!   [`Context::parse`], which refuses any other [`PROTOCOL_VERSION`] and unknown fields).
 //! - The stage prints protocol lines on stdout: `::progress DONE TOTAL [MESSAGE]`
-//!   ([`progress_line`]) and `::summary TEXT` ([`summary_line`]); [`parse_line`] reads them
-//!   back, and every other line is plain log.
+//!   ([`progress_line`]) and `::summary TEXT` ([`summary_line`]); in check mode it may print
+//!   `::work AMOUNT` ([`work_line`]), its work relative to the other units of its stage, which
+//!   the orchestrator uses to start the biggest first when no run of the unit is on record.
+//!   [`parse_line`] reads them back, and every other line is plain log.
 //!
 //! The protocol version is hashed into every stage identity: changing the contract
 //! recomputes every artifact. The format of the store's manifests is versioned separately
@@ -29,6 +31,8 @@ pub const CONTEXT_FILE: &str = "context.json";
 pub const PROGRESS_PREFIX: &str = "::progress";
 /// Prefix of a summary line.
 pub const SUMMARY_PREFIX: &str = "::summary";
+/// Prefix of a check mode's work line.
+pub const WORK_PREFIX: &str = "::work";
 
 /// Which part of a sharded stage a process computes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -146,7 +150,7 @@ impl Context {
 }
 
 /// One line of a stage's stdout, as the protocol reads it.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Line<'a> {
     /// `::progress DONE TOTAL [MESSAGE]`.
     Progress {
@@ -159,6 +163,9 @@ pub enum Line<'a> {
     },
     /// `::summary TEXT`: the stage's one-line result.
     Summary(&'a str),
+    /// `::work AMOUNT` (check mode): the unit's work relative to its stage's other units, a
+    /// finite number > 0 (a scheduling estimate; no unit).
+    Work(f64),
     /// Anything else: plain log.
     Log(&'a str),
 }
@@ -184,6 +191,13 @@ pub fn parse_line(line: &str) -> Line<'_> {
         .and_then(|r| r.strip_prefix(' '))
     {
         return Line::Summary(text.trim());
+    } else if let Some(amount) = line
+        .strip_prefix(WORK_PREFIX)
+        .and_then(|r| r.strip_prefix(' '))
+        .and_then(|r| r.trim().parse::<f64>().ok())
+        .filter(|w| w.is_finite() && *w > 0.0)
+    {
+        return Line::Work(amount);
     }
     Line::Log(line)
 }
@@ -199,6 +213,11 @@ pub fn progress_line(done: u64, total: u64, message: Option<&str>) -> String {
 /// `::summary TEXT` (no newline; line breaks in the text become spaces).
 pub fn summary_line(text: &str) -> String {
     format!("{SUMMARY_PREFIX} {}", one_line(text))
+}
+
+/// `::work AMOUNT` (no newline): a check mode's estimate of its unit's work.
+pub fn work_line(amount: f64) -> String {
+    format!("{WORK_PREFIX} {amount}")
 }
 
 fn one_line(s: &str) -> String {
@@ -289,7 +308,13 @@ mod tests {
             parse_line(&summary_line("all good")),
             Line::Summary("all good")
         );
+        assert_eq!(parse_line(&work_line(2.5e3)), Line::Work(2500.0));
         for log in [
+            "::work 0",
+            "::work -3",
+            "::work NaN",
+            "::work inf",
+            "::workload 3",
             "::progress x 4",
             "::progress 1",
             "::progressive 1 2",

@@ -21,6 +21,11 @@ fn run() -> Result<()> {
     let p: TrainParams = ctx.params()?;
     if ctx.is_check() {
         pino_learn::config::Algorithm::from_id(p.algorithm)?;
+        // Which of the matrix's trainings starts first when none has run here before.
+        let work = p.relative_work()?;
+        if work > 0.0 {
+            stage_kit::work(work);
+        }
         stage_kit::summary("parameters valid");
         return Ok(());
     }
