@@ -92,18 +92,6 @@ pub fn set_origin(origin: Origin) -> Result<()> {
     }
 }
 
-/// [`set_origin`] of the stage unit `ctx` describes ([`Origin::stage_unit`]: its expansion,
-/// shard and resolved parameters): the first thing a stage does with its context, so every
-/// Parquet file the process writes names this unit.
-pub fn set_stage_origin(ctx: &stage_kit::StageContext) -> Result<()> {
-    set_origin(Origin::stage_unit(
-        &ctx.stage,
-        ctx.shard.index,
-        ctx.shard.count,
-        ctx.raw_params(),
-    ))
-}
-
 /// The origin declared by [`set_origin`], if any.
 pub fn origin() -> Option<&'static Origin> {
     ORIGIN.get()

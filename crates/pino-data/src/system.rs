@@ -1,9 +1,7 @@
-//! The system description as the stages see it.
+//! The system description as the data records it.
 //!
-//! A stage that reads the description names its file as the first argument of its command
-//! (`cmd: [simulate, "${constants.system}"]`, so the orchestrator hashes the file into the
-//! stage's identity) and takes the run's parameter overrides from its `system_values`
-//! parameter. `sample-params` writes the description it sampled from as `system.json` beside
+//! (A stage loads the description its command names with `stage_kit::load_description`.)
+//! `sample-params` writes the description it sampled from as `system.json` beside
 //! `params.parquet`, `simulate` beside every dataset shard; the stages after them read that
 //! record instead of the file, so they learn from exactly the description the data came from,
 //! and a stage that reads both refuses a mismatch. [`declare_units`] states the unit of every
@@ -11,8 +9,7 @@
 
 use crate::{Error, Result};
 use mbd_system::system::{ParamSource, Role};
-use mbd_system::{Override, System, SystemSource, SYSTEM_FILE};
-use std::collections::BTreeMap;
+use mbd_system::{System, SystemSource, SYSTEM_FILE};
 use std::path::{Path, PathBuf};
 
 /// File `irregularity` writes beside its profiles: the generator's controls (seed, dx, length).
@@ -38,33 +35,6 @@ pub fn read_json(path: &Path) -> Result<serde_json::Value> {
     })?;
     serde_json::from_str(&text)
         .map_err(|e| Error::System(format!("{}: malformed JSON: {e}", path.display())))
-}
-
-/// The description's path: the first argument of the stage's command that is not
-/// `--context FILE`.
-pub fn description_path() -> Result<PathBuf> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        if a == "--context" {
-            it.next();
-            continue;
-        }
-        return Ok(PathBuf::from(a));
-    }
-    Err(Error::System(
-        "no system description: the stage's command names it, as in `cmd: [simulate, \"${constants.system}\"]` with `constants: {system: systems/vtcd.yaml}`".to_owned(),
-    ))
-}
-
-/// Reads and compiles the description the command names, with `values` overriding its
-/// parameters; the error lists every problem with its line.
-pub fn load(values: &BTreeMap<String, Override>) -> Result<(SystemSource, System)> {
-    let path = description_path()?;
-    let source =
-        SystemSource::read(&path, values.clone()).map_err(|e| Error::System(e.to_string()))?;
-    let system = source.compile().map_err(|e| Error::System(e.to_string()))?;
-    Ok((source, system))
 }
 
 /// Writes `source` as `system.json` into `dir` (atomically).

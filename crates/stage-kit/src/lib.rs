@@ -49,9 +49,11 @@
 #![warn(missing_docs)]
 
 mod context;
+mod description;
 mod progress;
 
 pub use context::{Shard, StageContext, CONTEXT_ENV, PROTOCOL_VERSION};
+pub use description::load_description;
 pub use progress::{finish, summary, work, Progress, PROGRESS_PREFIX, SUMMARY_PREFIX};
 
 use std::path::PathBuf;
@@ -122,6 +124,13 @@ pub enum Error {
         /// How many were found.
         found: usize,
     },
+    /// The system description the command names is missing or does not compile (every
+    /// problem with its file and line).
+    #[error("{0}")]
+    Description(String),
+    /// Writing the process's origin into the data layer failed.
+    #[error(transparent)]
+    Data(#[from] pino_data::Error),
     /// The stage needs an input the pipeline did not wire.
     #[error("stage `{stage}` needs input `{name}`, but the pipeline gives it only [{available}]")]
     MissingInput {

@@ -18,7 +18,7 @@ use stage_kit::StageContext;
 fn run() -> Result<String> {
     pino_learn::tune_allocator();
     let ctx = StageContext::load()?;
-    pino_data::metadata::set_stage_origin(&ctx)?;
+    ctx.declare_origin()?;
     let p: CalibrateParams = ctx.params()?;
     p.validate()
         .with_context(|| format!("stage `{}`: bad parameters", ctx.stage))?;

@@ -17,12 +17,12 @@ use stage_kit::StageContext;
 fn run() -> Result<()> {
     pino_learn::tune_allocator();
     let ctx = StageContext::load()?;
-    pino_data::metadata::set_stage_origin(&ctx)?;
+    ctx.declare_origin()?;
     let p: EvalParams = ctx.params()?;
     if ctx.is_check() {
         // Before anything runs: the channels to plot against the description the command
         // names (the dataset does not exist yet).
-        let (_, system) = pino_data::system::load(&p.system_values)?;
+        let (_, system) = stage_kit::load_description(&p.system_values)?;
         let layout = pino_learn::layout::Layout::of(&system);
         pino_eval::eval::plot_channels(&p.plot_channels, &layout, &system)
             .with_context(|| format!("stage `{}`: parameter `plot_channels`", ctx.stage))?;

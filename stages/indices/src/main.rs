@@ -19,7 +19,7 @@ use pino_indices as indices;
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
-    pino_data::metadata::set_stage_origin(&ctx)?;
+    ctx.declare_origin()?;
     let raw: indices::IndexParams = ctx.params()?;
     let cfg = raw
         .validate()

@@ -34,9 +34,9 @@ struct Params {
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
-    pino_data::metadata::set_stage_origin(&ctx)?;
+    ctx.declare_origin()?;
     let p: Params = ctx.params()?;
-    let (source, system) = pino_data::system::load(&p.system_values)?;
+    let (source, system) = stage_kit::load_description(&p.system_values)?;
     let sizes = SplitSizes {
         seed: p.seed,
         n_train: p.n_train,

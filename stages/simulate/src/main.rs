@@ -45,7 +45,7 @@ struct Params {
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
-    pino_data::metadata::set_stage_origin(&ctx)?;
+    ctx.declare_origin()?;
     let p: Params = ctx.params()?;
     let config = RunConfig {
         duration: p.duration,
@@ -59,7 +59,7 @@ fn run() -> Result<String> {
     config
         .validate()
         .with_context(|| format!("stage `{}`: bad parameters", ctx.stage))?;
-    let (source, system) = pino_data::system::load(&p.system_values)?;
+    let (source, system) = stage_kit::load_description(&p.system_values)?;
     let system = Arc::new(system);
     if ctx.is_check() {
         mbd_engine::coverage::check_profile_starts_described(&source, &system, &config)

@@ -15,10 +15,10 @@ use stage_kit::StageContext;
 fn run() -> Result<String> {
     pino_learn::tune_allocator();
     let ctx = StageContext::load()?;
-    pino_data::metadata::set_stage_origin(&ctx)?;
+    ctx.declare_origin()?;
     let p: StudyParams = ctx.params()?;
     if ctx.is_check() {
-        let (_, system) = pino_data::system::load(&p.system_values)?;
+        let (_, system) = stage_kit::load_description(&p.system_values)?;
         let study = pino_eval::study::check(&system, &p)
             .with_context(|| format!("stage `{}`: bad study", ctx.stage))?;
         return Ok(format!("study `{}` valid", study.name));

@@ -17,7 +17,7 @@ use stage_kit::StageContext;
 fn run() -> Result<()> {
     pino_learn::tune_allocator();
     let ctx = StageContext::load()?;
-    pino_data::metadata::set_stage_origin(&ctx)?;
+    ctx.declare_origin()?;
     let p: TrainParams = ctx.params()?;
     if ctx.is_check() {
         pino_learn::config::Algorithm::from_id(p.algorithm)?;

@@ -20,7 +20,7 @@ use std::collections::BTreeMap;
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
-    pino_data::metadata::set_stage_origin(&ctx)?;
+    ctx.declare_origin()?;
     let cfg: WeightConfig = ctx.params()?;
     cfg.validate()
         .with_context(|| format!("stage `{}`: bad parameters", ctx.stage))?;
