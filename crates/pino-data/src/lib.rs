@@ -6,6 +6,7 @@
 //! - [`write_parquet`]: writes a table atomically (temporary file, fsync, rename) with fixed
 //!   writer settings, so the same table always gives the same bytes.
 //! - [`StreamWriter`]: writes a large table row group by row group (atomic on finish).
+//! - [`batch`]: a table as an Arrow record batch in memory (units on the fields) and back.
 //! - [`read_parquet`]: reads chosen columns, naming the file and the column when one is
 //!   missing or of another type.
 //! - [`records`]: the per-sample record reader of files sorted by sample, and the reader of
@@ -30,6 +31,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod batch;
 pub mod metadata;
 mod parquet_io;
 pub mod provenance;

@@ -270,13 +270,13 @@ pub fn for_each_batch(
     Ok(())
 }
 
-fn empty_column(path: &Path, name: &str, dt: &DataType) -> Result<Column> {
+pub(crate) fn empty_column(path: &Path, name: &str, dt: &DataType) -> Result<Column> {
     match dt {
         DataType::Float64 | DataType::Float32 => Ok(Column::F64(Vec::new())),
         DataType::Int64 | DataType::Int32 | DataType::UInt32 | DataType::UInt64 => {
             Ok(Column::I64(Vec::new()))
         }
-        DataType::Utf8 | DataType::LargeUtf8 => Ok(Column::Str(Vec::new())),
+        DataType::Utf8 | DataType::LargeUtf8 | DataType::Utf8View => Ok(Column::Str(Vec::new())),
         other => Err(Error::ColumnType {
             path: path.to_owned(),
             column: name.to_owned(),
@@ -286,7 +286,12 @@ fn empty_column(path: &Path, name: &str, dt: &DataType) -> Result<Column> {
     }
 }
 
-fn append_array(path: &Path, name: &str, col: &mut Column, array: &dyn Array) -> Result<()> {
+pub(crate) fn append_array(
+    path: &Path,
+    name: &str,
+    col: &mut Column,
+    array: &dyn Array,
+) -> Result<()> {
     use arrow_array::cast::AsArray;
     use arrow_array::types::{
         Float32Type, Float64Type, Int32Type, Int64Type, UInt32Type, UInt64Type,
@@ -348,6 +353,12 @@ fn append_array(path: &Path, name: &str, col: &mut Column, array: &dyn Array) ->
         (Column::Str(v), DataType::LargeUtf8) => v.extend(
             array
                 .as_string::<i64>()
+                .iter()
+                .map(|s| s.unwrap_or_default().to_owned()),
+        ),
+        (Column::Str(v), DataType::Utf8View) => v.extend(
+            array
+                .as_string_view()
                 .iter()
                 .map(|s| s.unwrap_or_default().to_owned()),
         ),

@@ -99,6 +99,11 @@ impl Table {
         &self.columns
     }
 
+    /// The columns, moved out (the table's vectors, no copy).
+    pub fn into_columns(self) -> Vec<(String, Column)> {
+        self.columns
+    }
+
     /// Where this table came from.
     pub fn origin(&self) -> &std::path::Path {
         &self.origin

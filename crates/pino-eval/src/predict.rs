@@ -410,6 +410,24 @@ pub fn profiles_of_samples(
     files: &[std::path::PathBuf],
     ids: &[i64],
 ) -> Result<BTreeMap<i64, Vec<Option<Profile>>>> {
+    if generated_names(system).is_empty() {
+        // Nothing to read: every profile is analytic.
+        return profiles_of_table(system, &Table::default(), Path::new("profiles"), ids);
+    }
+    let t = pino_data::read_parquet_files(files, None)?;
+    let path = files.first().map_or(Path::new("profiles"), |p| p.as_path());
+    profiles_of_table(system, &t, path, ids)
+}
+
+/// The profiles of each of samples `ids` from a profile table `t` (columns `sample_id`, `x`,
+/// `eta` and, with several generated profiles, `profile`), read from `path` (named in errors);
+/// see [`profiles_of_samples`].
+pub fn profiles_of_table(
+    system: &System,
+    t: &Table,
+    path: &Path,
+    ids: &[i64],
+) -> Result<BTreeMap<i64, Vec<Option<Profile>>>> {
     let generated = generated_names(system);
     if generated.is_empty() {
         return Ok(ids
@@ -417,9 +435,7 @@ pub fn profiles_of_samples(
             .map(|&id| (id, vec![None; system.profiles.len()]))
             .collect());
     }
-    let t = pino_data::read_parquet_files(files, None)?;
-    let path = files.first().map_or(Path::new("profiles"), |p| p.as_path());
-    // The rows of each sample, in one pass over the file.
+    // The rows of each sample, in one pass over the table.
     let mut rows: BTreeMap<i64, Vec<usize>> = ids.iter().map(|&id| (id, Vec::new())).collect();
     for (r, id) in t.i64(schema::SAMPLE_ID)?.iter().enumerate() {
         if let Some(rows) = rows.get_mut(id) {
@@ -428,7 +444,7 @@ pub fn profiles_of_samples(
     }
     rows.into_iter()
         .map(|(id, rows)| {
-            let p = profiles_of_rows(system, &t, path, &rows, Some(id), &generated)?;
+            let p = profiles_of_rows(system, t, path, &rows, Some(id), &generated)?;
             Ok((id, p))
         })
         .collect()
@@ -636,6 +652,22 @@ impl Predictor {
             }
         }
         Ok(self.calibration.insert(cal))
+    }
+
+    /// The level of the answers' intervals: `None` without a calibration or when it has no
+    /// intervals (its `no_intervals` says why), else `coverage` (default
+    /// [`crate::calibration::DEFAULT_COVERAGE`]) once the calibration can support it.
+    pub fn interval_level(&self, coverage: Option<f64>) -> Result<Option<f64>> {
+        let Some(cal) = self
+            .calibration
+            .as_ref()
+            .filter(|c| c.no_intervals.is_none())
+        else {
+            return Ok(None);
+        };
+        let level = coverage.unwrap_or(crate::calibration::DEFAULT_COVERAGE);
+        cal.at(level)?;
+        Ok(Some(level))
     }
 
     /// The loaded calibration.

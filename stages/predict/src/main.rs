@@ -229,12 +229,12 @@ fn calibration_level(predictor: &mut Predictor, args: &Args) -> Result<Option<f6
         eprintln!("predict: note: {}: no intervals: {why}", path.display());
         return Ok(None);
     }
-    let level = args
-        .coverage
-        .unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
-    cal.at(level)
-        .map_err(|e| Refused(format!("--coverage {level}: {e}")))?;
-    Ok(Some(level))
+    predictor.interval_level(args.coverage).map_err(|e| {
+        let level = args
+            .coverage
+            .unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
+        Refused(format!("--coverage {level}: {e}")).into()
+    })
 }
 
 fn main() {

@@ -1,0 +1,375 @@
+"""pino_mbd: pino-mbd in Python, in-process.
+
+Describe a multi-body system (``System.load``), run the exact solver on a table of designs
+(``System.simulate``), predict with a trained neural-operator surrogate and its calibrated
+intervals (``Model.load``, ``Model.predict``, ``Model.indices``), drive the whole pipeline
+(``Pipeline``) and run a design study (``study``). The work is done by the Rust libraries of
+pino-mbd (the same code as the command-line stages, so the same numbers, bit for bit) with the
+GIL released; tables go in as polars or pandas DataFrames, pyarrow tables or dicts of arrays,
+and come back as polars DataFrames (``.to_pandas()`` for pandas), through the Arrow C stream
+interface without copies.
+
+Units are SI throughout (m, s, N, kg, rad) unless a column's unit says otherwise; the unit of
+every column is in ``System.columns`` and in the ``units`` of the native result.
+
+Every refusal (a description's problem with its ``file:line``, an unknown parameter, a
+non-finite value, a wrong shape, a model of another system) raises ``PinoError``, a
+``ValueError`` naming the field at fault.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from collections.abc import Mapping, Sequence
+from typing import Any, Union
+
+import numpy as np
+import polars as pl
+
+from . import _pino_mbd as _native
+from ._pino_mbd import PinoError, __version__
+
+__all__ = ["PinoError", "System", "Model", "Pipeline", "study", "__version__"]
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def _designs(obj: Any, what: str = "designs") -> Any:
+    """A table with ``__arrow_c_stream__`` from a DataFrame, a pyarrow table or a dict of
+    1-D arrays (or scalars: one design); wrong shapes raise ``PinoError`` naming the column."""
+    if obj is None:
+        raise PinoError(f"{what}: missing (a DataFrame or a dict of arrays, one row per design)")
+    if hasattr(obj, "__arrow_c_stream__"):
+        return obj
+    if isinstance(obj, Mapping):
+        cols: dict[str, np.ndarray] = {}
+        for name, values in obj.items():
+            if not isinstance(name, str):
+                raise PinoError(f"{what}: column names must be strings, got {name!r}")
+            a = np.asarray(values)
+            if a.ndim == 0:
+                a = a.reshape(1)
+            if a.ndim != 1:
+                raise PinoError(f"{what}.{name}: a 1-D array (one value per design) expected, got shape {a.shape}")
+            if a.dtype.kind not in "fiu":
+                raise PinoError(f"{what}.{name}: numbers expected, got {a.dtype}")
+            cols[name] = a
+        lengths = {name: len(a) for name, a in cols.items()}
+        if len(set(lengths.values())) > 1:
+            shown = ", ".join(f"{n}: {k}" for n, k in lengths.items())
+            raise PinoError(f"{what}: columns of different lengths ({shown}); one value per design in each")
+        return pl.DataFrame(cols)
+    raise PinoError(
+        f"{what}: expected a polars or pandas DataFrame, a pyarrow Table or a dict of arrays, got {type(obj).__name__}"
+    )
+
+
+def _frame(table: Any) -> pl.DataFrame:
+    """A native result (an Arrow stream) as a polars DataFrame, without a copy."""
+    return pl.DataFrame(table)
+
+
+def _warn_outside(df: pl.DataFrame) -> None:
+    flagged = df.filter(pl.col("outside_training_range") != "")
+    if flagged.height:
+        warnings.warn(
+            f"{flagged.height} of {df.height} design row(s) outside the model's training ranges, where its "
+            "predictions are extrapolations (column `outside_training_range`; strict=True refuses them)",
+            stacklevel=3,
+        )
+
+
+class System:
+    """A system description (``docs/systems.md``), compiled and checked as every stage does."""
+
+    def __init__(self, native: Any) -> None:
+        self._native = native
+
+    @classmethod
+    def load(cls, path: PathLike, values: Mapping[str, float | Sequence[float]] | None = None) -> System:
+        """Reads the description at ``path`` (YAML); ``values`` overrides parameters in their
+        declared units (a number; ``[lo, hi]`` for a sampled parameter's range). A problem in
+        the file raises ``PinoError`` with one ``file:line`` line per problem, as the CLI."""
+        return cls(_native.System.load(os.fspath(path), dict(values) if values else None))
+
+    @property
+    def name(self) -> str:
+        """The system's name."""
+        return self._native.name
+
+    @property
+    def path(self) -> str:
+        """The description's file."""
+        return self._native.path
+
+    @property
+    def hash(self) -> str:
+        """Content hash of the description and its overrides."""
+        return self._native.hash
+
+    @property
+    def design_parameters(self) -> list[str]:
+        """The sampled parameters (the columns of a design), in value order."""
+        return self._native.design_parameters
+
+    @property
+    def parameters(self) -> pl.DataFrame:
+        """Every parameter: name, unit (as declared), kind (sampled / fixed / derived),
+        nominal (a sampled one's default, a fixed one's value), min and max (a sampled one's
+        range), expr (a derived one's formula), doc."""
+        return pl.DataFrame(self._native._parameters())
+
+    @property
+    def columns(self) -> pl.DataFrame:
+        """The columns ``simulate`` returns (those of ``simulation.parquet``): name, unit,
+        kind (id, time, solution, velocity, acceleration, excitation, force, other)."""
+        return pl.DataFrame(self._native._columns())
+
+    @property
+    def indices(self) -> pl.DataFrame:
+        """The engineering indices (``docs/indices.md``): name, unit, limit (the default pass
+        limit, null without one), definition."""
+        return pl.DataFrame(self._native._indices(), schema_overrides={"limit": pl.Float64})
+
+    def simulate(
+        self,
+        designs: Any,
+        *,
+        duration: float,
+        dt: float,
+        output_every: int,
+        excitation: Any = None,
+        start: str = "equilibrium",
+        x0: float = 0.0,
+        startup_zero_fraction: float = 0.0,
+        startup_ramp_fraction: float = 0.0,
+        progress: bool = True,
+        return_failures: bool = False,
+    ) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
+        """Runs the exact solver (the ``simulate`` stage's engine) on every design, in
+        parallel on all cores with the GIL released.
+
+        ``designs``: one row per design, a column per design parameter (missing ones take
+        their nominal values), optionally ``sample_id`` (names the design's rows and its
+        excitation) and ``split`` (ignored). ``excitation``: for a system with generated
+        profiles, a profile file or table (``sample_id``, ``x`` in m, ``eta`` in m, positive
+        downward; the ``irregularity`` artifact) or ``{"seed": N, "dx": m, "length": m}`` to
+        generate them as ``irregularity`` does. ``duration`` (s), ``dt`` (s, below the
+        stability bound), ``output_every`` (steps per stored row), ``start``
+        (``"equilibrium"`` or ``"rest"``), ``x0`` (m, the moving frame at t = 0), the two
+        start-up fractions (of the duration) are the run controls of ``pipeline.yaml``.
+
+        Returns the table of ``simulation.parquet`` for the same inputs (same columns, units
+        and values, bit for bit; rows by ``sample_id``, then ``t`` in s). Designs whose state
+        diverged are left out with a warning; ``return_failures=True`` also returns them
+        (``sample_id``, ``reason``)."""
+        sim, failed = self._native._simulate(
+            _designs(designs),
+            excitation if excitation is None or isinstance(excitation, dict) or hasattr(excitation, "__arrow_c_stream__") or isinstance(excitation, (str, os.PathLike)) else _designs(excitation, "excitation"),
+            float(duration),
+            float(dt),
+            int(output_every),
+            start,
+            float(x0),
+            float(startup_zero_fraction),
+            float(startup_ramp_fraction),
+            bool(progress),
+        )
+        sim, failed = _frame(sim), _frame(failed)
+        if failed.height:
+            warnings.warn(f"{failed.height} design(s) diverged: {failed.rows()[:5]}", stacklevel=2)
+        return (sim, failed) if return_failures else sim
+
+    def __repr__(self) -> str:
+        return repr(self._native)
+
+
+class Model:
+    """A trained model (a ``train`` output) with its calibration when given."""
+
+    def __init__(self, native: Any) -> None:
+        self._native = native
+
+    @classmethod
+    def load(cls, dir: PathLike, calibration: PathLike | None = None) -> Model:
+        """Loads ``model.safetensors`` and ``model.json`` from ``dir``; ``calibration``: the
+        ``calibrate`` stage's output directory (the model's own file is found in it) or a
+        ``calibration.json``. A calibration of another model is refused (``PinoError``)."""
+        return cls(_native.Model.load(os.fspath(dir), None if calibration is None else os.fspath(calibration)))
+
+    @property
+    def dir(self) -> str:
+        """The model's directory."""
+        return os.fspath(self._native.dir)
+
+    @property
+    def system_name(self) -> str:
+        """The name of the model's system description."""
+        return self._native.system_name
+
+    @property
+    def design_parameters(self) -> list[str]:
+        """The design parameters the model reads, in value order."""
+        return self._native.design_parameters
+
+    @property
+    def algorithm(self) -> int:
+        """The training algorithm (1-5, docs/learning.md)."""
+        return self._native.algorithm
+
+    @property
+    def calibrated(self) -> bool:
+        """Whether a calibration was loaded."""
+        return self._native.calibration is not None
+
+    def predict(
+        self,
+        designs: Any,
+        *,
+        excitation: int | PathLike | None = None,
+        excitation_id: int | None = None,
+        x0: float | None = None,
+        coverage: float | None = None,
+        batch: int = 16,
+        strict: bool = False,
+    ) -> pl.DataFrame:
+        """Time histories of every design (the table of ``predict --out``): ``set`` (the
+        design's row), ``t`` (s), the model's outputs (displacements in m or rad, forces in N),
+        the rigid DOFs' velocities and accelerations, the excitations (m), with a calibration
+        a band ``<channel>_lo``/``_hi`` at ``coverage`` (default 0.9), and
+        ``outside_training_range`` (``name=value`` of each parameter outside the training
+        ranges; a warning, or ``PinoError`` with ``strict=True``).
+
+        ``excitation``: a seed (the profiles generated with the model's dataset's settings,
+        stream ``excitation_id``, default 0) or a profile file (rows of ``sample_id`` =
+        ``excitation_id``, default the first); ``x0`` (m) overrides the run's start."""
+        df = _frame(
+            self._native._predict(_designs(designs), _excitation(excitation), excitation_id, x0, coverage, int(batch), bool(strict))
+        )
+        _warn_outside(df)
+        return df
+
+    def indices(
+        self,
+        designs: Any,
+        *,
+        excitation: int | PathLike | None = None,
+        excitation_id: int | None = None,
+        x0: float | None = None,
+        coverage: float | None = None,
+        batch: int = 16,
+        strict: bool = False,
+    ) -> pl.DataFrame:
+        """The engineering indices of every design, one row each (the table of ``predict
+        --indices``): ``set``, the design parameters, each index in its unit, ``window_s``
+        (s), ``pass``, ``failed``, ``outside_training_range``; with a calibration also
+        ``coverage``, ``extrapolated``, ``<index>_lo``/``_hi`` and the three-valued verdicts
+        ``<index>_verdict``, ``verdict`` (pass / uncertain / fail). The numbers are those of
+        ``predict`` for the same designs and excitation, bit for bit. Arguments as
+        ``predict``."""
+        df = _frame(
+            self._native._indices(_designs(designs), _excitation(excitation), excitation_id, x0, coverage, int(batch), bool(strict))
+        )
+        _warn_outside(df)
+        return df
+
+    def __repr__(self) -> str:
+        return repr(self._native)
+
+
+def _excitation(e: Any) -> Any:
+    if e is None or isinstance(e, (str, os.PathLike)):
+        return None if e is None else os.fspath(e)
+    if isinstance(e, (bool, float)) or not isinstance(e, (int, np.integer)):
+        raise PinoError(f"excitation: allowed a seed (an integer >= 0) or the path of a profile file, got {e!r}")
+    if e < 0:
+        raise PinoError(f"excitation = {e}: a seed is an integer >= 0")
+    return int(e)
+
+
+def _sets(values: Mapping[str, Any] | None) -> list[str]:
+    """``{"stage.key": value}`` as the CLI's ``--set stage.key=value`` (values as YAML)."""
+    return [f"{k}={json.dumps(v)}" for k, v in (values or {}).items()]
+
+
+class Pipeline:
+    """A pipeline file (``pipeline.yaml``, ``configs/*.yaml``) in its workspace, driven as the
+    ``pipeline`` command drives it."""
+
+    def __init__(
+        self,
+        path: PathLike = "pipeline.yaml",
+        *,
+        workspace: PathLike | None = None,
+        bin_dir: PathLike | None = None,
+        set: Mapping[str, Any] | None = None,
+    ) -> None:
+        """``path``: the pipeline file, relative to ``workspace`` (default: the current
+        directory, as the CLI); ``bin_dir``: where the stage binaries are (default: the file's
+        ``bin_dir``, or ``PINO_BIN_DIR``); ``set``: ``{"stage.key": value}`` overrides applied
+        to every call (``--set``)."""
+        self._native = _native.Pipeline(
+            os.fspath(path),
+            None if workspace is None else os.fspath(workspace),
+            None if bin_dir is None else os.fspath(bin_dir),
+            _sets(set),
+        )
+
+    def status(self) -> pl.DataFrame:
+        """Every unit: ``unit``, ``state`` (fresh, stale, never run, running, submitted) and
+        ``detail`` (why stale, progress), as ``pipeline status``."""
+        return pl.DataFrame(self._native._status())
+
+    def run(
+        self,
+        targets: Sequence[str] | str | None = None,
+        *,
+        set: Mapping[str, Any] | None = None,
+        force: bool = False,
+        jobs: int = 1,
+    ) -> None:
+        """Runs ``targets`` (stages or expansions such as ``"train[algorithm=5]"``; default
+        every stage) and whatever upstream is stale, as ``pipeline run``; ``set`` adds
+        overrides for this call. A failed stage raises ``PinoError``."""
+        if isinstance(targets, str):
+            targets = [targets]
+        self._native._run(list(targets or []), _sets(set), bool(force), int(jobs))
+
+    def show(self, stage: str, *, set: Mapping[str, Any] | None = None) -> list[str]:
+        """The paths of ``stage``'s current output files, as ``pipeline show``."""
+        return self._native._show(stage, _sets(set))
+
+    def dir(self, stage: str, file: str, *, set: Mapping[str, Any] | None = None) -> str:
+        """The directory holding ``file`` among ``stage``'s outputs (the first shard's)."""
+        for p in self.show(stage, set=set):
+            if os.path.basename(p) == file:
+                return os.path.dirname(p)
+        raise PinoError(f"{stage}: no output file {file}")
+
+
+def study(
+    models: Sequence[PathLike] | PathLike,
+    study: Mapping[str, Any],
+    *,
+    out: PathLike,
+    calibration: PathLike | None = None,
+    **params: Any,
+) -> dict[str, Any]:
+    """Runs one design study (``docs/studies.md``) as the ``study`` stage does, with the same
+    results: ``models`` (the ``train`` output directories; the one of ``params["algorithm"]``,
+    default 5, is used), ``study`` (the declaration: ``name``, ``kind`` = monte_carlo /
+    sensitivity / optimise, ...), ``calibration`` (the ``calibrate`` output), and the stage's
+    other parameters (``coverage``, ``seed``, ``batch_size``, ``bootstrap``, ``confidence``).
+    Writes its files into ``out`` and returns ``{"summary": str, "files": [paths]}``."""
+    if isinstance(models, (str, os.PathLike)):
+        models = [models]
+    summary = _native._study(
+        [os.fspath(m) for m in models],
+        json.dumps({"study": dict(study), **params}),
+        os.fspath(out),
+        None if calibration is None else os.fspath(calibration),
+    )
+    files = sorted(os.path.join(r, f) for r, _, fs in os.walk(os.fspath(out)) for f in fs)
+    return {"summary": summary, "files": files}

@@ -1,0 +1,31 @@
+//! The native module `pino_mbd._pino_mbd` of the Python package `pino_mbd` (python/pino_mbd:
+//! the typed Python layer over it). Nothing of the physics or the learning is written here:
+//! each class calls the workspace's libraries, and tables cross as Arrow C streams.
+//!
+//! - [`system`]: `System` (a description, its tables, the exact solver on designs).
+//! - [`model`]: `Model` (a trained model: predictions and indices with calibrated intervals).
+//! - [`pipeline`]: `Pipeline` (status, run, show) and `_study` (one design study).
+//! - [`arrow`]: tables in and out through `__arrow_c_stream__`; [`designs`]: a table of
+//!   designs checked by name; [`progress`]: the stderr progress bar; [`error`]: `PinoError`.
+
+pub mod arrow;
+pub mod designs;
+pub mod error;
+pub mod model;
+pub mod pipeline;
+pub mod progress;
+pub mod system;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn _pino_mbd(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("PinoError", m.py().get_type::<error::PinoError>())?;
+    m.add_class::<arrow::ArrowTable>()?;
+    m.add_class::<system::PySystem>()?;
+    m.add_class::<model::PyModel>()?;
+    m.add_class::<pipeline::PyPipeline>()?;
+    m.add_function(wrap_pyfunction!(pipeline::_study, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,78 @@
+"""A tiny real pipeline run of the quarter car (configs/quarter-car.yaml with small sizes),
+made once per session through ``pino_mbd.Pipeline`` with the workspace's stage binaries
+(``PINO_BIN_DIR``, else ``target/debug``: ``scripts/test`` builds them first). The tests compare
+the package's answers with the files those stages and the ``predict`` command write."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+import pino_mbd
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# Small sizes: seconds of data and training, enough samples for a calibration at 0.9.
+TINY = {
+    "sample-params.n_train": 4,
+    "sample-params.n_validation": 4,
+    "sample-params.n_test": 1,
+    "sample-params.n_calibration": 12,
+    "simulate.duration": 0.5,
+    "train.epochs": 2,
+    "train.width": 8,
+    "train.modes": 8,
+    "train.projection_width": 16,
+    "train.batch_size": 2,
+}
+
+
+def bin_dir() -> Path:
+    d = Path(os.environ.get("PINO_BIN_DIR") or ROOT / "target" / "debug")
+    for exe in ("pipeline", "sample-params", "irregularity", "simulate", "train", "calibrate", "predict"):
+        if not (d / exe).is_file():
+            raise RuntimeError(
+                f"{d / exe} is missing: build the stages first (`cargo build --workspace --bins`, as scripts/test does) or set PINO_BIN_DIR"
+            )
+    return d
+
+
+class Run:
+    """The pipeline run and where its outputs are."""
+
+    def __init__(self, ws: Path, bins: Path) -> None:
+        self.ws = ws
+        self.bins = bins
+        self.pipeline = pino_mbd.Pipeline("pipeline.yaml", workspace=ws, set=TINY)
+
+    def dir(self, stage: str, file: str) -> Path:
+        return Path(self.pipeline.dir(stage, file))
+
+    def files(self, stage: str, file: str) -> list[Path]:
+        return [Path(p) for p in self.pipeline.show(stage) if os.path.basename(p) == file]
+
+
+@pytest.fixture(scope="session")
+def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
+    bins = bin_dir()
+    ws = tmp_path_factory.mktemp("ws")
+    # The pipeline file's bin_dir must lie inside the workspace: links to the binaries there.
+    text = (ROOT / "configs" / "quarter-car.yaml").read_text()
+    (ws / "pipeline.yaml").write_text(re.sub(r"(?m)^bin_dir: .*$", "bin_dir: bin", text))
+    shutil.copytree(ROOT / "systems", ws / "systems")
+    (ws / "bin").mkdir()
+    for exe in bins.iterdir():
+        if exe.is_file() and os.access(exe, os.X_OK) and not exe.suffix:
+            (ws / "bin" / exe.name).symlink_to(exe)
+    r = Run(ws, bins)
+    r.pipeline.run(["calibrate", "indices"], jobs=2)
+    return r
+
+
+@pytest.fixture(scope="session")
+def quarter_car() -> pino_mbd.System:
+    return pino_mbd.System.load(ROOT / "systems" / "quarter-car.yaml")

@@ -1,0 +1,96 @@
+"""Model.load, predict and indices against the `predict` command on the same model,
+calibration, designs and excitation (equal tables, bit for bit), the flags and verdicts of a
+calibrated answer, the refusals (a model of another system, another model's calibration), and
+Pipeline.status / show / the study function."""
+
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import polars as pl
+import pytest
+
+import pino_mbd
+
+from test_system import assert_bit_identical
+
+
+@pytest.fixture(scope="session")
+def model_dir(run):
+    return run.dir("train[algorithm=5]", "model.safetensors")
+
+
+@pytest.fixture(scope="session")
+def calibration(run):
+    return run.dir("calibrate", "calibration.json").parent
+
+
+@pytest.fixture(scope="session")
+def model(model_dir, calibration):
+    return pino_mbd.Model.load(model_dir, calibration=calibration)
+
+
+def cli_predict(run, model_dir, calibration, tmp_path, *args):
+    out, ix = tmp_path / "out.parquet", tmp_path / "indices.parquet"
+    cmd = [str(run.bins / "predict"), "--model", str(model_dir), "--calibration", str(calibration),
+           "--seed", "7", "--out", str(out), "--indices", str(ix), *args]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return pl.read_parquet(out), pl.read_parquet(ix)
+
+
+def test_predict_and_indices_equal_the_cli(run, model, model_dir, calibration, tmp_path) -> None:
+    # The second design is outside the training range of k_s (flagged by both).
+    out, ix = cli_predict(run, model_dir, calibration, tmp_path, "--params", str(write_sets(tmp_path)))
+    designs = pl.DataFrame({"k_s": [2.0e4, 4.0e4], "v_kmh": [60.0, 72.0]})
+    with pytest.warns(UserWarning, match="outside the model's training ranges"):
+        p = model.predict(designs, excitation=7)
+    assert_bit_identical(p, out)
+    with pytest.warns(UserWarning):
+        i = model.indices(designs, excitation=7)
+    assert_bit_identical(i, ix)
+    assert i["outside_training_range"].to_list()[1].startswith("k_s=")
+    assert set(i["verdict"]) <= {"pass", "uncertain", "fail"}
+    assert i["extrapolated"].to_list() == [0, 1]
+    lo, hi, v = i["suspension_travel_lo"], i["suspension_travel_hi"], i["suspension_travel"]
+    assert ((lo <= v) & (v <= hi)).all()
+    # One design by itself gives the same row as in the batch.
+    one = model.indices({"k_s": 2.0e4, "v_kmh": 60.0}, excitation=7)
+    assert_bit_identical(one.drop("set"), i.head(1).drop("set"))
+
+
+def write_sets(tmp_path):
+    p = tmp_path / "sets.yaml"
+    p.write_text("- {k_s: 2.0e+4, v_kmh: 60.0}\n- {k_s: 4.0e+4, v_kmh: 72.0}\n")
+    return p
+
+
+def test_strict_refuses_designs_outside_the_training_ranges(model) -> None:
+    with pytest.raises(ValueError, match=r"designs\[0\].*k_s="):
+        model.indices({"k_s": [4.0e4]}, excitation=7, strict=True)
+
+
+def test_a_model_of_another_system_and_another_calibration_are_refused(run, model_dir, model) -> None:
+    # Designs of the vehicle-track model (its parameters) on the quarter car's model.
+    with pytest.raises(ValueError, match=r"unknown parameter `k_pz`"):
+        model.predict({"k_pz": [1.0e6]}, excitation=7)
+    other = run.dir("calibrate", "calibration.json").parent / "algorithm-1" / "calibration.json"
+    with pytest.raises(ValueError, match="calibration"):
+        pino_mbd.Model.load(model_dir, calibration=other)
+    with pytest.raises(ValueError, match="excitation"):
+        model.predict({"k_s": [2.0e4]}, excitation=-1)
+    with pytest.raises(ValueError):
+        pino_mbd.Model.load(run.ws / "no-such-model")
+
+
+def test_pipeline_status_and_show(run) -> None:
+    st = run.pipeline.status()
+    assert st.columns == ["unit", "state", "detail"]
+    fresh = dict(st.select("unit", "state").iter_rows())
+    assert fresh["calibrate"] == "fresh" and fresh["simulate#0"] == "fresh"
+    assert fresh["evaluate"] == "never run"
+    sims = run.pipeline.show("simulate")
+    assert sum(p.endswith("/simulation.parquet") for p in sims) == 2
+    with pytest.raises(ValueError, match="no_such_stage"):
+        run.pipeline.show("no_such_stage")
