@@ -167,7 +167,7 @@ class System:
         (``sample_id``, ``reason``)."""
         sim, failed = self._native._simulate(
             _designs(designs),
-            excitation if excitation is None or isinstance(excitation, dict) or hasattr(excitation, "__arrow_c_stream__") or isinstance(excitation, (str, os.PathLike)) else _designs(excitation, "excitation"),
+            os.fspath(excitation) if isinstance(excitation, os.PathLike) else excitation,
             float(duration),
             float(dt),
             int(output_every),
