@@ -1,8 +1,9 @@
 """The issue's targets for pino_mbd (BENCHMARKS.md, "Python package"): not a test.
 
 Usage: python python/bench/targets.py WORKSPACE BIN_DIR
-WORKSPACE: a quarter-car pipeline workspace after `run calibrate` with the sizes of
-python/tests/conftest.py (TINY);
+WORKSPACE: a quarter-car pipeline workspace (configs/quarter-car.yaml as pipeline.yaml, the
+binaries linked inside it as python/tests/conftest.py does); the model is trained there first
+with the sizes of PINO_BENCH_SETS (default: the tests' TINY);
 BIN_DIR: the stage binaries of the same build profile as the installed package.
 Alternates the in-process call and the CLI, and prints medians.
 """
@@ -17,8 +18,14 @@ from pathlib import Path
 
 import polars as pl
 
+# The sizes the model was trained with: PINO_BENCH_SETS (JSON {"stage.key": value}), else the
+# tests' TINY sizes (python/tests/conftest.py).
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from conftest import TINY  # noqa: E402  (the sizes the workspace was run with)
+from conftest import TINY  # noqa: E402
+
+import os  # noqa: E402
+
+SETS = json.loads(os.environ["PINO_BENCH_SETS"]) if os.environ.get("PINO_BENCH_SETS") else TINY
 
 ws, bins = Path(sys.argv[1]), Path(sys.argv[2])
 REPS = 5
@@ -42,7 +49,8 @@ print(f"import pino_mbd: {imp * 1e3:.0f} ms (median of {REPS} fresh interpreters
 
 import pino_mbd  # noqa: E402
 
-p = pino_mbd.Pipeline("pipeline.yaml", workspace=ws, set=TINY)
+p = pino_mbd.Pipeline("pipeline.yaml", workspace=ws, set=SETS)
+p.run("calibrate", jobs=2)
 model_dir = p.dir("train[algorithm=5]", "model.safetensors")
 cal = Path(p.dir("calibrate", "calibration.json")).parent
 model = pino_mbd.Model.load(model_dir, calibration=cal)
@@ -68,11 +76,12 @@ with tempfile.TemporaryDirectory() as d:
         t0 = time.perf_counter(); model.indices(designs, excitation=7); py_t.append(time.perf_counter() - t0)
     print(f"2000 designs, indices: in-process {statistics.median(py_t):.3f} s, CLI predict {statistics.median(cli_t):.3f} s (medians of 3, alternated)")
 
-# 1000 default designs through the solver: in-process vs the `simulate` stage (pipeline run).
-sets = {"sample-params.n_train": 1000, "sample-params.n_validation": 0, "sample-params.n_test": 0,
-        "sample-params.n_calibration": 0, "simulate.shards": 1}
+# 1000 default designs through the solver: in-process vs the `simulate` stage (pipeline run
+# -j 2: its two shards side by side, as the pipeline file runs it).
+sets = {"sample-params.n_train": 997, "sample-params.n_validation": 1, "sample-params.n_test": 1,
+        "sample-params.n_calibration": 1}  # 1000 samples in all
 big = pino_mbd.Pipeline("pipeline.yaml", workspace=ws, set=sets)
-big.run("simulate")
+big.run("simulate", jobs=2)
 params = pl.read_parquet([f for f in big.show("sample-params") if f.endswith("params.parquet")])
 irr = [f for f in big.show("irregularity") if f.endswith("irregularity.parquet")][0]
 sim_dir = Path(big.dir("simulate", "simulation.parquet"))
@@ -80,6 +89,6 @@ c = json.loads((sim_dir / "run.json").read_text())["run"]
 kw = {k: c[k] for k in ("duration", "dt", "output_every", "start", "x0", "startup_zero_fraction", "startup_ramp_fraction")}
 py_t, st_t = [], []
 for _ in range(3):
-    t0 = time.perf_counter(); big.run("simulate", force=True); st_t.append(time.perf_counter() - t0)
+    t0 = time.perf_counter(); big.run("simulate", force=True, jobs=2); st_t.append(time.perf_counter() - t0)
     t0 = time.perf_counter(); car.simulate(params, excitation=irr, progress=False, **kw); py_t.append(time.perf_counter() - t0)
-print(f"1000 designs x {c['duration']} s, simulate: in-process {statistics.median(py_t):.3f} s, stage (pipeline run simulate --force) {statistics.median(st_t):.3f} s (medians of 3, alternated)")
+print(f"1000 designs x {c['duration']} s, simulate: in-process {statistics.median(py_t):.3f} s, stage (pipeline run simulate --force -j 2) {statistics.median(st_t):.3f} s (medians of 3, alternated)")
