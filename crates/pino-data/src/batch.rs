@@ -4,11 +4,10 @@
 //! schema metadata, as in the Parquet files) and whose buffers are the table's own vectors
 //! (moved, not copied); any batch of numeric or string columns reads back as a [`Table`].
 
-use crate::parquet_io::{append_array, arrow_schema, empty_column, pq};
+use crate::parquet_io::{append_array, arrow_array, arrow_schema, empty_column, pq};
 use crate::{Result, Table};
-use arrow_array::{ArrayRef, Float64Array, Int64Array, RecordBatch, StringArray};
+use arrow_array::{ArrayRef, RecordBatch};
 use std::path::Path;
-use std::sync::Arc;
 
 /// `table` as one record batch, its columns moved into Arrow buffers; `origin` names it in
 /// errors (a column without a declared unit is refused, as when writing a file).
@@ -17,13 +16,7 @@ pub fn into_record_batch(table: Table, origin: &Path) -> Result<RecordBatch> {
     let arrays: Vec<ArrayRef> = table
         .into_columns()
         .into_iter()
-        .map(|(_, col)| -> ArrayRef {
-            match col {
-                crate::Column::F64(v) => Arc::new(Float64Array::from(v)),
-                crate::Column::I64(v) => Arc::new(Int64Array::from(v)),
-                crate::Column::Str(v) => Arc::new(StringArray::from(v)),
-            }
-        })
+        .map(|(_, col)| arrow_array(col))
         .collect();
     if arrays.is_empty() {
         return Ok(RecordBatch::new_empty(schema));

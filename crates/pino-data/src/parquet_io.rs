@@ -111,14 +111,17 @@ pub(crate) fn arrow_arrays(table: &Table) -> Vec<ArrayRef> {
     table
         .columns()
         .iter()
-        .map(|(_, col)| -> ArrayRef {
-            match col {
-                Column::F64(v) => Arc::new(Float64Array::from(v.clone())),
-                Column::I64(v) => Arc::new(Int64Array::from(v.clone())),
-                Column::Str(v) => Arc::new(StringArray::from(v.clone())),
-            }
-        })
+        .map(|(_, col)| arrow_array(col.clone()))
         .collect()
+}
+
+/// One column as an Arrow array, its vector moved into the array's buffer.
+pub(crate) fn arrow_array(col: Column) -> ArrayRef {
+    match col {
+        Column::F64(v) => Arc::new(Float64Array::from(v)),
+        Column::I64(v) => Arc::new(Int64Array::from(v)),
+        Column::Str(v) => Arc::new(StringArray::from(v)),
+    }
 }
 
 /// The fixed writer settings (Snappy, `created_by`), so equal tables give equal bytes, and
