@@ -35,6 +35,11 @@
 //! that follows this contract is a stage, a user's script included. A stage can also be run by
 //! hand with `--context FILE` as its first two arguments.
 //!
+//! A stage that reads a system description loads the one its command names with
+//! [`load_description`], and declares itself as the origin of the Parquet files it writes with
+//! [`StageContext::declare_origin`], first thing. In check mode it may announce its unit's work
+//! with [`work`].
+//!
 //! ```no_run
 //! # fn main() -> Result<(), stage_kit::Error> {
 //! #[derive(serde::Deserialize)]
