@@ -343,6 +343,10 @@ pub struct TrainParams {
     /// "cpu" or "cuda".
     #[serde(default = "d_device")]
     pub device: DeviceKind,
+    /// Train on the first N samples of the training split only (by sample id; absent: all):
+    /// a budget study's knob, judged on the same validation split.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub train_samples: Option<usize>,
 }
 
 impl TrainParams {

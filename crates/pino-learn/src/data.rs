@@ -272,14 +272,14 @@ type WindowSink<'a> = dyn FnMut(&Sample, &[f64], &[Vec<f64>]) -> Result<()> + 'a
 
 /// The index pass: streams every record, checks ids and grids, and calls `on_window` with
 /// the window's times and series (column-major, [`Groups`] of `T` values) of each sample
-/// whose split `want` accepts. Returns the dataset of those samples (no statistics).
+/// whose id and split `want` accepts. Returns the dataset of those samples (no statistics).
 fn scan(
     info: &DatasetInfo,
     params_file: &Path,
     simulation_files: &[PathBuf],
     weights_file: Option<&Path>,
     window: &WindowConfig,
-    want: &dyn Fn(Split) -> bool,
+    want: &dyn Fn(i64, Split) -> bool,
     on_window: &mut WindowSink<'_>,
 ) -> Result<Dataset> {
     window.validate()?;
@@ -321,7 +321,7 @@ fn scan(
         if t_window.is_empty() {
             t_window = keep.clone().map(|k| cols[0][k]).collect();
         }
-        if !want(*split) {
+        if !want(id, *split) {
             return Ok(());
         }
         let force_scale = system
@@ -431,7 +431,36 @@ pub fn load_dataset(
     weights_file: Option<&Path>,
     window: &WindowConfig,
 ) -> Result<Dataset> {
-    let mut acc = NormAccumulator::new(&Layout::of(&info.system));
+    load_dataset_subset(info, params_file, simulation_files, weights_file, window, None)
+}
+
+/// [`load_dataset`] keeping only the first `train_samples` samples of the training split (by
+/// sample id; `None`: all of them), the validation split whole: a budget study trains on less
+/// data of the same dataset and is judged on the same validation samples. The normalisation
+/// statistics are those of the samples kept.
+pub fn load_dataset_subset(
+    info: &DatasetInfo,
+    params_file: &Path,
+    simulation_files: &[PathBuf],
+    weights_file: Option<&Path>,
+    window: &WindowConfig,
+    train_samples: Option<usize>,
+) -> Result<Dataset> {
+    let layout = Layout::of(&info.system);
+    let kept_train: Option<BTreeSet<i64>> = match train_samples {
+        None => None,
+        Some(n) => Some(
+            read_params(params_file, &layout)?
+                .into_iter()
+                .filter(|(_, split, _)| *split == Split::Train)
+                .map(|(id, _, _)| id)
+                .collect::<BTreeSet<i64>>()
+                .into_iter()
+                .take(n)
+                .collect(),
+        ),
+    };
+    let mut acc = NormAccumulator::new(&layout);
     let mut any_train = false;
     let mut ds = scan(
         info,
@@ -439,7 +468,10 @@ pub fn load_dataset(
         simulation_files,
         weights_file,
         window,
-        &|s| trained_on(s),
+        &|id, s| {
+            trained_on(s)
+                && (s != Split::Train || kept_train.as_ref().is_none_or(|k| k.contains(&id)))
+        },
         &mut |s, t, w| {
             if s.split == Split::Train {
                 any_train = true;
@@ -734,7 +766,7 @@ pub fn prepare(ds: &Dataset, norm: &Normalisation) -> Result<Prepared> {
         &ds.simulation_files,
         None,
         &ds.window,
-        &|s| trained_on(s),
+        &|id, _| wanted.contains(&id),
         &mut |s, _, w| {
             if wanted.contains(&s.id) {
                 b.add(s, w)?;
@@ -767,7 +799,7 @@ pub fn load_split(
         simulation_files,
         None,
         window,
-        &|s| s == split,
+        &|_, s| s == split,
         &mut |s, t, w| {
             if builder.is_none() {
                 builder = Some(Builder::new(norm, &layout, t.len(), expected)?);
@@ -1070,6 +1102,52 @@ mod tests {
                 a.names[k]
             );
         }
+    }
+
+    #[test]
+    fn a_training_subset_keeps_the_first_training_samples_and_the_whole_validation_split() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = SyntheticSpec {
+            n_train: 4,
+            n_validation: 2,
+            n_test: 1,
+            duration: 0.1,
+            ..Default::default()
+        };
+        let f = write_dataset(&spec, dir.path()).unwrap();
+        let window = WindowConfig {
+            startup_fraction: 0.1,
+            time_stride: 1,
+        };
+        let load = |n| {
+            load_dataset_subset(
+                &f.info().unwrap(),
+                &f.params,
+                std::slice::from_ref(&f.simulation),
+                None,
+                &window,
+                n,
+            )
+            .unwrap()
+        };
+        let ids = |ds: &Dataset, split| -> Vec<i64> {
+            ds.split_indices(split)
+                .iter()
+                .map(|&i| ds.samples[i].id)
+                .collect()
+        };
+        let all = load(None);
+        let two = load(Some(2));
+        assert_eq!(ids(&all, Split::Train), vec![0, 1, 2, 3]);
+        assert_eq!(ids(&two, Split::Train), vec![0, 1]);
+        assert_eq!(ids(&two, Split::Validation), ids(&all, Split::Validation));
+        // The statistics are those of the samples kept, not of the whole split.
+        let (a, b) = (all.normalisation().unwrap(), two.normalisation().unwrap());
+        assert_ne!(a.outputs.mean, b.outputs.mean);
+        // More than the split holds keeps it whole; none is an error naming the split.
+        assert_eq!(ids(&load(Some(10)), Split::Train), vec![0, 1, 2, 3]);
+        let err = load(Some(0)).normalisation().unwrap_err().to_string();
+        assert!(err.contains("no sample of split `train`"), "{err}");
     }
 
     #[test]

@@ -9,7 +9,7 @@
 //! algorithms 2 and 3 are refused, naming why, for a description without equations.
 use anyhow::{Context, Result};
 use pino_learn::config::TrainParams;
-use pino_learn::data::{load_dataset, DatasetInfo};
+use pino_learn::data::{load_dataset_subset, DatasetInfo};
 use pino_learn::spectral::Transform;
 use pino_learn::train::train_to_dir;
 use stage_kit::StageContext;
@@ -50,7 +50,14 @@ fn run() -> Result<()> {
     } else {
         None
     };
-    let ds = load_dataset(&info, params, &sims, weights.as_deref(), &window)?;
+    let ds = load_dataset_subset(
+        &info,
+        params,
+        &sims,
+        weights.as_deref(),
+        &window,
+        p.train_samples,
+    )?;
     let progress = ctx.progress(train.epochs as u64);
     let outcome = train_to_dir(
         &ds,
