@@ -330,6 +330,40 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
 }
 
 #[test]
+fn the_budget_study_trains_algorithm_5_on_subsets_of_one_training_split() {
+    // configs/budget-study.yaml: every training is algorithm 5 on at most the training split
+    // the file samples, judged on the same validation split (one dataset for all).
+    let file = "configs/budget-study.yaml";
+    let root = pino_mbd_tests::workspace_root();
+    let pipeline = orchestrator::spec::Pipeline::load(
+        &root,
+        &root.join(file),
+        &orchestrator::spec::LoadOptions::default(),
+    )
+    .unwrap();
+    let n_train = pino_mbd_tests::stage_params(file, "sample-params")["n_train"]
+        .as_u64()
+        .unwrap() as usize;
+    let (_, described) = pino_mbd_tests::system("vtcd", &[]);
+    let layout = pino_learn::layout::Layout::of(&described);
+    let trainings: Vec<_> = pipeline
+        .stages
+        .iter()
+        .filter(|s| s.cmd[0] == "train")
+        .collect();
+    assert_eq!(trainings.len(), 9);
+    for stage in trainings {
+        assert_eq!(stage.inputs.len(), 2, "{}: params and dataset only", stage.name);
+        let p: pino_learn::config::TrainParams =
+            serde_json::from_value(stage.expansions[0].params.clone()).unwrap();
+        p.configs(&layout).unwrap();
+        assert_eq!(p.algorithm, 5, "{}", stage.name);
+        let n = p.train_samples.expect("a subset");
+        assert!(n <= n_train, "{}: {n} > {n_train}", stage.name);
+    }
+}
+
+#[test]
 fn pipeline_files_parameter_blocks_parse_into_the_learning_types() {
     for (file, system) in [
         ("pipeline.yaml", "vtcd"),
