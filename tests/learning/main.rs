@@ -353,7 +353,12 @@ fn the_budget_study_trains_algorithm_5_on_subsets_of_one_training_split() {
         .collect();
     assert_eq!(trainings.len(), 9);
     for stage in trainings {
-        assert_eq!(stage.inputs.len(), 2, "{}: params and dataset only", stage.name);
+        assert_eq!(
+            stage.inputs.len(),
+            2,
+            "{}: params and dataset only",
+            stage.name
+        );
         let p: pino_learn::config::TrainParams =
             serde_json::from_value(stage.expansions[0].params.clone()).unwrap();
         p.configs(&layout).unwrap();

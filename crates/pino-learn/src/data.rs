@@ -431,7 +431,14 @@ pub fn load_dataset(
     weights_file: Option<&Path>,
     window: &WindowConfig,
 ) -> Result<Dataset> {
-    load_dataset_subset(info, params_file, simulation_files, weights_file, window, None)
+    load_dataset_subset(
+        info,
+        params_file,
+        simulation_files,
+        weights_file,
+        window,
+        None,
+    )
 }
 
 /// [`load_dataset`] keeping only the first `train_samples` samples of the training split (by
