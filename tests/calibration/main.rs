@@ -1,6 +1,6 @@
 //! Calibrated answers end to end: the real `train`, `calibrate`, `evaluate` and `predict`
 //! binaries on a small synthetic vehicle-track dataset with a calibration split
-//! (`pino_learn::synthetic`), driven through the stage protocol's `--context FILE`.
+//! (`learn_fixtures::synthetic`), driven through the stage protocol's `--context FILE`.
 //!
 //! Checked: the calibration file (one per model, scores sorted, the levels its samples
 //! support), its determinism, the coverage tables of `evaluate`, the intervals and
@@ -35,7 +35,7 @@ fn stage(binary: &str, ctx: &Path) {
 fn dataset(dir: &Path, n_calibration: u64) -> PathBuf {
     let data = dir.join(format!("data-{n_calibration}"));
     std::fs::create_dir_all(&data).unwrap();
-    let spec = pino_learn::synthetic::SyntheticSpec {
+    let spec = learn_fixtures::synthetic::SyntheticSpec {
         n_train: 4,
         n_validation: 3,
         n_test: 4,
@@ -43,7 +43,7 @@ fn dataset(dir: &Path, n_calibration: u64) -> PathBuf {
         duration: 0.2,
         ..Default::default()
     };
-    pino_learn::synthetic::write_dataset(&spec, &data).unwrap();
+    learn_fixtures::synthetic::write_dataset(&spec, &data).unwrap();
     data
 }
 
@@ -107,7 +107,7 @@ fn calibrated_answers_end_to_end_and_every_refusal() {
         (N_CALIBRATION as usize, 3, Normaliser::ErrorHead)
     );
     assert!(cal.has_intervals());
-    let system = pino_learn::synthetic::vehicle_track_system();
+    let system = learn_fixtures::synthetic::vehicle_track_system();
     let layout = pino_learn::layout::Layout::of(&system);
     let indices = pino_eval::indices_eval::IndexInputs::of(&system, &layout).unwrap();
     let names: Vec<&str> = cal.indices.iter().map(|q| q.name.as_str()).collect();

@@ -1,5 +1,5 @@
 //! End-to-end: the real `train`, `evaluate` and `predict` binaries on a small synthetic dataset
-//! (rigid-rail vehicle records that satisfy the ODEs exactly, `pino_learn::synthetic`), driven
+//! (rigid-rail vehicle records that satisfy the ODEs exactly, `learn_fixtures::synthetic`), driven
 //! through the stage protocol's `--context FILE`.
 //!
 //! Build the binaries first: `cargo build -p train -p evaluate -p predict`.
@@ -23,19 +23,19 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     let dir = tmp.path();
     let data = dir.join("data");
     std::fs::create_dir_all(&data).unwrap();
-    let spec = pino_learn::synthetic::SyntheticSpec {
+    let spec = learn_fixtures::synthetic::SyntheticSpec {
         n_train: 4,
         n_validation: 2,
         n_test: 2,
         duration: 0.2,
         ..Default::default()
     };
-    pino_learn::synthetic::write_dataset(&spec, &data).unwrap();
+    learn_fixtures::synthetic::write_dataset(&spec, &data).unwrap();
     // The same samples without a test split (the validation fallback of `evaluate`).
     let no_test = dir.join("no-test");
     std::fs::create_dir_all(&no_test).unwrap();
-    pino_learn::synthetic::write_dataset(
-        &pino_learn::synthetic::SyntheticSpec { n_test: 0, ..spec },
+    learn_fixtures::synthetic::write_dataset(
+        &learn_fixtures::synthetic::SyntheticSpec { n_test: 0, ..spec },
         &no_test,
     )
     .unwrap();

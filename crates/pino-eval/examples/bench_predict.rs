@@ -15,12 +15,12 @@
 //! designs with their intervals and verdicts at 0.9 (`Predictor::answers`), the two alternated
 //! three times, medians reported.
 use candle_core::Device;
+use learn_fixtures::synthetic::{write_dataset, SyntheticSpec};
 use pino_eval::predict::{parse_sweep, Predictor, ProfileChoice};
 use pino_learn::checkpoint::save_model;
 use pino_learn::config::{TrainParams, WindowConfig};
 use pino_learn::model::Fno;
 use pino_learn::spectral::Transform;
-use pino_learn::synthetic::{write_dataset, SyntheticSpec};
 use pino_learn::train::model_meta;
 use std::path::PathBuf;
 use std::time::Instant;

@@ -1280,14 +1280,14 @@ fn write_plots_doc(out: &Path, results: &[ModelResult]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use learn_fixtures::synthetic::{write_dataset, SyntheticSpec};
     use pino_data::read_parquet;
     use pino_learn::config::TrainParams;
-    use pino_learn::synthetic::{write_dataset, SyntheticSpec};
     use pino_learn::train::model_meta;
 
     struct Fixture {
         _dir: tempfile::TempDir,
-        files: pino_learn::synthetic::SyntheticFiles,
+        files: learn_fixtures::synthetic::SyntheticFiles,
         ds: Dataset,
         items: Prepared,
         meta: ModelMeta,
@@ -1305,7 +1305,7 @@ mod tests {
             ..Default::default()
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
-        let layout = pino_learn::synthetic::vehicle_track_layout();
+        let layout = learn_fixtures::synthetic::vehicle_track_layout();
         let (m, t, w) = TrainParams::small(4).configs(&layout).unwrap();
         let ds = files.load(&w, false).unwrap();
         let meta = model_meta(&ds, m, t, w).unwrap();
@@ -1482,7 +1482,7 @@ mod tests {
                 a: ex.a[d..(t - 1) * d].to_vec(),
             });
         }
-        let system = pino_learn::synthetic::vehicle_track_system();
+        let system = learn_fixtures::synthetic::vehicle_track_system();
         let ch = channel_errors(&fx.items, &fx.test, &preds, &fx.meta, &system).unwrap();
         let row = |name: &str| ch.iter().find(|c| c.channel == name).unwrap();
         // The static contact force W = (m_c + 2 m_t + 4 m_w) g / 8 of each sample.

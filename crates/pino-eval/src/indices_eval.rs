@@ -822,8 +822,8 @@ fn scatter(path: &Path, j: usize, c: &IndexInfo, models: &[ModelIndices]) -> Res
 #[cfg(test)]
 mod tests {
     use super::*;
+    use learn_fixtures::synthetic::{write_dataset, SyntheticSpec};
     use pino_learn::config::TrainParams;
-    use pino_learn::synthetic::{write_dataset, SyntheticSpec};
     use pino_learn::train::model_meta;
 
     #[test]
@@ -837,7 +837,7 @@ mod tests {
             ..Default::default()
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
-        let system = pino_learn::synthetic::vehicle_track_system();
+        let system = learn_fixtures::synthetic::vehicle_track_system();
         let layout = Layout::of(&system);
         let (m, t, w) = TrainParams::small(4).configs(&layout).unwrap();
         let ds = files.load(&w, false).unwrap();

@@ -1390,8 +1390,8 @@ pub fn parse_sweep(space: &DesignSpace, text: &str, origin: &Path) -> Result<Vec
 #[cfg(test)]
 mod tests {
     use super::*;
+    use learn_fixtures::synthetic::{vehicle_track_system, write_dataset, SyntheticSpec};
     use pino_learn::config::TrainParams;
-    use pino_learn::synthetic::{vehicle_track_system, write_dataset, SyntheticSpec};
 
     fn space() -> DesignSpace {
         DesignSpace::of(vehicle_track_system())
@@ -1598,7 +1598,7 @@ mod tests {
             ..Default::default()
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
-        let layout = pino_learn::synthetic::vehicle_track_layout();
+        let layout = learn_fixtures::synthetic::vehicle_track_layout();
         let mut p = TrainParams::small(1);
         p.epochs = 1;
         let (m, t, w) = p.configs(&layout).unwrap();

@@ -13,13 +13,13 @@
 //! pino-learn/cuda`); the transform is then always the matrix DFT (the fused kernels are CPU
 //! code), and every phase ends with a device synchronisation so that its time is the GPU's
 //! work, not the launch.
+use learn_fixtures::synthetic::{write_dataset, SyntheticSpec};
 use pino_learn::config::{DeviceKind, ModelConfig, TrainParams};
 use pino_learn::data::{make_batch, prepare};
 use pino_learn::loss::LossContext;
 use pino_learn::model::Fno;
 use pino_learn::optim::Adam;
 use pino_learn::spectral::Transform;
-use pino_learn::synthetic::{write_dataset, SyntheticSpec};
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

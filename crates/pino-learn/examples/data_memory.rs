@@ -16,9 +16,9 @@
 //! the deepest) for `EPOCHS` epochs (default 1). Each prints the samples held, the bytes of the store and
 //! the process's peak resident set (VmHWM).
 use candle_core::Device;
+use learn_fixtures::synthetic::{write_dataset, SyntheticSpec};
 use pino_learn::config::{TrainParams, WindowConfig};
 use pino_learn::data::{load_dataset, load_split, make_batch, prepare, DatasetInfo, Split};
-use pino_learn::synthetic::{write_dataset, SyntheticSpec};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -28,8 +28,9 @@
 //! Modules: [`layout`] (channels from the description), [`config`] (algorithms, sizes),
 //! [`data`] (Parquet -> samples, streamed), [`store`] (sample series in memory or spilled),
 //! [`norm`], [`spectral`], [`model`], [`residual`] and [`loss`], [`weights`] (ODE magnitude
-//! weights), [`optim`] (Adam, step decay), [`checkpoint`], [`train`], [`infer`] (batched
-//! inference) and [`synthetic`] (small consistent datasets for tests and benchmarks).
+//! weights), [`optim`] (Adam, step decay), [`checkpoint`], [`train`] and [`infer`] (batched
+//! inference). The small consistent datasets its tests and benchmarks train on are the
+//! `learn-fixtures` crate's (a dev-dependency).
 //!
 //! This crate is the neural-operator engine: it knows no particular system, only what a
 //! description says. What an engineer reads of a trained model (Table 4, per-channel errors,
@@ -50,9 +51,18 @@ pub mod optim;
 pub mod residual;
 pub mod spectral;
 pub mod store;
-pub mod synthetic;
 pub mod train;
 pub mod weights;
+
+// The unit tests' datasets: learn-fixtures' `synthetic` module, compiled into this crate's test
+// build from its one source (a dev-dependency on learn-fixtures would link a second copy of
+// this crate, whose types are not these). The module names this crate `pino_learn`.
+#[cfg(test)]
+extern crate self as pino_learn;
+#[cfg(test)]
+#[allow(dead_code)] // the items only other crates' tests use
+#[path = "../../learn-fixtures/src/synthetic.rs"]
+mod synthetic;
 
 pub use config::{Algorithm, DeviceKind, ModelConfig, TrainConfig};
 

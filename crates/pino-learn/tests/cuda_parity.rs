@@ -17,12 +17,12 @@
 //! ```
 
 use candle_core::{DType, Device, Tensor};
+use learn_fixtures::synthetic::{write_dataset, SyntheticSpec};
 use pino_learn::config::{TrainParams, WindowConfig};
 use pino_learn::data::{make_batch, prepare, Dataset};
 use pino_learn::loss::{LossContext, LossValues};
 use pino_learn::model::Fno;
 use pino_learn::spectral::Transform;
-use pino_learn::synthetic::{write_dataset, SyntheticSpec};
 use std::io::Write;
 
 /// Relative 2-norm error allowed on the forward output and on the loss values. Both are sums

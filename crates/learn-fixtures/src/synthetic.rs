@@ -10,17 +10,17 @@
 //! round-off.
 //!
 //! Files written: `params.parquet`, `ranges.parquet`, `system.json`, `run.json`,
-//! `simulation.parquet`, `weights.parquet` (phi of the training samples, [`crate::weights`]).
+//! `simulation.parquet`, `weights.parquet` (phi of the training samples, [`pino_learn::weights`]).
 
-use crate::config::WindowConfig;
-use crate::data::{load_dataset, load_split, Dataset, DatasetInfo, Prepared, Split};
-use crate::layout::Layout;
-use crate::weights::{magnitude_weights, WeightConfig};
-use crate::{Error, Result};
 use mbd_dataset::{ProfileParams, SamplingPlan, SplitSizes};
 use mbd_engine::{Profile, RunConfig, SampleInput, StartMode};
 use mbd_system::{Override, SystemSource};
 use pino_data::{schema, write_parquet, Column, StreamWriter, Table};
+use pino_learn::config::WindowConfig;
+use pino_learn::data::{load_dataset, load_split, Dataset, DatasetInfo, Prepared, Split};
+use pino_learn::layout::Layout;
+use pino_learn::weights::{magnitude_weights, WeightConfig};
+use pino_learn::{Error, Result};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -161,7 +161,7 @@ impl SyntheticFiles {
         &self,
         window: &WindowConfig,
         split: Split,
-        norm: &crate::norm::Normalisation,
+        norm: &pino_learn::norm::Normalisation,
     ) -> Result<(Dataset, Prepared)> {
         load_split(
             &self.info()?,
@@ -320,7 +320,7 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     cols.extend(system.channels.iter().map(|c| c.name.clone()));
     let sim_path = dir.join("simulation.parquet");
     let layout = Layout::of(&system);
-    let weight_cols = crate::weights::columns(&layout);
+    let weight_cols = pino_learn::weights::columns(&layout);
     let weight_idx: Vec<usize> = weight_cols
         .iter()
         .map(|c| system.channel(c).expect("a stored channel"))
@@ -364,7 +364,7 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     writer.ok_or_else(|| bad("no samples".into()))?.finish()?;
     let weights_path = dir.join("weights.parquet");
     write_weights(&weights_path, &layout, &phi)?;
-    let settings = crate::checkpoint::DataSettings {
+    let settings = pino_learn::checkpoint::DataSettings {
         run: config,
         profiles: generators.iter().any(Option::is_some).then_some(controls),
     };
