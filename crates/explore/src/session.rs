@@ -34,7 +34,7 @@ use std::sync::{Arc, Mutex};
 pub enum Error {
     /// The model or its dataset could not be read.
     #[error(transparent)]
-    Learn(#[from] pino_learn::Error),
+    Eval(#[from] pino_eval::Error),
     /// Reading the dataset's files.
     #[error(transparent)]
     Data(#[from] pino_data::Error),
@@ -547,11 +547,11 @@ impl Explorer {
             .excitations_of(design, profiles, &self.run, "design")
             .and_then(|_| self.predictor.readable(design, "design"))
             .map_err(|e| match e {
-                pino_learn::Error::OutOfRange {
+                pino_eval::Error::Learn(pino_learn::Error::OutOfRange {
                     field,
                     value,
                     allowed,
-                } => ApiError::bad(
+                }) => ApiError::bad(
                     field.clone(),
                     format!("`{field}` = {value} is out of range"),
                     allowed,
@@ -581,12 +581,12 @@ impl Explorer {
     /// A refusal of the predictor in the request's words: a design parameter at fault
     /// (`sets[k].NAME`) is `design.NAME`, or in a sweep the end (`from`, `to`) a swept
     /// parameter lies towards; anything else is the excitation's.
-    fn refusal(&self, e: pino_learn::Error, sweep: Option<&SweepRequest>) -> ApiError {
-        if let pino_learn::Error::OutOfRange {
+    fn refusal(&self, e: pino_eval::Error, sweep: Option<&SweepRequest>) -> ApiError {
+        if let pino_eval::Error::Learn(pino_learn::Error::OutOfRange {
             field,
             value,
             allowed,
-        } = &e
+        }) = &e
         {
             let at = field
                 .strip_prefix("sets[")
@@ -742,11 +742,9 @@ impl Explorer {
                     req.base.coverage,
                 )
                 .map_err(|e| match e {
-                    pino_learn::Error::OutOfRange { ref field, .. }
-                        if !field.starts_with("sets[") =>
-                    {
-                        calibration_error(e)
-                    }
+                    pino_eval::Error::Learn(pino_learn::Error::OutOfRange {
+                        ref field, ..
+                    }) if !field.starts_with("sets[") => calibration_error(e),
                     e => self.refusal(e, Some(req)),
                 })?
         } else {
@@ -869,9 +867,11 @@ impl Explorer {
 
 /// A calibration's refusal of a request: a level it cannot support is the request's `coverage`;
 /// anything else is a fault of the calibration file.
-fn calibration_error(e: pino_learn::Error) -> ApiError {
+fn calibration_error(e: pino_eval::Error) -> ApiError {
     match e {
-        pino_learn::Error::OutOfRange { field, allowed, .. } if field == "coverage" => {
+        pino_eval::Error::Learn(pino_learn::Error::OutOfRange { field, allowed, .. })
+            if field == "coverage" =>
+        {
             ApiError::bad("coverage", format!("`coverage`: {allowed}"), allowed)
         }
         other => ApiError::internal(format!("the calibration: {other}")),

@@ -23,6 +23,7 @@ use crate::calibration::{Calibration, ModelIdentity};
 use crate::indices_eval::{
     model_indices, truth_indices, write_indices, IndexInputs, ModelIndices, StoredColumns,
 };
+use crate::Result;
 use atomic_file::write_atomic;
 use candle_core::{DType, Device, Tensor};
 use pino_learn::checkpoint::{load_model, ModelMeta};
@@ -37,7 +38,7 @@ use pino_learn::model::Fno;
 use pino_learn::norm::Normalisation;
 use pino_learn::spectral::Transform;
 use pino_learn::train::read_history;
-use pino_learn::{Error, Result};
+use pino_learn::Error as LearnError;
 
 /// Name of Table 4's truth row.
 pub const TRUTH_NAME: &str = "truth (exact solutions, central differences)";
@@ -630,11 +631,8 @@ pub fn plot_channels(
     names
         .iter()
         .map(|name| {
-            layout
-                .dofs
-                .iter()
-                .position(|d| d == name)
-                .ok_or_else(|| Error::OutOfRange {
+            layout.dofs.iter().position(|d| d == name).ok_or_else(|| {
+                LearnError::OutOfRange {
                     field: "plot_channels".into(),
                     value: name.clone(),
                     allowed: format!(
@@ -642,7 +640,9 @@ pub fn plot_channels(
                         system.name,
                         layout.dofs.join(", ")
                     ),
-                })
+                }
+                .into()
+            })
         })
         .collect()
 }
@@ -656,10 +656,11 @@ pub fn scored_split(params_file: &Path) -> Result<Split> {
     } else if present.contains(&Split::Validation) {
         Ok(Split::Validation)
     } else {
-        Err(Error::Dataset {
+        Err(LearnError::Dataset {
             path: params_file.to_owned(),
             message: "no sample of split `test` or `validation` to score".into(),
-        })
+        }
+        .into())
     }
 }
 
@@ -731,10 +732,11 @@ pub fn evaluate(
         check_same_grid(dir, &meta, ds, simulation_files)?;
         let idx: Vec<usize> = (0..items.len()).collect();
         if idx.is_empty() {
-            return Err(Error::Dataset {
+            return Err(LearnError::Dataset {
                 path: params_file.to_owned(),
                 message: format!("no simulated sample of split `{}`", split.as_str()),
-            });
+            }
+            .into());
         }
         let ctx = LossContext::new(
             meta.train,
@@ -891,13 +893,13 @@ fn check_same_system(
     if meta.system.hash() == info.source.hash() && meta.layout == *layout {
         return Ok(());
     }
-    Err(Error::Format {
+    Err(LearnError::Format {
         path: dir.join("model.json"),
         message: format!(
             "the model was trained on another system description ({}) than the dataset's ({}): retrain it on this dataset",
             meta.system.file, info.source.file
         ),
-    })
+    }.into())
 }
 
 /// Refuses a model trained on another time grid than the dataset window's.
@@ -910,7 +912,7 @@ fn check_same_grid(
     if ds.t_points() == meta.grid.t_points && (ds.dt - meta.grid.dt).abs() <= 1e-9 * meta.grid.dt {
         return Ok(());
     }
-    Err(Error::Dataset {
+    Err(LearnError::Dataset {
         path: simulation_files.first().cloned().unwrap_or_default(),
         message: format!(
             "model {} was trained on {} points at dt {} s, the dataset window has {} points at dt {} s",
@@ -920,7 +922,7 @@ fn check_same_grid(
             ds.t_points(),
             ds.dt
         ),
-    })
+    }.into())
 }
 
 /// The calibrated models' coverage on the scored split, gathered model by model.

@@ -20,6 +20,7 @@
 //! (per algorithm and sample: predicted and exact) and `indices_scatter_<index>.png`.
 
 use crate::eval::{alg_label, exact_physical, to_physical, Physical};
+use crate::Result;
 use atomic_file::write_atomic;
 use mbd_system::system::Quantity;
 use mbd_system::System;
@@ -31,7 +32,7 @@ use pino_learn::config::WindowConfig;
 use pino_learn::data::{Prepared, Split};
 use pino_learn::layout::Layout;
 use pino_learn::residual::ChannelMap;
-use pino_learn::{Error, Result};
+use pino_learn::Error as LearnError;
 use report::csv::write_csv;
 use report::plot::{write_png, Figure, Panel, Series, BLACK, PALETTE, RED};
 use std::collections::{BTreeMap, BTreeSet};
@@ -214,7 +215,7 @@ impl StoredColumns {
                         .collect();
                     by_id.insert(rec.id, cut);
                 }
-                Ok::<(), Error>(())
+                Ok::<(), LearnError>(())
             })?;
         }
         Ok(Self {
@@ -260,16 +261,15 @@ pub struct ModelIndices {
 /// The settings `evaluate` uses: the stage's defaults with no start-up (the model's window
 /// already dropped it).
 pub fn eval_config() -> Result<IndexConfig> {
-    IndexParams {
+    let params = IndexParams {
         window_start_fraction: 0.0,
         ..IndexParams::default()
-    }
-    .validate()
-    .map_err(|e| Error::OutOfRange {
+    };
+    Ok(params.validate().map_err(|e| LearnError::OutOfRange {
         field: "indices".into(),
         value: e.to_string(),
         allowed: "valid index parameters".into(),
-    })
+    })?)
 }
 
 /// The index inputs of one side of one sample, on the interior points `1..T-1`.
@@ -300,7 +300,7 @@ fn sample_columns(
     for (name, source) in &inputs.sources {
         let u = |c: usize| -> Vec<f64> { interior.clone().map(|r| side.u[r * o + c]).collect() };
         let values: Vec<f64> = if let Some(stored) = exact.filter(|_| source.exact_is_stored()) {
-            let col = stored.get(id, name).ok_or_else(|| Error::Dataset {
+            let col = stored.get(id, name).ok_or_else(|| LearnError::Dataset {
                 path: PathBuf::from("evaluate"),
                 message: format!("sample {id}: stored column `{name}` not read"),
             })?;
@@ -341,10 +341,11 @@ fn sample_columns(
                         )?),
                     };
                     let Some(reader) = map.deflection(eq, el) else {
-                        return Err(Error::Dataset {
+                        return Err(LearnError::Dataset {
                             path: PathBuf::from("evaluate"),
                             message: format!("`{name}`: not derivable from the outputs"),
-                        });
+                        }
+                        .into());
                     };
                     interior
                         .clone()
@@ -394,7 +395,7 @@ impl IndexInputs {
         let (v, railway) = self
             .set
             .compute(system, &values, &get, dt, cfg)
-            .map_err(|e| Error::Dataset {
+            .map_err(|e| LearnError::Dataset {
                 path: PathBuf::from(if exact.is_some() {
                     "solver"
                 } else {

@@ -19,13 +19,16 @@
 //! - [`solve`]: a design through the exact solver in a prediction's form (the explorer's
 //!   "Solve exactly", the studies' solver checks).
 //!
-//! Errors are the engine's ([`pino_learn::Error`]): each names the file, field or tensor at
-//! fault.
+//! Errors ([`error`]) are the engine's ([`pino_learn::Error`]), each naming the file, field or
+//! tensor at fault, or a report file's.
 #![warn(missing_docs)]
 
 pub mod calibration;
+pub mod error;
 pub mod eval;
 pub mod indices_eval;
 pub mod predict;
 pub mod solve;
 pub mod study;
+
+pub use error::{Error, Result};

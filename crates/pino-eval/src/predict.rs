@@ -26,6 +26,7 @@ use crate::calibration::difficulty::ResidualProbe;
 use crate::calibration::{CalibratedAnswer, Calibration, ModelIdentity};
 use crate::eval::{to_physical, Physical};
 use crate::indices_eval::{eval_config, IndexInputs, SampleIndices};
+use crate::Result;
 use candle_core::{Device, Tensor};
 use mbd_engine::{Excitations, Profile, RunConfig};
 use mbd_system::model::FieldError;
@@ -38,16 +39,17 @@ use pino_learn::data::input_block;
 use pino_learn::layout::Layout;
 use pino_learn::model::Fno;
 use pino_learn::spectral::Transform;
-use pino_learn::{Error, Result};
+use pino_learn::Error as LearnError;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
-fn fmt_err(path: &Path, message: String) -> Error {
-    Error::Format {
+fn fmt_err(path: &Path, message: String) -> crate::Error {
+    LearnError::Format {
         path: path.to_owned(),
         message,
     }
+    .into()
 }
 
 /// The design parameters of a model's system: its sampled parameters, by name, with their
@@ -125,9 +127,10 @@ impl DesignSpace {
     /// `label` = `design`) and its value, and says which field of the description it makes
     /// leave its domain ([`DesignSpace::blame`]).
     pub fn check(&self, design: &[f64], label: &str) -> Result<mbd_system::model::Model> {
-        self.system
+        Ok(self
+            .system
             .instantiate(design)
-            .map_err(|e| self.blame(design, label, &e))
+            .map_err(|e| self.blame(design, label, &e))?)
     }
 
     /// The design parameter a field out of its domain is blamed on: among the sampled
@@ -137,12 +140,12 @@ impl DesignSpace {
     /// invalid and its value there (with the other changed parameters it was computed with).
     /// A field that no design parameter reaches is named as the description's
     /// (`{label}: {path}`).
-    pub fn blame(&self, design: &[f64], label: &str, e: &FieldError) -> Error {
+    pub fn blame(&self, design: &[f64], label: &str, e: &FieldError) -> LearnError {
         let position = |name: &str| self.names.iter().position(|n| n == name);
         let changed = |k: &usize| design[*k] != self.nominal[*k];
         let sources: Vec<usize> = e.sources.iter().filter_map(|n| position(n)).collect();
         let Some(&k) = sources.iter().find(|k| changed(k)).or(sources.first()) else {
-            return Error::OutOfRange {
+            return LearnError::OutOfRange {
                 field: format!("{label}: {}", e.path),
                 value: e.value.to_string(),
                 allowed: e.allowed.clone(),
@@ -167,7 +170,7 @@ impl DesignSpace {
                 e.path, e.allowed, e.value
             )
         };
-        Error::OutOfRange {
+        LearnError::OutOfRange {
             field: format!("{label}.{name}"),
             value: design[k].to_string(),
             allowed,
@@ -187,7 +190,7 @@ impl DesignSpace {
         label: &str,
         why: &str,
         runs: impl Fn(&[f64]) -> bool,
-    ) -> Error {
+    ) -> crate::Error {
         let exprs =
             std::iter::once(&self.system.speed).chain(self.system.points.iter().map(|p| &p.offset));
         let sources = self
@@ -220,14 +223,15 @@ impl DesignSpace {
             let above = bad > good;
             let limit = round_towards(good, 6, !above);
             let limit = if runs(&with(limit)) { limit } else { good };
-            return Error::OutOfRange {
+            return LearnError::OutOfRange {
                 field: format!("{label}.{name}"),
                 value: design[k].to_string(),
                 allowed: format!(
                     "{} {limit} with the rest of this design: {why}",
                     if above { "at most" } else { "at least" }
                 ),
-            };
+            }
+            .into();
         }
         fmt_err(Path::new(label), why.to_owned())
     }
@@ -822,13 +826,13 @@ impl Predictor {
             Some(i) => format!("; trained on [{}, {}]", ranges.min[i], ranges.max[i]),
             None => String::new(),
         };
-        Err(Error::OutOfRange {
+        Err(LearnError::OutOfRange {
             field: format!("{label}.{name}"),
             value: design[j].to_string(),
             allowed: format!(
                 "a value the network can read (z-scored by its training data, this one overflows single precision){trained}"
             ),
-        })
+        }.into())
     }
 
     /// Predicts designs `sets` (the first numbered `first`) in one forward pass.
@@ -1451,11 +1455,11 @@ mod tests {
         design[k] = 1e6;
         let err = sp.blame_run(&design, "design", "too far", runs);
         match &err {
-            Error::OutOfRange {
+            crate::Error::Learn(LearnError::OutOfRange {
                 field,
                 value,
                 allowed,
-            } => {
+            }) => {
                 assert_eq!(field, "design.v_kmh");
                 assert_eq!(value, "1000000");
                 assert_eq!(

@@ -97,9 +97,6 @@ pub enum Error {
     /// The data layer failed (missing column, unreadable file, ...).
     #[error(transparent)]
     Data(#[from] pino_data::Error),
-    /// Writing a report file (CSV, Markdown, PNG) failed (evaluation and prediction, `pino-eval`).
-    #[error(transparent)]
-    Report(#[from] report::Error),
     /// candle failed.
     #[error("tensor: {0}")]
     Tensor(#[from] candle_core::Error),

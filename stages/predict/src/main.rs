@@ -223,7 +223,7 @@ fn calibration_level(predictor: &mut Predictor, args: &Args) -> Result<Option<f6
         );
         return Ok(None);
     };
-    let refused = |e: pino_learn::Error| Refused(format!("--calibration {}: {e}", path.display()));
+    let refused = |e: pino_eval::Error| Refused(format!("--calibration {}: {e}", path.display()));
     let cal = predictor.load_calibration(path).map_err(refused)?;
     if let Some(why) = &cal.no_intervals {
         eprintln!("predict: note: {}: no intervals: {why}", path.display());

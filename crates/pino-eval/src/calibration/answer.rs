@@ -10,9 +10,10 @@
 use super::difficulty::{relative_residual, ResidualProbe};
 use super::{Calibration, HeadInput, Normaliser, QuantityScores};
 use crate::eval::Physical;
+use crate::Result;
 use mbd_system::System;
 use pino_conformal::{Interval, Verdict};
-use pino_learn::{Error, Result};
+use pino_learn::Error as LearnError;
 
 /// Smallest relative residual used as a difficulty (a prediction satisfying its equations to
 /// round-off must not get a zero-width interval).
@@ -61,23 +62,27 @@ impl Calibration {
     /// The calibration at `coverage`: refused when it has no intervals, or when the level is
     /// outside (0, 1) or above what its `n` samples support.
     pub fn at(&self, coverage: f64) -> Result<Calibrated<'_>> {
-        let level = |e: pino_conformal::Error| Error::OutOfRange {
-            field: "coverage".into(),
-            value: coverage.to_string(),
-            allowed: e.to_string(),
+        let level = |e: pino_conformal::Error| -> crate::Error {
+            LearnError::OutOfRange {
+                field: "coverage".into(),
+                value: coverage.to_string(),
+                allowed: e.to_string(),
+            }
+            .into()
         };
         pino_conformal::check_coverage(coverage).map_err(level)?;
         if let Some(why) = &self.no_intervals {
-            return Err(Error::OutOfRange {
+            return Err(LearnError::OutOfRange {
                 field: "calibration".into(),
                 value: format!("{} samples", self.n),
                 allowed: format!("a calibration with samples: {why}"),
-            });
+            }
+            .into());
         }
         let q = |s: &QuantityScores| -> Result<f64> {
             s.scores
                 .get(&self.normaliser)
-                .ok_or_else(|| Error::OutOfRange {
+                .ok_or_else(|| LearnError::OutOfRange {
                     field: format!("calibration: `{}`", s.name),
                     value: self.normaliser.as_str().into(),
                     allowed: "a normaliser with scores".into(),
@@ -143,22 +148,22 @@ impl Calibration {
             Normaliser::Residual => d
                 .relative_residual
                 .map(|g| g.max(MIN_RELATIVE_RESIDUAL))
-                .ok_or_else(|| Error::OutOfRange {
+                .ok_or_else(|| LearnError::OutOfRange {
                     field: "normaliser".into(),
                     value: "residual".into(),
                     allowed: "`none` or `error_head`: the model's predictions have no physics residual (no DOF has an equation with its outputs)".into(),
-                }),
+                }.into()),
             Normaliser::ErrorHead => {
-                let head = q.head.as_ref().ok_or_else(|| Error::OutOfRange {
+                let head = q.head.as_ref().ok_or_else(|| LearnError::OutOfRange {
                     field: format!("calibration: `{}`", q.name),
                     value: "error_head".into(),
                     allowed: "a quantity with an error head".into(),
                 })?;
-                head.sigma(&d.features).map_err(|e| Error::OutOfRange {
+                Ok(head.sigma(&d.features).map_err(|e| LearnError::OutOfRange {
                     field: format!("calibration: `{}`", q.name),
                     value: "error_head".into(),
                     allowed: e.to_string(),
-                })
+                })?)
             }
         }
     }
@@ -180,11 +185,12 @@ impl Calibrated<'_> {
         let with_indices = !indices.is_empty();
         if with_indices && (indices.len() != cal.indices.len() || limits.len() != cal.indices.len())
         {
-            return Err(Error::OutOfRange {
+            return Err(LearnError::OutOfRange {
                 field: "calibration: indices".into(),
                 value: format!("{} values, {} limits", indices.len(), limits.len()),
                 allowed: format!("the calibration's {} indices", cal.indices.len()),
-            });
+            }
+            .into());
         }
         let mut intervals = Vec::with_capacity(indices.len());
         for ((q, s), &f) in self.index_q.iter().zip(&cal.indices).zip(indices) {

@@ -17,13 +17,14 @@ use super::{
 };
 use crate::eval::{EvalData, ScoredData};
 use crate::indices_eval::{IndexInputs, StoredColumns};
+use crate::Result;
 use candle_core::Device;
 use pino_conformal::{sup_score, ErrorHead, ScoreSet};
 use pino_learn::checkpoint::{load_model, ModelMeta};
 use pino_learn::data::{Prepared, Split};
 use pino_learn::layout::Layout;
 use pino_learn::spectral::Transform;
-use pino_learn::{Error, Result};
+use pino_learn::Error as LearnError;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -52,25 +53,28 @@ impl CalibrateParams {
     /// Checks the ranges.
     pub fn validate(&self) -> Result<()> {
         if !(self.ridge >= 0.0 && self.ridge.is_finite()) {
-            return Err(Error::OutOfRange {
+            return Err(LearnError::OutOfRange {
                 field: "ridge".into(),
                 value: self.ridge.to_string(),
                 allowed: "a finite number >= 0".into(),
-            });
+            }
+            .into());
         }
         if self.head_inputs.is_empty() {
-            return Err(Error::OutOfRange {
+            return Err(LearnError::OutOfRange {
                 field: "head_inputs".into(),
                 value: "[]".into(),
                 allowed: "a list of `parameters` and/or `residual`".into(),
-            });
+            }
+            .into());
         }
         if self.batch_size == 0 {
-            return Err(Error::OutOfRange {
+            return Err(LearnError::OutOfRange {
                 field: "batch_size".into(),
                 value: "0".into(),
                 allowed: "an integer >= 1".into(),
-            });
+            }
+            .into());
         }
         Ok(())
     }
@@ -111,14 +115,15 @@ pub fn calibrate(
         check_model(dir, &meta, data, &layout)?;
         let identity = ModelIdentity::of(dir)?;
         if let Some(other) = seen.insert(identity.algorithm, dir.clone()) {
-            return Err(Error::OutOfRange {
+            return Err(LearnError::OutOfRange {
                 field: "models".into(),
                 value: format!("{} and {}", other.display(), dir.display()),
                 allowed: format!(
                     "one model per algorithm (both are algorithm {})",
                     identity.algorithm
                 ),
-            });
+            }
+            .into());
         }
         let load = |split: Split| -> Result<(Prepared, StoredColumns)> {
             let scored = ScoredData::load(data, split, &meta, &inputs)?;
@@ -153,7 +158,7 @@ pub fn calibrate(
         };
         let calibration = ctx.calibration(identity, design, &layout, &inputs, &fit, &cal)?;
         let sub = out.join(model_subdir(calibration.model.algorithm));
-        std::fs::create_dir_all(&sub).map_err(|e| Error::Io {
+        std::fs::create_dir_all(&sub).map_err(|e| LearnError::Io {
             path: sub.clone(),
             source: e,
         })?;
@@ -176,23 +181,23 @@ pub fn calibrate(
 fn check_model(dir: &Path, meta: &ModelMeta, data: &EvalData<'_>, layout: &Layout) -> Result<()> {
     let path = dir.join(pino_learn::checkpoint::MODEL_META);
     if meta.system.hash() != data.info.source.hash() || meta.layout != *layout {
-        return Err(Error::Format {
+        return Err(LearnError::Format {
             path,
             message: format!(
                 "the model was trained on another system description ({}) than the dataset's ({}): calibrate it on its own dataset",
                 meta.system.file, data.info.source.file
             ),
-        });
+        }.into());
     }
     let ranges = pino_learn::checkpoint::TrainingRanges::of(&data.info.system);
     if ranges.names != meta.training_ranges.names
         || ranges.min != meta.training_ranges.min
         || ranges.max != meta.training_ranges.max
     {
-        return Err(Error::Format {
+        return Err(LearnError::Format {
             path,
             message: "the model's training ranges differ from the dataset's sampling ranges: its calibration samples would come from another design".into(),
-        });
+        }.into());
     }
     Ok(())
 }
@@ -227,7 +232,7 @@ impl SplitErrors {
         );
         let mut channel = Vec::with_capacity(scales.len());
         for ((p, x), sc) in s.predicted.iter().zip(&s.exact).zip(scales) {
-            channel.push(sup_score(p, x, sc).map_err(|e| Error::Dataset {
+            channel.push(sup_score(p, x, sc).map_err(|e| LearnError::Dataset {
                 path: PathBuf::from("calibrate"),
                 message: format!("sample {}: {e}", s.id),
             })?);
@@ -299,17 +304,17 @@ impl Fitting<'_> {
             return Ok(calibration);
         }
         if fit.0.is_empty() {
-            return Err(Error::Dataset {
+            return Err(LearnError::Dataset {
                 path: PathBuf::from("calibrate"),
                 message: "no simulated sample of split `validation`: the bands' time scales and the error heads are fitted on it".into(),
-            });
+            }.into());
         }
         if self.params.normaliser == Normaliser::Residual && !self.scorer.has_residual() {
-            return Err(Error::OutOfRange {
+            return Err(LearnError::OutOfRange {
                 field: "normaliser".into(),
                 value: "residual".into(),
                 allowed: "`none` or `error_head`: no DOF of this model has an equation with its outputs, so its predictions have no physics residual".into(),
-            });
+            }.into());
         }
         // Pass 1: each channel's time scale over the validation split.
         let scales = self.time_scales(fit)?;
@@ -415,11 +420,12 @@ impl Fitting<'_> {
         let head = match ErrorHead::fit(feats, &errors.validation, self.params.ridge) {
             Ok(h) => Some(h),
             Err(e) if self.params.normaliser == Normaliser::ErrorHead => {
-                return Err(Error::OutOfRange {
+                return Err(LearnError::OutOfRange {
                     field: format!("normaliser (`{}`)", name.name),
                     value: "error_head".into(),
                     allowed: format!("an error head fitted on the validation split: {e}"),
-                })
+                }
+                .into())
             }
             Err(_) => None,
         };
@@ -442,7 +448,7 @@ impl Fitting<'_> {
                 .zip(&sigmas)
                 .map(|(e, s)| e / s)
                 .collect();
-            let set = ScoreSet::new(scores).map_err(|e| Error::Dataset {
+            let set = ScoreSet::new(scores).map_err(|e| LearnError::Dataset {
                 path: PathBuf::from("calibrate"),
                 message: format!("`{}` ({}): {e}", name.name, normaliser.as_str()),
             })?;

@@ -10,7 +10,7 @@ use super::answer::Difficulty;
 use super::difficulty::relative_residual;
 use super::scored::ScoredSample;
 use super::{Calibration, Normaliser, QuantityScores, DEFAULT_COVERAGE, REPORTED_LEVELS};
-use pino_learn::Result;
+use crate::Result;
 
 /// One row of the coverage table.
 #[derive(Debug, Clone, PartialEq)]

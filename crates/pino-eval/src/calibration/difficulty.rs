@@ -19,11 +19,11 @@
 //! (`mbd_engine::residual::Equations`), nonlinear contacts included.
 
 use crate::eval::Physical;
+use crate::Result;
 use mbd_engine::residual::EquationState;
 use mbd_system::System;
 use pino_learn::layout::Layout;
 use pino_learn::residual::{sample_equations, ChannelMap};
-use pino_learn::Result;
 
 /// The residual is evaluated at every `RESIDUAL_STRIDE`-th interior point: its RMS over a
 /// window is an average (500 points of a 2000-point window), as good a ranking of designs as

@@ -28,9 +28,10 @@ pub mod scored;
 
 pub use answer::{Calibrated, CalibratedAnswer};
 
+use crate::Result;
 pub use pino_conformal::scores::{max_coverage, rank as conformal_rank};
 use pino_conformal::{ErrorHead, ScoreSet};
-use pino_learn::{Error, Result};
+use pino_learn::Error as LearnError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -109,7 +110,7 @@ impl ModelIdentity {
         let mut meta_text = String::new();
         for name in [pino_learn::checkpoint::MODEL_META, MODEL_WEIGHTS] {
             let path = dir.join(name);
-            let bytes = std::fs::read(&path).map_err(|e| Error::Io {
+            let bytes = std::fs::read(&path).map_err(|e| LearnError::Io {
                 path: path.clone(),
                 source: e,
             })?;
@@ -121,7 +122,7 @@ impl ModelIdentity {
             h.update(&bytes);
         }
         let meta: pino_learn::checkpoint::ModelMeta =
-            serde_json::from_str(&meta_text).map_err(|e| Error::Format {
+            serde_json::from_str(&meta_text).map_err(|e| LearnError::Format {
                 path: dir.join(pino_learn::checkpoint::MODEL_META),
                 message: e.to_string(),
             })?;
@@ -210,11 +211,12 @@ pub struct Calibration {
     pub channels: Vec<ChannelBand>,
 }
 
-fn format_err(path: &Path, message: String) -> Error {
-    Error::Format {
+fn format_err(path: &Path, message: String) -> crate::Error {
+    LearnError::Format {
         path: path.to_owned(),
         message,
     }
+    .into()
 }
 
 impl Calibration {
@@ -223,7 +225,7 @@ impl Calibration {
     /// chosen). Refused, naming the file, when it is missing, corrupt, or of another model.
     pub fn load(path: &Path, model: &ModelIdentity) -> Result<Self> {
         let file = Self::find(path, model)?;
-        let text = std::fs::read_to_string(&file).map_err(|e| Error::Io {
+        let text = std::fs::read_to_string(&file).map_err(|e| LearnError::Io {
             path: file.clone(),
             source: e,
         })?;
@@ -270,7 +272,7 @@ impl Calibration {
             return Ok(direct);
         }
         let mut candidates = Vec::new();
-        let entries = std::fs::read_dir(path).map_err(|e| Error::Io {
+        let entries = std::fs::read_dir(path).map_err(|e| LearnError::Io {
             path: path.to_owned(),
             source: e,
         })?;
@@ -364,7 +366,7 @@ impl Calibration {
 
     /// Writes `calibration.json` into `dir` (atomically).
     pub fn write(&self, dir: &Path) -> Result<()> {
-        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Format {
+        let text = serde_json::to_string_pretty(self).map_err(|e| LearnError::Format {
             path: dir.join(CALIBRATION_FILE),
             message: e.to_string(),
         })?;

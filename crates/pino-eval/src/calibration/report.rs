@@ -3,9 +3,9 @@
 
 use super::coverage::{ConditionalRow, CoverageRow};
 use super::{Calibration, Normaliser, DEFAULT_COVERAGE};
+use crate::Result;
 use atomic_file::write_atomic;
 use pino_data::{write_parquet, Column, Table};
-use pino_learn::Result;
 use report::csv::write_csv;
 use std::path::Path;
 

@@ -11,6 +11,7 @@
 use super::difficulty::ResidualProbe;
 use crate::eval::{exact_physical, to_physical, Physical};
 use crate::indices_eval::{eval_config, IndexInputs, StoredColumns};
+use crate::Result;
 use candle_core::Device;
 use mbd_system::System;
 use pino_indices::IndexConfig;
@@ -19,7 +20,6 @@ use pino_learn::data::Prepared;
 use pino_learn::infer::predict_samples;
 use pino_learn::layout::Layout;
 use pino_learn::model::Fno;
-use pino_learn::Result;
 
 /// Samples predicted per chunk.
 const CHUNK: usize = 32;

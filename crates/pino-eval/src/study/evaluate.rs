@@ -6,9 +6,9 @@
 use super::spec::StudyParams;
 use crate::predict::{DesignAnswer, GeneratedProfiles, Predictor, ProfileSource};
 use crate::solve::{exact, exact_indices};
+use crate::Result;
 use mbd_engine::RunConfig;
 use pino_indices::IndexConfig;
-use pino_learn::Result;
 use rayon::prelude::*;
 
 /// What a study evaluates with: the model, its run controls, the index settings and the

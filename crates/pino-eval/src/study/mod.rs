@@ -35,10 +35,11 @@ pub mod source {
 
 use crate::indices_eval::IndexInputs;
 use crate::predict::Predictor;
+use crate::Result;
 use candle_core::Device;
 use mbd_system::System;
 use pino_learn::layout::Layout;
-use pino_learn::{Error, Result};
+use pino_learn::Error as LearnError;
 use std::path::{Path, PathBuf};
 
 /// The sampled parameters of `system` with their sampling ranges (description order).
@@ -73,11 +74,12 @@ pub fn index_names(system: &System) -> Result<Vec<String>> {
 }
 
 /// A refusal of a declaration, named by its field (`study.<name>.<field>: ...`).
-fn spec_error(e: spec::SpecError) -> Error {
-    Error::Format {
+fn spec_error(e: spec::SpecError) -> crate::Error {
+    LearnError::Format {
         path: format!("study.{}.{}", e.study, e.field).into(),
         message: format!("{} (docs/studies.md)", e.message),
     }
+    .into()
 }
 
 /// Checks the study of `params` against `system` before anything runs.
@@ -110,7 +112,7 @@ pub fn run(
             break;
         }
     }
-    let mut predictor = predictor.ok_or_else(|| Error::OutOfRange {
+    let mut predictor = predictor.ok_or_else(|| LearnError::OutOfRange {
         field: "algorithm".into(),
         value: params.algorithm.to_string(),
         allowed: format!("an algorithm among the {} trained models", models.len()),

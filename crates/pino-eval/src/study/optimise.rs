@@ -23,8 +23,9 @@
 use super::evaluate::{spread, Evaluator, Solved};
 use super::spec::{Optimise, Robust, Study};
 use crate::predict::DesignAnswer;
+use crate::Result;
 use mbd_dataset::{Purpose, SampleStream};
-use pino_learn::{Error, Result};
+use pino_learn::Error as LearnError;
 use pino_studies::optimise::{better, minimise, Evaluation, Settings, Step};
 use pino_studies::Distribution;
 use std::collections::HashMap;
@@ -198,7 +199,7 @@ fn objective_and_limits(
         columns
             .iter()
             .position(|c| c.name == name)
-            .ok_or_else(|| Error::OutOfRange {
+            .ok_or_else(|| LearnError::OutOfRange {
                 field: format!("study.{}", study.name),
                 value: name.to_owned(),
                 allowed: "an index of the model".into(),
@@ -381,7 +382,7 @@ pub fn run(
             starts,
         },
     )
-    .map_err(|e| Error::OutOfRange {
+    .map_err(|e| LearnError::OutOfRange {
         field: format!("study.{}", study.name),
         value: "the search".into(),
         allowed: e.to_string(),
@@ -394,7 +395,7 @@ pub fn run(
     for step in &outcome.history {
         let design = to_design(&step.u);
         let key = design_key(&design);
-        let a = cache.get(&key).cloned().ok_or_else(|| Error::Format {
+        let a = cache.get(&key).cloned().ok_or_else(|| LearnError::Format {
             path: format!("study.{}", study.name).into(),
             message: "a candidate of the search has no recorded answers".into(),
         })?;

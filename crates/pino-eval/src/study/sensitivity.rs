@@ -19,7 +19,8 @@ use super::evaluate::{Evaluator, Solved};
 use super::source;
 use super::spec::{Study, EXCITATION_FACTOR};
 use crate::predict::DesignAnswer;
-use pino_learn::{Error, Result};
+use crate::Result;
+use pino_learn::Error as LearnError;
 use pino_studies::sobol::{self, Block, FactorIndices, Indices, SaltelliDesign};
 use std::time::Instant;
 
@@ -110,8 +111,8 @@ impl Sensitivity {
     }
 }
 
-fn estimator_error(study: &Study, e: pino_studies::Error) -> Error {
-    Error::Format {
+fn estimator_error(study: &Study, e: pino_studies::Error) -> LearnError {
+    LearnError::Format {
         path: format!("study.{}", study.name).into(),
         message: e.to_string(),
     }

@@ -76,7 +76,7 @@ pub struct StudyParams {
 
 impl StudyParams {
     /// Checks the shared settings.
-    pub fn validate(&self) -> pino_learn::Result<()> {
+    pub fn validate(&self) -> crate::Result<()> {
         let bad = |field: &str, value: String, allowed: &str| pino_learn::Error::OutOfRange {
             field: field.into(),
             value,
@@ -87,14 +87,15 @@ impl StudyParams {
                 .map_err(|e| bad(field, level.to_string(), &e.to_string()))?;
         }
         if self.batch_size == 0 {
-            return Err(bad("batch_size", "0".into(), ">= 1"));
+            return Err(bad("batch_size", "0".into(), ">= 1").into());
         }
         if self.bootstrap > 100_000 {
             return Err(bad(
                 "bootstrap",
                 self.bootstrap.to_string(),
                 "0 to 100000 replicates",
-            ));
+            )
+            .into());
         }
         Ok(())
     }

@@ -16,9 +16,10 @@ pub use sensitivity::write_sensitivity;
 use super::evaluate::Solved;
 use super::spec;
 use crate::predict::{DesignAnswer, Predictor};
+use crate::Result;
 use pino_data::units::{declare, DIMENSIONLESS};
 use pino_data::{Column, Table};
-use pino_learn::{Error, Result};
+use pino_learn::Error as LearnError;
 use pino_studies::stats::QUANTILES;
 use std::path::Path;
 
@@ -72,11 +73,12 @@ fn statistic_names() -> Vec<String> {
         .collect()
 }
 
-fn report_err(e: report::Error) -> Error {
-    Error::Format {
+fn report_err(e: report::Error) -> crate::Error {
+    LearnError::Format {
         path: "study".into(),
         message: e.to_string(),
     }
+    .into()
 }
 
 /// A number in a Markdown table (`-` when missing).

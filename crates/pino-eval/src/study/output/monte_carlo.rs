@@ -11,9 +11,9 @@ use super::{
 use crate::predict::{DesignAnswer, Predictor};
 use crate::study::monte_carlo::MonteCarlo;
 use crate::study::spec::Study;
+use crate::Result;
 use pino_data::units::{DIMENSIONLESS, PER_ROW, UNIT_KEY};
 use pino_data::{Column, Table};
-use pino_learn::Result;
 use pino_studies::stats::Interval;
 use std::path::Path;
 

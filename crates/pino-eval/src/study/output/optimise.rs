@@ -16,9 +16,9 @@ use crate::study::evaluate::Solved;
 use crate::study::optimise::{describe, Judged, Optimisation, Role};
 use crate::study::source;
 use crate::study::spec::{Optimise, Study};
+use crate::Result;
 use pino_data::units::DIMENSIONLESS;
 use pino_data::{Column, Table};
-use pino_learn::Result;
 use std::path::Path;
 
 /// Column of a candidate's position in the search's history.

@@ -16,9 +16,9 @@ use crate::predict::{DesignAnswer, Predictor};
 use crate::study::sensitivity::{rankings, Evaluation, Sensitivity, RANKED};
 use crate::study::source;
 use crate::study::spec::Study;
+use crate::Result;
 use pino_data::units::DIMENSIONLESS;
 use pino_data::{Column, Table};
-use pino_learn::Result;
 use pino_studies::sobol::Block;
 use std::path::Path;
 
