@@ -7,7 +7,7 @@
 use crate::arrow::{import, ArrowTable};
 use crate::designs::designs;
 use crate::error::{to_py, value_error};
-use pino_eval::predict::{outside_flag, Predictor, ProfileChoice, OUTSIDE_COLUMN};
+use pino_eval::predict::{outside_flag, Predictor, ProfileChoice};
 use pino_learn::config::DeviceKind;
 use pyo3::prelude::*;
 use pyo3::types::PyString;
@@ -159,20 +159,9 @@ impl PyModel {
         let c = self.call(designs, excitation, excitation_id, x0, strict)?;
         let p = &self.predictor;
         let level = p.interval_level(coverage).map_err(to_py)?;
-        let table = py.detach(|| -> PyResult<_> {
-            let mut table = p
-                .histories(&c.sets, &c.profiles, &c.run, batch, level)
-                .map_err(to_py)?;
-            let per_row = (table.num_rows() / c.sets.len().max(1)).max(1);
-            let rows: Vec<String> = c
-                .outside
-                .iter()
-                .flat_map(|o| std::iter::repeat_n(outside_flag(o), per_row))
-                .collect();
-            table
-                .push(OUTSIDE_COLUMN, pino_data::Column::Str(rows))
-                .map_err(to_py)?;
-            Ok(table)
+        let table = py.detach(|| {
+            p.histories_flagged(&c.sets, &c.profiles, &c.run, batch, level)
+                .map_err(to_py)
         })?;
         ArrowTable::new(table, "predict")
     }

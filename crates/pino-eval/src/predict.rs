@@ -20,7 +20,8 @@
 //! over ranges. [`Predictor`] runs them in batches (side by side on the CPU) and computes the
 //! description's engineering indices ([`Predictor::indices`], as `evaluate` rebuilds them from
 //! a prediction). Designs outside the model's training ranges
-//! ([`pino_learn::checkpoint::TrainingRanges`]) are reported by [`Predictor::outside_training`].
+//! ([`pino_learn::checkpoint::TrainingRanges`]) are reported by [`Predictor::outside_training`]
+//! and flagged on every row of their histories ([`Predictor::histories_flagged`]).
 
 use crate::calibration::difficulty::ResidualProbe;
 use crate::calibration::{CalibratedAnswer, Calibration, ModelIdentity};
@@ -1003,6 +1004,28 @@ impl Predictor {
                 table.push(&format!("{name}_hi"), Column::F64(h))?;
             }
         }
+        Ok(table)
+    }
+
+    /// [`Predictor::histories`] with the column [`OUTSIDE_COLUMN`] last: on each row, the
+    /// [`outside_flag`] of its design ([`Predictor::outside_training`]). The table of
+    /// `predict --out` and of the Python package's `Model.predict`.
+    pub fn histories_flagged(
+        &self,
+        sets: &[Vec<f64>],
+        profiles: &[Option<Profile>],
+        run: &RunConfig,
+        batch: usize,
+        coverage: Option<f64>,
+    ) -> Result<Table> {
+        let mut table = self.histories(sets, profiles, run, batch, coverage)?;
+        let per_row = (table.num_rows() / sets.len().max(1)).max(1);
+        let rows: Vec<String> = self
+            .outside_training(sets)
+            .iter()
+            .flat_map(|o| std::iter::repeat_n(outside_flag(o), per_row))
+            .collect();
+        table.push(OUTSIDE_COLUMN, Column::Str(rows))?;
         Ok(table)
     }
 

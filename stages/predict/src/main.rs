@@ -175,21 +175,12 @@ fn run() -> Result<()> {
         }
         eprintln!("predict: warning: {msg} (flagged in column `{OUTSIDE_COLUMN}`)");
     }
-    let flags: Vec<String> = outside
-        .iter()
-        .map(|o| pino_eval::predict::outside_flag(o))
-        .collect();
     pino_data::metadata::set_origin(origin(&args, space.names(), &sets, &run_config))?;
     let started = std::time::Instant::now();
     let mut wrote = Vec::new();
     if let (Some(out), false) = (&args.out, args.indices_only) {
-        let mut table = predictor.histories(&sets, &profiles, &run_config, args.batch, coverage)?;
-        let per_row = (table.num_rows() / sets.len().max(1)).max(1);
-        let rows: Vec<String> = flags
-            .iter()
-            .flat_map(|f| std::iter::repeat_n(f.clone(), per_row))
-            .collect();
-        table.push(OUTSIDE_COLUMN, pino_data::Column::Str(rows))?;
+        let table =
+            predictor.histories_flagged(&sets, &profiles, &run_config, args.batch, coverage)?;
         pino_data::write_parquet(out, &table)?;
         wrote.push(out.display().to_string());
     }
