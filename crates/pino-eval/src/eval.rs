@@ -738,14 +738,7 @@ pub fn evaluate(
             }
             .into());
         }
-        let ctx = LossContext::new(
-            meta.train,
-            meta.norm.clone(),
-            meta.grid.dt,
-            meta.f_ref,
-            meta.layout.clone(),
-            system.clone(),
-        );
+        let ctx = LossContext::of_model(&meta, system.clone());
         let sc = score_split(&model, &ctx, items, &idx, opts.batch_size, device)?;
         let mean = |v: &[f64]| 100.0 * v.iter().sum::<f64>() / v.len() as f64;
         let table4 = [mean(&sc.model[0]), mean(&sc.model[1]), mean(&sc.model[2])];
@@ -1313,14 +1306,7 @@ mod tests {
         let meta = model_meta(&ds, m, t, w).unwrap();
         // The scored split alone, as `evaluate` reads it.
         let (_, items) = files.load_split(&w, Split::Test, &meta.norm).unwrap();
-        let ctx = LossContext::new(
-            meta.train,
-            meta.norm.clone(),
-            meta.grid.dt,
-            meta.f_ref,
-            meta.layout.clone(),
-            ds.system().clone(),
-        );
+        let ctx = LossContext::of_model(&meta, ds.system().clone());
         let test: Vec<usize> = (0..items.len()).collect();
         assert_eq!(test.len(), 2);
         Fixture {

@@ -12,6 +12,7 @@
 //!                                                         deflection channels)
 //! ```
 
+use crate::checkpoint::ModelMeta;
 use crate::config::{Algorithm, TrainConfig};
 use crate::data::Batch;
 use crate::layout::Layout;
@@ -87,6 +88,19 @@ impl LossContext {
             map,
             equations: EquationCache::default(),
         }
+    }
+
+    /// The losses a model was trained with ([`ModelMeta`]: its algorithm and weights,
+    /// normalisation, time step, force scale and layout), over its compiled `system`.
+    pub fn of_model(meta: &ModelMeta, system: Arc<System>) -> Self {
+        Self::new(
+            meta.train,
+            meta.norm.clone(),
+            meta.grid.dt,
+            meta.f_ref,
+            meta.layout.clone(),
+            system,
+        )
     }
 
     /// The channel layout.

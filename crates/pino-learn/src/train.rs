@@ -188,14 +188,7 @@ pub fn train(
         };
         (model, adam, state, None)
     };
-    let loss = LossContext::new(
-        cfg,
-        meta.norm.clone(),
-        ds.dt,
-        meta.f_ref,
-        ds.layout.clone(),
-        ds.system().clone(),
-    );
+    let loss = LossContext::of_model(&meta, ds.system().clone());
     let items = prepare(ds, &meta.norm)?;
     let t_points = ds.t_points();
     let started = Instant::now();
