@@ -68,7 +68,7 @@ impl PyModel {
         };
         let profiles = p.profiles(choice.as_ref()).map_err(to_py)?;
         let run = p.run_config(x0).map_err(to_py)?;
-        let outside = p.outside_training(&sets);
+        let outside = p.outside_training(&sets).map_err(to_py)?;
         if strict {
             if let Some(k) = outside.iter().position(|o| !o.is_empty()) {
                 return Err(value_error(format!(

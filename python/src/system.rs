@@ -337,12 +337,17 @@ fn simulate(
         .into_iter()
         .zip(profiles)
         .zip(&d.ids)
-        .map(|((params, profiles), &id)| SampleInput {
-            id: id as u64,
-            params,
-            profiles,
+        .map(|((params, profiles), &id)| {
+            let params = system
+                .sampled_values(params)
+                .map_err(|e| value_error(format!("designs: sample_id {id}: {e}")))?;
+            Ok(SampleInput {
+                id: id as u64,
+                params,
+                profiles,
+            })
         })
-        .collect();
+        .collect::<PyResult<_>>()?;
     inputs.sort_by_key(|s| s.id);
     let engines = mbd_engine::prepare(system, config, inputs)
         .map_err(|(id, e)| value_error(format!("designs: sample_id {id}: {e}")))?;

@@ -1089,7 +1089,9 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
             let corner: Vec<f64> = (0..ranges.len())
                 .map(|j| ranges[j][((mask >> j) & 1) as usize])
                 .collect();
-            let v = described.values(&corner);
+            let v = described
+                .values(&described.sampled_values(corner).unwrap())
+                .unwrap();
             let speed = described.speed.eval(&v);
             for e in &described.elements {
                 let (Some(prof), mbd_system::system::End::Moving(i)) = (e.profile, &e.to) else {
@@ -1239,11 +1241,14 @@ fn weights_without_noise_are_each_descriptions_residual_floor() {
                 .iter()
                 .position(|i| i == id)
                 .unwrap();
-            let sampled: Vec<f64> = described
-                .sampled_names()
-                .iter()
-                .map(|n| params.f64(n).unwrap()[p])
-                .collect();
+            let sampled = described
+                .sampled_by_name(
+                    described
+                        .sampled_names()
+                        .into_iter()
+                        .map(|n| (n, params.f64(n).unwrap()[p])),
+                )
+                .unwrap();
             let model = described.instantiate(&sampled).unwrap();
             let scale = mbd_engine::statics::contact_scale(&described, &model).unwrap();
             for c in &columns {

@@ -71,16 +71,9 @@ fn column(values: &[f64]) -> Column {
 /// The generic engine's run of `case`: its time column and its stored columns by name.
 fn run(case: &Case) -> (Vec<f64>, BTreeMap<String, Vec<f64>>) {
     let system = system();
-    let design: Vec<f64> = system
-        .sampled_names()
-        .iter()
-        .map(|n| {
-            *case
-                .params
-                .get(*n)
-                .unwrap_or_else(|| panic!("golden.json: no `{n}`"))
-        })
-        .collect();
+    let design = system
+        .sampled_by_name(case.params.iter().map(|(n, v)| (n, *v)))
+        .unwrap_or_else(|e| panic!("golden.json: {e}"));
     let model = system.instantiate(&design).unwrap();
     let generators = mbd_dataset::profile_generators(
         &system,

@@ -454,12 +454,12 @@ fn inside_json(ex: &Explorer, pred: &Response, exact: &Response) -> (Value, Valu
 
 /// The answer of a prediction or a solve of `req`: the curves and indices, the full design,
 /// the parameters outside the training ranges and the excitation used.
-fn answer(ex: &Explorer, req: &DesignRequest, r: &Response) -> Value {
+fn answer(ex: &Explorer, req: &DesignRequest, r: &Response) -> Result<Value, ApiError> {
     let mut v = response_json(ex, r, req.bands.as_deref());
     v["design"] = Value::Object(ex.design_map(&req.design));
-    v["outside"] = json!(ex.outside(&req.design));
+    v["outside"] = json!(ex.outside(&req.design)?);
     v["excitation"] = json!(ex.excitation_used(req.excitation));
-    v
+    Ok(v)
 }
 
 /// The JSON answer `r` with the request's wall time (`elapsed_ms`), or its error.
@@ -486,7 +486,7 @@ async fn predict(State(app): State<Shared>, body: Bytes) -> HttpResponse {
     let ex = app.explorer.clone();
     let r = blocking(move || {
         let r = ex.predict(&req)?;
-        Ok(answer(&ex, &req, &r))
+        answer(&ex, &req, &r)
     })
     .await;
     timed(started, r)
@@ -525,7 +525,7 @@ async fn solve(State(app): State<Shared>, body: Bytes) -> HttpResponse {
     let ex = app.explorer.clone();
     let r = gated(&app, move |cancel| {
         let (pred, exact, solve_ms) = ex.solve(&req, cancel)?;
-        let mut v = answer(&ex, &req, &exact);
+        let mut v = answer(&ex, &req, &exact)?;
         let errors: serde_json::Map<String, Value> = ex
             .channels()
             .iter()
@@ -640,7 +640,14 @@ async fn sweep(State(app): State<Shared>, body: Bytes) -> HttpResponse {
             .collect(),
         None => serde_json::Map::new(),
     };
-    let outside: Vec<bool> = designs.iter().map(|d| !ex.outside(d).is_empty()).collect();
+    let outside: Result<Vec<bool>, ApiError> = designs
+        .iter()
+        .map(|d| ex.outside(d).map(|o| !o.is_empty()))
+        .collect();
+    let outside = match outside {
+        Ok(o) => o,
+        Err(e) => return error_response(e),
+    };
     json_ok(json!({
         "parameter": ex.rules().names[req.parameter],
         "values": values,

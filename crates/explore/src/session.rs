@@ -485,14 +485,24 @@ impl Explorer {
             .collect()
     }
 
-    /// The parameters of `design` outside the training ranges, as JSON.
-    pub fn outside(&self, design: &[f64]) -> Vec<serde_json::Value> {
-        self.predictor.outside_training(&[design.to_vec()])[0]
+    /// The parameters of `design` outside the training ranges, read by name, as JSON; a design
+    /// of another count (built by the server, not the client) is a fault of the server.
+    pub fn outside(&self, design: &[f64]) -> Result<Vec<serde_json::Value>, ApiError> {
+        let design = self
+            .predictor
+            .system()
+            .sampled_values(design)
+            .map_err(ApiError::internal)?;
+        Ok(self
+            .predictor
+            .meta
+            .training_ranges
+            .outside(&design)
             .iter()
             .map(|o| {
                 serde_json::json!({"name": o.name, "value": o.value, "min": o.range[0], "max": o.range[1]})
             })
-            .collect()
+            .collect())
     }
 
     /// The profiles of an excitation (the default when `None`).

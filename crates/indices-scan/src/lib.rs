@@ -63,6 +63,9 @@ pub enum Error {
         /// What is wrong.
         source: pino_indices::Error,
     },
+    /// A design that does not fit the system's sampled parameters.
+    #[error(transparent)]
+    Design(#[from] mbd_system::SampledError),
     /// The index parameters are invalid.
     #[error("bad parameters: {0}")]
     Params(pino_indices::Error),
@@ -109,8 +112,8 @@ fn dataset(path: &Path, message: String) -> Error {
 pub struct SampleInfo {
     /// Its split label.
     pub split: String,
-    /// Its sampled parameters, in [`System::sampled`] order (the columns of `params.parquet`).
-    pub params: Vec<f64>,
+    /// Its design: the sampled parameters' values (the columns of `params.parquet`).
+    pub params: mbd_system::Sampled,
     /// Every parameter's value ([`System::values`] of `params`): what the description's
     /// expressions (`static_wheel_load`, `half_length`, `subtract`, `divide`) evaluate over.
     pub values: Vec<f64>,
@@ -121,23 +124,24 @@ pub struct SampleInfo {
 pub fn read_params(system: &System, files: &[PathBuf]) -> Result<BTreeMap<i64, SampleInfo>> {
     let names = system.sampled_names();
     let table = pino_data::records::read_params(files, &names)?;
-    Ok(table
+    table
         .ids
         .into_iter()
         .zip(table.splits)
         .zip(table.values)
         .map(|((id, split), params)| {
-            let values = system.values(&params);
-            (
+            let params = system.sampled_values(params)?;
+            let values = system.values(&params)?;
+            Ok((
                 id,
                 SampleInfo {
                     split,
                     params,
                     values,
                 },
-            )
+            ))
         })
-        .collect())
+        .collect()
 }
 
 /// The columns the indices of `set` read from a simulation file: `sample_id`, `t`, then the

@@ -25,7 +25,7 @@ pub fn to_table(system: &System, out: &Computed) -> pino_data::Result<Table> {
     for (j, name) in system.sampled_names().into_iter().enumerate() {
         t.push(
             name,
-            Column::F64(rows.iter().map(|r| r.info.params[j]).collect()),
+            Column::F64(rows.iter().map(|r| r.info.params.as_slice()[j]).collect()),
         )?;
     }
     for (k, c) in out.columns.iter().enumerate() {

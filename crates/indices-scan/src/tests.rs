@@ -44,8 +44,8 @@ fn with_indices(text: &str, indices: &str) -> String {
 
 /// The sampled parameters of sample `id`: nominal values, with `l_c` and `m_c` (vehicle-track)
 /// or every parameter (other descriptions) varied by sample.
-fn params_of(system: &System, id: i64) -> Vec<f64> {
-    system
+fn params_of(system: &System, id: i64) -> mbd_system::Sampled {
+    let values: Vec<f64> = system
         .sampled()
         .into_iter()
         .map(|i| {
@@ -60,7 +60,8 @@ fn params_of(system: &System, id: i64) -> Vec<f64> {
                 (false, _) => nominal * (1.0 + 0.01 * id as f64),
             }
         })
-        .collect()
+        .collect();
+    system.sampled_values(values).unwrap()
 }
 
 fn wave(k: usize, f: f64, a: f64, ph: f64) -> f64 {
@@ -113,7 +114,7 @@ fn railway_columns(id: i64, n: usize) -> Columns {
 /// beyond the 8 cm bump stop) and tyre force about its static value.
 fn quarter_car_columns(id: i64, n: usize) -> Columns {
     let system = compile("quarter-car.yaml", QUARTER_CAR);
-    let v = system.values(&params_of(&system, id));
+    let v = system.values(&params_of(&system, id)).unwrap();
     let static_load = (v[system.parameter("m_s").unwrap()] + v[system.parameter("m_u").unwrap()])
         * v[system.parameter("g").unwrap()];
     let s = id as f64;
@@ -206,7 +207,11 @@ fn write_params(path: &Path, system: &System, ids: &[i64]) {
     for (j, name) in system.sampled_names().into_iter().enumerate() {
         t.push(
             name,
-            Column::F64(ids.iter().map(|&i| params_of(system, i)[j]).collect()),
+            Column::F64(
+                ids.iter()
+                    .map(|&i| params_of(system, i).as_slice()[j])
+                    .collect(),
+            ),
         )
         .unwrap();
     }
@@ -287,19 +292,13 @@ fn the_polars_aggregation_equals_the_plain_rust_fold() {
         assert_eq!(first, 150);
         let win = rec.tail(first);
         let p = params_of(&fx.system, row.id);
-        let value = |name: &str| {
-            p[fx.system
-                .sampled_names()
-                .iter()
-                .position(|n| *n == name)
-                .unwrap()]
-        };
+        let value = |name: &str| p.get(name).unwrap();
         let l_c = value("l_c");
         // The binding's W is the hand-written vehicle's, bit for bit (the outputs of the
         // vehicle-track pipeline stay as they were).
         let w = vehicle_track::HalfVehicle::new(value, 9.81).w;
         let binding = fx.system.railway.as_ref().unwrap();
-        let values = fx.system.values(&p);
+        let values = fx.system.values(&p).unwrap();
         assert_eq!(
             binding.static_wheel_load.eval(&values).to_bits(),
             w.to_bits()
@@ -392,7 +391,7 @@ fn simple_indices_equal_a_hand_computation_for_each_stat() {
     );
     for row in &got.rows {
         // m_s of this sample times g.
-        let weight = params_of(&fx.system, row.id)[0] * 9.81;
+        let weight = params_of(&fx.system, row.id).get("m_s").unwrap() * 9.81;
         let want = [
             4.0 / 2.0,
             -5.0 / 2.0,
@@ -425,7 +424,8 @@ fn a_description_without_railway_binding_gets_its_simple_indices() {
         let cols = quarter_car_columns(row.id, 1000);
         let win = |k: usize| &cols[k].1[100..];
         let p = params_of(&fx.system, row.id);
-        let static_load = (p[0] + p[1]) * 9.81;
+        let mass = |name: &str| p.get(name).unwrap();
+        let static_load = (mass("m_s") + mass("m_u")) * 9.81;
         let dyn_load: Vec<f64> = win(2).iter().map(|f| f - static_load).collect();
         let want = [
             rms(win(0)),
@@ -522,7 +522,7 @@ fn a_description_without_railway_binding_gets_its_simple_indices() {
     for row in &got.rows {
         let cols = bridge_columns(row.id, 1000);
         let p = params_of(&fx.system, row.id);
-        let (m_v, g, span, ei) = (p[0], 9.81, 25.0f64, 8.323e9);
+        let (m_v, g, span, ei) = (p.get("m_v").unwrap(), 9.81, 25.0f64, 8.323e9);
         let max = |x: &[f64]| x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let want = [
             max(&cols[0].1) / (m_v * g * span.powi(3) / (48.0 * ei)),

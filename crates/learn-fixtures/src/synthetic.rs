@@ -73,7 +73,9 @@ impl SyntheticSpec {
         let system = source
             .compile()
             .expect("the repository's description compiles");
-        let values = system.values(&system.nominal());
+        let values = system
+            .values(&system.nominal())
+            .expect("the nominal design is the system's");
         let at = |name: &str| values[system.parameter(name).expect("a vehicle-track parameter")];
         let hi = |name: &str| {
             let k = system
@@ -222,7 +224,11 @@ fn profile_controls(system: &mbd_system::System, seed: u64) -> ProfileParams {
     let length = system
         .beams
         .iter()
-        .map(|b| b.length.eval(&system.values(&system.nominal())))
+        .map(|b| {
+            let nominal = system.values(&system.nominal());
+            b.length
+                .eval(&nominal.expect("the nominal design is the system's"))
+        })
         .fold(0.0, f64::max);
     let longest = system
         .profiles
@@ -290,10 +296,14 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     let controls = profile_controls(&system, spec.seed);
     let generators =
         mbd_dataset::profile_generators(&system, &controls).map_err(|e| bad(e.to_string()))?;
+    let designs: Vec<mbd_system::Sampled> = draws
+        .iter()
+        .map(|d| system.sampled_values(d.as_slice()))
+        .collect::<std::result::Result<_, _>>()?;
     let inputs: Vec<SampleInput> = (0..n)
         .map(|id| SampleInput {
             id,
-            params: draws[id as usize].clone(),
+            params: designs[id as usize].clone(),
             profiles: generators
                 .iter()
                 .map(|g| {
@@ -352,7 +362,7 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
                 &cfg,
                 &system,
                 &layout,
-                &draws[id as usize],
+                &designs[id as usize],
                 id,
                 &record,
                 config.dt * config.output_every as f64,

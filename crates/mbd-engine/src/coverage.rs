@@ -201,7 +201,7 @@ pub fn check_profile_starts(system: &System, c: &RunConfig) -> Result<()> {
     let corners: Vec<(Vec<Read>, u64)> = box_corners(ranges.len())
         .into_par_iter()
         .map(|mask| {
-            let model = system.instantiate(&corner_values(&ranges, mask))?;
+            let model = system.instantiate(&corner_values(system, &ranges, mask))?;
             Ok((profile_reads(&model, c), mask))
         })
         .collect::<Result<_>>()?;
@@ -228,15 +228,11 @@ pub fn check_profile_starts(system: &System, c: &RunConfig) -> Result<()> {
     if c.profile_on() > 0.0 {
         roots.extend(system.speed.parameters());
     }
-    let names = system.sampled_names();
-    let values = corner_values(&ranges, mask);
+    let corner = corner_values(system, &ranges, mask);
     let at: Vec<String> = system
         .sampled_sources(roots)
         .iter()
-        .filter_map(|n| {
-            let j = names.iter().position(|m| m == n)?;
-            Some(format!("{n} = {}", values[j]))
-        })
+        .filter_map(|n| Some(format!("{n} = {}", corner.get(n)?)))
         .collect();
     let mut when = String::new();
     if c.profile_on() > 0.0 {

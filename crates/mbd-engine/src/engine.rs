@@ -903,8 +903,8 @@ fn check_state(t: f64, x: &[f64], v: &[f64], a: &[f64]) -> std::result::Result<(
 pub struct SampleInput {
     /// Sample id.
     pub id: u64,
-    /// The sampled parameters, in [`System::sampled`] order.
-    pub params: Vec<f64>,
+    /// The design: the values of the system's sampled parameters.
+    pub params: mbd_system::Sampled,
     /// Points of each generated profile (`None`: level).
     pub profiles: Vec<Option<Profile>>,
 }

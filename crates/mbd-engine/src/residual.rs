@@ -210,7 +210,7 @@ mod tests {
     #[test]
     fn residual_is_the_hand_computed_equation() {
         let s = mbd_system::load_str(TEXT, "t.yaml", &Default::default()).unwrap();
-        let model = s.instantiate(&[2.0]).unwrap();
+        let model = s.instantiate(&s.sampled_values([2.0]).unwrap()).unwrap();
         let eq = Equations::new(model, vec![0, 1]);
         let (z, beta, vz, vb, az, ab) = (1e-3, 2e-4, 0.01, -0.02, 3.0, -4.0);
         let state = EquationState {

@@ -368,14 +368,13 @@ pub fn parameter_box(
     config: &crate::RunConfig,
 ) -> crate::Result<(Bound, Vec<(String, f64)>)> {
     let ranges = system.ranges();
-    let names = system.sampled_names();
     let n = ranges.len();
     let corners = box_corners(n);
     use rayon::prelude::*;
     let bounds: Vec<(Bound, u64)> = corners
         .into_par_iter()
         .map(|mask| {
-            let model = system.instantiate(&corner_values(&ranges, mask))?;
+            let model = system.instantiate(&corner_values(system, &ranges, mask))?;
             let engine = Engine::assemble(
                 system.clone(),
                 model,
@@ -395,10 +394,9 @@ pub fn parameter_box(
             _ => Some(b),
         });
     let &(b, mask) = worst.expect("at least one corner");
-    let corner = names
+    let corner = corner_values(system, &ranges, mask)
         .iter()
-        .map(|n| n.to_string())
-        .zip(corner_values(&ranges, mask))
+        .map(|(n, v)| (n.to_owned(), v))
         .collect();
     Ok((
         Bound {
@@ -430,13 +428,21 @@ pub fn box_corners(n: usize) -> Vec<u64> {
     }
 }
 
-/// The sampled values at corner `mask` ([`box_corners`]) of the box `ranges`.
-pub fn corner_values(ranges: &[[f64; 2]], mask: u64) -> Vec<f64> {
-    ranges
+/// The design at corner `mask` ([`box_corners`]) of `system`'s box of sampling ranges
+/// (`ranges`: [`mbd_system::System::ranges`]).
+pub fn corner_values(
+    system: &mbd_system::System,
+    ranges: &[[f64; 2]],
+    mask: u64,
+) -> mbd_system::Sampled {
+    let values: Vec<f64> = ranges
         .iter()
         .enumerate()
         .map(|(j, r)| r[((mask >> (j % 64)) & 1) as usize])
-        .collect()
+        .collect();
+    system
+        .sampled_values(values)
+        .expect("one sampling range per sampled parameter")
 }
 
 fn mb_mu(engine: &Engine, b: usize) -> f64 {

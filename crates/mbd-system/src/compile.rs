@@ -173,6 +173,11 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
     let railway = cx.railway(&channels);
     cx.report_unused();
     let assembly = assemble(&bodies, &dofs, &elements, &loads);
+    let sampled_list = parameters
+        .iter()
+        .filter(|p| matches!(p.source, ParamSource::Sampled { .. }))
+        .map(|p| p.name.clone())
+        .collect();
     let system = System {
         name: raw.name.clone(),
         doc: raw.doc.clone(),
@@ -191,6 +196,7 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
         channels,
         indices,
         railway,
+        sampled_list,
     };
     if !diag.is_empty() {
         return None;

@@ -8,8 +8,9 @@
 //!    (parameters, bodies, points, beams, profiles, elements), every problem is reported with
 //!    its line, and the result is a [`System`]: flat tables of expressions over the parameter
 //!    table, the generalised-force assembly of every DOF, and the stored column layout.
-//! 3. **Instantiate** ([`System::instantiate`]): one sample's parameter values give a
-//!    [`model::Model`] of numbers, every field checked against its domain.
+//! 3. **Instantiate** ([`System::instantiate`]): one design's sampled values (a [`Sampled`],
+//!    made by the system with its count and names checked) give a [`model::Model`] of
+//!    numbers, every field checked against its domain.
 //!
 //! Conventions of every description: SI units; vertical displacements positive **downward**,
 //! measured from the static equilibrium on rigid supports (gravity enters as the declared
@@ -20,7 +21,7 @@
 //! let text = "format: 1\nname: one mass\nparameters:\n  m: {unit: kg, nominal: 2, range: [1, 3]}\n  k: {unit: N/m, value: 800}\nbodies:\n  b: {mass: m, dofs: [z]}\nelements:\n  spring: {kind: spring_damper, from: b, to: ground, k: k}\n";
 //! let system = mbd_system::load_str(text, "one.yaml", &Default::default()).unwrap();
 //! assert_eq!(system.sampled_names(), ["m"]);
-//! let model = system.instantiate(&[2.0]).unwrap();
+//! let model = system.instantiate(&system.sampled_values([2.0]).unwrap()).unwrap();
 //! assert_eq!(model.dof_mass, [2.0]);
 //! ```
 #![warn(missing_docs)]
@@ -31,6 +32,7 @@ pub mod diag;
 pub mod expr;
 pub mod model;
 pub mod reader;
+pub mod sampled;
 pub mod schema;
 pub mod source;
 pub mod system;
@@ -38,5 +40,6 @@ pub mod yaml;
 
 pub use compile::{load_str, Override};
 pub use diag::Diagnostics;
+pub use sampled::{Sampled, SampledError};
 pub use source::{SourceError, SystemSource, SYSTEM_FILE};
 pub use system::System;

@@ -5,6 +5,7 @@
 //! point at `x` moves down by `u = z + c beta` with `c = -x` (a nose-up pitch lifts the front).
 
 use crate::expr::Expr;
+use crate::sampled::{Sampled, SampledError};
 use crate::schema::Outside;
 use crate::system::{
     Beam, End, Interpolation, Law, ParamSource, Profile, Source, Supports, System,
@@ -332,15 +333,18 @@ pub struct Model {
 }
 
 impl System {
-    /// Every parameter's value from the sampled ones (`sampled[j]` for the `j`-th sampled
-    /// parameter), the fixed values and the derived expressions.
-    pub fn values(&self, sampled: &[f64]) -> Vec<f64> {
-        let mut it = sampled.iter();
+    /// Every parameter's value from a design of this system, the fixed values and the
+    /// derived expressions; a design of another system is refused.
+    pub fn values(&self, design: &Sampled) -> Result<Vec<f64>, SampledError> {
+        self.check_design(design)?;
+        let mut sampled = design.as_slice().iter().copied();
         let mut v: Vec<f64> = self
             .parameters
             .iter()
             .map(|p| match p.source {
-                ParamSource::Sampled { .. } => *it.next().unwrap_or(&f64::NAN),
+                ParamSource::Sampled { .. } => sampled
+                    .next()
+                    .expect("checked: one value per sampled parameter"),
                 ParamSource::Fixed(x) => x,
                 ParamSource::Derived(_) => f64::NAN,
             })
@@ -350,18 +354,21 @@ impl System {
                 v[i] = e.eval(&v);
             }
         }
-        v
+        Ok(v)
     }
 
-    /// The nominal values of the sampled parameters.
-    pub fn nominal(&self) -> Vec<f64> {
-        self.parameters
+    /// The design at the nominal values of the sampled parameters.
+    pub fn nominal(&self) -> Sampled {
+        let nominal: Vec<f64> = self
+            .parameters
             .iter()
             .filter_map(|p| match p.source {
                 ParamSource::Sampled { nominal, .. } => Some(nominal),
                 _ => None,
             })
-            .collect()
+            .collect();
+        self.sampled_values(nominal)
+            .expect("one nominal value per sampled parameter")
     }
 
     /// The sampling ranges of the sampled parameters.
@@ -375,32 +382,25 @@ impl System {
             .collect()
     }
 
-    /// The model of one sample (`sampled` in [`System::sampled`] order, one value per sampled
-    /// parameter: another count is refused), every field checked; the first field out of its
-    /// domain is the error.
-    pub fn instantiate(&self, sampled: &[f64]) -> Result<Model, FieldError> {
-        self.instantiate_all(sampled)
+    /// The model of one design, every field checked; the first field out of its domain is the
+    /// error (a design of another system is refused as the field `parameters`).
+    pub fn instantiate(&self, design: &Sampled) -> Result<Model, FieldError> {
+        self.instantiate_all(design)
             .map_err(|errors| errors.into_iter().next().expect("at least one"))
     }
 
     /// [`System::instantiate`], reporting every field out of its domain (in the order of the
     /// description's sections), not only the first: the checks of a description at its
     /// nominal values list all of them at once.
-    pub fn instantiate_all(&self, sampled: &[f64]) -> Result<Model, Vec<FieldError>> {
-        let names = self.sampled_names();
-        if sampled.len() != names.len() {
-            return Err(vec![FieldError {
+    pub fn instantiate_all(&self, design: &Sampled) -> Result<Model, Vec<FieldError>> {
+        let v = self.values(design).map_err(|e| {
+            vec![FieldError {
                 path: "parameters".to_owned(),
-                value: sampled.len() as f64,
-                allowed: format!(
-                    "exactly {} sampled values, in the description's order: {}",
-                    names.len(),
-                    names.join(", ")
-                ),
+                value: design.len() as f64,
+                allowed: e.to_string(),
                 sources: Vec::new(),
-            }]);
-        }
-        let v = self.values(sampled);
+            }]
+        })?;
         let non_finite: Vec<FieldError> = self
             .parameters
             .iter()

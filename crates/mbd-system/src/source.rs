@@ -145,7 +145,9 @@ mod tests {
         assert_ne!(b.hash(), a.hash());
         let s = b.compile().unwrap();
         assert_eq!(
-            s.instantiate(&[2.0]).unwrap().elements[0]
+            s.instantiate(&s.sampled_values([2.0]).unwrap())
+                .unwrap()
+                .elements[0]
                 .law
                 .stiffness(0.0),
             900.0

@@ -453,6 +453,9 @@ pub struct System {
     pub indices: Vec<Index>,
     /// The railway indices' binding, when declared.
     pub railway: Option<Railway>,
+    /// The sampled parameters' names in declaration order, shared by every design of this
+    /// system ([`crate::sampled::Sampled`]); fixed when the description is compiled.
+    pub(crate) sampled_list: std::sync::Arc<[String]>,
 }
 
 impl System {
@@ -494,12 +497,9 @@ impl System {
             .collect()
     }
 
-    /// Names of the sampled parameters.
+    /// Names of the sampled parameters, in declaration order.
     pub fn sampled_names(&self) -> Vec<&str> {
-        self.sampled()
-            .into_iter()
-            .map(|i| self.parameters[i].name.as_str())
-            .collect()
+        self.sampled_list.iter().map(String::as_str).collect()
     }
 
     /// The stored channel called `name`.

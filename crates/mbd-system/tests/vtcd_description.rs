@@ -34,8 +34,7 @@ fn a_field_out_of_its_domain_names_the_sampled_parameters_it_comes_from() {
         .unwrap_or_else(|d| panic!("{d}"));
     let at = |name: &str, value: f64| {
         let mut design = s.nominal();
-        let k = s.sampled_names().iter().position(|n| *n == name).unwrap();
-        design[k] = value;
+        assert!(design.set(name, value), "{name} is sampled");
         s.instantiate(&design).unwrap_err()
     };
     let e = at("m_c", -1.0);

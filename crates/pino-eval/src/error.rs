@@ -36,3 +36,10 @@ impl From<atomic_file::Error> for Error {
         Error::Learn(e.into())
     }
 }
+
+/// A design that does not fit the model's system, as the engine reports it.
+impl From<mbd_system::SampledError> for Error {
+    fn from(e: mbd_system::SampledError) -> Self {
+        Error::Learn(e.into())
+    }
+}

@@ -447,7 +447,11 @@ fn channel_errors(
         let mut acc = Accum::new();
         let mut complete = true;
         for (k, &i) in idx.iter().enumerate() {
-            let eq = pino_learn::residual::sample_equations(system, items.params(i), Vec::new())?;
+            let eq = pino_learn::residual::sample_equations(
+                system,
+                &system.sampled_values(items.params(i))?,
+                Vec::new(),
+            )?;
             let Some(deflection) = map.deflection(&eq, el) else {
                 complete = false;
                 break;

@@ -336,7 +336,7 @@ fn sample_columns(
                         Some(eq) => eq,
                         None => equations.insert(pino_learn::residual::sample_equations(
                             system,
-                            params,
+                            &system.sampled_values(params)?,
                             Vec::new(),
                         )?),
                     };
@@ -391,7 +391,7 @@ impl IndexInputs {
         let cols = sample_columns(system, self, params, id, side, exact, eta, layout, dt)?;
         let points = cols.0.values().next().map_or(0, Vec::len);
         let get = |name: &str| cols.0.get(name).cloned();
-        let values = system.values(params);
+        let values = system.values(&system.sampled_values(params)?)?;
         let (v, railway) = self
             .set
             .compute(system, &values, &get, dt, cfg)

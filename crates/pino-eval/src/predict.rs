@@ -70,7 +70,7 @@ impl DesignSpace {
             .into_iter()
             .map(str::to_owned)
             .collect();
-        let nominal = system.nominal();
+        let nominal = system.nominal().into_values();
         Self {
             system,
             names,
@@ -128,9 +128,10 @@ impl DesignSpace {
     /// `label` = `design`) and its value, and says which field of the description it makes
     /// leave its domain ([`DesignSpace::blame`]).
     pub fn check(&self, design: &[f64], label: &str) -> Result<mbd_system::model::Model> {
+        let sampled = self.system.sampled_values(design)?;
         Ok(self
             .system
-            .instantiate(design)
+            .instantiate(&sampled)
             .map_err(|e| self.blame(design, label, &e))?)
     }
 
@@ -713,7 +714,11 @@ impl Predictor {
         } else {
             values
         };
-        let extrapolated = !self.meta.training_ranges.outside(design).is_empty();
+        let extrapolated = !self
+            .meta
+            .training_ranges
+            .outside(&self.system.sampled_values(design)?)
+            .is_empty();
         at.answer(&d, values, &limits, extrapolated, bands)
             .map(Some)
     }
@@ -763,10 +768,14 @@ impl Predictor {
         GeneratedProfiles::new(&self.system, settings, seed)
     }
 
-    /// The parameters of each design outside the model's training ranges.
-    pub fn outside_training(&self, sets: &[Vec<f64>]) -> Vec<Vec<OutOfRange>> {
+    /// The parameters of each design outside the model's training ranges, read by name; a
+    /// design that is not one of the system's (another count) is refused.
+    pub fn outside_training(&self, sets: &[Vec<f64>]) -> Result<Vec<Vec<OutOfRange>>> {
         sets.iter()
-            .map(|p| self.meta.training_ranges.outside(p))
+            .map(|p| {
+                let design = self.system.sampled_values(p.as_slice())?;
+                Ok(self.meta.training_ranges.outside(&design))
+            })
             .collect()
     }
 
@@ -786,9 +795,11 @@ impl Predictor {
         };
         excitations(&model).map_err(|e| {
             self.space.blame_run(design, label, &e.to_string(), |d| {
-                self.system
-                    .instantiate(d)
-                    .is_ok_and(|m| excitations(&m).is_ok())
+                let model = self
+                    .system
+                    .sampled_values(d)
+                    .map(|d| self.system.instantiate(&d));
+                model.is_ok_and(|m| m.is_ok_and(|m| excitations(&m).is_ok()))
             })
         })
     }
@@ -1021,7 +1032,7 @@ impl Predictor {
         let mut table = self.histories(sets, profiles, run, batch, coverage)?;
         let per_row = (table.num_rows() / sets.len().max(1)).max(1);
         let rows: Vec<String> = self
-            .outside_training(sets)
+            .outside_training(sets)?
             .iter()
             .flat_map(|o| std::iter::repeat_n(outside_flag(o), per_row))
             .collect();
@@ -1599,12 +1610,14 @@ mod tests {
         let r = pino_learn::checkpoint::TrainingRanges::of(&system);
         let sp = space();
         let nominal = sp.nominal();
-        assert!(r.outside(&nominal).is_empty());
+        assert!(r
+            .outside(&system.sampled_values(nominal.as_slice()).unwrap())
+            .is_empty());
         let mut p = nominal.clone();
         let k_f = sp.index("k_f", Path::new("-")).unwrap();
         p[k_f] = 25.0 * r.max[k_f];
         p[0] = r.max[0]; // a bound itself is inside
-        let out = r.outside(&p);
+        let out = r.outside(&system.sampled_values(p.as_slice()).unwrap());
         assert_eq!(out.len(), 1);
         assert_eq!(out[0].name, "k_f");
         assert!(out[0].to_string().contains("(trained on"), "{}", out[0]);
@@ -1650,7 +1663,10 @@ mod tests {
             .unwrap();
         let id = items.id(0);
         let design = items.params(0).to_vec();
-        assert!(predictor.outside_training(std::slice::from_ref(&design))[0].is_empty());
+        assert!(predictor
+            .outside_training(std::slice::from_ref(&design))
+            .unwrap()[0]
+            .is_empty());
         // Without a profile the generated track is refused by name.
         let err = predictor.profiles(None).unwrap_err().to_string();
         assert!(err.contains("--seed") && err.contains("track"), "{err}");

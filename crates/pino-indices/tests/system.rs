@@ -34,15 +34,16 @@ fn bridge() -> System {
     compile("bridge.yaml", include_str!("../../../systems/bridge.yaml"))
 }
 
-fn nominal(system: &System) -> Vec<f64> {
-    system
+fn nominal(system: &System) -> mbd_system::Sampled {
+    let values: Vec<f64> = system
         .sampled()
         .into_iter()
         .map(|i| match system.parameters[i].source {
             ParamSource::Sampled { nominal, .. } => nominal,
             _ => unreachable!("sampled"),
         })
-        .collect()
+        .collect();
+    system.sampled_values(values).unwrap()
 }
 
 #[test]
@@ -133,7 +134,7 @@ fn the_railway_family_through_the_binding_is_compute_with_the_vehicle_w() {
     let system = vtcd();
     let set = IndexSet::of(&system);
     let sampled = nominal(&system);
-    let values = system.values(&sampled);
+    let values = system.values(&sampled).unwrap();
     let n = 1000;
     let dt = 1e-3;
     let sig = |f: f64, a: f64, c: f64| -> Vec<f64> {
@@ -199,7 +200,7 @@ fn the_railway_family_through_the_binding_is_compute_with_the_vehicle_w() {
 fn simple_indices_over_a_record_and_their_limits() {
     let system = quarter_car();
     let set = IndexSet::of(&system);
-    let values = system.values(&nominal(&system));
+    let values = system.values(&nominal(&system)).unwrap();
     let static_load = (320.0 + 40.0) * 9.81;
     let z_s_a = [0.5, -1.5, 1.0, -0.5];
     let travel = [0.01, -0.09, 0.03, 0.0];

@@ -169,11 +169,15 @@ impl TrainingRanges {
         }
     }
 
-    /// The parameters of `params` (description order) outside their range; bounds are
-    /// inclusive, with a relative slack of 1e-9 for values written in decimal.
-    pub fn outside(&self, params: &[f64]) -> Vec<OutOfRange> {
+    /// The parameters of `design` outside their training range, read by name, in the ranges'
+    /// order; bounds are inclusive, with a relative slack of 1e-9 for values written in
+    /// decimal.
+    pub fn outside(&self, design: &mbd_system::Sampled) -> Vec<OutOfRange> {
         let mut out = Vec::new();
-        for (k, &v) in params.iter().enumerate() {
+        for (k, name) in self.names.iter().enumerate() {
+            let Some(v) = design.get(name) else {
+                continue;
+            };
             let (lo, hi) = (self.min[k], self.max[k]);
             let slack = 1e-9 * lo.abs().max(hi.abs());
             if !(v >= lo - slack && v <= hi + slack) {

@@ -30,7 +30,7 @@ use crate::norm::{Normalisation, StatsAccumulator};
 use crate::store::{SampleSeries, SeriesStore};
 use crate::{Error, Result};
 use candle_core::{DType, Device, Tensor};
-use mbd_system::System;
+use mbd_system::{Sampled, System};
 use pino_data::{read_parquet, schema};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -60,8 +60,8 @@ pub struct Sample {
     pub id: i64,
     /// Its split.
     pub split: Split,
-    /// The sampled parameters (description order).
-    pub params: Vec<f64>,
+    /// Its design: the sampled parameters' values.
+    pub params: Sampled,
     /// ODE magnitude weights (N, N m) of each equation, when a weights file was given.
     pub phi: Option<Vec<f64>>,
     /// The force scale of its ODE residual (N): the mean static force of its contact
@@ -121,10 +121,10 @@ impl Groups {
     }
 }
 
-/// Reads `params.parquet` ([`pino_data::records::read_params`]): `(sample_id, split, params)`
-/// rows, the parameters of `layout`, each split label known.
-pub fn read_params(path: &Path, layout: &Layout) -> Result<Vec<(i64, Split, Vec<f64>)>> {
-    let names: Vec<&str> = layout.params.iter().map(String::as_str).collect();
+/// Reads `params.parquet` ([`pino_data::records::read_params`]): `(sample_id, split, design)`
+/// rows, a design of `system` each, each split label known.
+pub fn read_params(path: &Path, system: &System) -> Result<Vec<(i64, Split, Sampled)>> {
+    let names = system.sampled_names();
     let table = pino_data::records::read_params(std::slice::from_ref(&path.to_path_buf()), &names)?;
     table
         .ids
@@ -135,7 +135,7 @@ pub fn read_params(path: &Path, layout: &Layout) -> Result<Vec<(i64, Split, Vec<
             let split = Split::from_label(label).ok_or_else(|| {
                 dataset_err(path, format!("sample {id}: {}", unknown_split(label)))
             })?;
-            Ok((id, split, values))
+            Ok((id, split, system.sampled_values(values)?))
         })
         .collect()
 }
@@ -285,7 +285,7 @@ fn scan(
     window.validate()?;
     let system = &info.system;
     let layout = Layout::of(system);
-    let params: BTreeMap<i64, (Split, Vec<f64>)> = read_params(params_file, &layout)?
+    let params: BTreeMap<i64, (Split, Sampled)> = read_params(params_file, system)?
         .into_iter()
         .map(|(id, s, p)| (id, (s, p)))
         .collect();
@@ -402,7 +402,7 @@ impl NormAccumulator {
         let g = self.groups;
         self.t.add_columns(&[t]);
         self.eta.add_columns(&refs(g.e0..g.end));
-        self.params.add_constant(&s.params, t.len());
+        self.params.add_constant(s.params.as_slice(), t.len());
         self.outputs.add_columns(&refs(0..g.v0));
         self.velocities.add_columns(&refs(g.v0..g.a0));
         self.accelerations.add_columns(&refs(g.a0..g.e0));
@@ -457,7 +457,7 @@ pub fn load_dataset_subset(
     let kept_train: Option<BTreeSet<i64>> = match train_samples {
         None => None,
         Some(n) => Some(
-            read_params(params_file, &layout)?
+            read_params(params_file, &info.system)?
                 .into_iter()
                 .filter(|(_, split, _)| *split == Split::Train)
                 .map(|(id, _, _)| id)
@@ -678,9 +678,10 @@ impl<'a> Builder<'a> {
         for s in &ds.samples {
             let slot = by_id.remove(&s.id).expect("every indexed sample streamed");
             p.ids.push(s.id);
-            p.params.push(s.params.clone());
+            p.params.push(s.params.as_slice().to_vec());
             p.params_n.push(
                 s.params
+                    .as_slice()
                     .iter()
                     .enumerate()
                     .map(|(k, v)| ((v - ins.mean[1 + ne + k]) / ins.std[1 + ne + k]) as f32)
@@ -949,9 +950,10 @@ mod tests {
         // Stats come from the training split only: sample 2's parameters do not move them.
         let m_c = 1 + layout.n_excitations();
         assert_eq!(norm.inputs.names[m_c], layout.params[0]);
-        let m_c_mean = (ds.samples[0].params[0] + ds.samples[1].params[0]) / 2.0;
+        let m_c_of = |i: usize| ds.samples[i].params.get("m_c").unwrap();
+        let m_c_mean = (m_c_of(0) + m_c_of(1)) / 2.0;
         assert!((norm.inputs.mean[m_c] - m_c_mean).abs() < 1e-9 * m_c_mean);
-        assert_ne!(ds.samples[2].params[0], m_c_mean);
+        assert_ne!(m_c_of(2), m_c_mean);
 
         // Mismatched record lengths: sample 1 loses its last row.
         rewrite(&f.simulation, &|r| r != 199, &|_| true);
@@ -1006,7 +1008,8 @@ mod tests {
             bad.push(name, c).unwrap();
         }
         write_parquet(&f.params, &bad).unwrap();
-        let err = read_params(&f.params, &layout).unwrap_err().to_string();
+        let system = f.info().unwrap().system;
+        let err = read_params(&f.params, &system).unwrap_err().to_string();
         assert!(
             err.contains("params.parquet")
                 && err.contains(
@@ -1039,7 +1042,8 @@ mod tests {
         window: &WindowConfig,
     ) -> Reference {
         use crate::norm::ChannelStats;
-        let params: BTreeMap<i64, (Split, Vec<f64>)> = read_params(&f.params, layout)
+        let system = f.info().unwrap().system;
+        let params: BTreeMap<i64, (Split, Sampled)> = read_params(&f.params, &system)
             .unwrap()
             .into_iter()
             .map(|(i, s, p)| (i, (s, p)))
@@ -1072,7 +1076,7 @@ mod tests {
                 train.push(phys.len());
             }
             phys.push([
-                input_block(&tw, &eta, p),
+                input_block(&tw, &eta, p.as_slice()),
                 block(0, g.v0),
                 block(g.v0, g.a0),
                 block(g.a0, g.e0),

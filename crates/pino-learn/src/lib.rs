@@ -119,6 +119,9 @@ pub enum Error {
     /// Algorithm id outside 1..=5.
     #[error("unknown algorithm {0}: allowed are 1 (FNO), 2 (PINO), 3 (PINO-MBD ODE weights), 4 and 5 (PINO-MBD direct derivatives)")]
     UnknownAlgorithm(i64),
+    /// A design that does not fit the system's sampled parameters (count or names).
+    #[error(transparent)]
+    Design(Box<mbd_system::SampledError>),
     /// A configuration value is outside its allowed range.
     #[error("`{field}` = {value} is out of range: {allowed}")]
     OutOfRange {
@@ -171,6 +174,12 @@ pub enum Error {
         /// The loss value.
         loss: f64,
     },
+}
+
+impl From<mbd_system::SampledError> for Error {
+    fn from(e: mbd_system::SampledError) -> Self {
+        Error::Design(Box::new(e))
+    }
 }
 
 /// Result alias of this crate.

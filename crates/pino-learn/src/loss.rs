@@ -160,7 +160,8 @@ impl LossContext {
                 }
                 // Built outside the lock: another thread may build the same sample meanwhile
                 // (the same value; the first one kept wins).
-                let built = Arc::new(SampleEquations::new(&self.system, &self.map, p)?);
+                let design = self.system.sampled_values(p.as_slice())?;
+                let built = Arc::new(SampleEquations::new(&self.system, &self.map, &design)?);
                 Ok(self.kept_equations().entry(key).or_insert(built).clone())
             })
             .collect()

@@ -118,8 +118,12 @@ impl DeflectionReader {
     }
 }
 
-/// The equations of DOFs `dofs` of the model of one sample with parameters `params`.
-pub fn sample_equations(system: &System, params: &[f64], dofs: Vec<usize>) -> Result<Equations> {
+/// The equations of DOFs `dofs` of the model of one design.
+pub fn sample_equations(
+    system: &System,
+    params: &mbd_system::Sampled,
+    dofs: Vec<usize>,
+) -> Result<Equations> {
     let model = system.instantiate(params).map_err(|e| Error::OutOfRange {
         field: e.path.clone(),
         value: e.value.to_string(),
@@ -195,8 +199,8 @@ pub struct SampleEquations {
 }
 
 impl SampleEquations {
-    /// The equations of one sample with parameters `params`.
-    pub fn new(system: &System, map: &ChannelMap, params: &[f64]) -> Result<Self> {
+    /// The equations of one design.
+    pub fn new(system: &System, map: &ChannelMap, params: &mbd_system::Sampled) -> Result<Self> {
         let eq = sample_equations(system, params, map.equations.clone())?;
         let q = map.equations.len();
         let n_nl = eq.nonlinear().len();

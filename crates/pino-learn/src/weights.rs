@@ -95,7 +95,7 @@ pub fn magnitude_weights(
     cfg: &WeightConfig,
     system: &System,
     layout: &Layout,
-    params: &[f64],
+    params: &mbd_system::Sampled,
     sample_id: u64,
     record: &[Vec<f64>],
     dt: f64,

@@ -149,7 +149,7 @@ fn run() -> Result<()> {
     let run_config = predictor.run_config(args.x0)?;
     let meta = &predictor.meta;
     // Where the model was trained: flag, warn, or refuse under --strict.
-    let outside = predictor.outside_training(&sets);
+    let outside = predictor.outside_training(&sets)?;
     let flagged: Vec<usize> = (0..sets.len())
         .filter(|&k| !outside[k].is_empty())
         .collect();

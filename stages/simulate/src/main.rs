@@ -130,7 +130,7 @@ fn run() -> Result<String> {
         }
         inputs.push(SampleInput {
             id: id as u64,
-            params: values.iter().map(|v| v[row]).collect(),
+            params: system.sampled_values(values.iter().map(|v| v[row]).collect::<Vec<f64>>())?,
             profiles: sample_profiles,
         });
     }

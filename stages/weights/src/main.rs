@@ -38,21 +38,19 @@ fn run() -> Result<String> {
             system.name
         );
     }
-    let names: Vec<&str> = layout.params.iter().map(String::as_str).collect();
+    let names = system.sampled_names();
     let params =
         pino_data::records::read_params(&ctx.input_files("params", "params.parquet")?, &names)?;
-    let by_id: BTreeMap<i64, (bool, &[f64])> = params
+    let by_id: BTreeMap<i64, (bool, _)> = params
         .ids
         .iter()
         .zip(&params.splits)
-        .zip(&params.values)
+        .zip(params.values)
         .map(|((&id, s), v)| {
-            (
-                id,
-                (s == pino_learn::data::Split::Train.as_str(), v.as_slice()),
-            )
+            let train = s == pino_learn::data::Split::Train.as_str();
+            Ok((id, (train, system.sampled_values(v)?)))
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let files = ctx.input_files("dataset", "simulation.parquet")?;
     if files.is_empty() {
         bail!("input `dataset` has no simulation.parquet (in {dirs:?})");
@@ -86,7 +84,7 @@ fn run() -> Result<String> {
                     &cfg,
                     &system,
                     &layout,
-                    by_id[&r.id].1,
+                    &by_id[&r.id].1,
                     r.id as u64,
                     &r.columns,
                     dt,

@@ -75,7 +75,7 @@ fn constant_moving_force_follows_frybas_series() {
         let system = moving_force(modes, v);
         let e = engine(
             &system,
-            &[],
+            &system.nominal(),
             &config(t_cross, 1e-4, 10, StartMode::Rest, 0.0),
             vec![],
             Route::Fast,
@@ -140,7 +140,7 @@ fn crawling_force_gives_the_static_midspan_deflection() {
     let steps = (duration / dt).round() as usize;
     let e = engine(
         &system,
-        &[],
+        &system.nominal(),
         &config(duration, dt, steps, StartMode::Rest, 0.0),
         vec![],
         Route::Fast,

@@ -42,10 +42,10 @@ pub fn config(duration: f64, dt: f64, every: usize, start: StartMode, x0: f64) -
     }
 }
 
-/// The engine of one sample (`sampled` in the system's sampled order).
+/// The engine of one design.
 pub fn engine(
     system: &Arc<System>,
-    sampled: &[f64],
+    sampled: &mbd_system::Sampled,
     config: &RunConfig,
     profiles: Vec<Option<Profile>>,
     route: Route,

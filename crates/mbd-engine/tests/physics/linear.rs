@@ -25,24 +25,25 @@
 use crate::common::*;
 use mbd_engine::stability::{Bound, CONTACT_LOAD_FACTOR};
 use mbd_engine::{Engine, Route, StartMode};
+use mbd_system::Sampled;
 use nalgebra::{DMatrix, SymmetricEigen};
 use std::sync::Arc;
 
 /// The extreme corner of the sampling box: masses and inertias at their minimum, stiffness,
 /// damping, lever arms and speed at their maximum.
-fn extreme(system: &mbd_system::System) -> Vec<f64> {
+fn extreme(system: &mbd_system::System) -> Sampled {
+    let ends = system.sampled_names().into_iter().zip(system.ranges());
     system
-        .sampled_names()
-        .iter()
-        .zip(system.ranges())
-        .map(|(name, [lo, hi])| if name.starts_with(['m', 'j']) { lo } else { hi })
-        .collect()
+        .sampled_by_name(
+            ends.map(|(name, [lo, hi])| (name, if name.starts_with(['m', 'j']) { lo } else { hi })),
+        )
+        .unwrap()
 }
 
 /// The corner of the sampling box with the smallest stable step on `system` (x0 = `x0`): each
 /// sampled parameter in turn set to the end of its range that lowers `Bound::dt_limit`.
-fn worst_corner(system: &Arc<mbd_system::System>, x0: f64) -> Vec<f64> {
-    let limit = |sampled: &[f64]| {
+fn worst_corner(system: &Arc<mbd_system::System>, x0: f64) -> Sampled {
+    let limit = |sampled: &Sampled| {
         let model = system.instantiate(sampled).unwrap();
         let cfg = config(0.01, 1e-5, 10, StartMode::Equilibrium, x0);
         Bound::of(&Engine::new(system.clone(), model, &cfg, vec![None]).unwrap()).dt_limit()
@@ -50,9 +51,9 @@ fn worst_corner(system: &Arc<mbd_system::System>, x0: f64) -> Vec<f64> {
     let mut corner = system.nominal();
     for (i, [lo, hi]) in system.ranges().into_iter().enumerate() {
         let mut low = corner.clone();
-        low[i] = lo;
+        low.as_mut_slice()[i] = lo;
         let mut high = corner.clone();
-        high[i] = hi;
+        high.as_mut_slice()[i] = hi;
         corner = if limit(&low) < limit(&high) {
             low
         } else {
@@ -144,7 +145,7 @@ fn largest_eigenvalue(a: &DMatrix<f64>, masses: &[f64]) -> f64 {
 }
 
 fn short_engines(
-    sampled: &[f64],
+    sampled: &Sampled,
     hertz: &Arc<mbd_system::System>,
     spring: &Arc<mbd_system::System>,
 ) -> (Engine, Engine) {
@@ -213,13 +214,11 @@ fn stiffness_and_damping_are_symmetric_and_the_stability_bound_holds() {
 fn time_step_above_the_limit_is_refused_and_1e_4_passes_at_the_extreme_corner() {
     let system = load(&system_text("vtcd.yaml"), &[]);
     let sampled = worst_corner(&system, 20.0);
-    let names = system.sampled_names();
     let ranges = system.ranges();
-    let ends: Vec<String> = names
+    let ends: Vec<String> = sampled
         .iter()
-        .zip(&sampled)
         .zip(&ranges)
-        .map(|((n, v), r)| format!("{n} {}", if *v == r[0] { "min" } else { "max" }))
+        .map(|((n, v), r)| format!("{n} {}", if v == r[0] { "min" } else { "max" }))
         .collect();
     println!("the corner of the smallest dt limit: {}", ends.join(", "));
     let model = system.instantiate(&sampled).unwrap();

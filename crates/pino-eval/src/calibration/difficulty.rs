@@ -66,7 +66,8 @@ impl ResidualProbe {
         eta: &[f64],
         dt: f64,
     ) -> Result<Vec<f64>> {
-        let eq = sample_equations(system, params, self.map.equations.clone())?;
+        let design = system.sampled_values(params)?;
+        let eq = sample_equations(system, &design, self.map.equations.clone())?;
         let (o, e, d) = (self.outputs, self.excitations, self.map.dofs);
         let t = side.u.len() / o;
         let mut scratch = eq.scratch();

@@ -152,7 +152,7 @@ fn push_answers(
             t.push(&format!("{}_hi", c.name), Column::F64(side(false)))?;
         }
     }
-    let outside = predictor.outside_training(designs);
+    let outside = predictor.outside_training(designs)?;
     t.push(
         EXTRAPOLATED,
         Column::I64(outside.iter().map(|o| (!o.is_empty()) as i64).collect()),
