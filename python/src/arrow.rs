@@ -23,8 +23,8 @@ pub struct ArrowTable {
 }
 
 impl ArrowTable {
-    /// `table` moved into Arrow buffers (units declared for every column, or an error naming
-    /// the column; `what` names the table).
+    /// `table` moved into Arrow buffers (every column with the unit the table carries or the
+    /// fixed table's, or an error naming the column; `what` names the table).
     pub fn new(table: Table, what: &str) -> PyResult<Self> {
         let batch = pino_data::batch::into_record_batch(table, Path::new(what))
             .map_err(|e| value_error(e.to_string()))?;

@@ -98,7 +98,6 @@ impl PyModel {
             pino_learn::candle_single_threaded_by_default();
             let device = DeviceKind::Cpu.device().map_err(to_py)?;
             let mut predictor = Predictor::load(&dir, &device).map_err(to_py)?;
-            pino_data::system::declare_units(predictor.system()).map_err(to_py)?;
             if let Some(path) = &calibration {
                 predictor
                     .load_calibration(path)

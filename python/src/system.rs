@@ -145,7 +145,6 @@ impl PySystem {
         }
         let source = SystemSource::read(&path, overrides).map_err(to_py)?;
         let system = Arc::new(source.compile().map_err(to_py)?);
-        pino_data::system::declare_units(&system).map_err(to_py)?;
         Ok(Self {
             space: DesignSpace::of(system.clone()),
             source,
@@ -375,7 +374,8 @@ fn simulate(
     })
     .unwrap_or_else(|e| match e {});
     bar.finish();
-    let mut sim = Table::with_origin(Path::new("simulation"));
+    let units = pino_data::system::units_of(system).map_err(to_py)?;
+    let mut sim = Table::with_origin(Path::new("simulation")).with_units(units);
     let push = |t: &mut Table, name: &str, col| t.push(name, col).map_err(to_py);
     push(&mut sim, schema::SAMPLE_ID, Column::I64(ids))?;
     push(&mut sim, schema::TIME, Column::F64(t))?;

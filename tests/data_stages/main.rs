@@ -631,10 +631,9 @@ impl QuarterCar {
 /// acceleration, a constant `0.5 + 0.1 id` m/s^2 per sample, over 20 points at 1 kHz.
 fn synthetic_quarter_car(dir: &Path, ids: &[i64], drop: Option<&str>) {
     let (source, described) = system("quarter-car", &[]);
-    pino_data::system::declare_units(&described).unwrap();
     std::fs::create_dir_all(dir).unwrap();
     let n = 20;
-    let mut t = Table::default();
+    let mut t = Table::default().with_units(pino_data::system::units_of(&described).unwrap());
     let per_sample = |f: &dyn Fn(i64, usize) -> f64| -> Vec<f64> {
         ids.iter()
             .flat_map(|&i| (0..n).map(move |k| (i, k)))

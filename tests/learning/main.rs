@@ -285,7 +285,9 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     let broken = dir.join("broken");
     std::fs::create_dir_all(&broken).unwrap();
     let sim = pino_data::read_parquet(&data.join("simulation.parquet"), None).unwrap();
-    let mut cut = pino_data::Table::default();
+    let (_, described) = pino_data::system::read_record(std::slice::from_ref(&data)).unwrap();
+    let units = pino_data::system::units_of(&described).unwrap();
+    let mut cut = pino_data::Table::default().with_units(units);
     for (name, col) in sim.columns() {
         if name != "z_w3_a" {
             cut.push(name, col.clone()).unwrap();

@@ -238,7 +238,9 @@ fn bad_input_is_refused_with_a_clear_message() {
         .zip(&ids)
         .map(|(&m, &id)| if id == 2 { -m } else { m })
         .collect();
-    let mut edited = pino_data::Table::default();
+    let (_, described) = system("vtcd", &[]);
+    let units = pino_data::system::units_of(&described).unwrap();
+    let mut edited = pino_data::Table::default().with_units(units);
     for (name, col) in params.columns() {
         let col = if name == "m_c" {
             Column::F64(m_c.clone())
@@ -248,8 +250,6 @@ fn bad_input_is_refused_with_a_clear_message() {
         edited.push(name, col).unwrap();
     }
     params = edited;
-    let (_, described) = system("vtcd", &[]);
-    pino_data::system::declare_units(&described).unwrap();
     write_parquet(&file, &params).unwrap();
     let (ok, log, _) = simulate(
         dir.path(),

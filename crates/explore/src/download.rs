@@ -43,7 +43,7 @@ pub fn design_yaml(ex: &Explorer, req: &DesignRequest) -> Result<String, ApiErro
 }
 
 fn table(ex: &Explorer, r: &Response) -> Result<Table, ApiError> {
-    let mut t = Table::default();
+    let mut t = Table::default().with_units(ex.column_units().clone());
     t.push(pino_data::schema::TIME, Column::F64(r.t.clone()))
         .map_err(ApiError::internal)?;
     for (c, values) in ex.channels().iter().zip(&r.channels) {

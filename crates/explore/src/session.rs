@@ -169,6 +169,8 @@ pub struct Explorer {
     channels: Vec<Channel>,
     rules: RequestRules,
     units: Vec<String>,
+    /// The units of the columns of the model's system, carried by the downloaded tables.
+    column_units: pino_data::units::Units,
     test: Vec<TestSample>,
     dataset: DatasetFiles,
     generated: Vec<String>,
@@ -192,7 +194,7 @@ impl Explorer {
         let device = candle_core::Device::Cpu;
         let predictor = Predictor::load(model_dir, &device)?;
         let system = predictor.system().clone();
-        pino_data::system::declare_units(&system)?;
+        let column_units = pino_data::system::units_of(&system)?;
         let meta = &predictor.meta;
         let run = predictor.run_config(None)?;
         let index_cfg = predictor.index_config()?;
@@ -275,6 +277,7 @@ impl Explorer {
             channels,
             rules,
             units,
+            column_units,
             test,
             dataset,
             generated,
@@ -398,6 +401,12 @@ impl Explorer {
     /// The channels, in the order of [`Response::channels`].
     pub fn channels(&self) -> &[Channel] {
         &self.channels
+    }
+
+    /// The units of the columns of the model's system (parameters, channels, indices), which
+    /// the downloaded tables carry.
+    pub fn column_units(&self) -> &pino_data::units::Units {
+        &self.column_units
     }
 
     /// The test samples of the dataset (empty without one).

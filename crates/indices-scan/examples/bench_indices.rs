@@ -88,10 +88,11 @@ fn generate(
 ) -> Result<(), Box<dyn std::error::Error>> {
     std::fs::create_dir_all(dir)?;
     let n = per * shards;
-    let mut p = Table::default();
+    let system = system();
+    let units = pino_data::system::units_of(&system)?;
+    let mut p = Table::default().with_units(units.clone());
     p.push(schema::SAMPLE_ID, Column::I64((0..n as i64).collect()))?;
     p.push(schema::SPLIT, Column::Str(vec!["train".into(); n]))?;
-    let system = system();
     for i in system.sampled() {
         let par = &system.parameters[i];
         let ParamSource::Sampled { nominal, .. } = par.source else {
@@ -102,7 +103,7 @@ fn generate(
     pino_data::write_parquet(&dir.join("params.parquet"), &p)?;
     for k in 0..shards {
         let path = dir.join(format!("sim_{k}.parquet"));
-        let mut w = StreamWriter::create(&path, &sample_table(0, 0))?;
+        let mut w = StreamWriter::create(&path, &sample_table(0, 0).with_units(units.clone()))?;
         for id in (k * per)..((k + 1) * per) {
             w.write(&sample_table(id as i64, rows))?;
         }

@@ -13,7 +13,7 @@ use std::path::Path;
 /// names).
 pub fn to_table(system: &System, out: &Computed) -> pino_data::Result<Table> {
     let rows = &out.rows;
-    let mut t = Table::default();
+    let mut t = Table::default().with_units(pino_data::system::units_of(system)?);
     t.push(
         schema::SAMPLE_ID,
         Column::I64(rows.iter().map(|r| r.id).collect()),
@@ -98,12 +98,8 @@ pub fn describe_json(system: &System, cfg: &IndexConfig) -> String {
     serde_json::to_string_pretty(&doc).expect("plain JSON values") + "\n"
 }
 
-/// Writes `indices.parquet` and `indices.json` into `dir` (atomically, deterministic bytes),
-/// after declaring the units of the columns `system` defines
-/// ([`pino_data::system::declare_units`]: its parameters and simple indices; the railway
-/// indices' units are in `pino-data`'s fixed table).
+/// Writes `indices.parquet` and `indices.json` into `dir` (atomically, deterministic bytes).
 pub fn write_outputs(dir: &Path, system: &System, out: &Computed, cfg: &IndexConfig) -> Result<()> {
-    pino_data::system::declare_units(system)?;
     pino_data::write_parquet(&dir.join("indices.parquet"), &to_table(system, out)?)?;
     let path = dir.join("indices.json");
     atomic_write(&path, describe_json(system, cfg).as_bytes())

@@ -22,17 +22,15 @@ type Signals<'a> = &'a dyn Fn(i64, usize) -> Columns;
 /// An edit of a sample's columns before writing (to plant NaNs, drop columns, ...).
 type Edit<'a> = &'a dyn Fn(i64, &mut Columns);
 
-/// Compiles a description text and declares its columns' units (for the Parquet writers).
+/// Compiles a description text.
 fn compile(file: &str, text: &str) -> System {
-    let system = SystemSource {
+    SystemSource {
         file: file.into(),
         text: text.into(),
         values: Default::default(),
     }
     .compile()
-    .unwrap_or_else(|e| panic!("{file}: {e}"));
-    pino_data::system::declare_units(&system).unwrap();
-    system
+    .unwrap_or_else(|e| panic!("{file}: {e}"))
 }
 
 /// `text` with its `indices:` section (the last one of the quarter car's description)
@@ -160,9 +158,9 @@ fn bridge_columns(id: i64, n: usize) -> Columns {
     ]
 }
 
-/// Writes a simulation file of samples `ids` (`n` rows each, `t` from 0 every `DT`).
-fn write_sim(path: &Path, ids: &[i64], n: usize, signals: Signals, edit: Edit) {
-    let mut t = Table::default();
+/// Writes a simulation file of `system`'s samples `ids` (`n` rows each, `t` from 0 every `DT`).
+fn write_sim(path: &Path, system: &System, ids: &[i64], n: usize, signals: Signals, edit: Edit) {
+    let mut t = Table::default().with_units(pino_data::system::units_of(system).unwrap());
     let mut sid = Vec::new();
     let mut time = Vec::new();
     let mut cols: Columns = Vec::new();
@@ -192,7 +190,7 @@ fn write_sim(path: &Path, ids: &[i64], n: usize, signals: Signals, edit: Edit) {
 }
 
 fn write_params(path: &Path, system: &System, ids: &[i64]) {
-    let mut t = Table::default();
+    let mut t = Table::default().with_units(pino_data::system::units_of(system).unwrap());
     t.push(schema::SAMPLE_ID, Column::I64(ids.to_vec()))
         .unwrap();
     t.push(
@@ -238,8 +236,8 @@ fn fixture(system: System, n: usize, signals: Signals, edit: Edit) -> Fixture {
     let params_file = dir.path().join("params.parquet");
     write_params(&params_file, &system, &[0, 1, 2, 3, 4, 5]);
     let files = vec![dir.path().join("a.parquet"), dir.path().join("b.parquet")];
-    write_sim(&files[0], &[0, 1, 2], n, signals, edit);
-    write_sim(&files[1], &[3, 4], n, signals, edit);
+    write_sim(&files[0], &system, &[0, 1, 2], n, signals, edit);
+    write_sim(&files[1], &system, &[3, 4], n, signals, edit);
     let params = read_params(&system, std::slice::from_ref(&params_file)).unwrap();
     Fixture {
         dir,
@@ -583,9 +581,14 @@ fn a_description_without_indices_writes_the_keys() {
 #[test]
 fn a_missing_column_names_file_and_column() {
     let fx = vtcd(&|_, _| {});
-    write_sim(&fx.files[1], &[3, 4], 100, &railway_columns, &|_, c| {
-        c.retain(|(n, _)| n != "p_3")
-    });
+    write_sim(
+        &fx.files[1],
+        &fx.system,
+        &[3, 4],
+        100,
+        &railway_columns,
+        &|_, c| c.retain(|(n, _)| n != "p_3"),
+    );
     let e = fx.compute(&cfg(0.0)).unwrap_err().to_string();
     assert!(
         e.contains("b.parquet") && e.contains("missing column `p_3`"),
@@ -669,13 +672,20 @@ fn nan_names_file_sample_and_column() {
 fn empty_and_inconsistent_samples_are_refused() {
     // A sample of one row.
     let fx = vtcd(&|_, _| {});
-    write_sim(&fx.files[1], &[3, 4], 1500, &railway_columns, &|id, c| {
-        if id == 3 {
-            for (_, v) in c.iter_mut() {
-                v.truncate(1);
+    write_sim(
+        &fx.files[1],
+        &fx.system,
+        &[3, 4],
+        1500,
+        &railway_columns,
+        &|id, c| {
+            if id == 3 {
+                for (_, v) in c.iter_mut() {
+                    v.truncate(1);
+                }
             }
-        }
-    });
+        },
+    );
     let e = fx.compute(&cfg(0.0)).unwrap_err().to_string();
     assert!(
         e.contains("b.parquet") && e.contains("sample 3") && e.contains("1 points"),
@@ -684,25 +694,46 @@ fn empty_and_inconsistent_samples_are_refused() {
     // Files without a single row.
     let fx = vtcd(&|_, _| {});
     for f in &fx.files {
-        write_sim(f, &[], 10, &railway_columns, &|_, _| {});
+        write_sim(f, &fx.system, &[], 10, &railway_columns, &|_, _| {});
     }
     let e = fx.compute(&cfg(0.0)).unwrap_err().to_string();
     assert!(e.contains("no simulated sample"), "{e}");
     // A sample in two files; a sample twice in one file; a sample unknown to params.parquet.
     let fx = vtcd(&|_, _| {});
-    write_sim(&fx.files[1], &[2, 3], 200, &railway_columns, &|_, _| {});
+    write_sim(
+        &fx.files[1],
+        &fx.system,
+        &[2, 3],
+        200,
+        &railway_columns,
+        &|_, _| {},
+    );
     let e = fx.compute(&cfg(0.0)).unwrap_err().to_string();
     assert!(
         e.contains("b.parquet") && e.contains("sample 2 is also in") && e.contains("a.parquet"),
         "{e}"
     );
-    write_sim(&fx.files[1], &[3, 4, 3], 200, &railway_columns, &|_, _| {});
+    write_sim(
+        &fx.files[1],
+        &fx.system,
+        &[3, 4, 3],
+        200,
+        &railway_columns,
+        &|_, _| {},
+    );
     let e = fx.compute(&cfg(0.0)).unwrap_err().to_string();
     assert!(
         e.contains("b.parquet") && e.contains("rows of sample 3 are not contiguous"),
         "{e}"
     );
-    write_sim(&fx.files[1], &[3, 9], 200, &railway_columns, &|_, _| {});
+    write_sim(
+        &fx.files[1],
+        &fx.system,
+        &[3, 9],
+        200,
+        &railway_columns,
+        &|_, _| {},
+    );
     let e = fx.compute(&cfg(0.0)).unwrap_err().to_string();
     assert!(e.contains("sample 9 is not in params.parquet"), "{e}");
 }

@@ -15,6 +15,7 @@
 use mbd_dataset::{ProfileParams, SamplingPlan, SplitSizes};
 use mbd_engine::{Profile, RunConfig, SampleInput, StartMode};
 use mbd_system::{Override, SystemSource};
+use pino_data::units::Units;
 use pino_data::{schema, write_parquet, Column, StreamWriter, Table};
 use pino_learn::config::WindowConfig;
 use pino_learn::data::{load_dataset, load_split, Dataset, DatasetInfo, Prepared, Split};
@@ -181,12 +182,13 @@ impl SyntheticFiles {
 fn write_params(
     dir: &Path,
     system: &mbd_system::System,
+    units: &Units,
     plan: &SamplingPlan,
     draws: &[Vec<f64>],
 ) -> Result<PathBuf> {
     let names = system.sampled_names();
     let n = draws.len() as u64;
-    let mut params = Table::default();
+    let mut params = Table::default().with_units(units.clone());
     params.push(schema::SAMPLE_ID, Column::I64((0..n as i64).collect()))?;
     params.push(
         schema::SPLIT,
@@ -250,8 +252,13 @@ fn profile_controls(system: &mbd_system::System, seed: u64) -> ProfileParams {
 }
 
 /// `weights.parquet`: the magnitude weights phi of the training samples, by id.
-fn write_weights(path: &Path, layout: &Layout, phi: &[(i64, Vec<f64>)]) -> Result<()> {
-    let mut wt = Table::default();
+fn write_weights(
+    path: &Path,
+    units: &Units,
+    layout: &Layout,
+    phi: &[(i64, Vec<f64>)],
+) -> Result<()> {
+    let mut wt = Table::default().with_units(units.clone());
     wt.push(
         schema::SAMPLE_ID,
         Column::I64(phi.iter().map(|p| p.0).collect()),
@@ -270,7 +277,7 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         message,
     };
     let system = Arc::new(spec.system.compile().map_err(|e| bad(e.to_string()))?);
-    pino_data::system::declare_units(&system)?;
+    let units = pino_data::system::units_of(&system)?;
     // A sampling plan has all three splits (as every pipeline's data); a synthetic dataset may
     // leave out the test split (the validation fallback of `evaluate`): the plan then holds one
     // test id that is not written. Ids before it are drawn and split alike either way.
@@ -289,7 +296,7 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     let plan = SamplingPlan::new(sizes, &system).map_err(|e| bad(e.to_string()))?;
     let n = spec.n_train + spec.n_validation + spec.n_test + spec.n_calibration;
     let draws: Vec<Vec<f64>> = (0..n).map(|id| plan.draw(id)).collect();
-    let params_path = write_params(dir, &system, &plan, &draws)?;
+    let params_path = write_params(dir, &system, &units, &plan, &draws)?;
     pino_data::system::write_record(dir, &spec.system)?;
 
     // Profiles, then the runs.
@@ -345,7 +352,7 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     // 64 samples at a time in parallel, written in id order (one row group per sample).
     mbd_engine::run_all(&engines, 64, &|| {}, |id, out| -> Result<()> {
         let tr = out.map_err(|f| bad(format!("sample {id}: {}", f.reason)))?;
-        let mut t = Table::default();
+        let mut t = Table::default().with_units(units.clone());
         t.push(&cols[0], Column::I64(vec![id as i64; tr.t.len()]))?;
         t.push(&cols[1], Column::F64(tr.t.clone()))?;
         for (name, col) in cols[2..].iter().zip(&tr.columns) {
@@ -373,7 +380,7 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     })?;
     writer.ok_or_else(|| bad("no samples".into()))?.finish()?;
     let weights_path = dir.join("weights.parquet");
-    write_weights(&weights_path, &layout, &phi)?;
+    write_weights(&weights_path, &units, &layout, &phi)?;
     let settings = pino_learn::checkpoint::DataSettings {
         run: config,
         profiles: generators.iter().any(Option::is_some).then_some(controls),

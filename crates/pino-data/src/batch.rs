@@ -10,7 +10,8 @@ use arrow_array::{ArrayRef, RecordBatch};
 use std::path::Path;
 
 /// `table` as one record batch, its columns moved into Arrow buffers; `origin` names it in
-/// errors (a column without a declared unit is refused, as when writing a file).
+/// errors (a column without a unit in the table's units or the fixed table is refused, as when
+/// writing a file).
 pub fn into_record_batch(table: Table, origin: &Path) -> Result<RecordBatch> {
     let schema = arrow_schema(origin, &table, None)?;
     let arrays: Vec<ArrayRef> = table

@@ -2,7 +2,8 @@
 //!
 //! - [`schema`]: the column names every artifact uses (from `docs/model.md`); users read them
 //!   from pandas, polars or DuckDB, so they are a contract.
-//! - [`Table`]: a small columnar table of named `f64`, `i64` or string columns.
+//! - [`Table`]: a small columnar table of named `f64`, `i64` or string columns, carrying the
+//!   units of the columns its system defines ([`units::Units`]).
 //! - [`write_parquet`]: writes a table atomically (temporary file, fsync, rename) with fixed
 //!   writer settings, so the same table always gives the same bytes.
 //! - [`StreamWriter`]: writes a large table row group by row group (atomic on finish).
@@ -15,7 +16,8 @@
 //!   stages that learn from it.
 //! - [`system`]: the system description a stage's command names, its record beside the
 //!   artifacts (`system.json`) and the units of its columns.
-//! - [`units`]: the unit of every column of every artifact; [`metadata`]: what each file
+//! - [`units`]: the unit of every column of every artifact (a fixed table, and the units a
+//!   table carries); [`metadata`]: what each file
 //!   carries about itself (every column's unit, the writing stage, unit and parameters, the
 //!   version), readable from pyarrow, polars and DuckDB.
 //!
@@ -105,13 +107,24 @@ pub enum Error {
     /// The same column name twice in one table.
     #[error("duplicate column `{0}`")]
     Duplicate(String),
-    /// A column that [`units::unit`] has no unit for (every written column must have one).
+    /// A column that neither the table's [`units::Units`] nor the fixed table has a unit for
+    /// (every written column must have one).
     #[error("{path}: column `{column}` has no unit: state it in crates/pino-data/src/units.rs")]
     NoUnit {
         /// The file being written.
         path: PathBuf,
         /// The column.
         column: String,
+    },
+    /// A column given a unit while it already has another ([`units::Units::with`]).
+    #[error("column `{column}` is declared with unit `{unit}` but already has unit `{existing}`")]
+    UnitConflict {
+        /// The column.
+        column: String,
+        /// The unit given now.
+        unit: String,
+        /// The unit it already has.
+        existing: String,
     },
     /// A process declared two different origins ([`metadata::set_origin`]).
     #[error("origin of the written files: {0}")]

@@ -3,8 +3,8 @@
 //!
 //! Every write ([`crate::write_parquet`], [`crate::StreamWriter`]) attaches:
 //!
-//! - to each column (Arrow field metadata): `unit` ([`crate::units::UNIT_KEY`]), from
-//!   [`crate::units::unit`];
+//! - to each column (Arrow field metadata): `unit` ([`crate::units::UNIT_KEY`]), from the
+//!   units the table carries or the fixed table ([`crate::Table::unit`], [`crate::units`]);
 //! - to the file (Parquet key-value metadata, and the Arrow schema's metadata, so
 //!   `pyarrow.parquet.read_schema(f).metadata`, DuckDB's `parquet_kv_metadata(f)` and
 //!   polars' `read_parquet_metadata(f)` all show it):
@@ -22,7 +22,7 @@
 //! file and rerun everything downstream (the store records it beside each output instead,
 //! `artifacts/objects/<identity>/context.json`).
 
-use crate::units::{unit, UNIT_KEY as FIELD_UNIT_KEY};
+use crate::units::UNIT_KEY as FIELD_UNIT_KEY;
 use crate::{Error, Result, Table};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -97,13 +97,13 @@ pub fn origin() -> Option<&'static Origin> {
     ORIGIN.get()
 }
 
-/// The unit of every column of `table` (field metadata), in column order; a column without
-/// one in [`crate::units`] is an error naming `path`.
-pub(crate) fn column_units(path: &Path, table: &Table) -> Result<Vec<(String, &'static str)>> {
+/// The unit of every column of `table` (field metadata), in column order: the table's own or
+/// the fixed table's ([`Table::unit`]); a column without one is an error naming it and `path`.
+pub(crate) fn column_units<'t>(path: &Path, table: &'t Table) -> Result<Vec<(&'t str, &'t str)>> {
     table
         .names()
-        .map(|name| match unit(name) {
-            Some(u) => Ok((name.to_owned(), u)),
+        .map(|name| match table.unit(name) {
+            Some(u) => Ok((name, u)),
             None => Err(Error::NoUnit {
                 path: path.to_owned(),
                 column: name.to_owned(),
@@ -114,12 +114,12 @@ pub(crate) fn column_units(path: &Path, table: &Table) -> Result<Vec<(String, &'
 
 /// The file's key-value metadata for columns with `units`, sorted by key.
 pub(crate) fn file_metadata(
-    units: &[(String, &str)],
+    units: &[(&str, &str)],
     origin: Option<&Origin>,
 ) -> BTreeMap<String, String> {
     let map: serde_json::Map<String, serde_json::Value> = units
         .iter()
-        .map(|(n, u)| (n.clone(), serde_json::Value::from(*u)))
+        .map(|(n, u)| ((*n).to_owned(), serde_json::Value::from(*u)))
         .collect();
     let mut kv = BTreeMap::from([
         (VERSION_KEY.to_owned(), VERSION.to_owned()),

@@ -4,7 +4,7 @@
 //! [`crate::system::RUN_FILE`]; the physics is the description's, `system.json`.)
 //!
 //! `simulate` writes `provenance.parquet` (columns `name` (string), `value` (f64), `unit`
-//! (string, from [`crate::units`]), one row per control, sorted by name) into every shard's
+//! (string, from the fixed table of [`crate::units`]), one row per control, sorted by name) into every shard's
 //! output.
 
 use crate::{read_parquet, write_parquet, Column, Error, Result, Table};
@@ -15,13 +15,13 @@ use std::path::Path;
 pub const PROVENANCE_FILE: &str = "provenance.parquet";
 
 /// Writes the constants (name, value, unit) to `path`, sorted by name; a constant without a
-/// unit in [`crate::units`] is an error.
+/// unit in the fixed table of [`crate::units`] is an error.
 pub fn write_provenance(path: &Path, constants: &[(&str, f64)]) -> Result<()> {
     let sorted: BTreeMap<&str, f64> = constants.iter().copied().collect();
     let units = sorted
         .keys()
         .map(|name| {
-            crate::units::unit(name)
+            crate::units::fixed_unit(name)
                 .map(str::to_owned)
                 .ok_or_else(|| Error::NoUnit {
                     path: path.to_owned(),

@@ -4,9 +4,10 @@
 //! `sample-params` writes the description it sampled from as `system.json` beside
 //! `params.parquet`, `simulate` beside every dataset shard; the stages after them read that
 //! record instead of the file, so they learn from exactly the description the data came from,
-//! and a stage that reads both refuses a mismatch. [`declare_units`] states the unit of every
-//! column the description defines, for the Parquet writers.
+//! and a stage that reads both refuses a mismatch. [`units_of`] gives the unit of every column
+//! the description defines, for the tables the Parquet writers write.
 
+use crate::units::Units;
 use crate::{Error, Result};
 use mbd_system::system::{ParamSource, Role};
 use mbd_system::{System, SystemSource, SYSTEM_FILE};
@@ -85,10 +86,12 @@ pub fn same(a_path: &Path, a: &SystemSource, b_path: &Path, b: &SystemSource) ->
     )))
 }
 
-/// Declares the unit of every column `system` defines: its parameters (as written in the
+/// The unit of every column `system` defines: its sampled parameters (as written in the
 /// description), its stored channels, the magnitude weight `phi_<dof>` of every DOF (N, or
 /// N m for a pitch) and its index columns (the railway family's when it binds them, its own).
-pub fn declare_units(system: &System) -> Result<()> {
+/// A name of the description that the fixed table knows with another unit is
+/// [`Error::UnitConflict`]. Add a writer's own columns with [`Units::with`].
+pub fn units_of(system: &System) -> Result<Units> {
     let mut pairs: Vec<(String, String)> = Vec::new();
     for p in &system.parameters {
         if matches!(p.source, ParamSource::Sampled { .. }) {
@@ -108,7 +111,7 @@ pub fn declare_units(system: &System) -> Result<()> {
     for ix in pino_indices::IndexSet::of(system).columns(system) {
         pairs.push((ix.name, ix.unit));
     }
-    crate::units::declare(pairs.iter().map(|(n, u)| (n.as_str(), u.as_str())))
+    Units::default().with(pairs)
 }
 
 /// The magnitude-weight column of DOF `dof`: `phi_z_c`.

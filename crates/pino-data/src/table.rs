@@ -1,5 +1,7 @@
-//! An in-memory columnar table: named, equally long `f64`, `i64` or string columns.
+//! An in-memory columnar table: named, equally long `f64`, `i64` or string columns, with the
+//! units of the columns that the fixed table of [`crate::units`] does not know.
 
+use crate::units::Units;
 use crate::{Error, Result};
 use std::path::PathBuf;
 
@@ -50,20 +52,52 @@ impl Column {
 }
 
 /// Named columns of equal length, in insertion order. `origin` names where the table came
-/// from (a file path) so that errors point at it.
+/// from (a file path) so that errors point at it; `units` gives the unit of each column the
+/// fixed table of [`crate::units`] does not know (a system's parameters, channels, indices),
+/// for the writers.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Table {
     columns: Vec<(String, Column)>,
     origin: PathBuf,
+    units: Units,
 }
 
 impl Table {
     /// An empty table whose errors will name `origin`.
     pub fn with_origin(origin: impl Into<PathBuf>) -> Self {
         Self {
-            columns: Vec::new(),
             origin: origin.into(),
+            ..Self::default()
         }
+    }
+
+    /// This table carrying `units` for its columns (they replace any it carried): what the
+    /// writers take each column's unit from, before the fixed table.
+    pub fn with_units(mut self, units: Units) -> Self {
+        self.units = units;
+        self
+    }
+
+    /// Adds `pairs` (`name`, `unit`) to the units this table carries; a name that already
+    /// has another unit is [`Error::UnitConflict`].
+    pub fn add_units<N, U>(&mut self, pairs: impl IntoIterator<Item = (N, U)>) -> Result<()>
+    where
+        N: AsRef<str>,
+        U: AsRef<str>,
+    {
+        self.units = std::mem::take(&mut self.units).with(pairs)?;
+        Ok(())
+    }
+
+    /// The units this table carries ([`Table::with_units`]).
+    pub fn units(&self) -> &Units {
+        &self.units
+    }
+
+    /// The unit of column `name`: the table's own, else the fixed table's; `None` for a
+    /// column neither knows.
+    pub fn unit(&self, name: &str) -> Option<&str> {
+        self.units.unit(name)
     }
 
     /// Appends a column; its length must match the existing ones.
@@ -146,16 +180,20 @@ impl Table {
         }
     }
 
-    /// Appends the rows of `other`, which must have the same columns in the same order.
+    /// Appends the rows of `other`, which must have the same columns in the same order; the
+    /// table carries the units of both (a column with two units is an error).
     pub fn append(&mut self, other: Table) -> Result<()> {
+        let units = std::mem::take(&mut self.units).merged(&other.units)?;
         if self.columns.is_empty() {
             let origin = std::mem::take(&mut self.origin);
             *self = other;
             if !origin.as_os_str().is_empty() {
                 self.origin = origin;
             }
+            self.units = units;
             return Ok(());
         }
+        self.units = units;
         let theirs: Vec<String> = other.names().map(str::to_owned).collect();
         let ours: Vec<String> = self.names().map(str::to_owned).collect();
         if theirs != ours {

@@ -1,10 +1,15 @@
-//! The unit of every column of every pino-mbd artifact, in one table.
+//! The unit of every column of every pino-mbd artifact: a fixed table for the bookkeeping
+//! columns, and the units a table carries for the columns of its system description.
 //!
 //! Every Parquet file the project writes carries, for each column, its unit in the Arrow field
 //! metadata under [`UNIT_KEY`] (and all of them as one JSON object in the file's key-value
-//! metadata, see [`crate::metadata`]); [`unit()`] is where they come from. A column the table
-//! does not know cannot be written ([`crate::Error::NoUnit`]): adding a column to an artifact
-//! means stating its unit here.
+//! metadata, see [`crate::metadata`]). The writer takes each unit from the table's own
+//! [`Units`] ([`crate::Table::with_units`]; a system's are [`crate::system::units_of`]: its
+//! parameters, channels, magnitude weights and indices), else from the fixed table of keys,
+//! labels, scores and bookkeeping columns ([`fixed_unit`]). A column neither knows cannot be
+//! written ([`crate::Error::NoUnit`], naming it): adding a bookkeeping column to an artifact
+//! means stating its unit here, a system's column has its unit in the description. There is no
+//! process-wide registry: two systems' tables written by one process each carry their own.
 //!
 //! Notation: SI symbols as in `docs/model.md`, products with a space (`N m`, `N s/m`,
 //! `kg m^2`), powers with `^`; `-` for a dimensionless number, an identifier or a label;
@@ -13,6 +18,7 @@
 //! `provenance.parquet`).
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use crate::schema;
 
@@ -119,89 +125,159 @@ const NAMED: &[(&str, &str)] = &[
     ("verdict", DIMENSIONLESS),
 ];
 
-/// Units declared by this process for the columns of its system description (parameters,
-/// channels, magnitude weights, indices): `name -> unit`, consulted before the fixed table.
-static DECLARED: std::sync::RwLock<BTreeMap<String, &'static str>> =
-    std::sync::RwLock::new(BTreeMap::new());
-
-/// Declares the units of columns a system description defines (its parameters and stored
-/// channels, see [`crate::system::declare_units`]). A name already declared or in the fixed
-/// tables with another unit is an error naming both.
-pub fn declare<'a>(pairs: impl IntoIterator<Item = (&'a str, &'a str)>) -> crate::Result<()> {
-    let mut map = DECLARED.write().unwrap_or_else(|e| e.into_inner());
-    for (name, u) in pairs {
-        let fixed = NAMED.iter().find(|(n, _)| *n == name).map(|(_, u)| *u);
-        match map.get(name).copied().or(fixed) {
-            Some(old) if old != u => {
-                return Err(crate::Error::Origin(format!(
-                    "column `{name}` is declared with unit `{u}` but already has unit `{old}`"
-                )))
-            }
-            Some(_) => {}
-            None => {
-                map.insert(name.to_owned(), Box::leak(u.to_owned().into_boxed_str()));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// The unit of column `name` of any pino-mbd artifact, `None` for a column no artifact has:
-/// the bookkeeping columns of the fixed table, and the columns of the system description this
-/// process declared ([`declare`], [`crate::system::declare_units`]).
+/// The unit of column `name` in the fixed table of bookkeeping columns (keys, labels, scores),
+/// `None` for any other name: the columns a system description defines have their units in
+/// the [`Units`] a table carries.
 ///
 /// ```
-/// use pino_data::units::{declare, unit};
-/// declare([("z_s", "m"), ("phi_z_s", "N")]).unwrap();
-/// assert_eq!(unit("z_s"), Some("m"));
-/// assert_eq!(unit("sample_id"), Some("-"));
-/// assert_eq!(unit("no_such_column"), None);
+/// use pino_data::units::fixed_unit;
+/// assert_eq!(fixed_unit("sample_id"), Some("-"));
+/// assert_eq!(fixed_unit("t"), Some("s"));
+/// assert_eq!(fixed_unit("z_s"), None);
 /// ```
-pub fn unit(name: &str) -> Option<&'static str> {
-    if let Some(&u) = DECLARED.read().unwrap_or_else(|e| e.into_inner()).get(name) {
-        return Some(u);
-    }
+pub fn fixed_unit(name: &str) -> Option<&'static str> {
     NAMED.iter().find(|(n, _)| *n == name).map(|(_, u)| *u)
+}
+
+/// The units of the columns a table holds beyond the fixed table: `name -> unit`, owned (the
+/// columns of a system description, [`crate::system::units_of`], and any a writer adds with
+/// [`Units::with`]). Cheap to clone (shared). No name has two units: one the fixed table knows
+/// keeps its unit there, and [`Units::with`] refuses another.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Units(Arc<BTreeMap<String, String>>);
+
+impl Units {
+    /// These units with `pairs` (`name`, `unit`) added; a name that already has another unit
+    /// (here or in the fixed table) is [`crate::Error::UnitConflict`], naming both.
+    ///
+    /// ```
+    /// use pino_data::units::Units;
+    /// let units = Units::default().with([("z_s", "m"), ("phi_z_s", "N")]).unwrap();
+    /// assert_eq!(units.unit("z_s"), Some("m"));
+    /// assert_eq!(units.unit("sample_id"), Some("-"));
+    /// assert_eq!(units.unit("no_such_column"), None);
+    /// assert!(units.with([("z_s", "rad")]).is_err());
+    /// ```
+    pub fn with<N, U>(mut self, pairs: impl IntoIterator<Item = (N, U)>) -> crate::Result<Self>
+    where
+        N: AsRef<str>,
+        U: AsRef<str>,
+    {
+        for (name, unit) in pairs {
+            let (name, unit) = (name.as_ref(), unit.as_ref());
+            match self.unit(name) {
+                Some(existing) if existing != unit => {
+                    return Err(crate::Error::UnitConflict {
+                        column: name.to_owned(),
+                        unit: unit.to_owned(),
+                        existing: existing.to_owned(),
+                    })
+                }
+                Some(_) => {}
+                None => {
+                    Arc::make_mut(&mut self.0).insert(name.to_owned(), unit.to_owned());
+                }
+            }
+        }
+        Ok(self)
+    }
+
+    /// These units and those of `other` (a name with two different units is an error, as in
+    /// [`Units::with`]).
+    pub fn merged(self, other: &Units) -> crate::Result<Self> {
+        if self.0.is_empty() {
+            return Ok(other.clone());
+        }
+        self.with(other.iter())
+    }
+
+    /// The unit of column `name`: its own, else the fixed table's ([`fixed_unit`]); `None` for
+    /// a column neither knows.
+    pub fn unit(&self, name: &str) -> Option<&str> {
+        self.0
+            .get(name)
+            .map(String::as_str)
+            .or_else(|| fixed_unit(name))
+    }
+
+    /// The units beyond the fixed table, by name.
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &str)> {
+        self.0.iter().map(|(n, u)| (n.as_str(), u.as_str()))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The bookkeeping columns carry their units; a declared column its declared one; a
-    /// second declaration with another unit is refused naming both.
+    /// The bookkeeping columns carry their units; an added column its own; a second unit for
+    /// a name (added or fixed) is refused naming both.
     #[test]
-    fn fixed_and_declared_units() {
+    fn fixed_and_added_units() {
+        let units = Units::default();
         for (c, u) in [
             ("t", "s"),
             ("sample_id", "-"),
             ("rms_error", PER_ROW),
             ("dt", "s"),
         ] {
-            assert_eq!(unit(c), Some(u), "{c}");
+            assert_eq!(units.unit(c), Some(u), "{c}");
         }
-        declare([("units_test_z", "m"), ("units_test_phi", "N m")]).unwrap();
-        assert_eq!(unit("units_test_z"), Some("m"));
-        assert_eq!(unit("units_test_phi"), Some("N m"));
-        declare([("units_test_z", "m")]).unwrap();
-        let e = declare([("units_test_z", "rad")]).unwrap_err().to_string();
+        let units = units
+            .with([("units_test_z", "m"), ("units_test_phi", "N m")])
+            .unwrap();
+        assert_eq!(units.unit("units_test_z"), Some("m"));
+        assert_eq!(units.unit("units_test_phi"), Some("N m"));
+        let units = units.with([("units_test_z", "m"), ("t", "s")]).unwrap();
+        assert_eq!(
+            units.iter().count(),
+            2,
+            "nothing added twice, fixed ones not copied"
+        );
+        let e = units
+            .clone()
+            .with([("units_test_z", "rad")])
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains(
                 "column `units_test_z` is declared with unit `rad` but already has unit `m`"
             ),
             "{e}"
         );
-        let e = declare([("t", "ms")]).unwrap_err().to_string();
+        let e = units.with([("t", "ms")]).unwrap_err().to_string();
         assert!(
             e.contains("`t` is declared with unit `ms` but already has unit `s`"),
             "{e}"
         );
     }
 
+    /// Two sets of units are independent: what one adds the other does not see, and merging
+    /// them refuses a name with two units.
+    #[test]
+    fn units_are_values_not_a_registry() {
+        let a = Units::default().with([("units_test_q", "m")]).unwrap();
+        let b = Units::default().with([("units_test_q", "rad")]).unwrap();
+        assert_eq!(
+            (a.unit("units_test_q"), b.unit("units_test_q")),
+            (Some("m"), Some("rad"))
+        );
+        assert_eq!(Units::default().unit("units_test_q"), None);
+        let e = a.clone().merged(&b).unwrap_err().to_string();
+        assert!(e.contains("`units_test_q`"), "{e}");
+        let c = Units::default().with([("units_test_r", "N")]).unwrap();
+        let ac = a.merged(&c).unwrap();
+        assert_eq!(
+            (ac.unit("units_test_q"), ac.unit("units_test_r")),
+            (Some("m"), Some("N"))
+        );
+    }
+
     #[test]
     fn unknown_names_have_no_unit() {
         for c in ["", "z_c", "phi_1", "p_1", "units_test_unknown", "t_exact"] {
-            assert_eq!(unit(c), None, "{c}");
+            assert_eq!(fixed_unit(c), None, "{c}");
+            assert_eq!(Units::default().unit(c), None, "{c}");
         }
     }
 

@@ -5,10 +5,13 @@ use pino_data::metadata::{
     read_metadata, set_origin, Origin, COLUMN_UNITS_KEY, PARAMS_KEY, STAGE_KEY, UNIT_KEY, VERSION,
     VERSION_KEY,
 };
+use pino_data::units::Units;
 use pino_data::{schema, write_parquet, Column, StreamWriter, Table};
 
+/// A table with a system's column (`p_1`), its unit carried by the table.
 fn table() -> Table {
-    let mut t = Table::default();
+    let units = Units::default().with([("p_1", "N")]).unwrap();
+    let mut t = Table::default().with_units(units);
     t.push(schema::SAMPLE_ID, Column::I64(vec![0, 0])).unwrap();
     t.push(schema::TIME, Column::F64(vec![0.0, 1e-3])).unwrap();
     t.push("p_1", Column::F64(vec![7e4, 7.1e4])).unwrap();
@@ -17,8 +20,6 @@ fn table() -> Table {
 
 #[test]
 fn declared_origin_is_in_every_file() {
-    // A system's column: its unit comes from the description, declared by the process.
-    pino_data::units::declare([("p_1", "N")]).unwrap();
     let params = serde_json::json!({"duration": 0.5, "start": "equilibrium"});
     set_origin(Origin::stage_unit("simulate", 1, 2, &params)).unwrap();
     // The same origin again is fine, another one is refused.
@@ -61,7 +62,6 @@ fn declared_origin_is_in_every_file() {
 
 #[test]
 fn a_file_written_for_a_request_names_its_own_origin_beside_the_process() {
-    pino_data::units::declare([("p_1", "N")]).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("r.parquet");
     let params = serde_json::json!({"design": {"k_s": 4.0e5}, "excitation": {"kind": "seed"}});

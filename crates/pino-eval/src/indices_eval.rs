@@ -547,17 +547,6 @@ pub fn write_indices(
         )?);
     }
     let columns = inputs.columns();
-    // Every index and its exact value beside it carry the index's unit.
-    let units: Vec<(String, String)> = columns
-        .iter()
-        .flat_map(|c| {
-            [
-                (c.name.clone(), c.unit.clone()),
-                (format!("{}_exact", c.name), c.unit.clone()),
-            ]
-        })
-        .collect();
-    pino_data::units::declare(units.iter().map(|(n, u)| (n.as_str(), u.as_str())))?;
     let stats = write_errors_table(out, split, inputs, models)?;
     let md = errors_markdown(split, inputs, layout, models, &stats);
     write_atomic(&out.join("indices_errors.md"), md.as_bytes())?;
@@ -709,7 +698,14 @@ fn errors_markdown(
 /// `indices_samples.parquet`: every sample's predicted and exact index values.
 fn write_samples_table(out: &Path, inputs: &IndexInputs, models: &[ModelIndices]) -> Result<()> {
     let columns = inputs.columns();
-    let mut s = Table::default();
+    // Every index and its exact value beside it carry the index's unit.
+    let units = pino_data::units::Units::default().with(columns.iter().flat_map(|c| {
+        [
+            (c.name.clone(), c.unit.clone()),
+            (format!("{}_exact", c.name), c.unit.clone()),
+        ]
+    }))?;
+    let mut s = Table::default().with_units(units);
     let rows: Vec<(usize, usize)> = models
         .iter()
         .enumerate()

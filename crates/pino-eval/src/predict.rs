@@ -728,6 +728,12 @@ impl Predictor {
         &self.system
     }
 
+    /// The units of the columns of the model's system (parameters, channels, indices), which
+    /// the tables of its answers carry ([`pino_data::system::units_of`]).
+    pub fn units(&self) -> Result<pino_data::units::Units> {
+        Ok(pino_data::system::units_of(&self.system)?)
+    }
+
     /// The run controls of the model's data (`x0` replaced when given), or an error when the
     /// dataset recorded none.
     pub fn run_config(&self, x0: Option<f64>) -> Result<RunConfig> {
@@ -995,21 +1001,17 @@ impl Predictor {
                 }
             }
         }
-        let mut table = Table::default();
+        let mut table = Table::default().with_units(self.units()?);
         table.push("set", Column::I64(set_col))?;
         table.push(schema::TIME, Column::F64(t_col))?;
         for (name, values) in names.iter().zip(cols) {
             table.push(name, Column::F64(values))?;
         }
         if banded {
-            let units: Vec<(String, String)> = names[..n_banded]
-                .iter()
-                .flat_map(|n| {
-                    let u = layout.unit(n).to_owned();
-                    [(format!("{n}_lo"), u.clone()), (format!("{n}_hi"), u)]
-                })
-                .collect();
-            pino_data::units::declare(units.iter().map(|(n, u)| (n.as_str(), u.as_str())))?;
+            table.add_units(names[..n_banded].iter().flat_map(|n| {
+                let u = layout.unit(n);
+                [(format!("{n}_lo"), u), (format!("{n}_hi"), u)]
+            }))?;
             for ((name, l), h) in names.iter().zip(lo).zip(hi) {
                 table.push(&format!("{name}_lo"), Column::F64(l))?;
                 table.push(&format!("{name}_hi"), Column::F64(h))?;
@@ -1157,7 +1159,7 @@ impl Predictor {
         answers: &[DesignAnswer],
         outside: &[Vec<OutOfRange>],
     ) -> Result<Table> {
-        let mut t = Table::default();
+        let mut t = Table::default().with_units(self.units()?);
         t.push("set", Column::I64((0..sets.len() as i64).collect()))?;
         self.space.push_columns(&mut t, sets)?;
         let columns = self.indices.columns();
@@ -1211,20 +1213,16 @@ impl Predictor {
                 ),
             )?;
         }
-        let units: Vec<(String, String)> = columns
-            .iter()
-            .flat_map(|c| {
-                [
-                    (format!("{}_lo", c.name), c.unit.clone()),
-                    (format!("{}_hi", c.name), c.unit.clone()),
-                    (
-                        format!("{}_verdict", c.name),
-                        pino_data::units::DIMENSIONLESS.to_owned(),
-                    ),
-                ]
-            })
-            .collect();
-        pino_data::units::declare(units.iter().map(|(n, u)| (n.as_str(), u.as_str())))?;
+        t.add_units(columns.iter().flat_map(|c| {
+            [
+                (format!("{}_lo", c.name), c.unit.as_str()),
+                (format!("{}_hi", c.name), c.unit.as_str()),
+                (
+                    format!("{}_verdict", c.name),
+                    pino_data::units::DIMENSIONLESS,
+                ),
+            ]
+        }))?;
         for (k, c) in columns.iter().enumerate() {
             t.push(
                 &format!("{}_lo", c.name),

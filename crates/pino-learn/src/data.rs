@@ -909,13 +909,20 @@ fn splits_of(params_file: &Path) -> Result<Vec<Split>> {
 mod tests {
     use super::*;
     use crate::synthetic::{write_dataset, SyntheticSpec};
+    use pino_data::units::Units;
     use pino_data::{read_parquet, write_parquet, Column, Table};
 
-    /// Rewrites `file` keeping the rows where `keep(row)` and the columns where `col(name)`.
-    fn rewrite(file: &Path, keep: &dyn Fn(usize) -> bool, col: &dyn Fn(&str) -> bool) {
+    /// Rewrites `file` (columns with `units`) keeping the rows where `keep(row)` and the
+    /// columns where `col(name)`.
+    fn rewrite(
+        file: &Path,
+        units: &Units,
+        keep: &dyn Fn(usize) -> bool,
+        col: &dyn Fn(&str) -> bool,
+    ) {
         let t = read_parquet(file, None).unwrap();
         let rows: Vec<usize> = (0..t.num_rows()).filter(|&r| keep(r)).collect();
-        let mut out = Table::default();
+        let mut out = Table::default().with_units(units.clone());
         for (name, c) in t.columns() {
             if !col(name) {
                 continue;
@@ -940,6 +947,7 @@ mod tests {
             ..Default::default()
         };
         let f = write_dataset(&spec, dir.path()).unwrap();
+        let units = pino_data::system::units_of(&spec.system.compile().unwrap()).unwrap();
         let ds = f.load(&window(), true).unwrap();
         let layout = ds.layout.clone();
         // 100 points, the first 10 dropped.
@@ -956,7 +964,7 @@ mod tests {
         assert_ne!(m_c_of(2), m_c_mean);
 
         // Mismatched record lengths: sample 1 loses its last row.
-        rewrite(&f.simulation, &|r| r != 199, &|_| true);
+        rewrite(&f.simulation, &units, &|r| r != 199, &|_| true);
         let err = f.load(&window(), false).unwrap_err().to_string();
         assert!(
             err.contains("sample 1 has 99 time points but sample 0 has 100"),
@@ -964,7 +972,7 @@ mod tests {
         );
 
         // A missing column is named with its file.
-        rewrite(&f.simulation, &|_| true, &|c| c != "beta_t2_v");
+        rewrite(&f.simulation, &units, &|_| true, &|c| c != "beta_t2_v");
         let err = f.load(&window(), false).unwrap_err().to_string();
         assert!(
             err.contains("simulation.parquet") && err.contains("missing column `beta_t2_v`"),
@@ -973,7 +981,7 @@ mod tests {
 
         // A missing contact-force column (an output channel, read before the derivatives) is
         // named with its file.
-        rewrite(&f.simulation, &|_| true, &|c| c != "p_3");
+        rewrite(&f.simulation, &units, &|_| true, &|c| c != "p_3");
         let err = f.load(&window(), false).unwrap_err().to_string();
         assert!(
             err.contains("simulation.parquet") && err.contains("missing column `p_3`"),
@@ -982,7 +990,7 @@ mod tests {
 
         // A non-positive phi is refused with its sample and column.
         let w = read_parquet(&f.weights, None).unwrap();
-        let mut bad = Table::default();
+        let mut bad = Table::default().with_units(units.clone());
         for (name, c) in w.columns() {
             let c = match (name.as_str(), c) {
                 ("phi_z_t2", Column::F64(v)) => Column::F64(v.iter().map(|_| 0.0).collect()),
@@ -995,9 +1003,9 @@ mod tests {
         assert!(err.contains("sample 0: phi_z_t2 = 0"), "{err}");
 
         // An unknown split label is refused with the allowed ones.
-        rewrite(&f.params, &|_| true, &|_| true);
+        rewrite(&f.params, &units, &|_| true, &|_| true);
         let p = read_parquet(&f.params, None).unwrap();
-        let mut bad = Table::default();
+        let mut bad = Table::default().with_units(units.clone());
         for (name, c) in p.columns() {
             let c = match (name.as_str(), c) {
                 ("split", Column::Str(v)) => {

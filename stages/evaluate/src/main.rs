@@ -31,7 +31,6 @@ fn run() -> Result<()> {
     }
     let info = DatasetInfo::from_dirs(ctx.input_dirs("dataset")?)
         .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
-    pino_data::system::declare_units(&info.system)?;
     let device = p.device.device()?;
     let params = &ctx.single_input_file("params", "params.parquet")?;
     let sims = ctx.input_files("dataset", "simulation.parquet")?;

@@ -117,7 +117,6 @@ fn run() -> Result<()> {
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
     };
     let mut predictor = Predictor::load(&args.model, &device)?;
-    pino_data::system::declare_units(predictor.system())?;
     let coverage = calibration_level(&mut predictor, &args)?;
     let space = &predictor.space;
     let mut sets = match (&args.params, &args.sweep) {

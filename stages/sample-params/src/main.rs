@@ -53,11 +53,10 @@ fn run() -> Result<String> {
             system.sampled().len()
         ));
     }
-    pino_data::system::declare_units(&system)?;
     let names = system.sampled_names();
     let n = plan.num_samples();
     let draws: Vec<Vec<f64>> = (0..n).map(|id| plan.draw(id)).collect();
-    let mut table = Table::default();
+    let mut table = Table::default().with_units(pino_data::system::units_of(&system)?);
     table.push(schema::SAMPLE_ID, Column::I64((0..n as i64).collect()))?;
     let splits = (0..n)
         .map(|id| plan.split(id).as_str().to_owned())

@@ -76,7 +76,6 @@ fn run() -> Result<String> {
             bound.dt_limit()
         ));
     }
-    pino_data::system::declare_units(&system)?;
     let dirs = ctx.input_dirs("params")?.to_vec();
     let (record, _) = pino_data::system::read_record(&dirs)?;
     pino_data::system::same(
@@ -142,7 +141,8 @@ fn run() -> Result<String> {
     let path = ctx.output_path("simulation.parquet");
     let mut names = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
     names.extend(system.channels.iter().map(|c| c.name.clone()));
-    let mut writer = StreamWriter::create(&path, &table(&names, 0, &[], &[]))?;
+    let template = table(&names, 0, &[], &[]).with_units(pino_data::system::units_of(&system)?);
+    let mut writer = StreamWriter::create(&path, &template)?;
     let mut failures: (Vec<i64>, Vec<String>) = (Vec::new(), Vec::new());
     mbd_engine::run_all(&engines, 64, &|| progress.inc(1), |id, out| -> Result<()> {
         match out {

@@ -31,7 +31,6 @@ fn run() -> Result<()> {
     }
     let info = DatasetInfo::from_dirs(ctx.input_dirs("dataset")?)
         .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
-    pino_data::system::declare_units(&info.system)?;
     let layout = pino_learn::layout::Layout::of(&info.system);
     let configs = p
         .configs(&layout)

@@ -29,7 +29,6 @@ fn run() -> Result<String> {
     }
     let dirs = ctx.input_dirs("dataset")?.to_vec();
     let (_, system) = pino_data::system::read_record(&dirs)?;
-    pino_data::system::declare_units(&system)?;
     let layout = Layout::of(&system);
     if layout.equations.is_empty() {
         bail!(
@@ -119,7 +118,7 @@ fn run() -> Result<String> {
     })?;
     flush(&mut pending, &mut phi)?;
 
-    let mut table = Table::default();
+    let mut table = Table::default().with_units(pino_data::system::units_of(&system)?);
     table.push(
         schema::SAMPLE_ID,
         Column::I64(phi.keys().copied().collect()),

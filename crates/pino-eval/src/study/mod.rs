@@ -120,7 +120,6 @@ pub fn run(
     if let Some(c) = calibration {
         predictor.load_calibration(c)?;
     }
-    pino_data::system::declare_units(predictor.system())?;
     let parameters = model_parameters(&predictor);
     let names: Vec<String> = predictor
         .index_inputs()

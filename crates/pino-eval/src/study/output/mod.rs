@@ -2,7 +2,8 @@
 //! columns every study has: the designs and their excitation ids, the surrogate's index
 //! values with their calibrated intervals and `extrapolated`, the solver's beside them, and
 //! the timings ([`SPEED_FILE`]: the only file whose bytes differ between two runs of one
-//! study). Column units are declared, as in every artifact.
+//! study). Every table carries the units of its columns ([`study_units`]), as in every
+//! artifact.
 
 pub mod monte_carlo;
 pub mod optimise;
@@ -17,7 +18,7 @@ use super::evaluate::Solved;
 use super::spec;
 use crate::predict::{DesignAnswer, Predictor};
 use crate::Result;
-use pino_data::units::{declare, DIMENSIONLESS};
+use pino_data::units::{Units, DIMENSIONLESS};
 use pino_data::{Column, Table};
 use pino_learn::Error as LearnError;
 use pino_studies::stats::QUANTILES;
@@ -90,8 +91,9 @@ fn num(x: f64) -> String {
     }
 }
 
-/// Declares the units of the columns every study writes, and of `extra` (`(name, unit)`).
-fn declare_units(predictor: &Predictor, extra: &[(&str, &str)]) -> Result<()> {
+/// The units of the columns a study's tables have: the model's system's, those every study
+/// writes, and `extra` (`(name, unit)`).
+fn study_units(predictor: &Predictor, extra: &[(&str, &str)]) -> Result<Units> {
     let mut units: Vec<(String, String)> = [
         DESIGN,
         EXCITATION,
@@ -115,8 +117,7 @@ fn declare_units(predictor: &Predictor, extra: &[(&str, &str)]) -> Result<()> {
             .iter()
             .map(|(n, u)| ((*n).to_owned(), (*u).to_owned())),
     );
-    declare(units.iter().map(|(n, u)| (n.as_str(), u.as_str())))?;
-    Ok(())
+    Ok(predictor.units()?.with(units)?)
 }
 
 /// Pushes the parameters of `designs`, the surrogate's index values, their calibrated

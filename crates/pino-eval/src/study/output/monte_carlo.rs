@@ -5,14 +5,14 @@
 //! (`histograms.png`, `exceedance.png`, [`SCATTER_FILE`]) and the timings ([`SPEED_FILE`]).
 
 use super::{
-    declare_units, finish, num, plots, push_answers, push_solver, quantities, report_err,
-    solver_pairs, statistic_names, DESIGN, EXCITATION, SCATTER_FILE, SOLVER_CHECKED, SPEED_FILE,
+    finish, num, plots, push_answers, push_solver, quantities, report_err, solver_pairs,
+    statistic_names, study_units, DESIGN, EXCITATION, SCATTER_FILE, SOLVER_CHECKED, SPEED_FILE,
 };
 use crate::predict::{DesignAnswer, Predictor};
 use crate::study::monte_carlo::MonteCarlo;
 use crate::study::spec::Study;
 use crate::Result;
-use pino_data::units::{DIMENSIONLESS, PER_ROW, UNIT_KEY};
+use pino_data::units::{Units, DIMENSIONLESS, PER_ROW, UNIT_KEY};
 use pino_data::{Column, Table};
 use pino_studies::stats::Interval;
 use std::path::Path;
@@ -43,12 +43,12 @@ pub fn write_monte_carlo(
         extra.push((s.into(), DIMENSIONLESS));
     }
     let extra: Vec<(&str, &str)> = extra.iter().map(|(n, u)| (n.as_str(), *u)).collect();
-    declare_units(predictor, &extra)?;
+    let units = study_units(predictor, &extra)?;
 
     let n = mc.designs.len();
-    let calibrated = write_evaluations(out, predictor, mc)?;
-    write_solver(out, predictor, mc)?;
-    write_summary_table(out, predictor, mc)?;
+    let calibrated = write_evaluations(out, &units, predictor, mc)?;
+    write_solver(out, &units, predictor, mc)?;
+    write_summary_table(out, &units, predictor, mc)?;
     write_plots(out, predictor, study, mc)?;
     finish(
         out,
@@ -60,9 +60,14 @@ pub fn write_monte_carlo(
 
 /// `evaluations.parquet`: every design with its answers; whether they carry calibrated
 /// intervals.
-fn write_evaluations(out: &Path, predictor: &Predictor, mc: &MonteCarlo) -> Result<bool> {
+fn write_evaluations(
+    out: &Path,
+    units: &Units,
+    predictor: &Predictor,
+    mc: &MonteCarlo,
+) -> Result<bool> {
     let n = mc.designs.len();
-    let mut t = Table::default();
+    let mut t = Table::default().with_units(units.clone());
     t.push(DESIGN, Column::I64((0..n as i64).collect()))?;
     t.push(
         EXCITATION,
@@ -79,8 +84,8 @@ fn write_evaluations(out: &Path, predictor: &Predictor, mc: &MonteCarlo) -> Resu
 }
 
 /// `solver.parquet`: the checked designs through the solver, beside the surrogate.
-fn write_solver(out: &Path, predictor: &Predictor, mc: &MonteCarlo) -> Result<()> {
-    let mut s = Table::default();
+fn write_solver(out: &Path, units: &Units, predictor: &Predictor, mc: &MonteCarlo) -> Result<()> {
+    let mut s = Table::default().with_units(units.clone());
     s.push(
         DESIGN,
         Column::I64(mc.checked.iter().map(|&k| k as i64).collect()),
@@ -103,10 +108,15 @@ fn write_solver(out: &Path, predictor: &Predictor, mc: &MonteCarlo) -> Result<()
 
 /// `summary.parquet` and its CSV: each index's statistics with their bootstrap intervals and
 /// its exceedance of the limit, by source.
-fn write_summary_table(out: &Path, predictor: &Predictor, mc: &MonteCarlo) -> Result<()> {
+fn write_summary_table(
+    out: &Path,
+    units: &Units,
+    predictor: &Predictor,
+    mc: &MonteCarlo,
+) -> Result<()> {
     let columns = predictor.index_inputs().columns();
     let rows = &mc.summaries;
-    let mut m = Table::default();
+    let mut m = Table::default().with_units(units.clone());
     let unit_of = |name: &str| {
         columns
             .iter()

@@ -8,7 +8,7 @@
 //! (`history.png`, [`SCATTER_FILE`]) and the timings ([`SPEED_FILE`]).
 
 use super::{
-    declare_units, finish, num, plots, push_answers, push_solver, EXCITATION, SCATTER_FILE,
+    finish, num, plots, push_answers, push_solver, study_units, EXCITATION, SCATTER_FILE,
     SOLVER_CHECKED, SPEED_FILE,
 };
 use crate::predict::{DesignAnswer, Predictor};
@@ -17,7 +17,7 @@ use crate::study::optimise::{describe, Judged, Optimisation, Role};
 use crate::study::source;
 use crate::study::spec::{Optimise, Study};
 use crate::Result;
-use pino_data::units::DIMENSIONLESS;
+use pino_data::units::{Units, DIMENSIONLESS};
 use pino_data::{Column, Table};
 use std::path::Path;
 
@@ -111,20 +111,20 @@ pub fn write_optimise(
         (ROLE, DIMENSIONLESS),
     ];
     extra.extend(judged_units.iter().map(|(n, u)| (n.as_str(), *u)));
-    declare_units(predictor, &extra)?;
+    let units = study_units(predictor, &extra)?;
     let m = r.excitation.len();
 
     let designs: Vec<Vec<f64>> = r.history.iter().map(|c| c.design.clone()).collect();
-    write_history(out, predictor, r, &designs)?;
-    let calibrated = write_evaluations(out, predictor, r, &designs)?;
+    write_history(out, &units, predictor, r, &designs)?;
+    let calibrated = write_evaluations(out, &units, predictor, r, &designs)?;
     let beside: Vec<&DesignAnswer> = r
         .checked
         .iter()
         .flat_map(|c| r.answers[c.candidate].iter())
         .collect();
     let solved: Vec<_> = r.checked.iter().flat_map(|c| c.solved.clone()).collect();
-    write_solver(out, predictor, r, &designs, &solved, &beside)?;
-    write_optimum(out, predictor, r, &designs)?;
+    write_solver(out, &units, predictor, r, &designs, &solved, &beside)?;
+    write_optimum(out, &units, predictor, r, &designs)?;
     write_plots(out, predictor, study, o, r, &solved, &beside)?;
     let solves = r.checked.len() * m;
     finish(
@@ -138,11 +138,12 @@ pub fn write_optimise(
 /// `history.parquet`: the search's candidates in order, with their designs and judgements.
 fn write_history(
     out: &Path,
+    units: &Units,
     predictor: &Predictor,
     r: &Optimisation,
     designs: &[Vec<f64>],
 ) -> Result<()> {
-    let mut h = Table::default();
+    let mut h = Table::default().with_units(units.clone());
     let rows = r.history.len();
     h.push(CANDIDATE, Column::I64((0..rows as i64).collect()))?;
     h.push(
@@ -168,12 +169,13 @@ fn write_history(
 /// answers carry calibrated intervals.
 fn write_evaluations(
     out: &Path,
+    units: &Units,
     predictor: &Predictor,
     r: &Optimisation,
     designs: &[Vec<f64>],
 ) -> Result<bool> {
     let (rows, m) = (r.history.len(), r.excitation.len());
-    let mut e = Table::default();
+    let mut e = Table::default().with_units(units.clone());
     let candidate: Vec<i64> = (0..rows as i64)
         .flat_map(|c| std::iter::repeat_n(c, m))
         .collect();
@@ -211,6 +213,7 @@ fn write_evaluations(
 /// `solver.parquet`: the solver beside the surrogate, checked candidate by excitation.
 fn write_solver(
     out: &Path,
+    units: &Units,
     predictor: &Predictor,
     r: &Optimisation,
     designs: &[Vec<f64>],
@@ -218,7 +221,7 @@ fn write_solver(
     beside: &[&DesignAnswer],
 ) -> Result<()> {
     let m = r.excitation.len();
-    let mut v = Table::default();
+    let mut v = Table::default().with_units(units.clone());
     v.push(
         CANDIDATE,
         Column::I64(
@@ -260,11 +263,12 @@ fn write_solver(
 /// solver.
 fn write_optimum(
     out: &Path,
+    units: &Units,
     predictor: &Predictor,
     r: &Optimisation,
     designs: &[Vec<f64>],
 ) -> Result<()> {
-    let mut t = Table::default();
+    let mut t = Table::default().with_units(units.clone());
     let both = |f: &dyn Fn(usize) -> i64| -> Vec<i64> {
         (0..r.checked.len()).flat_map(|k| [f(k), f(k)]).collect()
     };

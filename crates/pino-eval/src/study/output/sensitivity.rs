@@ -9,8 +9,8 @@
 //! [`SCATTER_FILE`]) and the timings ([`SPEED_FILE`]).
 
 use super::{
-    declare_units, finish, num, plots, push_answers, push_solver, quantities, report_err,
-    solver_pairs, EXCITATION, SCATTER_FILE, SOLVER_CHECKED, SPEED_FILE,
+    finish, num, plots, push_answers, push_solver, quantities, report_err, solver_pairs,
+    study_units, EXCITATION, SCATTER_FILE, SOLVER_CHECKED, SPEED_FILE,
 };
 use crate::predict::{DesignAnswer, Predictor};
 use crate::study::sensitivity::{rankings, Evaluation, Sensitivity, RANKED};
@@ -95,12 +95,12 @@ pub fn write_sensitivity(
         (FACTOR, DIMENSIONLESS),
     ];
     extra.extend(ESTIMATES.iter().map(|n| (*n, DIMENSIONLESS)));
-    declare_units(predictor, &extra)?;
+    let units = study_units(predictor, &extra)?;
     let designs: Vec<Vec<f64>> = s.evaluations.iter().map(|e| e.design.clone()).collect();
     let checked = s.solved.len();
 
     // Every evaluation.
-    let mut t = Table::default();
+    let mut t = Table::default().with_units(units.clone());
     push_design(&mut t, s, &s.evaluations)?;
     let calibrated = push_answers(&mut t, predictor, &designs, &s.answers)?;
     t.push(
@@ -114,14 +114,14 @@ pub fn write_sensitivity(
     pino_data::write_parquet(&out.join("evaluations.parquet"), &t)?;
 
     // The solver beside the surrogate.
-    let mut v = Table::default();
+    let mut v = Table::default().with_units(units.clone());
     push_design(&mut v, s, &s.evaluations[..checked])?;
     let answers: Vec<&DesignAnswer> = s.answers[..checked].iter().collect();
     push_solver(&mut v, predictor, &designs[..checked], &s.solved, &answers)?;
     pino_data::write_parquet(&out.join("solver.parquet"), &v)?;
 
     // The indices: one row per index, source and factor.
-    let mut m = Table::default();
+    let mut m = Table::default().with_units(units.clone());
     let (mut index, mut source, mut rows, mut factor) = (vec![], vec![], vec![], vec![]);
     let mut values: Vec<Vec<f64>> = vec![Vec::new(); ESTIMATES.len()];
     for e in &s.sobol {
@@ -160,7 +160,7 @@ pub fn write_sensitivity(
     report::csv::write_csv(&out.join(super::SOBOL_TABLE_FILE), &m).map_err(report_err)?;
 
     // The convergence record.
-    let mut c = Table::default();
+    let mut c = Table::default().with_units(units.clone());
     let (mut index, mut rows, mut factor, mut first, mut total) =
         (vec![], vec![], vec![], vec![], vec![]);
     for (i, n, est) in &s.convergence {
