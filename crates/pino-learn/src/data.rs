@@ -25,7 +25,7 @@
 //! `phi [B, Q]` (`Q` equations) and the force scale `f_scale [B]` for the ODE residual.
 
 use crate::config::WindowConfig;
-use crate::layout::Layout;
+use crate::layout::{Layout, Record};
 use crate::norm::{Normalisation, StatsAccumulator};
 use crate::store::{SampleSeries, SeriesStore};
 use crate::{Error, Result};
@@ -94,30 +94,6 @@ fn dataset_err(path: &Path, message: String) -> Error {
     Error::Dataset {
         path: path.to_owned(),
         message,
-    }
-}
-
-/// Channel groups of a streamed window, column-major: outputs, velocities, accelerations,
-/// excitations (the order of [`Layout::simulation_columns`] after `sample_id`, `t`).
-#[derive(Debug, Clone, Copy)]
-struct Groups {
-    v0: usize,
-    a0: usize,
-    e0: usize,
-    end: usize,
-}
-
-impl Groups {
-    fn of(l: &Layout) -> Self {
-        let v0 = l.n_outputs();
-        let a0 = v0 + l.n_dofs();
-        let e0 = a0 + l.n_dofs();
-        Self {
-            v0,
-            a0,
-            e0,
-            end: e0 + l.n_excitations(),
-        }
     }
 }
 
@@ -271,7 +247,8 @@ impl DatasetInfo {
 type WindowSink<'a> = dyn FnMut(&Sample, &[f64], &[Vec<f64>]) -> Result<()> + 'a;
 
 /// The index pass: streams every record, checks ids and grids, and calls `on_window` with
-/// the window's times and series (column-major, [`Groups`] of `T` values) of each sample
+/// the window's times and series (column-major, [`Layout::training_record`]'s columns of `T`
+/// values) of each sample
 /// whose id and split `want` accepts. Returns the dataset of those samples (no statistics).
 fn scan(
     info: &DatasetInfo,
@@ -306,7 +283,7 @@ fn scan(
     let mut grid: Option<Grid> = None;
     let mut samples = Vec::new();
     let mut t_window: Vec<f64> = Vec::new();
-    let mut windowed: Vec<Vec<f64>> = vec![Vec::new(); Groups::of(&layout).end];
+    let mut windowed: Vec<Vec<f64>> = vec![Vec::new(); layout.training_record().width()];
     pino_data::records::for_each_record::<Error>(simulation_files, &columns, &mut |file, rec| {
         let (id, cols) = (rec.id, &rec.columns);
         check_grid(file, id, &cols[0], &mut grid)?;
@@ -369,7 +346,7 @@ fn scan(
 
 /// Streaming accumulators of the four statistic groups.
 struct NormAccumulator {
-    groups: Groups,
+    record: Record,
     t: StatsAccumulator,
     eta: StatsAccumulator,
     params: StatsAccumulator,
@@ -386,7 +363,7 @@ impl NormAccumulator {
             StatsAccumulator::new(&r)
         };
         Self {
-            groups: Groups::of(l),
+            record: l.training_record(),
             t: StatsAccumulator::new(&[schema::TIME]),
             eta: acc(names(&l.excitations)),
             params: acc(names(&l.params)),
@@ -399,13 +376,14 @@ impl NormAccumulator {
     fn add(&mut self, t: &[f64], s: &Sample, w: &[Vec<f64>]) {
         let refs =
             |r: std::ops::Range<usize>| -> Vec<&[f64]> { w[r].iter().map(Vec::as_slice).collect() };
-        let g = self.groups;
+        let r = &self.record;
         self.t.add_columns(&[t]);
-        self.eta.add_columns(&refs(g.e0..g.end));
+        self.eta.add_columns(&refs(r.excitations.clone()));
         self.params.add_constant(s.params.as_slice(), t.len());
-        self.outputs.add_columns(&refs(0..g.v0));
-        self.velocities.add_columns(&refs(g.v0..g.a0));
-        self.accelerations.add_columns(&refs(g.a0..g.e0));
+        self.outputs.add_columns(&refs(r.displacements.clone()));
+        self.velocities.add_columns(&refs(r.velocities.clone()));
+        self.accelerations
+            .add_columns(&refs(r.accelerations.clone()));
     }
 
     fn finish(self) -> Normalisation {
@@ -601,7 +579,7 @@ fn zscore(cols: &[Vec<f64>], st: &crate::norm::ChannelStats) -> Vec<f32> {
 /// Builds a [`Prepared`] from streamed windows (any order), then orders it like a dataset.
 struct Builder<'a> {
     norm: &'a Normalisation,
-    groups: Groups,
+    record: Record,
     store: SeriesStore,
     by_id: BTreeMap<i64, usize>,
 }
@@ -615,16 +593,16 @@ impl<'a> Builder<'a> {
     ) -> Result<Self> {
         Ok(Self {
             norm,
-            groups: Groups::of(layout),
+            record: layout.training_record(),
             store: SeriesStore::new(t_points, layout.series_shape(), expected)?,
             by_id: BTreeMap::new(),
         })
     }
 
     fn add(&mut self, s: &Sample, w: &[Vec<f64>]) -> Result<()> {
-        let (n, g) = (self.norm, self.groups);
+        let (n, r) = (self.norm, &self.record);
         let rows = w[0].len();
-        let ne = g.end - g.e0;
+        let ne = r.excitations.len();
         let mut eta = vec![0.0; rows * ne];
         for (k, row) in eta
             .chunks_exact_mut(ne.max(1))
@@ -632,13 +610,13 @@ impl<'a> Builder<'a> {
             .take(if ne == 0 { 0 } else { rows })
         {
             for (i, x) in row.iter_mut().enumerate() {
-                *x = w[g.e0 + i][k];
+                *x = w[r.excitations.start + i][k];
             }
         }
         let slot = self.store.push(&SampleSeries {
-            u: zscore(&w[0..g.v0], &n.outputs),
-            v: zscore(&w[g.v0..g.a0], &n.velocities),
-            a: zscore(&w[g.a0..g.e0], &n.accelerations),
+            u: zscore(&w[r.displacements.clone()], &n.outputs),
+            v: zscore(&w[r.velocities.clone()], &n.velocities),
+            a: zscore(&w[r.accelerations.clone()], &n.accelerations),
             eta,
         })?;
         self.by_id.insert(s.id, slot);
@@ -655,17 +633,17 @@ impl<'a> Builder<'a> {
         } = self;
         let ins = &norm.inputs;
         let layout = ds.layout.clone();
-        let ne = layout.n_excitations();
+        let inputs = layout.input_ranges();
         let n_eq = layout.equations.len();
         let mut p = Prepared {
             t_points: ds.t.len(),
             t_n: ds
                 .t
                 .iter()
-                .map(|&x| ((x - ins.mean[0]) / ins.std[0]) as f32)
+                .map(|&x| ((x - ins.mean[inputs.time]) / ins.std[inputs.time]) as f32)
                 .collect(),
-            eta_mean: ins.mean[1..1 + ne].to_vec(),
-            eta_std: ins.std[1..1 + ne].to_vec(),
+            eta_mean: ins.mean[inputs.excitations.clone()].to_vec(),
+            eta_std: ins.std[inputs.excitations.clone()].to_vec(),
             ids: Vec::with_capacity(ds.samples.len()),
             params: Vec::with_capacity(ds.samples.len()),
             params_n: Vec::with_capacity(ds.samples.len()),
@@ -683,8 +661,8 @@ impl<'a> Builder<'a> {
                 s.params
                     .as_slice()
                     .iter()
-                    .enumerate()
-                    .map(|(k, v)| ((v - ins.mean[1 + ne + k]) / ins.std[1 + ne + k]) as f32)
+                    .zip(inputs.params.clone())
+                    .map(|(v, k)| ((v - ins.mean[k]) / ins.std[k]) as f32)
                     .collect(),
             );
             p.phi.push(s.phi.clone().unwrap_or_else(|| vec![1.0; n_eq]));
@@ -956,7 +934,7 @@ mod tests {
         assert_eq!(ds.split_indices(Split::Validation), vec![2]);
         let norm = ds.normalisation().unwrap();
         // Stats come from the training split only: sample 2's parameters do not move them.
-        let m_c = 1 + layout.n_excitations();
+        let m_c = layout.input_ranges().params.start;
         assert_eq!(norm.inputs.names[m_c], layout.params[0]);
         let m_c_of = |i: usize| ds.samples[i].params.get("m_c").unwrap();
         let m_c_mean = (m_c_of(0) + m_c_of(1)) / 2.0;
@@ -1061,7 +1039,7 @@ mod tests {
         let time = t.f64(schema::TIME).unwrap();
         let names = layout.simulation_columns();
         let cols: Vec<&[f64]> = names[2..].iter().map(|n| t.f64(n).unwrap()).collect();
-        let g = Groups::of(layout);
+        let r = layout.training_record();
         let mut phys: Vec<[Vec<f64>; 5]> = vec![];
         let mut out_ids = vec![];
         let mut train = vec![];
@@ -1072,22 +1050,22 @@ mod tests {
                 .unwrap_or(ids.len());
             let keep: Vec<usize> = window.rows(hi - lo).map(|k| lo + k).collect();
             let cols = &cols;
-            let block = |r0: usize, r1: usize| -> Vec<f64> {
+            let block = |range: std::ops::Range<usize>| -> Vec<f64> {
                 keep.iter()
-                    .flat_map(|&k| (r0..r1).map(move |c| cols[c][k]))
+                    .flat_map(|&k| range.clone().map(move |c| cols[c][k]))
                     .collect()
             };
             let (split, p) = &params[&ids[lo]];
             let tw: Vec<f64> = keep.iter().map(|&k| time[k]).collect();
-            let eta = block(g.e0, g.end);
+            let eta = block(r.excitations.clone());
             if *split == Split::Train {
                 train.push(phys.len());
             }
             phys.push([
                 input_block(&tw, &eta, p.as_slice()),
-                block(0, g.v0),
-                block(g.v0, g.a0),
-                block(g.a0, g.e0),
+                block(r.displacements.clone()),
+                block(r.velocities.clone()),
+                block(r.accelerations.clone()),
                 eta,
             ]);
             out_ids.push(ids[lo]);

@@ -10,7 +10,11 @@
 //! - derivative targets `[T, D]`: the exact `_v` and `_a` of the `D` rigid DOFs (the first `D`
 //!   outputs);
 //! - equations: the DOFs whose forces close on the outputs and the excitations
-//!   ([`mbd_system::System::equation_dofs`]): the ODE losses and the magnitude weights use them.
+//!   ([`mbd_system::System::equation_dofs`]): the ODE losses and the magnitude weights use them;
+//! - records: what a reader takes of each simulated sample, as named ranges ([`Record`]:
+//!   displacements, `_v`, `_a`, excitations; [`Layout::training_record`],
+//!   [`Layout::weights_record`]) and the input channels' groups ([`InputRanges`]), one
+//!   composition for the data path, the statistics and the weights.
 //!
 //! For the vehicle-track description this is today's `t, eta_1..eta_4`, the 14 parameters
 //! (19 inputs), `z_c .. z_w4, z_r1..z_r4, p_1..p_4` (18 outputs, 14 solutions) and the ten
@@ -20,6 +24,7 @@ use mbd_system::system::Role;
 use mbd_system::System;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::ops::Range;
 
 /// The time column.
 pub const TIME: &str = "t";
@@ -135,15 +140,46 @@ impl Layout {
         self.dofs.iter().map(|d| format!("{d}_a")).collect()
     }
 
-    /// The simulation columns a dataset is read from: `sample_id`, `t`, the outputs, the
-    /// `_v`, the `_a`, the excitations.
+    /// The simulation columns a dataset is read from: `sample_id`, `t`, then the columns of
+    /// [`Layout::training_record`].
     pub fn simulation_columns(&self) -> Vec<String> {
         let mut c = vec![pino_data::schema::SAMPLE_ID.to_owned(), TIME.to_owned()];
-        c.extend(self.outputs.iter().cloned());
+        c.extend(self.record_columns(&self.outputs));
+        c
+    }
+
+    /// The record training reads per sample: every output (solutions, then forces), the
+    /// `_v`, the `_a`, the excitations.
+    pub fn training_record(&self) -> Record {
+        Record::stacked(self.outputs.len(), self.dofs.len(), self.excitations.len())
+    }
+
+    /// The record the magnitude weights read per sample: the solutions (no forces), the
+    /// `_v`, the `_a`, the excitations.
+    pub fn weights_record(&self) -> Record {
+        Record::stacked(self.solutions, self.dofs.len(), self.excitations.len())
+    }
+
+    /// The columns of a record whose first group is `first` (the outputs of
+    /// [`Layout::training_record`], the solutions of [`Layout::weights_record`]), in the order
+    /// of its ranges.
+    pub fn record_columns(&self, first: &[String]) -> Vec<String> {
+        let mut c = first.to_vec();
         c.extend(self.velocities());
         c.extend(self.accelerations());
         c.extend(self.excitations.iter().cloned());
         c
+    }
+
+    /// Where each group sits among the input channels.
+    pub fn input_ranges(&self) -> InputRanges {
+        let excitations = 1..1 + self.excitations.len();
+        let params = excitations.end..excitations.end + self.params.len();
+        InputRanges {
+            time: 0,
+            excitations,
+            params,
+        }
     }
 
     /// Unit of column `name` (`-` when unknown).
@@ -167,6 +203,51 @@ impl Layout {
             excitations: self.excitations.len(),
         }
     }
+}
+
+/// A record's channel groups as named ranges of its columns (one composition for every
+/// reader: the displacement group first, then the DOFs' `_v` and `_a`, then the excitations).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Record {
+    /// The outputs (training) or the solutions (weights).
+    pub displacements: Range<usize>,
+    /// The rigid DOFs' exact velocities.
+    pub velocities: Range<usize>,
+    /// The rigid DOFs' exact accelerations.
+    pub accelerations: Range<usize>,
+    /// The excitations.
+    pub excitations: Range<usize>,
+}
+
+impl Record {
+    /// `first` displacement channels, `dofs` velocities and accelerations, `excitations`.
+    fn stacked(first: usize, dofs: usize, excitations: usize) -> Self {
+        let velocities = first..first + dofs;
+        let accelerations = velocities.end..velocities.end + dofs;
+        let excitations = accelerations.end..accelerations.end + excitations;
+        Self {
+            displacements: 0..first,
+            velocities,
+            accelerations,
+            excitations,
+        }
+    }
+
+    /// Number of columns.
+    pub fn width(&self) -> usize {
+        self.excitations.end
+    }
+}
+
+/// The input tensor's channel groups `[t, excitations, parameters]`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct InputRanges {
+    /// The time channel.
+    pub time: usize,
+    /// The excitations.
+    pub excitations: Range<usize>,
+    /// The sampled parameters.
+    pub params: Range<usize>,
 }
 
 /// Channels per time point of a stored sample.
@@ -207,6 +288,18 @@ mod tests {
         assert_eq!(l.equations, (0..10).collect::<Vec<_>>());
         assert_eq!(l.phi_columns()[1], "phi_beta_c");
         assert_eq!(l.unit("beta_c_a"), "rad/s^2");
+        // One composition of records: named ranges over the columns each reader lists.
+        let r = l.training_record();
+        let cols = l.simulation_columns();
+        assert_eq!(r.width() + 2, cols.len());
+        assert_eq!(cols[2 + r.velocities.start], "z_c_v");
+        assert_eq!(cols[2 + r.accelerations.end - 1], "z_w4_a");
+        assert_eq!(cols[2 + r.excitations.start], "eta_1");
+        let w = l.weights_record();
+        assert_eq!((w.displacements.end, w.width()), (14, 14 + 20 + 4));
+        let i = l.input_ranges();
+        assert_eq!(l.inputs()[i.params.start], "m_c");
+        assert_eq!((i.excitations, i.params.end), (1..5, l.n_inputs()));
         let back: Layout = serde_json::from_str(&serde_json::to_string(&l).unwrap()).unwrap();
         assert_eq!(back, l);
     }

@@ -64,13 +64,10 @@ impl WeightConfig {
     }
 }
 
-/// The simulation columns the weights read, in noise order, then the excitations.
+/// The simulation columns the weights read ([`Layout::weights_record`]): the noised ones
+/// (solutions, `_v`, `_a`), then the excitations.
 pub fn columns(layout: &Layout) -> Vec<String> {
-    let mut c: Vec<String> = layout.outputs[..layout.solutions].to_vec();
-    c.extend(layout.velocities());
-    c.extend(layout.accelerations());
-    c.extend(layout.excitations.iter().cloned());
-    c
+    layout.record_columns(&layout.outputs[..layout.solutions])
 }
 
 /// Central difference of `x` at `t` (one-sided at the ends), per unit `dt`.
@@ -111,9 +108,10 @@ pub fn magnitude_weights(
             ),
         });
     }
-    let (s_n, d, e) = (layout.solutions, layout.n_dofs(), layout.n_excitations());
+    let ranges = layout.weights_record();
+    let d = layout.n_dofs();
     let mut stream = SampleStream::new(cfg.seed, Purpose::WeightNoise, sample_id);
-    let noised: Vec<Vec<f64>> = record[..s_n + 2 * d]
+    let noised: Vec<Vec<f64>> = record[..ranges.excitations.start]
         .iter()
         .map(|sig| {
             let w = &sig[start..];
@@ -124,7 +122,7 @@ pub fn magnitude_weights(
             w.iter().map(|x| x + sd * stream.normal()).collect()
         })
         .collect();
-    let eta_cols: Vec<&[f64]> = record[s_n + 2 * d..s_n + 2 * d + e]
+    let eta_cols: Vec<&[f64]> = record[ranges.excitations.clone()]
         .iter()
         .map(|c| &c[start..])
         .collect();
@@ -145,8 +143,8 @@ pub fn magnitude_weights(
     for t in 0..n - start {
         for i in 0..d {
             z[i] = noised[i][t];
-            v[i] = noised[s_n + i][t];
-            a[i] = noised[s_n + d + i][t];
+            v[i] = noised[ranges.velocities.start + i][t];
+            a[i] = noised[ranges.accelerations.start + i][t];
         }
         for (p, ch) in map.point.iter().enumerate() {
             if let Some(ch) = *ch {
