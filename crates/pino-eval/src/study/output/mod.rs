@@ -2,7 +2,7 @@
 //! columns every study has: the designs and their excitation ids, the surrogate's index
 //! values with their calibrated intervals and `extrapolated`, the solver's beside them, and
 //! the timings ([`SPEED_FILE`]: the only file whose bytes differ between two runs of one
-//! study). Every table carries the units of its columns ([`study_units`]), as in every
+//! study). Every table carries the units of its columns (`study_units`), as in every
 //! artifact.
 
 pub mod monte_carlo;
