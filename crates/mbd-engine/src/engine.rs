@@ -178,6 +178,9 @@ pub struct Engine {
     point_terms: Vec<Vec<(Source, f64)>>,
     /// Per element, whether its rates are needed (a damper).
     pub(crate) needs_rate: Vec<bool>,
+    /// Per element, whether its profile's rate is evaluated: its force reads it or it is a
+    /// stored column ([`mbd_system::system::Element::reads_profile_rate`]).
+    profile_rate: Vec<bool>,
     /// Sensor shapes.
     sensor_shapes: Vec<Vec<f64>>,
     pub(crate) route: Route,
@@ -236,6 +239,12 @@ impl Engine {
             .elements
             .iter()
             .map(|e| e.law.damping() != 0.0)
+            .collect();
+        let profile_rate: Vec<bool> = system
+            .elements
+            .iter()
+            .zip(&needs_rate)
+            .map(|(e, &needed)| needed || e.reads_profile_rate())
             .collect();
         for (b, mb) in model.beams.iter().enumerate() {
             let modes = at..at + mb.modes;
@@ -323,6 +332,7 @@ impl Engine {
             profiles: sources,
             point_terms,
             needs_rate,
+            profile_rate,
             sensor_shapes,
             route,
         };
@@ -472,8 +482,8 @@ impl Engine {
             let src = &self.profiles[p];
             let xp = q.point_x[pt];
             q.eta[e] = src.ramped(ramp, xp);
-            if self.needs_rate[e] {
-                q.eta_rate[e] = ramp * m.speed * src.slope(xp) + ramp_rate * src.at(xp);
+            if self.profile_rate[e] {
+                q.eta_rate[e] = src.ramped_rate(ramp, ramp_rate, m.speed, xp);
             }
         }
         element_forces(m, &self.needs_rate, x, v, q);
@@ -744,6 +754,7 @@ impl Engine {
                 ModalBeam::deflection(&self.sensor_shapes[i], src)
             }
             Quantity::Excitation(e) => s.q.eta[e],
+            Quantity::ExcitationRate(e) => s.q.eta_rate[e],
             Quantity::Force(e) => s.q.force[e],
             Quantity::Deflection(e) => s.q.deflection[e],
         }

@@ -1,14 +1,15 @@
 //! The excitations of a run without running it: the profile under every element that reads
 //! one, `eta_e(t) = r(t) profile(x0 + v t + o_e)` (m, positive downward: a dip), with `v` the
 //! frame speed, `o_e` the offset of the moving point the element rests on and `r` the start-up
-//! factor of the run controls ([`RunConfig::ramp`]). These are the values the engine's force
-//! evaluation reads at the same `t`, so a learned operator (`predict`) sees the inputs the
-//! solver saw.
+//! factor of the run controls ([`RunConfig::ramp`]), and its rate `d eta_e / dt` (m/s, from the
+//! profile's own interpolation). These are the values the engine's force evaluation reads at
+//! the same `t`, so a learned operator (`predict`) sees the inputs the solver saw.
 
 use crate::coverage::check_coverage;
 use crate::engine::profile_sources;
 use crate::{Profile, ProfileSource, Result, RunConfig};
 use mbd_system::model::{Model, ModelEnd};
+use mbd_system::system::Quantity;
 use mbd_system::System;
 
 /// The profiles under the elements of one sample's model for one run.
@@ -65,6 +66,29 @@ impl Excitations {
             None => 0.0,
         }
     }
+
+    /// The rate `d eta_e / dt` of the profile under element `e` at time `t` (m/s), as the
+    /// engine evaluates it; 0 for an element that reads none.
+    pub fn rate(&self, e: usize, t: f64) -> f64 {
+        match self.reads[e] {
+            Some((p, offset)) => {
+                let origin = self.config.x0 + self.speed * t;
+                let (ramp, ramp_rate) = (self.config.ramp(t), self.config.ramp_rate(t));
+                self.sources[p].ramped_rate(ramp, ramp_rate, self.speed, origin + offset)
+            }
+            None => 0.0,
+        }
+    }
+
+    /// The value at `t` of the excitation column holding `quantity`: a profile (m) or its
+    /// rate (m/s); `None` for a quantity that is neither.
+    pub fn column(&self, quantity: Quantity, t: f64) -> Option<f64> {
+        match quantity {
+            Quantity::Excitation(e) => Some(self.at(e, t)),
+            Quantity::ExcitationRate(e) => Some(self.rate(e, t)),
+            _ => None,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -78,21 +102,30 @@ mod tests {
 
     /// The excitation columns of a run equal what `Excitations` computes at the stored times,
     /// bit for bit, through the start-up ramp and after it, with the road read linearly (the
-    /// shipped quarter car) and by a cubic spline.
+    /// shipped quarter car) and by a cubic spline; with a damped tyre the road's rate too,
+    /// which is the time derivative of the stored road (its own spline's slope).
     #[test]
     fn equals_the_engines_stored_excitation() {
         let band = "    wavelengths: [0.5, 90.0]";
+        let tyre = "k: k_t, profile: road";
         assert_eq!(TEXT.matches(band).count(), 1);
+        assert_eq!(TEXT.matches(tyre).count(), 1);
         let cubic = TEXT.replace(band, &format!("    interpolation: cubic\n{band}"));
-        for (text, interpolation) in [
-            (TEXT, Interpolation::Linear),
-            (cubic.as_str(), Interpolation::Cubic),
+        let damped = cubic.replace(tyre, "k: k_t, c: 300, profile: road");
+        for (text, interpolation, rates) in [
+            (TEXT, Interpolation::Linear, 0),
+            (cubic.as_str(), Interpolation::Cubic, 0),
+            (damped.as_str(), Interpolation::Cubic, 1),
         ] {
-            equals_the_engines_stored_excitation_of(text, interpolation);
+            equals_the_engines_stored_excitation_of(text, interpolation, rates);
         }
     }
 
-    fn equals_the_engines_stored_excitation_of(text: &str, interpolation: Interpolation) {
+    fn equals_the_engines_stored_excitation_of(
+        text: &str,
+        interpolation: Interpolation,
+        rates: usize,
+    ) {
         let system =
             Arc::new(mbd_system::load_str(text, "quarter-car.yaml", &Default::default()).unwrap());
         let model = system.instantiate(&system.nominal()).unwrap();
@@ -122,18 +155,56 @@ mod tests {
         let engine = Engine::new(system.clone(), model.clone(), &config, profiles.clone()).unwrap();
         let run = engine.run().unwrap();
         let ex = Excitations::new(&system, &model, &config, profiles).unwrap();
-        let mut checked = 0;
+        let mut checked = (0, 0);
         for (c, ch) in system.channels.iter().enumerate() {
-            if let mbd_system::system::Quantity::Excitation(e) = ch.quantity {
-                assert!(ex.reads_profile(e));
-                for (k, &t) in run.t.iter().enumerate() {
-                    assert_eq!(ex.at(e, t), run.columns[c][k], "{} at t = {t}", ch.name);
-                }
-                assert!(run.columns[c].iter().any(|v| *v != 0.0) && run.columns[c][0] == 0.0);
-                checked += 1;
+            let (Quantity::Excitation(e) | Quantity::ExcitationRate(e)) = ch.quantity else {
+                continue;
+            };
+            assert!(ex.reads_profile(e));
+            for (k, &t) in run.t.iter().enumerate() {
+                assert_eq!(
+                    ex.column(ch.quantity, t),
+                    Some(run.columns[c][k]),
+                    "{} at t = {t}",
+                    ch.name
+                );
+            }
+            assert!(run.columns[c].iter().any(|v| *v != 0.0) && run.columns[c][0] == 0.0);
+            if ch.quantity == Quantity::ExcitationRate(e) {
+                is_the_time_derivative(&ex, &config, e, &run.t, &run.columns[c]);
+                checked.1 += 1;
+            } else {
+                checked.0 += 1;
             }
         }
-        assert!(checked > 0, "the quarter car stores its road input");
+        assert_eq!(checked, (1, rates), "the quarter car stores its road input");
+    }
+
+    /// `rate` (stored at `times`) is the time derivative of the stored profile `ex.at(e, .)`:
+    /// a central difference with a small step `h` (away from the ramp's kinks) agrees to 1e-6
+    /// of the largest rate.
+    fn is_the_time_derivative(
+        ex: &Excitations,
+        config: &RunConfig,
+        e: usize,
+        times: &[f64],
+        rate: &[f64],
+    ) {
+        let h = 1e-6;
+        let scale = rate.iter().fold(0.0f64, |m, r| m.max(r.abs()));
+        let mut compared = 0;
+        for (&t, &r) in times.iter().zip(rate) {
+            if config.ramp_rate(t - h) != config.ramp_rate(t + h) {
+                continue;
+            }
+            let difference = (ex.at(e, t + h) - ex.at(e, t - h)) / (2.0 * h);
+            assert!(
+                (difference - r).abs() <= 1e-6 * scale,
+                "t = {t}: stored rate {r}, difference {difference}"
+            );
+            compared += 1;
+        }
+        assert!(compared + 2 >= times.len() && scale > 0.0);
     }
 
     /// A profile that ends before the run does is refused, naming the profile.

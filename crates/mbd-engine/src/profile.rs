@@ -239,6 +239,14 @@ impl ProfileSource {
         }
     }
 
+    /// The rate `d/dt (r eta(x))` (m/s) of [`ProfileSource::ramped`] read at `x = x0 + speed t`
+    /// under the start-up factor `r` and its rate `ramp_rate` (1/s): `r speed eta'(x) +
+    /// r' eta(x)`.
+    #[inline]
+    pub fn ramped_rate(&self, ramp: f64, ramp_rate: f64, speed: f64, x: f64) -> f64 {
+        ramp * speed * self.slope(x) + ramp_rate * self.at(x)
+    }
+
     /// `d eta / dx` (1).
     #[inline]
     pub fn slope(&self, x: f64) -> f64 {

@@ -1064,9 +1064,10 @@ fn channel_table(
             Quantity::Dof(i, _) => ("body", bodies[dofs[i].body].name.as_str()),
             Quantity::Point(i) => ("moving point", points[i].name.as_str()),
             Quantity::Sensor(i, _) => ("sensor", sensors[i].name.as_str()),
-            Quantity::Excitation(i) | Quantity::Force(i) | Quantity::Deflection(i) => {
-                ("element", elements[i].name.as_str())
-            }
+            Quantity::Excitation(i)
+            | Quantity::ExcitationRate(i)
+            | Quantity::Force(i)
+            | Quantity::Deflection(i) => ("element", elements[i].name.as_str()),
         });
     };
     for (i, d) in dofs.iter().enumerate() {
@@ -1124,6 +1125,14 @@ fn channel_table(
                 format!("eta_{}", e.name),
                 "m",
                 Quantity::Excitation(i),
+                Role::Excitation,
+            );
+        }
+        if e.reads_profile_rate() {
+            push(
+                format!("eta_{}_v", e.name),
+                "m/s",
+                Quantity::ExcitationRate(i),
                 Role::Excitation,
             );
         }
@@ -1203,7 +1212,8 @@ fn declared(raw: &RawDescription, (kind, name): (&str, &str)) -> Pos {
 }
 
 /// The stored columns: DOF displacements, the listed displacement columns, DOF velocities,
-/// DOF accelerations, then the other listed columns in their listed order.
+/// DOF accelerations, then the other listed columns in their listed order, each profile column
+/// `eta_<element>` followed by its rate `eta_<element>_v` where the element reads it.
 fn stored_channels(
     dofs: &[Dof],
     table: &[Channel],
@@ -1220,6 +1230,14 @@ fn stored_channels(
                     format!("outputs: `{name}` is a body DOF column, always stored"),
                 );
             }
+            Some(c) if matches!(c.quantity, Quantity::ExcitationRate(..)) => {
+                diag.push(
+                    *pos,
+                    format!(
+                        "outputs: `{name}` is a profile's rate, stored with its profile's column; list that one"
+                    ),
+                );
+            }
             Some(c) => {
                 if listed.iter().any(|l| l.name == c.name) {
                     diag.push(*pos, format!("outputs: `{name}` listed twice"));
@@ -1230,7 +1248,9 @@ fn stored_channels(
             None => {
                 let available: Vec<&str> = table
                     .iter()
-                    .filter(|c| !matches!(c.quantity, Quantity::Dof(..)))
+                    .filter(|c| {
+                        !matches!(c.quantity, Quantity::Dof(..) | Quantity::ExcitationRate(..))
+                    })
                     .map(|c| c.name.as_str())
                     .collect();
                 diag.push(
@@ -1259,12 +1279,17 @@ fn stored_channels(
     );
     out.extend((0..dofs.len()).filter_map(|i| dof_col(i, 1)));
     out.extend((0..dofs.len()).filter_map(|i| dof_col(i, 2)));
-    out.extend(
-        listed
-            .iter()
-            .filter(|c| c.role != Role::Solution)
-            .map(|c| (*c).clone()),
-    );
+    for c in listed.iter().filter(|c| c.role != Role::Solution) {
+        out.push((*c).clone());
+        if let Quantity::Excitation(e) = c.quantity {
+            out.extend(
+                table
+                    .iter()
+                    .find(|r| r.quantity == Quantity::ExcitationRate(e))
+                    .cloned(),
+            );
+        }
+    }
     out
 }
 

@@ -281,6 +281,15 @@ impl Law {
     pub fn is_contact(&self) -> bool {
         matches!(self, Law::Hertz { .. })
     }
+
+    /// Whether the force reads the deflection's rate: a damping `c` that is not a literal 0
+    /// (a spring-damper or table given `c`; Hertz contacts have none).
+    pub fn is_damped(&self) -> bool {
+        match self {
+            Law::SpringDamper { c, .. } | Law::Table { c, .. } => !c.is_zero(),
+            Law::Hertz { .. } => false,
+        }
+    }
 }
 
 /// A force element.
@@ -296,6 +305,14 @@ pub struct Element {
     pub to: End,
     /// Profile under the lower end.
     pub profile: Option<usize>,
+}
+
+impl Element {
+    /// Whether the element reads the rate of its profile (a damped law on a profile): its
+    /// profile's rate is then a stored column beside the profile's.
+    pub fn reads_profile_rate(&self) -> bool {
+        self.profile.is_some() && self.law.is_damped()
+    }
 }
 
 /// A constant load.
@@ -340,6 +357,9 @@ pub enum Quantity {
     Sensor(usize, u8),
     /// The profile under element `i` (m).
     Excitation(usize),
+    /// The rate `d eta / dt` of the profile under element `i` (m/s), stored for an element
+    /// whose law reads it ([`Element::reads_profile_rate`]).
+    ExcitationRate(usize),
     /// The force of element `i` (N).
     Force(usize),
     /// The deflection of element `i` (m).
