@@ -398,3 +398,107 @@ fn pipeline_files_parameter_blocks_parse_into_the_learning_types() {
                 .unwrap_or_else(|e| panic!("{file}: {e}"));
     }
 }
+
+/// `rate_outputs`: the network outputs the stored accelerations the indices read, supervised
+/// by their exact columns; `evaluate` and `predict` read them instead of differences, and a
+/// column the description does not store is refused.
+#[test]
+fn rate_outputs_are_predicted_and_read_instead_of_differences() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let data = dir.join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    let spec = learn_fixtures::synthetic::SyntheticSpec {
+        n_train: 4,
+        n_validation: 2,
+        n_test: 2,
+        duration: 0.2,
+        ..Default::default()
+    };
+    learn_fixtures::synthetic::write_dataset(&spec, &data).unwrap();
+    let inputs = serde_json::json!({"params": [data], "dataset": [data]});
+    let params = |rates: &[&str]| {
+        serde_json::json!({"algorithm": 4, "width": 8, "modes": 6, "projection_width": 16,
+                           "padding": 0, "epochs": 2, "batch_size": 2, "learning_rate": 1e-3,
+                           "lr_decay": 0.75, "lr_decay_every": 10, "lambda_ode": 0.25,
+                           "lambda_d": 1.0, "beam_weight": 0.0, "rho": 0.025, "seed": 1,
+                           "startup_fraction": 0.1, "time_stride": 1, "rate_outputs": rates})
+    };
+    // A column the description does not store is refused, naming it and the stored rates.
+    let (ctx, _) = context(dir, "bad", params(&["z_c_jerk"]), inputs.clone());
+    let o = run("train", &["--context", ctx.to_str().unwrap()]);
+    let log = text(&o);
+    assert!(
+        !o.status.success()
+            && log.contains(
+                "params.rate_outputs: `z_c_jerk` is not a velocity or acceleration column"
+            )
+            && log.contains("z_c_v")
+            && log.contains("z_t2_a"),
+        "{log}"
+    );
+
+    let rates = ["z_c_a", "beta_c_a"];
+    let (ctx, model) = context(dir, "train-rates", params(&rates), inputs.clone());
+    let o = run("train", &["--context", ctx.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(model.join("model.json")).unwrap()).unwrap();
+    let outputs = meta["layout"]["outputs"].as_array().unwrap();
+    assert_eq!(meta["layout"]["rates"], 2);
+    assert_eq!(outputs[outputs.len() - 2..], ["z_c_a", "beta_c_a"]);
+    assert_eq!(
+        meta["model"]["out_channels"].as_u64().unwrap() as usize,
+        outputs.len()
+    );
+
+    let (ctx, out) = context(
+        dir,
+        "evaluate",
+        serde_json::json!({"plot_samples": 0, "plot_channels": ["z_c"], "batch_size": 8,
+                            "compare_with_paper": false}),
+        serde_json::json!({"params": [data], "dataset": [data], "models": [model]}),
+    );
+    let o = run("evaluate", &["--context", ctx.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    // The direct outputs are scored beside the differences of the displacements.
+    let ch = pino_data::read_parquet(&out.join("channel_errors.parquet"), None).unwrap();
+    let names = ch.str("channel").unwrap();
+    let at = |n: &str| names.iter().position(|x| x == n).unwrap();
+    assert_eq!(ch.str("unit").unwrap()[at("z_c_a (output)")], "m/s^2");
+    assert_eq!(ch.str("unit").unwrap()[at("beta_c_a (output)")], "rad/s^2");
+    assert!(names.contains(&"z_c_a".to_owned()));
+    let md = std::fs::read_to_string(out.join("indices_errors.md")).unwrap();
+    assert!(md.contains("outputs z_c_a beta_c_a directly"), "{md}");
+
+    // predict: one `z_c_a` column, the network's own (not the second difference of `z_c`,
+    // which the bogies' `z_t1_a` still is).
+    let pred = dir.join("pred.parquet");
+    let o = run(
+        "predict",
+        &[
+            "--model",
+            model.to_str().unwrap(),
+            "--set",
+            "k_s=4.2e5",
+            "--out",
+            pred.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let p = pino_data::read_parquet(&pred, None).unwrap();
+    assert_eq!(p.names().filter(|n| *n == "z_c_a").count(), 1);
+    let dt = {
+        let t = p.f64("t").unwrap();
+        t[1] - t[0]
+    };
+    let second_difference_gap = |x: &str, a: &str| {
+        let (x, a) = (p.f64(x).unwrap(), p.f64(a).unwrap());
+        (1..x.len() - 1)
+            .map(|n| ((x[n + 1] - 2.0 * x[n] + x[n - 1]) / (dt * dt) - a[n]).abs())
+            .fold(0.0, f64::max)
+            / a.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+    };
+    assert!(second_difference_gap("z_t1", "z_t1_a") < 1e-6);
+    assert!(second_difference_gap("z_c", "z_c_a") > 1e-3);
+}

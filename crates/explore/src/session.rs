@@ -21,7 +21,9 @@ use crate::solve::{self, Rates};
 use mbd_engine::{Profile, RunConfig};
 use pino_eval::calibration::{CalibratedAnswer, REPORTED_LEVELS};
 use pino_eval::indices_eval::{SampleIndices, StoredColumns};
-use pino_eval::predict::{DesignAnswer, Predictor, ProfileChoice, SetPrediction};
+use pino_eval::predict::{
+    prediction_channels, ChannelSource, DesignAnswer, Predictor, ProfileChoice, SetPrediction,
+};
 use pino_indices::IndexConfig;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -92,15 +94,6 @@ pub enum Group {
     Excitation,
 }
 
-/// Where a channel's values sit in a prediction.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Slot {
-    Output(usize),
-    Velocity(usize),
-    Acceleration(usize),
-    Excitation(usize),
-}
-
 /// One channel of the summary.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Channel {
@@ -110,8 +103,9 @@ pub struct Channel {
     pub unit: String,
     /// Family.
     pub group: Group,
+    /// Where its values sit in a prediction.
     #[serde(skip)]
-    pub(crate) slot: Slot,
+    pub(crate) slot: ChannelSource,
 }
 
 /// A test sample of the dataset: its design and its profiles.
@@ -200,32 +194,28 @@ impl Explorer {
         let index_cfg = predictor.index_config()?;
         let index_limits = predictor.index_inputs().limits(&system, &index_cfg);
         let layout = &meta.layout;
-        let mut channels = Vec::new();
-        let mut push = |name: &str, group, slot| {
-            channels.push(Channel {
-                name: name.to_owned(),
-                unit: layout.unit(name).to_owned(),
-                group,
-                slot,
+        let channels = prediction_channels(layout)
+            .into_iter()
+            .map(|(name, slot)| {
+                let group = match slot {
+                    ChannelSource::Output(i) => match layout.rate_order(i) {
+                        Some(1) => Group::Velocity,
+                        Some(_) => Group::Acceleration,
+                        None if i < layout.solutions => Group::Displacement,
+                        None => Group::Force,
+                    },
+                    ChannelSource::Velocity(_) => Group::Velocity,
+                    ChannelSource::Acceleration(_) => Group::Acceleration,
+                    ChannelSource::Excitation(_) => Group::Excitation,
+                };
+                Channel {
+                    unit: layout.unit(&name).to_owned(),
+                    name,
+                    group,
+                    slot,
+                }
             })
-        };
-        for (i, name) in layout.outputs.iter().enumerate() {
-            let group = if i < layout.solutions {
-                Group::Displacement
-            } else {
-                Group::Force
-            };
-            push(name, group, Slot::Output(i));
-        }
-        for (j, name) in layout.velocities().iter().enumerate() {
-            push(name, Group::Velocity, Slot::Velocity(j));
-        }
-        for (j, name) in layout.accelerations().iter().enumerate() {
-            push(name, Group::Acceleration, Slot::Acceleration(j));
-        }
-        for (e, name) in layout.excitations.iter().enumerate() {
-            push(name, Group::Excitation, Slot::Excitation(e));
-        }
+            .collect();
         let names = predictor.space.names().to_vec();
         let ranges = names
             .iter()
@@ -341,12 +331,7 @@ impl Explorer {
         }
         let layout = &self.predictor.meta.layout;
         let (o, d) = (layout.n_outputs(), layout.n_dofs());
-        match self.channels.get(channel)?.slot {
-            Slot::Output(i) => Some(i),
-            Slot::Velocity(j) => Some(o + j),
-            Slot::Acceleration(j) => Some(o + d + j),
-            Slot::Excitation(_) => None,
-        }
+        self.channels.get(channel)?.slot.band(o, d)
     }
 
     /// The calibration as the summary lists it (`null` without intervals).

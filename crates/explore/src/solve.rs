@@ -7,8 +7,9 @@
 //! client went away stops within one output interval.
 
 use crate::request::ApiError;
-use crate::session::{Channel, Slot};
+use crate::session::Channel;
 use mbd_engine::{Profile, RunConfig};
+use pino_eval::predict::ChannelSource;
 use pino_eval::predict::{Predictor, SetPrediction};
 pub use pino_eval::solve::Exact;
 use pino_eval::solve::SolveError;
@@ -73,10 +74,10 @@ pub(crate) fn curves(
                 .map(|n| {
                     let r = n - first_rate_row;
                     match c.slot {
-                        Slot::Output(i) => ph.u[n * o + i],
-                        Slot::Velocity(j) => ph.v[r * d + j],
-                        Slot::Acceleration(j) => ph.a[r * d + j],
-                        Slot::Excitation(j) => p.eta[n * e + j],
+                        ChannelSource::Output(i) => ph.u[n * o + i],
+                        ChannelSource::Velocity(j) => ph.v[r * d + j],
+                        ChannelSource::Acceleration(j) => ph.a[r * d + j],
+                        ChannelSource::Excitation(j) => p.eta[n * e + j],
                     }
                 })
                 .collect()

@@ -21,15 +21,19 @@ pub struct Record {
 }
 
 /// Streams every sample of `files` (in file order) to `f(file, record)`; `columns` are the
-/// `f64` columns to read (besides `sample_id`). An error of `f` stops the stream and is
-/// returned as it is.
+/// `f64` columns to read (besides `sample_id`; a column named twice is read once and handed on
+/// in both places). An error of `f` stops the stream and is returned as it is.
 pub fn for_each_record<E: From<Error>>(
     files: &[PathBuf],
     columns: &[&str],
     f: &mut dyn FnMut(&Path, Record) -> std::result::Result<(), E>,
 ) -> std::result::Result<(), E> {
     let mut names = vec![schema::SAMPLE_ID];
-    names.extend_from_slice(columns);
+    for c in columns {
+        if !names.contains(c) {
+            names.push(c);
+        }
+    }
     let mut seen = BTreeSet::new();
     for file in files {
         let mut failure: Option<E> = None;
@@ -157,7 +161,10 @@ mod tests {
         // Row groups of two rows: sample 0 spans two batches.
         write_parquet_with(&path, &t, 2).unwrap();
         let mut got = Vec::new();
-        for_each_record::<Error>(std::slice::from_ref(&path), &[schema::TIME], &mut |_, r| {
+        // A column asked for twice comes in both places.
+        let twice = [schema::TIME, schema::TIME];
+        for_each_record::<Error>(std::slice::from_ref(&path), &twice, &mut |_, r| {
+            assert_eq!(r.columns[0], r.columns[1]);
             got.push((r.id, r.columns[0].clone()));
             Ok(())
         })

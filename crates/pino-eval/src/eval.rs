@@ -379,6 +379,17 @@ fn channel_label(layout: &Layout, c: usize, order: usize) -> (String, &'static s
     if layout.forces().contains(&c) {
         return (base.clone(), "kN", 1e-3);
     }
+    if let Some(rate) = layout.rate_order(c) {
+        // A rate the network outputs directly, beside the difference of its displacement
+        // under the plain name.
+        let stem = if layout.unit(base).starts_with("rad") {
+            "rad"
+        } else {
+            "m"
+        };
+        let (unit, scale) = unit_of(stem, rate.into());
+        return (format!("{base} (output)"), unit, scale);
+    }
     let (unit, scale) = unit_of(layout.unit(base), order);
     let name = match order {
         0 => base.clone(),
@@ -490,7 +501,18 @@ fn peak_force_error(channels: &[ChannelError], layout: &Layout) -> f64 {
 /// "5 PINO-MBD (direct derivatives), depth 5": the depth tells algorithms 4 and 5 apart.
 pub(crate) fn alg_label(meta: &ModelMeta) -> String {
     let alg = meta.train.algorithm;
-    format!("{} {}, depth {}", alg.id(), alg.name(), meta.model.depth)
+    let rates = meta.layout.rate_outputs();
+    let direct = if rates.is_empty() {
+        String::new()
+    } else {
+        format!(", outputs {} directly", rates.join(" "))
+    };
+    format!(
+        "{} {}, depth {}{direct}",
+        alg.id(),
+        alg.name(),
+        meta.model.depth
+    )
 }
 
 fn plot_sample(
@@ -722,7 +744,13 @@ pub fn evaluate(
     let mut cache: Vec<ScoredData> = Vec::new();
     for (m, dir) in model_dirs.iter().enumerate() {
         let (model, meta) = load_model(dir, opts.transform, device)?;
-        check_same_system(dir, &meta, info, &layout)?;
+        check_same_system(dir, &meta, info)?;
+        // A model that outputs rates directly reads its indices from them.
+        let model_inputs = if meta.layout.rates == 0 {
+            index_inputs.clone()
+        } else {
+            IndexInputs::of(system, &meta.layout)?
+        };
         let at = match cache.iter().position(|c| c.serves(&meta)) {
             Some(at) => at,
             None => {
@@ -766,7 +794,7 @@ pub fn evaluate(
             }
             index_sets.push(model_indices(
                 system,
-                &index_inputs,
+                &model_inputs,
                 items,
                 &idx,
                 &phys,
@@ -794,7 +822,7 @@ pub fn evaluate(
                 batch: opts.batch_size,
                 device,
             };
-            coverage.add(path, dir, system, run, &index_inputs, items, stored)?;
+            coverage.add(path, dir, system, run, &model_inputs, items, stored)?;
         }
         let simulated = idx.len() as f64 * ds.t_points() as f64 * ds.dt;
         let peak = peak_force_error(&channels, &meta.layout);
@@ -856,8 +884,12 @@ impl ScoredData {
         meta: &ModelMeta,
         index_inputs: &IndexInputs,
     ) -> Result<Self> {
+        let info = data
+            .info
+            .clone()
+            .with_rate_outputs(meta.layout.rate_outputs())?;
         let (ds, items) = load_split(
-            data.info,
+            &info,
             data.params_file,
             data.simulation_files,
             &meta.window,
@@ -881,13 +913,8 @@ impl ScoredData {
 }
 
 /// Refuses a model trained on another description than the dataset's.
-fn check_same_system(
-    dir: &Path,
-    meta: &ModelMeta,
-    info: &DatasetInfo,
-    layout: &Layout,
-) -> Result<()> {
-    if meta.system.hash() == info.source.hash() && meta.layout == *layout {
+fn check_same_system(dir: &Path, meta: &ModelMeta, info: &DatasetInfo) -> Result<()> {
+    if meta.system.hash() == info.source.hash() && meta.layout.follows(&info.system) {
         return Ok(());
     }
     Err(LearnError::Format {

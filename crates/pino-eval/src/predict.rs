@@ -540,6 +540,65 @@ pub enum ProfileSource<'a> {
     PerDesign(&'a (dyn Fn(usize) -> Result<Vec<Option<Profile>>> + Sync)),
 }
 
+/// Where a channel of a prediction (a column of [`Predictor::histories`], a curve of the
+/// explorer) comes from in its physical series.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ChannelSource {
+    /// Output `k` (a displacement, a force or a rate the network outputs directly).
+    Output(usize),
+    /// DOF `j`'s velocity, a central difference of its displacement.
+    Velocity(usize),
+    /// DOF `j`'s acceleration, a second difference of its displacement.
+    Acceleration(usize),
+    /// Excitation `j` (an exact input).
+    Excitation(usize),
+}
+
+impl ChannelSource {
+    /// Its band among a calibration's channels (outputs `o`, then the `d` velocities and
+    /// accelerations); none for an excitation.
+    pub fn band(self, o: usize, d: usize) -> Option<usize> {
+        match self {
+            ChannelSource::Output(k) => Some(k),
+            ChannelSource::Velocity(j) => Some(o + j),
+            ChannelSource::Acceleration(j) => Some(o + d + j),
+            ChannelSource::Excitation(_) => None,
+        }
+    }
+}
+
+/// The channels of a prediction of `layout`, in the histories' column order: the
+/// displacements and forces, the DOFs' velocities and accelerations (the network's own output
+/// where it outputs that rate, else differences), the other rate outputs (sensors), then the
+/// excitations.
+pub fn prediction_channels(layout: &Layout) -> Vec<(String, ChannelSource)> {
+    let direct = |name: &str| layout.outputs.iter().position(|o| o == name);
+    let rates = layout.forces().end..layout.n_outputs();
+    let mut channels: Vec<(String, ChannelSource)> = (0..rates.start)
+        .map(|k| (layout.outputs[k].clone(), ChannelSource::Output(k)))
+        .collect();
+    let differenced: [(Vec<String>, fn(usize) -> ChannelSource); 2] = [
+        (layout.velocities(), ChannelSource::Velocity),
+        (layout.accelerations(), ChannelSource::Acceleration),
+    ];
+    for (names, rate) in differenced {
+        for (j, name) in names.into_iter().enumerate() {
+            let source = direct(&name).map_or(rate(j), ChannelSource::Output);
+            channels.push((name, source));
+        }
+    }
+    for k in rates {
+        if !channels.iter().any(|(n, _)| *n == layout.outputs[k]) {
+            channels.push((layout.outputs[k].clone(), ChannelSource::Output(k)));
+        }
+    }
+    channels.extend(
+        (0..layout.n_excitations())
+            .map(|j| (layout.excitations[j].clone(), ChannelSource::Excitation(j))),
+    );
+    channels
+}
+
 /// A trained model loaded for prediction.
 pub struct Predictor {
     model: Fno,
@@ -582,7 +641,7 @@ impl Predictor {
         let (model, meta) = load_model(model_dir, Transform::for_device(device), device)?;
         let meta_path = model_dir.join(pino_learn::checkpoint::MODEL_META);
         let system = Arc::new(meta.compile_system(&meta_path)?);
-        if Layout::of(&system) != meta.layout {
+        if !meta.layout.follows(&system) {
             return Err(fmt_err(
                 &meta_path,
                 "the stored layout does not follow from the stored system description (an edited model.json?)".into(),
@@ -966,17 +1025,14 @@ impl Predictor {
                 Ok((p.clone(), bands))
             },
         )?;
-        let names: Vec<String> = layout
-            .outputs
-            .iter()
-            .cloned()
-            .chain(layout.velocities())
-            .chain(layout.accelerations())
-            .chain(layout.excitations.iter().cloned())
-            .collect();
+        let columns = prediction_channels(layout);
+        let names: Vec<&str> = columns.iter().map(|(n, _)| n.as_str()).collect();
         let mut cols: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
         let banded = preds.iter().all(|(_, b)| b.is_some()) && !preds.is_empty();
-        let n_banded = o + 2 * d;
+        let n_banded = columns
+            .iter()
+            .filter(|(_, s)| s.band(o, d).is_some())
+            .count();
         let mut lo: Vec<Vec<f64>> = vec![Vec::new(); if banded { n_banded } else { 0 }];
         let mut hi = lo.clone();
         let mut set_col = Vec::new();
@@ -986,15 +1042,16 @@ impl Predictor {
             for (n, &t) in times.iter().enumerate().take(tp - 1).skip(1) {
                 set_col.push(s as i64);
                 t_col.push(t);
-                let row = ph.u[n * o..(n + 1) * o]
-                    .iter()
-                    .chain(&ph.v[(n - 1) * d..n * d])
-                    .chain(&ph.a[(n - 1) * d..n * d])
-                    .chain(&pred.eta[n * e..(n + 1) * e]);
-                for (c, (col, &x)) in cols.iter_mut().zip(row).enumerate() {
+                for (c, (col, (_, source))) in cols.iter_mut().zip(&columns).enumerate() {
+                    let x = match *source {
+                        ChannelSource::Output(k) => ph.u[n * o + k],
+                        ChannelSource::Velocity(j) => ph.v[(n - 1) * d + j],
+                        ChannelSource::Acceleration(j) => ph.a[(n - 1) * d + j],
+                        ChannelSource::Excitation(j) => pred.eta[n * e + j],
+                    };
                     col.push(x);
-                    if let (Some(b), true) = (band, c < n_banded && banded) {
-                        let h = b.bands[c][n - 1];
+                    if let (Some(b), Some(k), true) = (band, source.band(o, d), banded) {
+                        let h = b.bands[k][n - 1];
                         lo[c].push(x - h);
                         hi[c].push(x + h);
                     }
@@ -1008,6 +1065,7 @@ impl Predictor {
             table.push(name, Column::F64(values))?;
         }
         if banded {
+            // The banded columns lead (outputs and rates; the excitations are exact inputs).
             table.add_units(names[..n_banded].iter().flat_map(|n| {
                 let u = layout.unit(n);
                 [(format!("{n}_lo"), u), (format!("{n}_hi"), u)]

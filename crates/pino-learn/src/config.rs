@@ -347,6 +347,12 @@ pub struct TrainParams {
     /// a budget study's knob, judged on the same validation split.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub train_samples: Option<usize>,
+    /// Stored velocity or acceleration columns (`z_c_a`, `z_mid_a`) the network outputs
+    /// directly beside its displacements and forces, supervised by the exact columns in the
+    /// data loss; the indices and histories read them instead of differences
+    /// (`docs/learning.md`, Rate outputs). Empty: the paper's networks.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rate_outputs: Vec<String>,
 }
 
 impl TrainParams {

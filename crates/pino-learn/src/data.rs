@@ -206,6 +206,9 @@ pub struct DatasetInfo {
     pub system: Arc<System>,
     /// The run and profile controls of the simulation.
     pub settings: Option<crate::checkpoint::DataSettings>,
+    /// The channel layout a training reads: the description's, with the rate outputs a
+    /// training asks for ([`DatasetInfo::with_rate_outputs`]).
+    layout: Layout,
 }
 
 impl DatasetInfo {
@@ -223,6 +226,7 @@ impl DatasetInfo {
             None
         };
         Ok(Self {
+            layout: Layout::of(&system),
             source,
             system: Arc::new(system),
             settings,
@@ -236,10 +240,23 @@ impl DatasetInfo {
             message: e.to_string(),
         })?;
         Ok(Self {
+            layout: Layout::of(&system),
             source,
             system: Arc::new(system),
             settings: None,
         })
+    }
+
+    /// The channel layout the datasets of this info are read with.
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// This info reading the stored rates `names` as network outputs too
+    /// ([`Layout::with_rate_outputs`]); refused for a column the description does not store.
+    pub fn with_rate_outputs(mut self, names: &[String]) -> Result<Self> {
+        self.layout = self.layout.with_rate_outputs(&self.system, names)?;
+        Ok(self)
     }
 }
 
@@ -261,7 +278,7 @@ fn scan(
 ) -> Result<Dataset> {
     window.validate()?;
     let system = &info.system;
-    let layout = Layout::of(system);
+    let layout = info.layout().clone();
     let params: BTreeMap<i64, (Split, Sampled)> = read_params(params_file, system)?
         .into_iter()
         .map(|(id, s, p)| (id, (s, p)))
@@ -431,7 +448,7 @@ pub fn load_dataset_subset(
     window: &WindowConfig,
     train_samples: Option<usize>,
 ) -> Result<Dataset> {
-    let layout = Layout::of(&info.system);
+    let layout = info.layout();
     let kept_train: Option<BTreeSet<i64>> = match train_samples {
         None => None,
         Some(n) => Some(
@@ -445,7 +462,7 @@ pub fn load_dataset_subset(
                 .collect(),
         ),
     };
-    let mut acc = NormAccumulator::new(&layout);
+    let mut acc = NormAccumulator::new(layout);
     let mut any_train = false;
     let mut ds = scan(
         info,
@@ -773,7 +790,7 @@ pub fn load_split(
     split: Split,
     norm: &Normalisation,
 ) -> Result<(Dataset, Prepared)> {
-    let layout = Layout::of(&info.system);
+    let layout = info.layout();
     let expected = splits_of(params_file)?
         .iter()
         .filter(|s| **s == split)
@@ -788,14 +805,14 @@ pub fn load_split(
         &|_, s| s == split,
         &mut |s, t, w| {
             if builder.is_none() {
-                builder = Some(Builder::new(norm, &layout, t.len(), expected)?);
+                builder = Some(Builder::new(norm, layout, t.len(), expected)?);
             }
             builder.as_mut().expect("created").add(s, w)
         },
     )?;
     let b = match builder {
         Some(b) => b,
-        None => Builder::new(norm, &layout, ds.t.len(), 0)?,
+        None => Builder::new(norm, layout, ds.t.len(), 0)?,
     };
     let items = b.finish(&ds);
     Ok((ds, items))

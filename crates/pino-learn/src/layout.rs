@@ -4,9 +4,11 @@
 //!
 //! - inputs `[T, 1 + E + P]`: `t`, the excitation columns (`eta_<element>`, the profile under
 //!   each element that reads one) and the sampled parameters (the description's order);
-//! - outputs `[T, S + F]`: the `S` solutions (the rigid DOFs' displacements, then the stored
-//!   displacement columns of moving points and sensors) and the `F` element forces stored
-//!   (`p_<contact>`, `f_<element>`);
+//! - outputs `[T, S + F + R]`: the `S` solutions (the rigid DOFs' displacements, then the
+//!   stored displacement columns of moving points and sensors), the `F` element forces stored
+//!   (`p_<contact>`, `f_<element>`) and, when a training asks for them
+//!   ([`Layout::with_rate_outputs`]), `R` stored velocities or accelerations the network
+//!   outputs directly (`z_c_a`, `z_mid_a`), supervised by their exact columns like any output;
 //! - derivative targets `[T, D]`: the exact `_v` and `_a` of the `D` rigid DOFs (the first `D`
 //!   outputs);
 //! - equations: the DOFs whose forces close on the outputs and the excitations
@@ -20,7 +22,7 @@
 //! (19 inputs), `z_c .. z_w4, z_r1..z_r4, p_1..p_4` (18 outputs, 14 solutions) and the ten
 //! vehicle DOFs, all with equations.
 
-use mbd_system::system::Role;
+use mbd_system::system::{Quantity, Role};
 use mbd_system::System;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -37,10 +39,14 @@ pub struct Layout {
     pub params: Vec<String>,
     /// Excitation columns.
     pub excitations: Vec<String>,
-    /// Output columns: solutions, then forces.
+    /// Output columns: solutions, then forces, then the rate outputs.
     pub outputs: Vec<String>,
     /// How many outputs are solutions (displacements).
     pub solutions: usize,
+    /// How many outputs (the last) are stored rates the network outputs directly
+    /// ([`Layout::with_rate_outputs`]; absent in `model.json`: none).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub rates: usize,
     /// The rigid DOFs (the first outputs), derivative targets.
     pub dofs: Vec<String>,
     /// Indices into `dofs` of the DOFs with an equation.
@@ -91,10 +97,69 @@ impl Layout {
             excitations,
             outputs,
             solutions,
+            rates: 0,
             dofs,
             equations,
             units,
         }
+    }
+
+    /// This layout with the stored rate columns `names` (`_v` or `_a` of a DOF or a sensor)
+    /// appended to the outputs, in the given order: the network outputs them directly and
+    /// every reader of such a column (the indices, the histories) takes the output instead of
+    /// a difference of the displacement. A name that is not a stored rate of `system`, or is
+    /// given twice, is refused with the stored rates listed.
+    pub fn with_rate_outputs(mut self, system: &System, names: &[String]) -> crate::Result<Self> {
+        let stored: Vec<&str> = system
+            .channels
+            .iter()
+            .filter(|c| is_rate(c.quantity))
+            .map(|c| c.name.as_str())
+            .collect();
+        for (k, name) in names.iter().enumerate() {
+            if !stored.contains(&name.as_str()) {
+                return Err(crate::Error::RateOutputs(format!(
+                    "`{name}` is not a velocity or acceleration column the description `{}` stores (its rates: {})",
+                    system.name,
+                    stored.join(", ")
+                )));
+            }
+            if names[..k].contains(name) {
+                return Err(crate::Error::RateOutputs(format!(
+                    "`{name}` is given twice"
+                )));
+            }
+        }
+        self.outputs.truncate(self.outputs.len() - self.rates);
+        self.outputs.extend(names.iter().cloned());
+        self.rates = names.len();
+        Ok(self)
+    }
+
+    /// Whether this is `system`'s layout (with its rate outputs): false for a model of
+    /// another description or an edited `model.json`.
+    pub fn follows(&self, system: &System) -> bool {
+        Layout::of(system)
+            .with_rate_outputs(system, self.rate_outputs())
+            .is_ok_and(|l| l == *self)
+    }
+
+    /// The derivative order of output `k` when it is a rate output (1: a velocity, 2: an
+    /// acceleration; from its unit, `.../s` or `.../s^2` as the description's compiler gives
+    /// every stored rate); `None` for a displacement or a force.
+    pub fn rate_order(&self, k: usize) -> Option<u8> {
+        (k >= self.forces().end && k < self.outputs.len()).then(|| {
+            if self.unit(&self.outputs[k]).ends_with("^2") {
+                2
+            } else {
+                1
+            }
+        })
+    }
+
+    /// The rate outputs ([`Layout::with_rate_outputs`]; empty for the paper's networks).
+    pub fn rate_outputs(&self) -> &[String] {
+        &self.outputs[self.outputs.len() - self.rates..]
     }
 
     /// Input columns: `t`, the excitations, the parameters.
@@ -127,7 +192,7 @@ impl Layout {
 
     /// The force outputs (channel indices).
     pub fn forces(&self) -> std::ops::Range<usize> {
-        self.solutions..self.outputs.len()
+        self.solutions..self.outputs.len() - self.rates
     }
 
     /// `_v` columns of the DOFs.
@@ -148,8 +213,8 @@ impl Layout {
         c
     }
 
-    /// The record training reads per sample: every output (solutions, then forces), the
-    /// `_v`, the `_a`, the excitations.
+    /// The record training reads per sample: every output (solutions, forces, rate
+    /// outputs), the `_v`, the `_a`, the excitations.
     pub fn training_record(&self) -> Record {
         Record::stacked(self.outputs.len(), self.dofs.len(), self.excitations.len())
     }
@@ -203,6 +268,15 @@ impl Layout {
             excitations: self.excitations.len(),
         }
     }
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
+/// Whether a stored quantity is a velocity or an acceleration.
+fn is_rate(q: Quantity) -> bool {
+    matches!(q, Quantity::Dof(_, o) | Quantity::Sensor(_, o) if o > 0)
 }
 
 /// A record's channel groups as named ranges of its columns (one composition for every
@@ -302,6 +376,62 @@ mod tests {
         assert_eq!((i.excitations, i.params.end), (1..5, l.n_inputs()));
         let back: Layout = serde_json::from_str(&serde_json::to_string(&l).unwrap()).unwrap();
         assert_eq!(back, l);
+    }
+
+    /// Rate outputs follow the forces; the forces, records and statistics names keep their
+    /// places; the paper's layout serialises as before (no `rates` key).
+    #[test]
+    fn rate_outputs_are_appended_after_the_forces_and_checked() {
+        let sys = system("vtcd.yaml");
+        let plain = Layout::of(&sys);
+        assert!(!serde_json::to_string(&plain).unwrap().contains("rates"));
+        let names = ["z_c_a".to_owned(), "beta_c_v".to_owned()];
+        let l = plain.clone().with_rate_outputs(&sys, &names).unwrap();
+        assert_eq!((l.n_outputs(), l.rates), (20, 2));
+        assert_eq!(l.forces(), plain.forces());
+        assert_eq!(l.rate_outputs(), names);
+        assert_eq!(
+            (l.rate_order(18), l.rate_order(19), l.rate_order(17)),
+            (Some(2), Some(1), None)
+        );
+        assert!(l.follows(&sys) && plain.follows(&sys));
+        assert!(!l.follows(&system("bridge.yaml")));
+        let back: Layout = serde_json::from_str(&serde_json::to_string(&l).unwrap()).unwrap();
+        assert_eq!(back, l);
+        // Asking again replaces the set; the record reads the rate columns with the outputs.
+        let again = l.with_rate_outputs(&sys, &names[..1]).unwrap();
+        assert_eq!(again.rate_outputs(), ["z_c_a"]);
+        assert_eq!(again.simulation_columns()[2 + 18], "z_c_a");
+        for (bad, why) in [
+            (
+                vec!["z_c".to_owned()],
+                "`z_c` is not a velocity or acceleration column",
+            ),
+            (
+                vec!["p_1_a".to_owned()],
+                "its rates: z_c_v, z_c_a, beta_c_v",
+            ),
+            (
+                vec!["z_c_a".to_owned(), "z_c_a".to_owned()],
+                "`z_c_a` is given twice",
+            ),
+        ] {
+            let e = plain
+                .clone()
+                .with_rate_outputs(&sys, &bad)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with("params.rate_outputs: ") && e.contains(why),
+                "{e}"
+            );
+        }
+        // The bridge's sensor acceleration is a stored rate too.
+        let b = system("bridge.yaml");
+        let bl = Layout::of(&b)
+            .with_rate_outputs(&b, &["z_mid_a".to_owned()])
+            .unwrap();
+        assert_eq!(bl.rate_order(bl.n_outputs() - 1), Some(2));
     }
 
     /// The bridge's vehicle has its equation through the deck deflection under it; a

@@ -122,6 +122,9 @@ pub enum Error {
     /// A design that does not fit the system's sampled parameters (count or names).
     #[error(transparent)]
     Design(Box<mbd_system::SampledError>),
+    /// A rate output the description does not store (`train`'s `rate_outputs`).
+    #[error("params.rate_outputs: {0}")]
+    RateOutputs(String),
     /// A configuration value is outside its allowed range.
     #[error("`{field}` = {value} is out of range: {allowed}")]
     OutOfRange {

@@ -101,8 +101,27 @@ fn check_one(p: &Pipeline, u: &Unit) -> Result<Option<f64>> {
     }
     Err(Error::Check {
         unit: name.clone(),
-        message: message(&output.stderr, &exe),
+        message: located(p, &stage.name, message(&output.stderr, &exe)),
     })
+}
+
+/// A checker's message whose first line reads `params.KEY: ...`, or `STAGE: params.KEY: ...`
+/// as stage binaries print their errors (a complaint about one parameter), prefixed with that
+/// parameter's `FILE:LINE` in the pipeline file.
+fn located(p: &Pipeline, stage: &str, message: String) -> String {
+    let first = message.lines().next().unwrap_or_default();
+    let rest = first.strip_prefix("params.").or_else(|| {
+        let (head, tail) = first.split_once(": ")?;
+        (!head.contains(' ')).then(|| tail.strip_prefix("params."))?
+    });
+    let key = rest
+        .and_then(|r| r.split_once(':'))
+        .map(|(key, _)| key)
+        .filter(|key| key.chars().all(|c| c.is_alphanumeric() || c == '_'));
+    match key {
+        Some(key) => format!("{}: {message}", p.param_location(stage, key)),
+        None => message,
+    }
 }
 
 /// The checker's own words: its stderr without the `error:` prefix stage binaries print, or
@@ -150,5 +169,31 @@ mod tests {
             work.into_iter().collect::<Vec<_>>(),
             [((0, 0), 9.0), ((1, 0), 2.0)]
         );
+    }
+
+    /// A check's complaint about one parameter (`STAGE: params.KEY: ...`) names the line of
+    /// that parameter in the pipeline file; any other complaint is passed on as said.
+    #[test]
+    fn a_refused_parameter_is_located_in_the_pipeline_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let script = dir.path().join("stage.sh");
+        std::fs::write(
+            &script,
+            "#!/bin/sh\ncase \"$1\" in\n  param) echo 'error: s: params.rates: `x` is not stored' >&2 ;;\n  other) echo 'no description' >&2 ;;\nesac\nexit 1\n",
+        )
+        .unwrap();
+        std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+        for (arg, expected) in [
+            ("param", "p.yaml:7: s: params.rates: `x` is not stored"),
+            ("other", "nothing was run:\nno description"),
+        ] {
+            let text = format!("stages:\n  s:\n    cmd: [./stage.sh, {arg}]\n    check: true\n    params:\n      seed: 1\n      rates: [x]\n");
+            let f = dir.path().join("p.yaml");
+            std::fs::write(&f, text).unwrap();
+            let p = Pipeline::load(dir.path(), &f, &LoadOptions::default()).unwrap();
+            let units: Vec<Unit> = units_of(&p, 0);
+            let e = run_checks(&p, &units).unwrap_err().to_string();
+            assert!(e.ends_with(expected), "{e}");
+        }
     }
 }

@@ -771,6 +771,14 @@ impl Pipeline {
         self.stages.iter().position(|s| s.name == name)
     }
 
+    /// `FILE:LINE` of stage `stage`'s parameter `key` in the pipeline file (the stage's
+    /// `params:` line when the key is not written there): where a check's complaint about a
+    /// parameter points.
+    pub fn param_location(&self, stage: &str, key: &str) -> String {
+        let line = Locator::new(&self.text).word_line(stage, "params", key);
+        format!("{}:{line}", self.file)
+    }
+
     /// Resolves the stage's `cmd[0]`: a path with a `/` relative to the pipeline file's
     /// directory; a bare name in `bin_dir`, then on `PATH`. Missing: bad input at the
     /// `cmd` line.

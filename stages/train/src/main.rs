@@ -6,7 +6,9 @@
 //! `pipeline` across killed runs of the same configuration; the output directory when run by
 //! hand), from which the next run resumes. The tensors' channels, the residuals of algorithms 2
 //! and 3 and the force scale come from the dataset's system description (`system.json`);
-//! algorithms 2 and 3 are refused, naming why, for a description without equations.
+//! algorithms 2 and 3 are refused, naming why, for a description without equations. With
+//! `rate_outputs`, the command names the description (`cmd: [train, "${constants.system}"]`)
+//! so that a column it does not store is refused at planning.
 use anyhow::{Context, Result};
 use pino_learn::config::TrainParams;
 use pino_learn::data::{load_dataset_subset, DatasetInfo};
@@ -21,6 +23,13 @@ fn run() -> Result<()> {
     let p: TrainParams = ctx.params()?;
     if ctx.is_check() {
         pino_learn::config::Algorithm::from_id(p.algorithm)?;
+        if !p.rate_outputs.is_empty() {
+            // The outputs asked for must be stored rates of the description the command names.
+            let (_, system) = stage_kit::load_description(&Default::default()).map_err(|e| {
+                anyhow::anyhow!("params.rate_outputs: checked against the system description, which the stage's command must name (`cmd: [train, \"${{constants.system}}\"]`): {e}")
+            })?;
+            pino_learn::layout::Layout::of(&system).with_rate_outputs(&system, &p.rate_outputs)?;
+        }
         // Which of the matrix's trainings starts first when none has run here before.
         let work = p.relative_work()?;
         if work > 0.0 {
@@ -30,10 +39,10 @@ fn run() -> Result<()> {
         return Ok(());
     }
     let info = DatasetInfo::from_dirs(ctx.input_dirs("dataset")?)
+        .and_then(|info| info.with_rate_outputs(&p.rate_outputs))
         .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
-    let layout = pino_learn::layout::Layout::of(&info.system);
     let configs = p
-        .configs(&layout)
+        .configs(info.layout())
         .with_context(|| format!("stage `{}`", ctx.stage))?;
     let (_, train, window) = configs;
     let device = p.device.device()?;

@@ -112,7 +112,13 @@ pub fn calibrate(
     let mut seen = BTreeMap::new();
     for (m, dir) in model_dirs.iter().enumerate() {
         let (model, meta) = load_model(dir, transform, device)?;
-        check_model(dir, &meta, data, &layout)?;
+        check_model(dir, &meta, data)?;
+        // A model that outputs rates directly is calibrated on them (its own channels).
+        let model_inputs = if meta.layout.rates == 0 {
+            inputs.clone()
+        } else {
+            IndexInputs::of(system, &meta.layout)?
+        };
         let identity = ModelIdentity::of(dir)?;
         if let Some(other) = seen.insert(identity.algorithm, dir.clone()) {
             return Err(LearnError::OutOfRange {
@@ -138,7 +144,7 @@ pub fn calibrate(
             device,
         };
         let ctx = Fitting {
-            scorer: Scorer::new(system, run, &inputs)?,
+            scorer: Scorer::new(system, run, &model_inputs)?,
             params,
         };
         let design = DesignIdentity {
@@ -156,7 +162,8 @@ pub fn calibrate(
                 .map(|(n, (&lo, &hi))| (n.clone(), [lo, hi]))
                 .collect(),
         };
-        let calibration = ctx.calibration(identity, design, &layout, &inputs, &fit, &cal)?;
+        let calibration =
+            ctx.calibration(identity, design, &meta.layout, &model_inputs, &fit, &cal)?;
         let sub = out.join(model_subdir(calibration.model.algorithm));
         std::fs::create_dir_all(&sub).map_err(|e| LearnError::Io {
             path: sub.clone(),
@@ -178,9 +185,9 @@ pub fn calibrate(
 }
 
 /// A model must have been trained on the dataset's description and design.
-fn check_model(dir: &Path, meta: &ModelMeta, data: &EvalData<'_>, layout: &Layout) -> Result<()> {
+fn check_model(dir: &Path, meta: &ModelMeta, data: &EvalData<'_>) -> Result<()> {
     let path = dir.join(pino_learn::checkpoint::MODEL_META);
-    if meta.system.hash() != data.info.source.hash() || meta.layout != *layout {
+    if meta.system.hash() != data.info.source.hash() || !meta.layout.follows(&data.info.system) {
         return Err(LearnError::Format {
             path,
             message: format!(
