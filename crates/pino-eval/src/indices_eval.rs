@@ -99,7 +99,7 @@ impl IndexInputs {
                         .find(|c| c.quantity == Quantity::Sensor(s, 0))
                         .and_then(|c| output(&c.name))
                         .map(|c| Source::OutputRate(c, order)),
-                    Quantity::Excitation(_) => layout
+                    Quantity::Excitation(_) | Quantity::ExcitationRate(_) => layout
                         .excitations
                         .iter()
                         .position(|x| *x == name)

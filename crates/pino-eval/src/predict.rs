@@ -607,8 +607,8 @@ pub struct Predictor {
     /// Its system's design parameters.
     pub space: DesignSpace,
     system: Arc<System>,
-    /// The element of each excitation column.
-    excitation_elements: Vec<usize>,
+    /// What each excitation column holds (a profile or its rate, [`Excitations::column`]).
+    excitation_columns: Vec<Quantity>,
     indices: IndexInputs,
     device: Device,
     identity: ModelIdentity,
@@ -647,13 +647,13 @@ impl Predictor {
                 "the stored layout does not follow from the stored system description (an edited model.json?)".into(),
             ));
         }
-        let excitation_elements = meta
+        let excitation_columns = meta
             .layout
             .excitations
             .iter()
             .map(
                 |name| match system.channel(name).map(|c| system.channels[c].quantity) {
-                    Some(Quantity::Excitation(e)) => Ok(e),
+                    Some(q @ (Quantity::Excitation(_) | Quantity::ExcitationRate(_))) => Ok(q),
                     _ => Err(fmt_err(
                         &meta_path,
                         format!("`{name}` is not an excitation of the system"),
@@ -667,7 +667,7 @@ impl Predictor {
             space: DesignSpace::of(system.clone()),
             probe: ResidualProbe::new(&system, &meta.layout),
             system,
-            excitation_elements,
+            excitation_columns,
             indices,
             meta,
             device: device.clone(),
@@ -879,9 +879,13 @@ impl Predictor {
     ) -> Result<Vec<f64>> {
         let ex = self.excitations_of(design, profiles, run, &format!("sets[{k}]"))?;
         let times = self.meta.grid.times();
-        let mut out = Vec::with_capacity(times.len() * self.excitation_elements.len());
+        let mut out = Vec::with_capacity(times.len() * self.excitation_columns.len());
         for &t in &times {
-            out.extend(self.excitation_elements.iter().map(|&e| ex.at(e, t)));
+            out.extend(
+                self.excitation_columns
+                    .iter()
+                    .filter_map(|&q| ex.column(q, t)),
+            );
         }
         Ok(out)
     }

@@ -3,7 +3,8 @@
 //! and stored in `model.json`, so no channel count or position is written in code.
 //!
 //! - inputs `[T, 1 + E + P]`: `t`, the excitation columns (`eta_<element>`, the profile under
-//!   each element that reads one) and the sampled parameters (the description's order);
+//!   each element that reads one, followed by its own rate `eta_<element>_v` where the element
+//!   is a damper that reads that rate) and the sampled parameters (the description's order);
 //! - outputs `[T, S + F + R]`: the `S` solutions (the rigid DOFs' displacements, then the
 //!   stored displacement columns of moving points and sensors), the `F` element forces stored
 //!   (`p_<contact>`, `f_<element>`) and, when a training asks for them
@@ -445,6 +446,8 @@ mod tests {
             l.outputs.contains(&"z_b1".to_owned())
                 && l.outputs.contains(&"f_suspension".to_owned())
         );
+        assert_eq!(l.excitations, ["eta_suspension", "eta_suspension_v"]);
+        assert_eq!(l.unit("eta_suspension_v"), "m/s");
         let q = Layout::of(&system("quarter-car.yaml"));
         assert_eq!(q.equations, [0, 1]);
         assert_eq!(q.excitations, ["eta_tyre"]);

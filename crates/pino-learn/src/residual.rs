@@ -6,7 +6,10 @@
 //! (`docs/learning.md`): the DOFs' physical displacements `z = s u + m`, their velocities and
 //! accelerations by central differences (scaled by the channel std), the deflection under each
 //! moving point an element rests on from its output column (and its rate by central
-//! difference), the excitations from the inputs (physical, with their rates). The loss is
+//! difference), the excitations from the inputs (physical) with their rates: the profile's own
+//! rate `eta_<element>_v` where the element reads it (an input beside its profile, stored by
+//! the solver from the profile's interpolation), else the central difference of the profile
+//! column. The loss is
 //! ```text
 //! L = mean_{k,n,i} c_{k,i} |R_i(k, n)|     c = 1 / F_ref (global)  or  rho / phi_{k,i} (phi)
 //! ```
@@ -36,6 +39,9 @@ pub struct ChannelMap {
     pub point: Vec<Option<usize>>,
     /// Per element: the excitation channel of its profile, if it reads one.
     pub eta: Vec<Option<usize>>,
+    /// Per element: the excitation channel of its profile's own rate, if it reads one (a
+    /// damper on a profile); without one the rate is the profile's central difference.
+    pub eta_rate: Vec<Option<usize>>,
     /// The DOFs with equations.
     pub equations: Vec<usize>,
 }
@@ -54,10 +60,14 @@ impl ChannelMap {
         let eta = (0..system.elements.len())
             .map(|e| find(&layout.excitations, Quantity::Excitation(e)))
             .collect();
+        let eta_rate = (0..system.elements.len())
+            .map(|e| find(&layout.excitations, Quantity::ExcitationRate(e)))
+            .collect();
         Self {
             dofs: layout.n_dofs(),
             point,
             eta,
+            eta_rate,
             equations: layout.equations.clone(),
         }
     }
@@ -357,7 +367,10 @@ impl OdeLoss {
         for (el, ch) in self.map.eta.iter().enumerate() {
             if let Some(j) = *ch {
                 s.eta[el] = eta(n, j);
-                s.eta_rate[el] = (eta(n + 1, j) - eta(n - 1, j)) / (2.0 * dt);
+                s.eta_rate[el] = match self.map.eta_rate[el] {
+                    Some(r) => eta(n, r),
+                    None => (eta(n + 1, j) - eta(n - 1, j)) / (2.0 * dt),
+                };
             }
         }
     }
@@ -576,14 +589,18 @@ pub fn composed_residuals(
     let eta = eta.to_dtype(DType::F64)?;
     let mut e = Vec::with_capacity(ne);
     let mut e_rate = Vec::with_capacity(ne);
-    for ch in &map.eta {
+    for (ch, rate) in map.eta.iter().zip(&map.eta_rate) {
         match *ch {
             Some(j) => {
                 let col = eta.narrow(2, j, 1)?;
                 e.push(col.narrow(1, 1, t - 2)?);
-                e_rate.push(
-                    ((col.narrow(1, 2, t - 2)? - col.narrow(1, 0, t - 2)?)? * (1.0 / (2.0 * dt)))?,
-                );
+                e_rate.push(match *rate {
+                    Some(r) => eta.narrow(2, r, 1)?.narrow(1, 1, t - 2)?,
+                    None => {
+                        ((col.narrow(1, 2, t - 2)? - col.narrow(1, 0, t - 2)?)?
+                            * (1.0 / (2.0 * dt)))?
+                    }
+                });
             }
             None => {
                 e.push(zeros.clone());

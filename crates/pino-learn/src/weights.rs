@@ -11,7 +11,8 @@
 //! does. The noised signals are the solution columns (the DOFs' displacements, then the
 //! deflections under moving points and at sensors), the DOFs' `_v`, then their `_a`; the
 //! excitations are inputs and are not noised. Where a damper needs the rate of a deflection or
-//! of a profile, it is the central difference of the (noised) signal, one-sided at the ends.
+//! of a profile, it is the central difference of the (noised) signal, one-sided at the ends,
+//! except a profile's rate stored beside it (`eta_<element>_v`, an excitation: exact).
 //!
 //! **Noise order** (fixed; it makes `phi` reproducible from the seed): the normals of
 //! `SampleStream::new(seed, Purpose::WeightNoise, sample_id)` are consumed signal by signal in
@@ -155,7 +156,10 @@ pub fn magnitude_weights(
         for (el, ch) in map.eta.iter().enumerate() {
             if let Some(j) = *ch {
                 et[el] = eta_cols[j][t];
-                etr[el] = rate(eta_cols[j], t, dt);
+                etr[el] = match map.eta_rate[el] {
+                    Some(r) => eta_cols[r][t],
+                    None => rate(eta_cols[j], t, dt),
+                };
             }
         }
         let state = EquationState {
