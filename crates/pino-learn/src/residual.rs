@@ -671,3 +671,100 @@ pub fn composed_residuals(
     }
     Ok(r)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+
+    fn bridge() -> System {
+        let path = format!("{}/../../systems/bridge.yaml", env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        mbd_system::load_str(&text, "bridge.yaml", &Default::default()).unwrap()
+    }
+
+    /// The bridge's suspension damper reads its profile's rate from the stored column
+    /// `eta_suspension_v`: with a rate that is not the profile's central difference, the
+    /// fused op's residual differs from the difference-based one by exactly `c` times the two
+    /// rates' gap, and the composed (any-device) residuals equal the fused ones.
+    #[test]
+    fn a_dampers_profile_rate_is_read_from_its_column() {
+        let system = bridge();
+        let layout = Layout::of(&system);
+        let map = ChannelMap::new(&system, &layout);
+        let e = system
+            .elements
+            .iter()
+            .position(|e| e.name == "suspension")
+            .unwrap();
+        assert_eq!((map.eta[e], map.eta_rate[e]), (Some(0), Some(1)));
+        let nominal = system.nominal();
+        let sample = Arc::new(SampleEquations::new(&system, &map, &nominal).unwrap());
+        let (t, o, ne, dt) = (8, layout.n_outputs(), layout.n_excitations(), 1e-3);
+        // Outputs with unit statistics (physical = z-scored); a profile whose stored rate is
+        // not its central difference.
+        let u: Vec<f32> = (0..t * o).map(|i| 1e-3 * (0.37 * i as f32).sin()).collect();
+        let eta: Vec<f64> = (0..t)
+            .flat_map(|n| {
+                let x = n as f64 * dt;
+                [1e-3 * (40.0 * x).sin(), 0.2 * (40.0 * x).cos() + 0.05]
+            })
+            .collect();
+        let stats = ChannelStats {
+            names: layout.outputs.clone(),
+            mean: vec![0.0; o],
+            std: vec![1.0; o],
+        };
+        let residuals = |map: &ChannelMap| {
+            let op = OdeLoss {
+                map: Arc::new(map.clone()),
+                samples: vec![sample.clone()],
+                eta: eta.clone(),
+                n_eta: ne,
+                mean: stats.mean.clone(),
+                std: stats.std.clone(),
+                dt,
+                weights: OdeWeights::Global { f_ref: 1.0 },
+                forward: ForwardCache::default(),
+            };
+            op.evaluate(&u, 1, t, o).1.residuals
+        };
+        let stored = residuals(&map);
+        let mut differenced = map.clone();
+        differenced.eta_rate[e] = None;
+        let central = residuals(&differenced);
+        let c = match sample.equations().law(e) {
+            ModelLaw::SpringDamper { c, .. } => *c,
+            law => panic!("{law:?}"),
+        };
+        assert!(c > 0.0);
+        for n in 1..t - 1 {
+            let rate = eta[n * ne + 1];
+            let difference = (eta[(n + 1) * ne] - eta[(n - 1) * ne]) / (2.0 * dt);
+            let gap = (stored[n - 1] - central[n - 1]).abs();
+            let want = c * (rate - difference).abs();
+            assert!(
+                want > 1.0 && (gap - want).abs() <= 1e-9 * want,
+                "n = {n}: {gap} vs {want}"
+            );
+        }
+        let dev = candle_core::Device::Cpu;
+        let composed = composed_residuals(
+            &map,
+            std::slice::from_ref(&sample),
+            &Tensor::from_vec(u.clone(), (1, t, o), &dev).unwrap(),
+            &Tensor::from_vec(eta.clone(), (1, t, ne), &dev).unwrap(),
+            &stats,
+            dt,
+        )
+        .unwrap()
+        .flatten_all()
+        .unwrap()
+        .to_vec1::<f64>()
+        .unwrap();
+        assert_eq!(composed.len(), stored.len());
+        for (a, b) in composed.iter().zip(&stored) {
+            assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{a} vs {b}");
+        }
+    }
+}
