@@ -469,7 +469,10 @@ fn rate_outputs_are_predicted_and_read_instead_of_differences() {
     assert_eq!(ch.str("unit").unwrap()[at("beta_c_a (output)")], "rad/s^2");
     assert!(names.contains(&"z_c_a".to_owned()));
     let md = std::fs::read_to_string(out.join("indices_errors.md")).unwrap();
-    assert!(md.contains("outputs z_c_a beta_c_a directly"), "{md}");
+    assert!(
+        md.contains("Algorithm 4 reads `z_c_a`, `beta_c_a` from its own outputs"),
+        "{md}"
+    );
 
     // predict: one `z_c_a` column, the network's own (not the second difference of `z_c`,
     // which the bogies' `z_t1_a` still is).
@@ -481,6 +484,8 @@ fn rate_outputs_are_predicted_and_read_instead_of_differences() {
             model.to_str().unwrap(),
             "--set",
             "k_s=4.2e5",
+            "--seed",
+            "3",
             "--out",
             pred.to_str().unwrap(),
         ],
@@ -501,4 +506,74 @@ fn rate_outputs_are_predicted_and_read_instead_of_differences() {
     };
     assert!(second_difference_gap("z_t1", "z_t1_a") < 1e-6);
     assert!(second_difference_gap("z_c", "z_c_a") > 1e-3);
+}
+
+/// The shipped comparisons of the two routes (`configs/rates-*.yaml`): `train-rates` is
+/// `train` with `rate_outputs` (stored rates of its description) and nothing else changed, so
+/// the two evaluations compare the routes alone.
+#[test]
+fn the_rate_output_comparisons_differ_from_algorithm_5_in_the_rates_alone() {
+    for (file, system, rates) in [
+        ("configs/rates-vehicle-track.yaml", "vtcd", 4),
+        ("configs/rates-bridge.yaml", "bridge", 1),
+        ("configs/rates-quarter-car.yaml", "quarter-car", 1),
+    ] {
+        let (_, described) = pino_mbd_tests::system(system, &[]);
+        let plain = pino_mbd_tests::stage_params(file, "train");
+        let mut with = pino_mbd_tests::stage_params(file, "train-rates");
+        let p: pino_learn::config::TrainParams = serde_json::from_value(with.clone()).unwrap();
+        let layout = pino_learn::layout::Layout::of(&described)
+            .with_rate_outputs(&described, &p.rate_outputs)
+            .unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert_eq!(layout.rates, rates, "{file}");
+        p.configs(&layout).unwrap();
+        let map = with.as_object_mut().unwrap();
+        map.remove("rate_outputs");
+        map.remove("rate_weight");
+        assert_eq!(with, plain, "{file}");
+    }
+}
+
+/// A rate output the description does not store is refused at planning (the `train` check,
+/// `pipeline run` exit 2, nothing run), at the line of `rate_outputs` in the pipeline file.
+#[test]
+fn an_unstored_rate_output_is_refused_at_planning_at_its_line() {
+    let root = pino_mbd_tests::workspace_root();
+    let file = "configs/rates-quarter-car.yaml";
+    let yaml = std::fs::read_to_string(root.join(file)).unwrap();
+    let line = 1 + yaml
+        .lines()
+        .position(|l| l.trim_start().starts_with("rate_outputs:"))
+        .unwrap();
+    let ws = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(ws.path().join("configs")).unwrap();
+    std::fs::create_dir_all(ws.path().join("systems")).unwrap();
+    std::fs::write(ws.path().join(file), &yaml).unwrap();
+    std::fs::copy(
+        root.join("systems/quarter-car.yaml"),
+        ws.path().join("systems/quarter-car.yaml"),
+    )
+    .unwrap();
+    let o = std::process::Command::new(pino_mbd_tests::bin("pipeline"))
+        .current_dir(ws.path())
+        .args(["--bin-dir"])
+        .arg(pino_mbd_tests::pipeline_bin_dir(file))
+        .args([
+            "-f",
+            file,
+            "run",
+            "--set",
+            "train-rates.rate_outputs=[z_s_jerk]",
+        ])
+        .env_remove("PINO_BIN_DIR")
+        .output()
+        .unwrap();
+    let err = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!("rates-quarter-car.yaml:{line}: train: params.rate_outputs: `z_s_jerk` is not a velocity or acceleration column"))
+            && err.contains("z_s_a"),
+        "{err}"
+    );
+    assert!(!ws.path().join("artifacts/objects").exists(), "nothing ran");
 }

@@ -745,12 +745,8 @@ pub fn evaluate(
     for (m, dir) in model_dirs.iter().enumerate() {
         let (model, meta) = load_model(dir, opts.transform, device)?;
         check_same_system(dir, &meta, info)?;
-        // A model that outputs rates directly reads its indices from them.
-        let model_inputs = if meta.layout.rates == 0 {
-            index_inputs.clone()
-        } else {
-            IndexInputs::of(system, &meta.layout)?
-        };
+        // The model's own channels (a model that outputs rates reads its indices from them).
+        let model_inputs = IndexInputs::of(system, &meta.layout)?;
         let at = match cache.iter().position(|c| c.serves(&meta)) {
             Some(at) => at,
             None => {

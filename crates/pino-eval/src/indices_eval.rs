@@ -256,6 +256,8 @@ pub struct ModelIndices {
     pub predicted: Vec<Vec<f64>>,
     /// Index values of the solver's solution, per sample.
     pub exact: Vec<Vec<f64>>,
+    /// The rates the model outputs directly, which its indices read instead of differences.
+    pub direct: Vec<String>,
 }
 
 /// The settings `evaluate` uses: the stage's defaults with no start-up (the model's window
@@ -432,6 +434,7 @@ pub fn model_indices(
         ids: Vec::with_capacity(idx.len()),
         predicted: Vec::with_capacity(idx.len()),
         exact: Vec::with_capacity(idx.len()),
+        direct: layout.rate_outputs().to_vec(),
     };
     for (k, &i) in idx.iter().enumerate() {
         let (ex, eta) = exact_physical(items, i, &meta.norm)?;
@@ -464,6 +467,7 @@ pub fn truth_indices(
     let mut m = model_indices(system, inputs, items, idx, &preds, stored, meta)?;
     m.algorithm = 0;
     m.label = "truth: exact, central differences".into();
+    m.direct.clear();
     Ok(m)
 }
 
@@ -656,6 +660,21 @@ fn errors_markdown(
         split.as_str(),
         inputs.describe(layout).join("; ")
     );
+    for m in models.iter().filter(|m| !m.direct.is_empty()) {
+        md.insert_str(
+            md.find("\n\n|").unwrap_or(md.len()),
+            &format!(
+                " Algorithm {} reads {} from its own outputs (`{}`), not from differences.",
+                m.algorithm,
+                m.direct
+                    .iter()
+                    .map(|d| format!("`{d}`"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                m.label
+            ),
+        );
+    }
     for m in models {
         md.push_str(&format!(
             " alg {}: mean abs / worst abs / mean rel % / r |",

@@ -577,15 +577,13 @@ pub fn prediction_channels(layout: &Layout) -> Vec<(String, ChannelSource)> {
     let mut channels: Vec<(String, ChannelSource)> = (0..rates.start)
         .map(|k| (layout.outputs[k].clone(), ChannelSource::Output(k)))
         .collect();
-    let differenced: [(Vec<String>, fn(usize) -> ChannelSource); 2] = [
-        (layout.velocities(), ChannelSource::Velocity),
-        (layout.accelerations(), ChannelSource::Acceleration),
-    ];
-    for (names, rate) in differenced {
-        for (j, name) in names.into_iter().enumerate() {
-            let source = direct(&name).map_or(rate(j), ChannelSource::Output);
-            channels.push((name, source));
-        }
+    for (j, name) in layout.velocities().into_iter().enumerate() {
+        let source = direct(&name).map_or(ChannelSource::Velocity(j), ChannelSource::Output);
+        channels.push((name, source));
+    }
+    for (j, name) in layout.accelerations().into_iter().enumerate() {
+        let source = direct(&name).map_or(ChannelSource::Acceleration(j), ChannelSource::Output);
+        channels.push((name, source));
     }
     for k in rates {
         if !channels.iter().any(|(n, _)| *n == layout.outputs[k]) {

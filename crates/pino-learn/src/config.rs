@@ -245,9 +245,18 @@ pub struct TrainConfig {
     pub rho: f64,
     /// Seed of initialisation and shuffling.
     pub seed: u64,
+    /// Weight of the rate outputs' own relative-L2 term in `L_data` (with `rate_outputs`;
+    /// absent: 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rate_weight: Option<f64>,
 }
 
 impl TrainConfig {
+    /// [`TrainConfig::rate_weight`], 1 when not given.
+    pub fn rate_weight(&self) -> f64 {
+        self.rate_weight.unwrap_or(1.0)
+    }
+
     /// Checks ranges.
     pub fn validate(&self) -> Result<()> {
         let bad = |field: &str, value: String, allowed: &str| {
@@ -276,6 +285,7 @@ impl TrainConfig {
             ("lambda_ode", self.lambda_ode),
             ("lambda_d", self.lambda_d),
             ("beam_weight", self.beam_weight),
+            ("rate_weight", self.rate_weight()),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
                 return bad(f, v.to_string(), ">= 0");
@@ -353,6 +363,9 @@ pub struct TrainParams {
     /// (`docs/learning.md`, Rate outputs). Empty: the paper's networks.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub rate_outputs: Vec<String>,
+    /// Weight of the rate outputs' term in `L_data` (absent: 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rate_weight: Option<f64>,
 }
 
 impl TrainParams {
@@ -408,6 +421,7 @@ impl TrainParams {
             beam_weight: self.beam_weight,
             rho: self.rho,
             seed: self.seed,
+            rate_weight: self.rate_weight,
         };
         train.validate()?;
         let window = WindowConfig {

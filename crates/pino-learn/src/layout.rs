@@ -410,7 +410,7 @@ mod tests {
             ),
             (
                 vec!["p_1_a".to_owned()],
-                "its rates: z_c_v, z_c_a, beta_c_v",
+                "its rates: z_c_v, beta_c_v, z_t1_v",
             ),
             (
                 vec!["z_c_a".to_owned(), "z_c_a".to_owned()],

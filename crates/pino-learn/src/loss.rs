@@ -3,6 +3,8 @@
 //! relL2(p, y)  = mean_k ||p_k - y_k|| / ||y_k||          (per sample over channels and time)
 //! L_data       = relL2(u, u*)                            (every output: solutions and forces,
 //!                                                         z-scored)
+//!                [+ rate_weight relL2(r, r*)]             (the rate outputs, their own term,
+//!                                                         when a training asks for them)
 //! L_deriv      = relL2(v, v*) + relL2(a, a*)             (the rigid DOFs, z-scored with the
 //!                                                         `_v`/`_a` statistics, interior points)
 //! L_ode_global = mean_{i,t} |R_i| / F_ref                (F_ref = mean static contact force)
@@ -289,9 +291,24 @@ impl LossContext {
         Ok((r.broadcast_div(&phi)?.mean_all()? * self.config.rho)?)
     }
 
+    /// `L_data`: the relative L2 of the displacements and forces, plus that of the rate
+    /// outputs as a term of its own (so the rates, harder to fit, neither dilute nor dominate
+    /// the displacements' term).
+    fn data_loss(&self, u_n: &Tensor, batch: &Batch) -> Result<Tensor> {
+        let rates = self.layout.rates;
+        if rates == 0 {
+            return rel_l2(u_n, &batch.u);
+        }
+        let base = self.layout.n_outputs() - rates;
+        let part = |u: &Tensor, from: usize, n: usize| u.narrow(2, from, n);
+        let outputs = rel_l2(&part(u_n, 0, base)?, &part(&batch.u, 0, base)?)?;
+        let direct = rel_l2(&part(u_n, base, rates)?, &part(&batch.u, base, rates)?)?;
+        Ok((outputs + (direct * self.config.rate_weight())?)?)
+    }
+
     /// The algorithm's total loss (f32 scalar, differentiable) and its parts as numbers.
     pub fn loss(&self, u_n: &Tensor, batch: &Batch) -> Result<(Tensor, LossValues)> {
-        let data = rel_l2(u_n, &batch.u)?;
+        let data = self.data_loss(u_n, batch)?;
         let mut values = LossValues {
             data: data.to_scalar::<f32>()? as f64,
             ..LossValues::default()

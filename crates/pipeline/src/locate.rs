@@ -115,10 +115,18 @@ impl<'a> Locator<'a> {
             .map_or_else(|| self.top_line("stages"), |j| j + 1)
     }
 
+    /// The stage's own `field:` line: a key at the indentation of the stage's first field, not
+    /// one nested deeper (`inputs: {params: ...}` written as a block names no `params` field).
     fn field0(&self, stage: &str, field: &str) -> Option<usize> {
         let s = self.stage0(stage)?;
         let end = self.block_end(s);
-        self.find_key(s + 1, end, field)
+        let child = (s + 1..end).find(|&j| is_content(self.lines[j]))?;
+        let ind = indent(self.lines[child]);
+        (child..end).find(|&j| {
+            is_content(self.lines[j])
+                && indent(self.lines[j]) == ind
+                && key_of(self.lines[j]) == Some(field)
+        })
     }
 
     /// Line of `field:` inside the stage's block (the stage's line when absent).
@@ -168,7 +176,9 @@ stages:
   'c':
     cmd: [x]
     inputs:
-      up: b
+      params: b
+    params:
+      seed: 3
 ";
 
     #[test]
@@ -181,6 +191,9 @@ stages:
         assert_eq!(l.field_line("b", "inputs"), 8);
         assert_eq!(l.word_line("b", "inputs", "a"), 8);
         assert_eq!(l.word_line("c", "inputs", "b"), 16);
+        // A field is the stage's own key, not a key of the same name nested in another field.
+        assert_eq!(l.field_line("c", "params"), 17);
+        assert_eq!(l.word_line("c", "params", "seed"), 18);
         assert_eq!(l.word_line("b", "params", "name"), 12);
         assert_eq!(l.word_line("a", "params", "seed"), 5);
         // Fallbacks: unknown field -> stage line; unknown stage -> `stages:` line.

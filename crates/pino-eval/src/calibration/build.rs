@@ -113,12 +113,8 @@ pub fn calibrate(
     for (m, dir) in model_dirs.iter().enumerate() {
         let (model, meta) = load_model(dir, transform, device)?;
         check_model(dir, &meta, data)?;
-        // A model that outputs rates directly is calibrated on them (its own channels).
-        let model_inputs = if meta.layout.rates == 0 {
-            inputs.clone()
-        } else {
-            IndexInputs::of(system, &meta.layout)?
-        };
+        // The model's own channels (a model that outputs rates is calibrated on them).
+        let model_inputs = IndexInputs::of(system, &meta.layout)?;
         let identity = ModelIdentity::of(dir)?;
         if let Some(other) = seen.insert(identity.algorithm, dir.clone()) {
             return Err(LearnError::OutOfRange {
