@@ -136,11 +136,17 @@ impl<'a> Locator<'a> {
     }
 
     /// Line where `word` appears inside the stage's `field` (flow or block style); falls back
-    /// to the field's line.
+    /// to the field's line, or the stage's when the stage has no such field.
     pub fn word_line(&self, stage: &str, field: &str, word: &str) -> usize {
-        let Some(f) = self.field0(stage, field) else {
-            return self.stage_line(stage);
-        };
+        self.word_line_if(stage, field, word).unwrap_or_else(|| {
+            self.field0(stage, field)
+                .map_or_else(|| self.stage_line(stage), |f| f + 1)
+        })
+    }
+
+    /// Line where `word` appears inside the stage's `field`; `None` when it does not.
+    pub fn word_line_if(&self, stage: &str, field: &str, word: &str) -> Option<usize> {
+        let f = self.field0(stage, field)?;
         let end = self.block_end(f);
         let line_of = |j: usize| -> Option<usize> {
             let l = self.lines[j];
@@ -152,7 +158,7 @@ impl<'a> Locator<'a> {
             };
             has_word(hay, word).then_some(j + 1)
         };
-        (f..end).find_map(line_of).unwrap_or(f + 1)
+        (f..end).find_map(line_of)
     }
 }
 

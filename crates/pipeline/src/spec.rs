@@ -21,6 +21,8 @@ use serde_json::{Map, Value};
 use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
 
+mod extend;
+
 /// A string-keyed mapping that rejects duplicate keys (YAML allows them silently; a stage
 /// or parameter defined twice is almost always a mistake). The error carries the position.
 struct UniqueMap<V>(BTreeMap<String, V>);
@@ -74,7 +76,12 @@ struct RawPipeline {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawStage {
-    cmd: Vec<String>,
+    /// Another stage this one starts from ([`extend`]).
+    #[serde(default)]
+    extends: Option<String>,
+    /// Required unless the stage extends another.
+    #[serde(default)]
+    cmd: Option<Vec<String>>,
     #[serde(default)]
     params: Option<UniqueMap<Value>>,
     #[serde(default)]
@@ -120,6 +127,8 @@ pub struct Stage {
     /// Whether the stage has a check mode the orchestrator runs before anything runs
     /// (`check: true`; [`crate::check`]).
     pub check: bool,
+    /// The stage it starts from (`extends:`), whose fields it inherits.
+    pub extends: Option<String>,
 }
 
 /// A loaded, validated pipeline with its stages in dependency order.
@@ -401,13 +410,14 @@ fn draft_stage(
             format!("stage name `{name}` may only use letters, digits, `_` and `-`"),
         ));
     }
-    if rs.cmd.is_empty() || rs.cmd[0].is_empty() {
+    let cmd = rs.cmd.unwrap_or_default();
+    if cmd.is_empty() || cmd[0].is_empty() {
         return Err(src.err(
             loc.field_line(&name, "cmd"),
             format!("stage `{name}`: `cmd` must name a program"),
         ));
     }
-    let exe = &rs.cmd[0];
+    let exe = &cmd[0];
     if exe.contains('/') {
         if let Some(why) = escape(workspace, base, exe) {
             return Err(src.err(
@@ -469,13 +479,14 @@ fn draft_stage(
         stage: Stage {
             name,
             line,
-            cmd: rs.cmd,
+            cmd,
             inputs,
             shards,
             expansions: Vec::new(),
             overrides: Vec::new(),
             resources,
             check: rs.check.unwrap_or(false),
+            extends: None,
         },
         params,
         matrix,
@@ -720,12 +731,39 @@ impl Pipeline {
 
         let mut constants: Map<String, Value> = raw.constants.0.into_iter().collect();
         let mut drafts = BTreeMap::new();
+        let mut extending = BTreeMap::new();
         for (name, rs) in raw.stages.0 {
+            if rs.extends.is_some() {
+                extending.insert(name, rs);
+                continue;
+            }
             let draft = draft_stage(&src, &workspace, &base, name.clone(), rs)?;
             drafts.insert(name, draft);
         }
+        // The `--set`s of a stage another extends apply before it is copied; those of an
+        // extending stage after.
+        let (later_sets, sets): (Vec<&String>, Vec<&String>) = opts
+            .sets
+            .iter()
+            .partition(|set| extending.contains_key(extend::set_target(set)));
+        for set in sets {
+            apply_set(&src, set, &mut constants, &mut drafts)?;
+        }
+        let extenders = extending.keys().cloned().collect();
+        for (name, rs) in extending {
+            let draft = extend::draft_extending(
+                &src,
+                &workspace,
+                &base,
+                &drafts,
+                &extenders,
+                name.clone(),
+                rs,
+            )?;
+            drafts.insert(name, draft);
+        }
         check_inputs(&src, &drafts)?;
-        for set in &opts.sets {
+        for set in later_sets {
             apply_set(&src, set, &mut constants, &mut drafts)?;
         }
         for draft in drafts.values_mut() {
@@ -775,7 +813,15 @@ impl Pipeline {
     /// `params:` line when the key is not written there): where a check's complaint about a
     /// parameter points.
     pub fn param_location(&self, stage: &str, key: &str) -> String {
-        let line = Locator::new(&self.text).word_line(stage, "params", key);
+        let loc = Locator::new(&self.text);
+        let inherited = || {
+            let base = self.stage(stage)?.extends.as_deref()?;
+            loc.word_line_if(base, "params", key)
+        };
+        let line = loc
+            .word_line_if(stage, "params", key)
+            .or_else(inherited)
+            .unwrap_or_else(|| loc.word_line(stage, "params", key));
         format!("{}:{line}", self.file)
     }
 
