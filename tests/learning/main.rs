@@ -508,19 +508,29 @@ fn rate_outputs_are_predicted_and_read_instead_of_differences() {
     assert!(second_difference_gap("z_c", "z_c_a") > 1e-3);
 }
 
-/// The shipped comparisons of the two routes (`configs/rates-*.yaml`): `train-rates` is
-/// `train` with `rate_outputs` (stored rates of its description) and nothing else changed, so
+/// The shipped comparisons of the two routes (`configs/rates-*.yaml`, and `configs/bridge.yaml`
+/// whose indices read the rate route): `train-rates` is `train`'s algorithm 5 with
+/// `rate_outputs` (stored rates of its description) and nothing else changed (`extends`), so
 /// the two evaluations compare the routes alone.
 #[test]
 fn the_rate_output_comparisons_differ_from_algorithm_5_in_the_rates_alone() {
     for (file, system, rates) in [
         ("configs/rates-vehicle-track.yaml", "vtcd", 4),
-        ("configs/rates-bridge.yaml", "bridge", 1),
+        ("configs/bridge.yaml", "bridge", 1),
         ("configs/rates-quarter-car.yaml", "quarter-car", 1),
     ] {
         let (_, described) = pino_mbd_tests::system(system, &[]);
-        let plain = pino_mbd_tests::stage_params(file, "train");
-        let mut with = pino_mbd_tests::stage_params(file, "train-rates");
+        let plain = pino_mbd_tests::stage_spec(file, "train")
+            .expansions
+            .into_iter()
+            .map(|e| e.params)
+            .find(|p| p["algorithm"] == 5)
+            .unwrap_or_else(|| panic!("{file}: `train` has no algorithm 5"));
+        let rated = pino_mbd_tests::stage_spec(file, "train-rates");
+        assert_eq!(rated.expansions.len(), 1, "{file}");
+        let description = format!("systems/{system}.yaml");
+        assert_eq!(rated.cmd, ["train", description.as_str()], "{file}");
+        let mut with = rated.expansions[0].params.clone();
         let p: pino_learn::config::TrainParams = serde_json::from_value(with.clone()).unwrap();
         let layout = pino_learn::layout::Layout::of(&described)
             .with_rate_outputs(&described, &p.rate_outputs)
@@ -532,6 +542,14 @@ fn the_rate_output_comparisons_differ_from_algorithm_5_in_the_rates_alone() {
         map.remove("rate_weight");
         assert_eq!(with, plain, "{file}");
     }
+    // The bridge's studies (and so the explorer, which opens the model they read) answer with
+    // the rate route, its own intervals beside it.
+    let study = pino_mbd_tests::stage_spec("configs/bridge.yaml", "study");
+    assert_eq!(study.inputs["models"], "train-rates");
+    assert_eq!(study.inputs["calibration"], "calibrate-rates");
+    let calibrate = pino_mbd_tests::stage_spec("configs/bridge.yaml", "calibrate-rates");
+    assert_eq!(calibrate.inputs["models"], "train-rates");
+    assert_eq!(calibrate.cmd[0], "calibrate");
 }
 
 /// A rate output the description does not store is refused at planning (the `train` check,

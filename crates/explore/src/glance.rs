@@ -37,16 +37,11 @@ fn files_named(files: &[PathBuf], name: &str) -> Vec<PathBuf> {
 }
 
 /// The current model of `algorithm` of pipeline `p` and its dataset: the expansion whose
-/// `algorithm` parameter equals it, and the `params.parquet` and `irregularity.parquet` of the
-/// stages upstream of it.
+/// `algorithm` parameter equals it (of the stage whose models the design studies read, when
+/// several stages train it: the studies and the explorer answer alike), and the
+/// `params.parquet` and `irregularity.parquet` of the stages upstream of it.
 pub fn locate(p: &Pipeline, algorithm: i64) -> Result<Located, String> {
-    let found = p.stages.iter().find_map(|s| {
-        s.expansions
-            .iter()
-            .find(|e| e.params.get("algorithm").and_then(|v| v.as_i64()) == Some(algorithm))
-            .map(|e| (s, e.name.clone()))
-    });
-    let Some((stage, unit)) = found else {
+    let Some((stage, unit)) = training_unit(p, algorithm) else {
         return Err(format!(
             "{}: no stage expansion trains algorithm {algorithm}; give the model with --model DIR",
             p.file
@@ -99,6 +94,25 @@ pub fn locate(p: &Pipeline, algorithm: i64) -> Result<Located, String> {
     })
 }
 
+/// The stage and unit that train `algorithm`: of the stage whose models the design studies
+/// read when it trains it, else the first.
+fn training_unit(p: &Pipeline, algorithm: i64) -> Option<(&orchestrator::spec::Stage, String)> {
+    let trains = |s: &orchestrator::spec::Stage| {
+        s.expansions
+            .iter()
+            .find(|e| e.params.get("algorithm").and_then(|v| v.as_i64()) == Some(algorithm))
+            .map(|e| e.name.clone())
+    };
+    let studied = p
+        .stage(STUDY)
+        .and_then(|s| s.inputs.get(STUDY_MODELS))
+        .and_then(|m| p.stage(m));
+    studied
+        .into_iter()
+        .chain(&p.stages)
+        .find_map(|s| Some((s, trains(s)?)))
+}
+
 /// The stage that calibrates the models of the training stage `train`: the one named
 /// `calibrate` when it reads them, else any stage reading them whose output holds a
 /// `calibration.json`. Its current output's file of `algorithm` (`algorithm-<A>/`) or, when
@@ -110,7 +124,7 @@ fn calibration_of(p: &Pipeline, train: &str, algorithm: i64) -> Result<PathBuf, 
         .iter()
         .filter(|s| s.inputs.values().any(|u| u == train))
         .collect();
-    readers.sort_by_key(|s| s.name != CALIBRATE);
+    readers.sort_by_key(|s| !(s.name == CALIBRATE || s.extends.as_deref() == Some(CALIBRATE)));
     let mut why = format!(
         "no error bar: {} has no stage that calibrates the models of `{train}` (a `{CALIBRATE}` stage)",
         p.file
@@ -153,6 +167,11 @@ fn calibration_of(p: &Pipeline, train: &str, algorithm: i64) -> Result<PathBuf, 
 
 /// The stage that calibrates the models, by its name in the shipped pipelines.
 const CALIBRATE: &str = "calibrate";
+
+/// The stage of the design studies, by its name in the shipped pipelines, and its input
+/// naming the training stage whose models answer.
+const STUDY: &str = "study";
+const STUDY_MODELS: &str = "models";
 
 /// A unit as the page shows it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -267,4 +286,52 @@ pub(crate) fn read_csv(path: &Path) -> Result<Vec<Vec<String>>, String> {
                 .map_err(|e| format!("{}: {e}", path.display()))
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use orchestrator::spec::LoadOptions;
+
+    fn pipeline(text: &str) -> Pipeline {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("p.yaml");
+        std::fs::write(&f, text).unwrap();
+        Pipeline::load(dir.path(), &f, &LoadOptions::default()).unwrap()
+    }
+
+    const TRAINS: &str = "\
+stages:
+  train:
+    cmd: [train]
+    matrix: {algorithm: [1, 5]}
+  train-rates:
+    extends: train
+    params: {algorithm: 5, rate_outputs: [z_a]}
+";
+
+    #[test]
+    fn the_model_opened_is_the_one_the_studies_read() {
+        let unit = |p: &Pipeline, a| training_unit(p, a).map(|(s, u)| (s.name.clone(), u));
+        // No studies: the first stage that trains it.
+        let p = pipeline(TRAINS);
+        assert_eq!(
+            unit(&p, 5),
+            Some(("train".into(), "train[algorithm=5]".into()))
+        );
+        // The studies read `train-rates`: so does the explorer, for the algorithm it trains.
+        let studied = format!(
+            "{TRAINS}  study:\n    cmd: [study]\n    inputs: {{models: train-rates}}\n    params: {{algorithm: 5}}\n"
+        );
+        let p = pipeline(&studied);
+        assert_eq!(
+            unit(&p, 5),
+            Some(("train-rates".into(), "train-rates".into()))
+        );
+        assert_eq!(
+            unit(&p, 1),
+            Some(("train".into(), "train[algorithm=1]".into()))
+        );
+        assert_eq!(unit(&p, 3), None);
+    }
 }
