@@ -17,10 +17,8 @@ fn context(
     stage_context(dir, name, params, inputs, false)
 }
 
-#[test]
-fn train_evaluate_predict_end_to_end_and_bad_input() {
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path();
+/// A synthetic dataset of 4 + 2 + 2 samples of 0.2 s in `dir/data`: its spec and directory.
+fn tiny_dataset(dir: &Path) -> (learn_fixtures::synthetic::SyntheticSpec, PathBuf) {
     let data = dir.join("data");
     std::fs::create_dir_all(&data).unwrap();
     let spec = learn_fixtures::synthetic::SyntheticSpec {
@@ -31,6 +29,14 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
         ..Default::default()
     };
     learn_fixtures::synthetic::write_dataset(&spec, &data).unwrap();
+    (spec, data)
+}
+
+#[test]
+fn train_evaluate_predict_end_to_end_and_bad_input() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let (spec, data) = tiny_dataset(dir);
     // The same samples without a test split (the validation fallback of `evaluate`).
     let no_test = dir.join("no-test");
     std::fs::create_dir_all(&no_test).unwrap();
@@ -406,16 +412,7 @@ fn pipeline_files_parameter_blocks_parse_into_the_learning_types() {
 fn rate_outputs_are_predicted_and_read_instead_of_differences() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    let data = dir.join("data");
-    std::fs::create_dir_all(&data).unwrap();
-    let spec = learn_fixtures::synthetic::SyntheticSpec {
-        n_train: 4,
-        n_validation: 2,
-        n_test: 2,
-        duration: 0.2,
-        ..Default::default()
-    };
-    learn_fixtures::synthetic::write_dataset(&spec, &data).unwrap();
+    let (_, data) = tiny_dataset(dir);
     let inputs = serde_json::json!({"params": [data], "dataset": [data]});
     let params = |rates: &[&str]| {
         serde_json::json!({"algorithm": 4, "width": 8, "modes": 6, "projection_width": 16,

@@ -147,18 +147,22 @@ mod tests {
     use crate::spec::LoadOptions;
     use std::os::unix::fs::PermissionsExt;
 
+    /// A fresh workspace holding the executable `stage.sh` with the text `body`.
+    fn stage_script(body: &str) -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        let script = dir.path().join("stage.sh");
+        std::fs::write(&script, body).unwrap();
+        std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+        dir
+    }
+
     /// A check's last `::work` line is the work of its expansion; a check that prints none
     /// announces none.
     #[test]
     fn the_work_a_check_announces_is_kept_per_expansion() {
-        let dir = tempfile::tempdir().unwrap();
-        let script = dir.path().join("stage.sh");
-        std::fs::write(
-            &script,
+        let dir = stage_script(
             "#!/bin/sh\ncase \"$1\" in\n  big) echo '::work 1'; echo '::work 9' ;;\n  small) echo '::work 2' ;;\nesac\necho '::summary parameters valid'\n",
-        )
-        .unwrap();
-        std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+        );
         let text = "stages:\n  a:\n    cmd: [./stage.sh, big]\n    check: true\n  b:\n    cmd: [./stage.sh, small]\n    check: true\n  c:\n    cmd: [./stage.sh, none]\n    check: true\n";
         let f = dir.path().join("p.yaml");
         std::fs::write(&f, text).unwrap();
@@ -175,14 +179,9 @@ mod tests {
     /// that parameter in the pipeline file; any other complaint is passed on as said.
     #[test]
     fn a_refused_parameter_is_located_in_the_pipeline_file() {
-        let dir = tempfile::tempdir().unwrap();
-        let script = dir.path().join("stage.sh");
-        std::fs::write(
-            &script,
+        let dir = stage_script(
             "#!/bin/sh\ncase \"$1\" in\n  param) echo 'error: s: params.rates: `x` is not stored' >&2 ;;\n  other) echo 'no description' >&2 ;;\nesac\nexit 1\n",
-        )
-        .unwrap();
-        std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+        );
         for (arg, expected) in [
             ("param", "p.yaml:7: s: params.rates: `x` is not stored"),
             ("other", "nothing was run:\nno description"),

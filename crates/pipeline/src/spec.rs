@@ -911,10 +911,11 @@ fn topo_order(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn load(text: &str, sets: &[&str]) -> Result<Pipeline> {
+    /// Loads `text` as a pipeline file of a fresh workspace, with the `--set`s `sets`.
+    pub(crate) fn load(text: &str, sets: &[&str]) -> Result<Pipeline> {
         let dir = tempfile::tempdir().unwrap();
         let f = dir.path().join("p.yaml");
         std::fs::write(&f, text).unwrap();

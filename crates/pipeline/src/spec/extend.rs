@@ -88,19 +88,8 @@ pub(super) fn draft_extending(
 
 #[cfg(test)]
 mod tests {
-    use crate::spec::{LoadOptions, Pipeline};
-    use crate::Result;
-
-    fn load(text: &str, sets: &[&str]) -> Result<Pipeline> {
-        let dir = tempfile::tempdir().unwrap();
-        let f = dir.path().join("p.yaml");
-        std::fs::write(&f, text).unwrap();
-        let opts = LoadOptions {
-            bin_dir: None,
-            sets: sets.iter().map(|s| s.to_string()).collect(),
-        };
-        Pipeline::load(dir.path(), &f, &opts)
-    }
+    use crate::spec::tests::load;
+    use crate::spec::Pipeline;
 
     fn params_of(p: &Pipeline, unit: &str) -> String {
         let e = p
