@@ -1,6 +1,7 @@
-"""The study function gives the `study` stage's results: the quarter car's Monte Carlo study
-(`bump_stop` of configs/quarter-car.yaml) run by the pipeline and by `pino_mbd.study` with the
-same declaration and parameters, on the same models and calibration, write equal tables."""
+"""The study function gives the study stages' results: the quarter car's Monte Carlo study
+(`bump_stop` of configs/quarter-car.yaml, in its `study-differences` stage, which reads `train`
+and `calibrate`) run by the pipeline and by `pino_mbd.study` with the same declaration and
+parameters, on the same models and calibration, write equal tables."""
 
 from __future__ import annotations
 
@@ -17,8 +18,9 @@ BUMP_STOP = {"name": "bump_stop", "kind": "monte_carlo", "n": 2000, "solver_chec
 
 
 def test_the_study_function_equals_the_stage(run, tmp_path) -> None:
-    run.pipeline.run("study[study=bump_stop]", set={"study.bootstrap": 100})
-    stage = Path(run.pipeline.dir("study[study=bump_stop]", "evaluations.parquet"))
+    unit = "study-differences[study=bump_stop]"
+    run.pipeline.run(unit, set={"study.bootstrap": 100})
+    stage = Path(run.pipeline.dir(unit, "evaluations.parquet"))
     models = sorted({str(Path(p).parent) for p in run.pipeline.show("train") if p.endswith("model.safetensors")})
     calibration = Path(run.dir("calibrate", "calibration.json")).parent
     out = tmp_path / "bump_stop"

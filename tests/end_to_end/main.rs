@@ -163,7 +163,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     // The study: every design evaluated, the exceedance probability of its summary recomputed
     // from the evaluations, the solver beside 20 of them, and the same bytes from the unit's
     // context run again by hand on 1 and on 2 threads.
-    let study = show(ws.path(), "study[study=wheel_unloading]", &[]);
+    let study = show(ws.path(), "study-differences[study=wheel_unloading]", &[]);
     let evals = read_parquet(named(&study, "evaluations.parquet")[0], None).unwrap();
     assert_eq!(evals.num_rows(), 2000);
     assert_eq!(evals.i64("solver_checked").unwrap().iter().sum::<i64>(), 20);

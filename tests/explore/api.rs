@@ -514,7 +514,7 @@ fn predictions_equal_the_predict_command_and_solves_equal_the_simulation() {
         .unwrap();
     assert_eq!(a.status, 200, "{}", String::from_utf8_lossy(&a.body));
     let served_pred = a.json();
-    // The calibration of the pipeline's `calibrate` stage: 10 samples support 0.8 and 0.9.
+    // The calibration of the served model's calibrating stage: 10 samples support 0.8 and 0.9.
     let cal = &model["calibration"];
     assert_eq!(cal["n"], 10, "{cal}");
     let supported: Vec<(f64, bool)> = cal["levels"]
@@ -717,7 +717,7 @@ fn the_solver_is_bounded_and_a_client_that_leaves_is_cancelled() {
             "constants.system_values.n_f=900",
             "constants.system_values.n_m=450",
         ],
-        &["calibrate"],
+        &[crate::SERVED_CALIBRATION],
     );
     let mut served = trained.serve(&["--solve-workers", "1", "--solve-queue", "0"]);
     let mut c = served.client();
@@ -985,7 +985,8 @@ fn a_study_started_from_the_sweep_view_is_the_stage_s_study_on_the_served_model(
     let limits = &model["studies"];
     assert_eq!(limits["max_varied"], 2, "{model}");
 
-    // The pipeline's studies are listed with their state (the shared workspace runs none).
+    // The pipeline's studies, of both its study stages in the pipeline's order, are listed
+    // with their state (the shared workspace runs none).
     let list = c.get("/api/studies").unwrap().json();
     let pipeline: Vec<(&str, &str)> = list["pipeline"]
         .as_array()
@@ -996,9 +997,9 @@ fn a_study_started_from_the_sweep_view_is_the_stage_s_study_on_the_served_model(
     assert_eq!(
         pipeline,
         [
-            ("wheel_unloading", "never run"),
             ("drivers", "never run"),
-            ("quiet_car_body", "never run")
+            ("quiet_car_body", "never run"),
+            ("wheel_unloading", "never run")
         ],
         "{list}"
     );

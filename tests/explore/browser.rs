@@ -298,7 +298,7 @@ fn a_user_explores_designs_in_a_real_browser() {
 
 /// `predict --params FILE` with the test sample's profile, its time histories read back.
 fn predict(trained: &Trained, params: &Path, sample_id: i64, dir: &Path) -> Table {
-    let model = trained.file("train[algorithm=5]", "model.json");
+    let model = trained.file(crate::SERVED_MODEL, "model.json");
     let model_dir = model.parent().expect("model directory");
     let profile = trained.file("irregularity", "irregularity.parquet");
     let stem = params.file_stem().unwrap().to_string_lossy();

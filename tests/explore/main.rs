@@ -19,8 +19,14 @@ mod browser;
 mod page_logic;
 
 /// The shared workspace's targets: every stage but the studies (the explorer serves the
-/// models, their calibration, Table 4 and the indices; the studies are left unrun).
-const SERVED_STAGES: &[&str] = &["evaluate", "indices"];
+/// model the studies read, `train-rates`, with its calibration, and shows Table 4 and the
+/// indices; the studies are left unrun).
+const SERVED_STAGES: &[&str] = &["evaluate", "evaluate-rates", "indices"];
+
+/// The training stage whose model `explore` serves in the default pipeline: the one the
+/// most studies read (`pipeline.yaml`), and the stage calibrating it.
+pub const SERVED_MODEL: &str = "train-rates";
+pub const SERVED_CALIBRATION: &str = "calibrate-rates";
 
 /// A workspace in which the default pipeline ran with the TINY overrides and then `extra`.
 pub struct Trained {
@@ -105,7 +111,7 @@ impl Trained {
             .clone()
     }
 
-    /// Starts `explore` on this workspace's algorithm-5 model, on a free loopback port unless
+    /// Starts `explore` on this workspace's served model ([`SERVED_MODEL`]), on a free loopback port unless
     /// `extra` binds elsewhere.
     pub fn serve(&self, extra: &[&str]) -> Served {
         let mut cmd = Command::new(pino_mbd_tests::bin("explore"));

@@ -286,7 +286,7 @@ class Artifact:
 # ---- Per file: schema, provenance, the same content through the three readers -------------
 
 
-def check_file(path, kind, context, version):
+def check_file(path, kind, context, version, commands):
     stage, columns = EXPECTED[kind]
     where = f"{path} ({kind})"
 
@@ -311,7 +311,12 @@ def check_file(path, kind, context, version):
     for key in ["pino.version", "pino.stage", "pino.unit", "pino.params", "pino.column_units"]:
         check(key in meta, f"{where}: no `{key}` in the file's metadata (has {sorted(meta)})")
     check(meta["pino.version"] == version, f"{where}: pino.version {meta['pino.version']} != {version}")
-    check(meta["pino.stage"] == stage, f"{where}: pino.stage {meta['pino.stage']!r} != {stage!r}")
+    # The file names the pipeline stage that wrote it (the store's unit), and that stage runs the
+    # binary this kind of file comes from (`train-rates` runs `train`).
+    named = stage if context is None else context["stage"].split("[")[0]
+    check(meta["pino.stage"] == named, f"{where}: pino.stage {meta['pino.stage']!r} != {named!r}")
+    ran = commands.get(named, named)
+    check(ran == stage, f"{where}: written by stage `{named}`, which runs `{ran}`, not `{stage}`")
     units = json.loads(meta["pino.column_units"])
     check(units == {n: u for n, _, u in columns}, f"{where}: pino.column_units {units} disagrees with the fields")
     params = json.loads(meta["pino.params"])
@@ -465,45 +470,55 @@ def recompute(arts, say):
             close(lr, want, 1e-12, f"{h.path}: lr of epoch {e}")
     say(f"history: {len(arts['history.parquet'])} models, epochs and learning rates")
 
-    # table4 and channel_errors: the scored samples (DuckDB on params + simulation), the peak
-    # force error as the mean over the four wheels, the RMS contact force recomputed.
-    t4 = one(arts, "table4.parquet")
-    ce = one(arts, "channel_errors.parquet")
-    split = duckdb.sql(f"SELECT DISTINCT split FROM read_parquet({lit(t4.path)})").fetchall()
-    check(len(split) == 1, f"{t4.path}: several splits {split}")
-    split = split[0][0]
-    scored = duckdb.sql(
-        f"SELECT count(DISTINCT sample_id) FROM read_parquet({lits(sims)}) sim "
-        f"JOIN read_parquet({lit(params.path)}) p USING (sample_id) WHERE split = '{split}'"
-    ).fetchall()[0][0]
-    samples = duckdb.sql(f"SELECT DISTINCT samples FROM read_parquet({lit(t4.path)})").fetchall()
-    check(samples == [(scored,)], f"{t4.path}: samples {samples}, {scored} simulated {split} samples")
-    rows = duckdb.sql(
-        f"SELECT t.algorithm, t.peak_contact_force_error_pct_w, avg(c.peak_error_pct_w) "
-        f"FROM read_parquet({lit(t4.path)}) t JOIN read_parquet({lit(ce.path)}) c USING (algorithm) "
-        f"WHERE c.channel IN ('p_1', 'p_2', 'p_3', 'p_4') GROUP BY ALL ORDER BY 1"
-    ).fetchall()
-    check(len(rows) == len(arts["history.parquet"]), f"{t4.path}: peak force rows {rows}")
-    for alg, table, mean in rows:
-        close(table, mean, 1e-12, f"{t4.path}: algorithm {alg} peak force error vs channel_errors")
     # The models' window (every model is trained and scored on the same one).
     starts = {h.params.get("startup_fraction", 0.0) for h in arts["history.parquet"]}
     check(len(starts) == 1, f"models trained on different windows: {starts}")
     startup = starts.pop()
-    rms = dict(duckdb.sql(
-        f"SELECT 'p_' || i, sqrt(avg(power(CASE i WHEN 1 THEN p_1 WHEN 2 THEN p_2 WHEN 3 THEN p_3 ELSE p_4 END / 1000, 2))) "
-        f"FROM (SELECT * FROM read_parquet({lits(sims)}) sim JOIN read_parquet({lit(params.path)}) p USING (sample_id) "
-        f"WHERE split = '{split}' {window_filter(startup)}), range(1, 5) r(i) GROUP BY 1"
-    ).fetchall())
-    got = duckdb.sql(
-        f"SELECT algorithm, channel, unit, rms_exact FROM read_parquet({lit(ce.path)}) "
-        f"WHERE channel IN ('p_1', 'p_2', 'p_3', 'p_4')"
-    ).fetchall()
-    check(len(got) == 4 * len(rows), f"{ce.path}: contact-force rows {got}")
-    for alg, channel, unit, value in got:
-        check(unit == "kN", f"{ce.path}: {channel} in {unit}")
-        close(value, rms[channel], 1e-9, f"{ce.path}: algorithm {alg} rms_exact of {channel} (kN)")
-    say(f"evaluate: {scored} {split} samples, peak force error = mean over wheels, RMS contact force")
+
+    # table4 and channel_errors of every evaluation (`evaluate`, and `evaluate-rates` of the
+    # rate-output model): the scored samples (DuckDB on params + simulation), the peak force
+    # error as the mean over the four wheels, the RMS contact force recomputed; every trained
+    # model scored by exactly one evaluation.
+    check(arts["table4.parquet"], "no table4.parquet")
+    scored_models = 0
+    for t4 in arts["table4.parquet"]:
+        ces = [c for c in arts["channel_errors.parquet"] if c.path.parent == t4.path.parent]
+        check(len(ces) == 1, f"{t4.path}: expected one channel_errors.parquet beside it, found {len(ces)}")
+        ce = ces[0]
+        split = duckdb.sql(f"SELECT DISTINCT split FROM read_parquet({lit(t4.path)})").fetchall()
+        check(len(split) == 1, f"{t4.path}: several splits {split}")
+        split = split[0][0]
+        scored = duckdb.sql(
+            f"SELECT count(DISTINCT sample_id) FROM read_parquet({lits(sims)}) sim "
+            f"JOIN read_parquet({lit(params.path)}) p USING (sample_id) WHERE split = '{split}'"
+        ).fetchall()[0][0]
+        samples = duckdb.sql(f"SELECT DISTINCT samples FROM read_parquet({lit(t4.path)})").fetchall()
+        check(samples == [(scored,)], f"{t4.path}: samples {samples}, {scored} simulated {split} samples")
+        rows = duckdb.sql(
+            f"SELECT t.algorithm, t.peak_contact_force_error_pct_w, avg(c.peak_error_pct_w) "
+            f"FROM read_parquet({lit(t4.path)}) t JOIN read_parquet({lit(ce.path)}) c USING (algorithm) "
+            f"WHERE c.channel IN ('p_1', 'p_2', 'p_3', 'p_4') GROUP BY ALL ORDER BY 1"
+        ).fetchall()
+        models = duckdb.sql(f"SELECT count(*) FROM read_parquet({lit(t4.path)}) WHERE algorithm > 0").fetchall()[0][0]
+        check(len(rows) == models, f"{t4.path}: peak force rows {rows} for {models} models")
+        scored_models += models
+        for alg, table, mean in rows:
+            close(table, mean, 1e-12, f"{t4.path}: algorithm {alg} peak force error vs channel_errors")
+        rms = dict(duckdb.sql(
+            f"SELECT 'p_' || i, sqrt(avg(power(CASE i WHEN 1 THEN p_1 WHEN 2 THEN p_2 WHEN 3 THEN p_3 ELSE p_4 END / 1000, 2))) "
+            f"FROM (SELECT * FROM read_parquet({lits(sims)}) sim JOIN read_parquet({lit(params.path)}) p USING (sample_id) "
+            f"WHERE split = '{split}' {window_filter(startup)}), range(1, 5) r(i) GROUP BY 1"
+        ).fetchall())
+        got = duckdb.sql(
+            f"SELECT algorithm, channel, unit, rms_exact FROM read_parquet({lit(ce.path)}) "
+            f"WHERE channel IN ('p_1', 'p_2', 'p_3', 'p_4')"
+        ).fetchall()
+        check(len(got) == 4 * len(rows), f"{ce.path}: contact-force rows {got}")
+        for alg, channel, unit, value in got:
+            check(unit == "kN", f"{ce.path}: {channel} in {unit}")
+            close(value, rms[channel], 1e-9, f"{ce.path}: algorithm {alg} rms_exact of {channel} (kN)")
+    check(scored_models == len(arts["history.parquet"]), f"{scored_models} models scored, {len(arts['history.parquet'])} trained")
+    say(f"evaluate: {len(arts['table4.parquet'])} evaluations of {scored} {split} samples, peak force error = mean over wheels, RMS contact force")
 
     # indices: the peak wheel-rail force per sample, a DuckDB query over simulation.parquet.
     ix = one(arts, "indices.parquet")
@@ -519,18 +534,27 @@ def recompute(arts, say):
         close(value, peaks[sid], 1e-12, f"{ix.path}: peak_wheel_rail_force_kn of sample {sid}")
     say(f"indices: peak wheel-rail force of {len(got)} samples (window from {start} of each record)")
 
-    # coverage: a higher level never covers less nor is narrower (DuckDB window over levels);
-    # coverages are fractions of the scored test samples.
-    cov = one(arts, "coverage.parquet")
-    bad = duckdb.sql(
-        f"SELECT algorithm, kind, quantity, normaliser, level, coverage, mean_width, n_test FROM ("
-        f"SELECT *, lag(coverage) OVER w AS c0, lag(mean_width) OVER w AS w0 FROM read_parquet({lit(cov.path)}) "
-        f"WINDOW w AS (PARTITION BY algorithm, kind, quantity, normaliser ORDER BY level)) "
-        f"WHERE coverage < c0 OR mean_width < w0 OR abs(coverage * n_test - round(coverage * n_test)) > 1e-9 "
-        f"OR n_test != {scored}"
-    ).fetchall()
-    check(not bad, f"{cov.path}: rows break monotonicity in the level or the test count: {bad[:3]}")
-    n_cov = duckdb.sql(f"SELECT count(*) FROM read_parquet({lit(cov.path)})").fetchall()[0][0]
+    # coverage of every evaluation: one row per algorithm, kind, quantity, normaliser and level
+    # (a rate output beside its difference is `NAME (output)`); a higher level never covers
+    # less nor is narrower (DuckDB window over levels); coverages are fractions of the scored
+    # test samples.
+    check(arts["coverage.parquet"], "no coverage.parquet")
+    n_cov = 0
+    for cov in arts["coverage.parquet"]:
+        bad = duckdb.sql(
+            f"SELECT algorithm, kind, quantity, normaliser, level, coverage, mean_width, n_test FROM ("
+            f"SELECT *, lag(coverage) OVER w AS c0, lag(mean_width) OVER w AS w0 FROM read_parquet({lit(cov.path)}) "
+            f"WINDOW w AS (PARTITION BY algorithm, kind, quantity, normaliser ORDER BY level)) "
+            f"WHERE coverage < c0 OR mean_width < w0 OR abs(coverage * n_test - round(coverage * n_test)) > 1e-9 "
+            f"OR n_test != {scored}"
+        ).fetchall()
+        check(not bad, f"{cov.path}: rows break monotonicity in the level or the test count: {bad[:3]}")
+        twice = duckdb.sql(
+            f"SELECT algorithm, kind, quantity, normaliser, level, count(*) FROM read_parquet({lit(cov.path)}) "
+            f"GROUP BY ALL HAVING count(*) > 1"
+        ).fetchall()
+        check(not twice, f"{cov.path}: (algorithm, kind, quantity, normaliser, level) is not a key: {twice[:3]}")
+        n_cov += duckdb.sql(f"SELECT count(*) FROM read_parquet({lit(cov.path)})").fetchall()[0][0]
     say(f"coverage: {n_cov} rows monotone in the level, fractions of the {scored} test samples")
 
     # study: every exceedance probability and its surrogate bounds recomputed from the
@@ -634,7 +658,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("workspace", type=Path)
     ap.add_argument("--file", action="append", default=[], type=Path, help="a `predict` output")
+    ap.add_argument("--commands", default="{}",
+                    help="JSON {stage: the stage binary it runs}; a stage not named runs its namesake")
     args = ap.parse_args()
+    commands = json.loads(args.commands)
     ws = args.workspace.resolve()
     print(f"pyarrow {pyarrow.__version__}, polars {pl.__version__}, duckdb {duckdb.__version__}, pandas {pd.__version__}")
 
@@ -654,10 +681,11 @@ def main():
         arts = defaultdict(list)
         for path, context in files:
             kind = "predict" if context is None else path.name
-            if context is not None and context["stage"].split("[")[0] == "study":
-                kind = f"{context['params']['study']['kind']}/{path.name}"
+            declared = (context or {}).get("params", {}).get("study")
+            if isinstance(declared, dict) and "kind" in declared:  # a unit of any study stage
+                kind = f"{declared['kind']}/{path.name}"
             check(kind in EXPECTED, f"{path}: an artifact this check does not know; state its schema in EXPECTED")
-            arts[kind].append(check_file(path, kind, context, version))
+            arts[kind].append(check_file(path, kind, context, version, commands))
         say(f"{len(files)} files: names, types, units and provenance agree in pyarrow, polars and DuckDB")
         for kind in EXPECTED:
             if kind in OPTIONAL:

@@ -100,12 +100,29 @@ fn every_artifact_reads_the_same_in_pyarrow_polars_and_duckdb() {
         .unwrap();
     assert!(o.status.success(), "predict: {}", output_text(&o));
 
+    // The binary each stage runs (`train-rates` runs `train`), from the pipeline file.
+    let spec = orchestrator::spec::Pipeline::load(
+        ws,
+        &ws.join("pipeline.yaml"),
+        &orchestrator::spec::LoadOptions::default(),
+    )
+    .unwrap();
+    let commands: serde_json::Map<String, serde_json::Value> = spec
+        .stages
+        .iter()
+        .map(|s| {
+            let exe = Path::new(&s.cmd[0]).file_name().unwrap().to_string_lossy();
+            (s.name.clone(), exe.into_owned().into())
+        })
+        .collect();
     let check = workspace_root().join("tests/interop/check_parquet.py");
     let o = Command::new(&python)
         .arg(&check)
         .arg(ws)
         .arg("--file")
         .arg(&predictions)
+        .arg("--commands")
+        .arg(serde_json::Value::Object(commands).to_string())
         .output()
         .unwrap();
     let report = output_text(&o);

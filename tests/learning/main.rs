@@ -505,16 +505,16 @@ fn rate_outputs_are_predicted_and_read_instead_of_differences() {
     assert!(second_difference_gap("z_c", "z_c_a") > 1e-3);
 }
 
-/// The shipped comparisons of the two routes (`configs/rates-*.yaml`, and `configs/bridge.yaml`
-/// whose indices read the rate route): `train-rates` is `train`'s algorithm 5 with
+/// The shipped pipelines train both routes: `train-rates` is `train`'s algorithm 5 with
 /// `rate_outputs` (stored rates of its description) and nothing else changed (`extends`), so
-/// the two evaluations compare the routes alone.
+/// `evaluate` and `evaluate-rates` compare the routes alone; each study reads the route
+/// more accurate on its indices, the rate route's with its own intervals.
 #[test]
-fn the_rate_output_comparisons_differ_from_algorithm_5_in_the_rates_alone() {
+fn the_rate_model_differs_in_its_rates_alone_and_each_study_reads_its_better_route() {
     for (file, system, rates) in [
-        ("configs/rates-vehicle-track.yaml", "vtcd", 4),
+        ("pipeline.yaml", "vtcd", 4),
         ("configs/bridge.yaml", "bridge", 1),
-        ("configs/rates-quarter-car.yaml", "quarter-car", 1),
+        ("configs/quarter-car.yaml", "quarter-car", 1),
     ] {
         let (_, described) = pino_mbd_tests::system(system, &[]);
         let plain = pino_mbd_tests::stage_spec(file, "train")
@@ -538,15 +538,32 @@ fn the_rate_output_comparisons_differ_from_algorithm_5_in_the_rates_alone() {
         map.remove("rate_outputs");
         map.remove("rate_weight");
         assert_eq!(with, plain, "{file}");
+        for (stage, models, calibration) in [
+            ("calibrate-rates", "train-rates", ""),
+            ("evaluate-rates", "train-rates", "calibrate-rates"),
+            ("study", "train-rates", "calibrate-rates"),
+        ] {
+            let s = pino_mbd_tests::stage_spec(file, stage);
+            assert_eq!(s.inputs["models"], models, "{file}: {stage}");
+            if !calibration.is_empty() {
+                assert_eq!(s.inputs["calibration"], calibration, "{file}: {stage}");
+            }
+        }
     }
-    // The bridge's studies (and so the explorer, which opens the model they read) answer with
-    // the rate route, its own intervals beside it.
-    let study = pino_mbd_tests::stage_spec("configs/bridge.yaml", "study");
-    assert_eq!(study.inputs["models"], "train-rates");
-    assert_eq!(study.inputs["calibration"], "calibrate-rates");
-    let calibrate = pino_mbd_tests::stage_spec("configs/bridge.yaml", "calibrate-rates");
-    assert_eq!(calibrate.inputs["models"], "train-rates");
-    assert_eq!(calibrate.cmd[0], "calibrate");
+    // Where the differences are the better route for a study's indices (the wheel loads, the
+    // suspension travel), it reads the paper's algorithm 5 with `calibrate`'s intervals.
+    for file in ["pipeline.yaml", "configs/quarter-car.yaml"] {
+        let s = pino_mbd_tests::stage_spec(file, "study-differences");
+        assert_eq!(s.cmd[0], "study", "{file}");
+        assert_eq!(
+            (
+                s.inputs["models"].as_str(),
+                s.inputs["calibration"].as_str()
+            ),
+            ("train", "calibrate"),
+            "{file}"
+        );
+    }
 }
 
 /// A rate output the description does not store is refused at planning (the `train` check,
@@ -554,7 +571,7 @@ fn the_rate_output_comparisons_differ_from_algorithm_5_in_the_rates_alone() {
 #[test]
 fn an_unstored_rate_output_is_refused_at_planning_at_its_line() {
     let root = pino_mbd_tests::workspace_root();
-    let file = "configs/rates-quarter-car.yaml";
+    let file = "configs/quarter-car.yaml";
     let yaml = std::fs::read_to_string(root.join(file)).unwrap();
     let line = 1 + yaml
         .lines()
@@ -586,7 +603,7 @@ fn an_unstored_rate_output_is_refused_at_planning_at_its_line() {
     let err = text(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(
-        err.contains(&format!("rates-quarter-car.yaml:{line}: train: params.rate_outputs: `z_s_jerk` is not a velocity or acceleration column"))
+        err.contains(&format!("quarter-car.yaml:{line}: train: params.rate_outputs: `z_s_jerk` is not a velocity or acceleration column"))
             && err.contains("z_s_a"),
         "{err}"
     );

@@ -209,16 +209,22 @@ pub fn workspace_root() -> PathBuf {
 /// workspace root), loaded by the orchestrator's own loader: `${constants.NAME}` references
 /// substituted in its command and parameters.
 pub fn stage_spec(file: &str, stage: &str) -> orchestrator::spec::Stage {
+    shipped_pipeline(file)
+        .stage(stage)
+        .unwrap_or_else(|| panic!("{file}: no stage `{stage}`"))
+        .clone()
+}
+
+/// The shipped pipeline file `file` (relative to the workspace root), loaded as `pipeline`
+/// loads it with no `--set`.
+pub fn shipped_pipeline(file: &str) -> orchestrator::spec::Pipeline {
     let root = workspace_root();
-    let p = orchestrator::spec::Pipeline::load(
+    orchestrator::spec::Pipeline::load(
         &root,
         &root.join(file),
         &orchestrator::spec::LoadOptions::default(),
     )
-    .unwrap_or_else(|e| panic!("{file}: {e}"));
-    p.stage(stage)
-        .unwrap_or_else(|| panic!("{file}: no stage `{stage}`"))
-        .clone()
+    .unwrap_or_else(|e| panic!("{file}: {e}"))
 }
 
 /// The resolved parameters of `stage` (first matrix expansion) in the pipeline file `file`, as
@@ -349,6 +355,10 @@ pub const TINY: &[&str] = &[
     "train.learning_rate=1.0e-3",
     "evaluate.plot_samples=1",
     "study.bootstrap=100",
+    // Judged on the 90 % upper ends, every candidate of the car-body optimisation (on the
+    // 2-epoch rate-output model, whose accelerations are noise) breaks a Sperling limit; on
+    // the median's a feasible optimum exists and the optimum's contract is checked.
+    "study.coverage=0.5",
 ];
 
 #[cfg(test)]

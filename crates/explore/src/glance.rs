@@ -5,6 +5,7 @@
 //! the plots of the latest `evaluate`, and the output directories of the model and its dataset.
 //! Read-only: nothing here runs a stage or writes the store.
 
+use crate::studies::STUDY_COMMAND;
 use orchestrator::spec::Pipeline;
 use orchestrator::status::{show, unit_states};
 use serde::Serialize;
@@ -94,8 +95,9 @@ pub fn locate(p: &Pipeline, algorithm: i64) -> Result<Located, String> {
     })
 }
 
-/// The stage and unit that train `algorithm`: of the stage whose models the design studies
-/// read when it trains it, else the first.
+/// The stage and unit that train `algorithm`: of the training stage whose models answer the
+/// most design studies (summed over the study stages reading it; ties in the pipeline's
+/// order) when it trains it, else the first stage that does.
 fn training_unit(p: &Pipeline, algorithm: i64) -> Option<(&orchestrator::spec::Stage, String)> {
     let trains = |s: &orchestrator::spec::Stage| {
         s.expansions
@@ -103,18 +105,26 @@ fn training_unit(p: &Pipeline, algorithm: i64) -> Option<(&orchestrator::spec::S
             .find(|e| e.params.get("algorithm").and_then(|v| v.as_i64()) == Some(algorithm))
             .map(|e| e.name.clone())
     };
-    let studied = p
-        .stage(STUDY)
-        .and_then(|s| s.inputs.get(STUDY_MODELS))
-        .and_then(|m| p.stage(m));
+    let mut studied: Vec<(&str, usize)> = Vec::new();
+    for (_, s) in p.stages_running(STUDY_COMMAND) {
+        let Some(models) = s.inputs.get(STUDY_MODELS) else {
+            continue;
+        };
+        match studied.iter_mut().find(|(m, _)| m == models) {
+            Some((_, n)) => *n += s.expansions.len(),
+            None => studied.push((models, s.expansions.len())),
+        }
+    }
+    studied.sort_by_key(|&(_, n)| std::cmp::Reverse(n));
     studied
-        .into_iter()
+        .iter()
+        .filter_map(|(m, _)| p.stage(m))
         .chain(&p.stages)
         .find_map(|s| Some((s, trains(s)?)))
 }
 
-/// The stage that calibrates the models of the training stage `train`: the one named
-/// `calibrate` when it reads them, else any stage reading them whose output holds a
+/// The stage that calibrates the models of the training stage `train`: a stage running the
+/// `calibrate` binary when one reads them, else any stage reading them whose output holds a
 /// `calibration.json`. Its current output's file of `algorithm` (`algorithm-<A>/`) or, when
 /// the files are named otherwise, the output directory (the model's own file is then found in
 /// it by identity).
@@ -124,19 +134,19 @@ fn calibration_of(p: &Pipeline, train: &str, algorithm: i64) -> Result<PathBuf, 
         .iter()
         .filter(|s| s.inputs.values().any(|u| u == train))
         .collect();
-    readers.sort_by_key(|s| !(s.name == CALIBRATE || s.extends.as_deref() == Some(CALIBRATE)));
+    readers.sort_by_key(|s| !s.runs(CALIBRATE_COMMAND));
     let mut why = format!(
-        "no error bar: {} has no stage that calibrates the models of `{train}` (a `{CALIBRATE}` stage)",
+        "no error bar: {} has no stage that calibrates the models of `{train}` (a `{CALIBRATE_COMMAND}` stage)",
         p.file
     );
     for s in readers {
         let files: Vec<PathBuf> = match show(p, &s.name) {
             Ok(text) => text.lines().map(PathBuf::from).collect(),
             Err(e) => {
-                if s.name == CALIBRATE {
+                if s.runs(CALIBRATE_COMMAND) {
                     why = format!(
-                        "no error bar: `{CALIBRATE}` of {} has no current output ({e}); run `pipeline -f {} run {CALIBRATE}`",
-                        p.file, p.file
+                        "no error bar: `{}` of {} has no current output ({e}); run `pipeline -f {} run {}`",
+                        s.name, p.file, p.file, s.name
                     );
                 }
                 continue;
@@ -154,9 +164,10 @@ fn calibration_of(p: &Pipeline, train: &str, algorithm: i64) -> Result<PathBuf, 
         if let Some(dir) = found.first().and_then(|f| f.parent()?.parent()) {
             return Ok(dir.to_path_buf());
         }
-        if s.name == CALIBRATE {
+        if s.runs(CALIBRATE_COMMAND) {
             why = format!(
-                "no error bar: `{CALIBRATE}` of {} wrote no {}",
+                "no error bar: `{}` of {} wrote no {}",
+                s.name,
                 p.file,
                 pino_eval::calibration::CALIBRATION_FILE
             );
@@ -165,12 +176,10 @@ fn calibration_of(p: &Pipeline, train: &str, algorithm: i64) -> Result<PathBuf, 
     Err(why)
 }
 
-/// The stage that calibrates the models, by its name in the shipped pipelines.
-const CALIBRATE: &str = "calibrate";
+/// The stage binary that calibrates the models.
+const CALIBRATE_COMMAND: &str = "calibrate";
 
-/// The stage of the design studies, by its name in the shipped pipelines, and its input
-/// naming the training stage whose models answer.
-const STUDY: &str = "study";
+/// A study stage's input naming the training stage whose models answer.
 const STUDY_MODELS: &str = "models";
 
 /// A unit as the page shows it.
@@ -333,5 +342,21 @@ stages:
             Some(("train".into(), "train[algorithm=1]".into()))
         );
         assert_eq!(unit(&p, 3), None);
+        // Two study stages (found by their command, whatever their names): the model answering
+        // more studies wins, whichever stage comes first.
+        let split = format!(
+            "{TRAINS}  a-study:\n    cmd: [./bin/study]\n    inputs: {{models: train}}\n    matrix: {{study: [{{name: one}}]}}\n  b-study:\n    cmd: [study]\n    inputs: {{models: train-rates}}\n    matrix: {{study: [{{name: two}}, {{name: three}}]}}\n"
+        );
+        let p = pipeline(&split);
+        assert_eq!(
+            unit(&p, 5),
+            Some(("train-rates".into(), "train-rates".into()))
+        );
+        let p = pipeline(&split.replace("{name: two}, ", ""));
+        assert_eq!(
+            unit(&p, 5),
+            Some(("train".into(), "train[algorithm=5]".into())),
+            "a tie: the first study stage's"
+        );
     }
 }

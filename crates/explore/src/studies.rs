@@ -1,9 +1,10 @@
 //! Design studies on the explorer's Studies page (`docs/explore.md`, `docs/studies.md`).
 //!
 //! Two sources, listed side by side:
-//! - the pipeline's studies: the units of its `study` stage, their state and files read as
-//!   `pipeline status` and `pipeline show` read them (nothing here runs a stage);
-//! - studies started from the sweep view: one declaration of the `study` stage's matrix (the
+//! - the pipeline's studies: the units of its study stages (every stage running the `study`
+//!   binary, whatever its name), their state and files read as `pipeline status` and
+//!   `pipeline show` read them (nothing here runs a stage);
+//! - studies started from the sweep view: one declaration of a study stage's matrix (the
 //!   sweep's one or two parameters uniform over their intervals, every other parameter fixed
 //!   at the design's value, each design under its own excitation), run in the background by
 //!   the stage's own library ([`pino_eval::study::run`]) on the model being explored.
@@ -28,8 +29,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-/// The stage whose units are the pipeline's studies (its name in the shipped pipelines).
-pub const STUDY_STAGE: &str = "study";
+/// The stage binary of design studies: the units of every stage running it are the
+/// pipeline's studies.
+pub const STUDY_COMMAND: &str = "study";
+
+/// The parameter of a study stage holding one study's declaration (its matrix key).
+pub const STUDY_PARAM: &str = "study";
 
 /// A started study's declaration, as YAML.
 pub const DECLARATION_FILE: &str = "study.yaml";
@@ -47,7 +52,7 @@ const SUMMARY_MD_MAX_BYTES: u64 = 512 * 1024;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Source {
-    /// A unit of the pipeline's `study` stage.
+    /// A unit of one of the pipeline's study stages.
     Pipeline,
     /// Started from the explorer's sweep view.
     Explorer,
@@ -171,22 +176,23 @@ fn field_str(v: &Value, key: &str) -> String {
     v.get(key).and_then(Value::as_str).unwrap_or("").to_owned()
 }
 
-/// The pipeline's studies: every expansion of its [`STUDY_STAGE`] with its state, and the
-/// files of its current output when it has one. Empty when the pipeline has no such stage.
+/// The pipeline's studies: every expansion of its study stages ([`STUDY_COMMAND`]), in the
+/// pipeline's order, with its state and the files of its current output when it has one.
+/// Empty when the pipeline has no such stage.
 pub fn pipeline_studies(p: &Pipeline) -> Result<Vec<StudyView>, String> {
-    let Some(si) = p.index(STUDY_STAGE) else {
+    let study_stages: Vec<usize> = p.stages_running(STUDY_COMMAND).map(|(i, _)| i).collect();
+    if study_stages.is_empty() {
         return Ok(Vec::new());
-    };
-    let stage = &p.stages[si];
+    }
     let mut views: Vec<StudyView> = Vec::new();
     let mut seen = Vec::new();
     for u in unit_states(p).map_err(|e| e.to_string())? {
-        if u.stage != si || seen.contains(&u.expansion) {
+        if !study_stages.contains(&u.stage) || seen.contains(&(u.stage, u.expansion)) {
             continue;
         }
-        seen.push(u.expansion);
-        let e = &stage.expansions[u.expansion];
-        let declaration = e.params.get(STUDY_STAGE).cloned().unwrap_or(Value::Null);
+        seen.push((u.stage, u.expansion));
+        let e = &p.stages[u.stage].expansions[u.expansion];
+        let declaration = e.params.get(STUDY_PARAM).cloned().unwrap_or(Value::Null);
         let view = StudyView {
             source: Source::Pipeline,
             name: field_str(&declaration, "name"),
@@ -219,12 +225,14 @@ fn output_dir(p: &Pipeline, expansion: &str) -> Option<PathBuf> {
 /// The directory of the current output of the pipeline's study named `name`, found by its
 /// declaration alone (no unit states read, no report).
 fn pipeline_study_dir(p: &Pipeline, name: &str) -> Option<PathBuf> {
-    let stage = &p.stages[p.index(STUDY_STAGE)?];
-    let e = stage.expansions.iter().find(|e| {
-        e.params
-            .get(STUDY_STAGE)
-            .is_some_and(|d| field_str(d, "name") == name)
-    })?;
+    let e = p
+        .stages_running(STUDY_COMMAND)
+        .flat_map(|(_, s)| &s.expansions)
+        .find(|e| {
+            e.params
+                .get(STUDY_PARAM)
+                .is_some_and(|d| field_str(d, "name") == name)
+        })?;
     output_dir(p, &e.name)
 }
 

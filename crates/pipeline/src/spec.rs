@@ -131,6 +131,17 @@ pub struct Stage {
     pub extends: Option<String>,
 }
 
+impl Stage {
+    /// Whether the stage runs the stage binary `command`: its `cmd[0]` is that name or a path
+    /// ending in it (`study`, `./target/release/study`).
+    pub fn runs(&self, command: &str) -> bool {
+        self.cmd
+            .first()
+            .and_then(|c| std::path::Path::new(c).file_name())
+            .is_some_and(|n| n == command)
+    }
+}
+
 /// A loaded, validated pipeline with its stages in dependency order.
 #[derive(Debug, Clone)]
 pub struct Pipeline {
@@ -807,6 +818,19 @@ impl Pipeline {
     /// Index of the stage called `name` in [`Pipeline::stages`].
     pub fn index(&self, name: &str) -> Option<usize> {
         self.stages.iter().position(|s| s.name == name)
+    }
+
+    /// The stages that run the stage binary `command` (see [`Stage::runs`]) with their
+    /// indices in [`Pipeline::stages`], in dependency order: every `study` stage, whatever its
+    /// name.
+    pub fn stages_running<'a>(
+        &'a self,
+        command: &'a str,
+    ) -> impl Iterator<Item = (usize, &'a Stage)> + 'a {
+        self.stages
+            .iter()
+            .enumerate()
+            .filter(move |(_, s)| s.runs(command))
     }
 
     /// `FILE:LINE` of stage `stage`'s parameter `key` in the pipeline file (the stage's
