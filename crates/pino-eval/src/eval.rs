@@ -71,6 +71,31 @@ pub struct EvalParams {
     /// mode, where the description the command names stands in for the dataset's record).
     #[serde(default)]
     pub system_values: std::collections::BTreeMap<String, mbd_system::Override>,
+    /// The split scored: `test` (absent: the test split, the validation split when the
+    /// dataset has none) or `validation` (a selection study's figures, keeping the test split
+    /// for the one final report).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub split: Option<ScoredSplit>,
+}
+
+/// A split `evaluate` may be asked to score.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ScoredSplit {
+    /// The held-out test split (Table 4's).
+    Test,
+    /// The validation split (settings are chosen on it).
+    Validation,
+}
+
+impl ScoredSplit {
+    /// The dataset's split.
+    pub fn split(self) -> Split {
+        match self {
+            Self::Test => Split::Test,
+            Self::Validation => Split::Validation,
+        }
+    }
 }
 
 /// Evaluation settings.
@@ -89,6 +114,8 @@ pub struct EvalOptions {
     /// The `calibrate` stage's output (or one `calibration.json`), when the models are
     /// calibrated: their coverage on the scored split is reported.
     pub calibration: Option<PathBuf>,
+    /// The split asked for (absent: [`scored_split`]'s choice).
+    pub split: Option<ScoredSplit>,
 }
 
 /// The dataset an evaluation scores: its records, `params.parquet` and the simulation shards.
@@ -673,10 +700,25 @@ pub fn plot_channels(
         .collect()
 }
 
-/// Which split `evaluate` scores: `test` when `params.parquet` has one, else `validation`
-/// (flagged in every output as a fallback: the study chose settings on it).
-pub fn scored_split(params_file: &Path) -> Result<Split> {
+/// Which split `evaluate` scores: the one asked for, which must hold samples; else `test` when
+/// `params.parquet` has one, else `validation` (flagged in every output as a fallback: the
+/// study chose settings on it).
+pub fn scored_split(params_file: &Path, asked: Option<ScoredSplit>) -> Result<Split> {
     let present = splits_present(params_file)?;
+    if let Some(asked) = asked {
+        let split = asked.split();
+        if !present.contains(&split) {
+            return Err(LearnError::Dataset {
+                path: params_file.to_owned(),
+                message: format!(
+                    "no sample of split `{}`, which `split` asks to score",
+                    split.as_str()
+                ),
+            }
+            .into());
+        }
+        return Ok(split);
+    }
     if present.contains(&Split::Test) {
         Ok(Split::Test)
     } else if present.contains(&Split::Validation) {
@@ -730,7 +772,7 @@ pub fn evaluate(
         params_file,
         simulation_files,
     } = *data;
-    let split = scored_split(params_file)?;
+    let split = scored_split(params_file, opts.split)?;
     let system = &info.system;
     let layout = Layout::of(system);
     let plot_channels = plot_channels(&opts.plot_channels, &layout, system)?;
@@ -989,7 +1031,12 @@ fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOption
     let split = ev.split.as_str();
     write_table4(out, split, &rows)?;
     write_speed(out, split, &ev.models)?;
-    let md = table4_markdown(split, ev.split != Split::Test, &rows, layout);
+    let note = match (ev.split, opts.split) {
+        (Split::Test, _) => None,
+        (_, Some(_)) => Some(ASKED_VALIDATION_NOTE),
+        _ => Some(FALLBACK_VALIDATION_WARNING),
+    };
+    let md = table4_markdown(split, note, &rows, layout);
     write_atomic(&out.join("table4.md"), md.as_bytes())?;
     write_channel_errors(out, &ev.models)?;
     write_plots_doc(out, &ev.models)
@@ -1092,16 +1139,22 @@ fn write_table4(out: &Path, split: &str, rows: &[Table4Row]) -> Result<()> {
 
 /// `table4.md`: the table, a warning when scored on validation, the metric's definition and
 /// where the speed figures are.
-fn table4_markdown(split: &str, fallback: bool, rows: &[Table4Row], layout: &Layout) -> String {
+/// Table 4's note when the dataset has no test split.
+const FALLBACK_VALIDATION_WARNING: &str = "> **WARNING: this dataset has no `test` split, so \
+     Table 4 is scored on the `validation` split**, the samples on which training reported \
+     progress and settings were chosen: these figures are optimistic. Generate a test split \
+     (`sample-params` `n_test`) for an honest table.";
+
+/// Table 4's note when the validation split was asked for (`split: validation`).
+const ASKED_VALIDATION_NOTE: &str = "> Scored on the `validation` split, as asked (`split: \
+     validation`): figures to choose settings by; the test split is kept for the final report.";
+
+fn table4_markdown(split: &str, note: Option<&str>, rows: &[Table4Row], layout: &Layout) -> String {
     let n = rows.first().map_or(0, |r| r.samples);
     let mut md = format!("# Table 4: relative L2 error (%) on the {split} split ({n} samples)\n\n");
-    if fallback {
-        md.push_str(
-            "> **WARNING: this dataset has no `test` split, so Table 4 is scored on the \
-             `validation` split**, the samples on which training reported progress and settings \
-             were chosen: these figures are optimistic. Generate a test split (`sample-params` \
-             `n_test`) for an honest table.\n\n",
-        );
+    if let Some(note) = note {
+        md.push_str(note);
+        md.push_str("\n\n");
     }
     let cell = |v: f64| {
         if v.is_nan() {
@@ -1345,6 +1398,48 @@ mod tests {
             ctx,
             test,
         }
+    }
+
+    /// The split scored: test when there is one; the validation split when asked (or when
+    /// there is none); a split asked for that holds no sample is refused.
+    #[test]
+    fn the_scored_split_is_test_unless_validation_is_asked_for() {
+        let fx = fixture();
+        let params = &fx.files.params;
+        assert_eq!(scored_split(params, None).unwrap(), Split::Test);
+        assert_eq!(
+            scored_split(params, Some(ScoredSplit::Test)).unwrap(),
+            Split::Test
+        );
+        assert_eq!(
+            scored_split(params, Some(ScoredSplit::Validation)).unwrap(),
+            Split::Validation
+        );
+        let p: EvalParams = serde_json::from_value(serde_json::json!({
+            "plot_samples": 0, "plot_channels": [], "batch_size": 1,
+            "compare_with_paper": false, "split": "validation"
+        }))
+        .unwrap();
+        assert_eq!(p.split, Some(ScoredSplit::Validation));
+
+        // No test split: validation by default (the flagged fallback); asking for test fails.
+        let dir = tempfile::tempdir().unwrap();
+        let spec = SyntheticSpec {
+            n_train: 2,
+            n_validation: 1,
+            n_test: 0,
+            duration: 0.1,
+            ..Default::default()
+        };
+        let files = write_dataset(&spec, dir.path()).unwrap();
+        assert_eq!(
+            scored_split(&files.params, None).unwrap(),
+            Split::Validation
+        );
+        let e = scored_split(&files.params, Some(ScoredSplit::Test))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no sample of split `test`"), "{e}");
     }
 
     /// The truth row computed independently, in f64 from the file's values: per sample,

@@ -249,12 +249,22 @@ pub struct TrainConfig {
     /// absent: 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rate_weight: Option<f64>,
+    /// Weight of an extra relative-L2 term on the force outputs alone (the contact forces
+    /// `p_1..p_4` of the vehicle-track model, which its peak-force and wheel-load indices
+    /// read; absent: 0, the paper's loss).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_weight: Option<f64>,
 }
 
 impl TrainConfig {
     /// [`TrainConfig::rate_weight`], 1 when not given.
     pub fn rate_weight(&self) -> f64 {
         self.rate_weight.unwrap_or(1.0)
+    }
+
+    /// [`TrainConfig::force_weight`], 0 when not given.
+    pub fn force_weight(&self) -> f64 {
+        self.force_weight.unwrap_or(0.0)
     }
 
     /// Checks ranges.
@@ -286,6 +296,7 @@ impl TrainConfig {
             ("lambda_d", self.lambda_d),
             ("beam_weight", self.beam_weight),
             ("rate_weight", self.rate_weight()),
+            ("force_weight", self.force_weight()),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
                 return bad(f, v.to_string(), ">= 0");
@@ -366,6 +377,9 @@ pub struct TrainParams {
     /// Weight of the rate outputs' term in `L_data` (absent: 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rate_weight: Option<f64>,
+    /// Weight of an extra relative-L2 term on the force outputs (absent: 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_weight: Option<f64>,
 }
 
 impl TrainParams {
@@ -422,6 +436,7 @@ impl TrainParams {
             rho: self.rho,
             seed: self.seed,
             rate_weight: self.rate_weight,
+            force_weight: self.force_weight,
         };
         train.validate()?;
         let window = WindowConfig {

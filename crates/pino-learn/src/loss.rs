@@ -12,6 +12,8 @@
 //! total        = L_data [+ lambda_ode L_ode_* | + lambda_d L_deriv]   (Table 3)
 //!                [+ beam_weight relL2(w, w*)]            (optional balance of the beam
 //!                                                         deflection channels)
+//!                [+ force_weight relL2(f, f*)]           (optional balance of the force
+//!                                                         outputs)
 //! ```
 
 use crate::checkpoint::ModelMeta;
@@ -341,6 +343,16 @@ impl LossContext {
             values.beam = rail.to_scalar::<f32>()? as f64;
             total = (total + (rail * self.config.beam_weight)?)?;
         }
+        let force_weight = self.config.force_weight();
+        if force_weight > 0.0 {
+            let (from, n) = (
+                self.layout.solutions,
+                self.layout.n_outputs() - self.layout.solutions - self.layout.rates,
+            );
+            let forces = rel_l2(&u_n.narrow(2, from, n)?, &batch.u.narrow(2, from, n)?)?;
+            values.force = forces.to_scalar::<f32>()? as f64;
+            total = (total + (forces * force_weight)?)?;
+        }
         values.total = total.to_scalar::<f32>()? as f64;
         Ok((total, values))
     }
@@ -374,6 +386,8 @@ pub struct LossValues {
     pub ode: f64,
     /// Relative L2 of the beam deflections, when `beam_weight > 0`.
     pub beam: f64,
+    /// Relative L2 of the force outputs, when `force_weight > 0`.
+    pub force: f64,
 }
 
 #[cfg(test)]
@@ -569,6 +583,56 @@ mod tests {
 
     /// The fused derivative and ODE losses (f32, CPU) against their candle compositions on a
     /// synthetic batch: values and gradients with respect to the prediction.
+    /// `force_weight` adds its multiple of the force outputs' relative L2 to the total and
+    /// nothing else: the extra gradient is zero on every other channel.
+    #[test]
+    fn the_force_term_adds_the_forces_relative_l2_alone() {
+        let (plain, batch, u0) = tiny_case(1);
+        let mut weighted = plain.clone();
+        weighted.config.force_weight = Some(2.0);
+        let layout = &plain.layout;
+        let (from, n) = (
+            layout.solutions,
+            layout.n_outputs() - layout.solutions - layout.rates,
+        );
+        assert!(n > 0, "the synthetic model has force outputs");
+        let forces = rel_l2(
+            &u0.narrow(2, from, n).unwrap(),
+            &batch.u.narrow(2, from, n).unwrap(),
+        )
+        .unwrap()
+        .to_dtype(DType::F64)
+        .unwrap()
+        .to_scalar::<f64>()
+        .unwrap();
+        let run = |ctx: &LossContext| {
+            let u = candle_core::Var::from_tensor(&u0).unwrap();
+            let (l, _) = ctx.loss(u.as_tensor(), &batch).unwrap();
+            let g = l.backward().unwrap();
+            let grad = g.get(u.as_tensor()).unwrap().flatten_all().unwrap();
+            (
+                l.to_dtype(DType::F64).unwrap().to_scalar::<f64>().unwrap(),
+                grad.to_dtype(DType::F64).unwrap().to_vec1::<f64>().unwrap(),
+            )
+        };
+        let ((l0, g0), (l1, g1)) = (run(&plain), run(&weighted));
+        assert!(forces > 0.0);
+        assert!(
+            (l1 - l0 - 2.0 * forces).abs() <= 1e-5 * l1,
+            "{l1} - {l0} != 2 x {forces}"
+        );
+        let channels = layout.n_outputs();
+        let mut changed = 0;
+        for (i, (a, b)) in g0.iter().zip(&g1).enumerate() {
+            if (from..from + n).contains(&(i % channels)) {
+                changed += usize::from(a != b);
+            } else {
+                assert_eq!(a, b, "gradient[{i}] of a non-force channel");
+            }
+        }
+        assert!(changed > 0, "the force channels' gradient changed");
+    }
+
     #[test]
     fn fused_losses_match_the_compositions() {
         let (ctx, batch, u0) = tiny_case(4);

@@ -1,5 +1,6 @@
 //! `evaluate` stage: Table 4 (with its truth row) on the test split for every trained model;
-//! on the validation split, flagged in the table, when the dataset has no test split.
+//! on the validation split, flagged in the table, when asked (`split: validation`, a
+//! selection study) or when the dataset has no test split.
 //!
 //! Inputs: `params` (params.parquet), `dataset` (simulation.parquet shards with the system
 //! description's record), `models` (one directory per expansion of `train`, each trained on
@@ -46,6 +47,7 @@ fn run() -> Result<()> {
         compare_with_paper: p.compare_with_paper,
         // Optional: an uncalibrated pipeline is evaluated without coverage tables.
         calibration: ctx.optional_single_input_dir("calibration")?,
+        split: p.split,
     };
     let progress = ctx.progress(models.len() as u64);
     let data = EvalData {
@@ -82,10 +84,10 @@ fn run() -> Result<()> {
     stage_kit::summary(&format!(
         "Table 4 on the {} split{} (solutions/first/second) {}; prediction >= {speed:.0} simulated s per wall s",
         ev.split.as_str(),
-        if ev.split == pino_learn::data::Split::Test {
-            ""
-        } else {
-            " (NO TEST SPLIT: validation, optimistic)"
+        match (ev.split, p.split) {
+            (pino_learn::data::Split::Test, _) => "",
+            (_, Some(_)) => " (as asked: settings are chosen on it)",
+            _ => " (NO TEST SPLIT: validation, optimistic)",
         },
         rows.join(", ")
     ));
