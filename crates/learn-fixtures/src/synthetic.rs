@@ -177,49 +177,6 @@ impl SyntheticFiles {
     }
 }
 
-/// `params.parquet` (each sample's id, split and draws; its path returned) and
-/// `ranges.parquet` (each sampled parameter's range), as `sample-params` writes them.
-fn write_params(
-    dir: &Path,
-    system: &mbd_system::System,
-    units: &Units,
-    plan: &SamplingPlan,
-    draws: &[Vec<f64>],
-) -> Result<PathBuf> {
-    let names = system.sampled_names();
-    let n = draws.len() as u64;
-    let mut params = Table::default().with_units(units.clone());
-    params.push(schema::SAMPLE_ID, Column::I64((0..n as i64).collect()))?;
-    params.push(
-        schema::SPLIT,
-        Column::Str(
-            (0..n)
-                .map(|id| plan.split(id).as_str().to_owned())
-                .collect(),
-        ),
-    )?;
-    for (j, name) in names.iter().enumerate() {
-        params.push(name, Column::F64(draws.iter().map(|d| d[j]).collect()))?;
-    }
-    let params_path = dir.join("params.parquet");
-    write_parquet(&params_path, &params)?;
-    let mut ranges = Table::default();
-    ranges.push(
-        "name",
-        Column::Str(names.iter().map(|s| s.to_string()).collect()),
-    )?;
-    ranges.push(
-        "min",
-        Column::F64(plan.ranges().iter().map(|r| r[0]).collect()),
-    )?;
-    ranges.push(
-        "max",
-        Column::F64(plan.ranges().iter().map(|r| r[1]).collect()),
-    )?;
-    write_parquet(&dir.join("ranges.parquet"), &ranges)?;
-    Ok(params_path)
-}
-
 /// The profiles' controls: spacing 0.1 m over the longest beam (or 1 km of road), and at
 /// least the longest wavelength of any generated profile (the generator's band must fit).
 fn profile_controls(system: &mbd_system::System, seed: u64) -> ProfileParams {
@@ -296,7 +253,11 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
     let plan = SamplingPlan::new(sizes, &system).map_err(|e| bad(e.to_string()))?;
     let n = spec.n_train + spec.n_validation + spec.n_test + spec.n_calibration;
     let draws: Vec<Vec<f64>> = (0..n).map(|id| plan.draw(id)).collect();
-    let params_path = write_params(dir, &system, &units, &plan, &draws)?;
+    let splits: Vec<&str> = (0..draws.len() as u64)
+        .map(|id| plan.split(id).as_str())
+        .collect();
+    let params_path =
+        pino_data::system::write_sample_params(dir, &system, &splits, &draws, plan.ranges())?;
     pino_data::system::write_record(dir, &spec.system)?;
 
     // Profiles, then the runs.

@@ -86,6 +86,67 @@ pub fn same(a_path: &Path, a: &SystemSource, b_path: &Path, b: &SystemSource) ->
     )))
 }
 
+/// The sampled designs `sample-params` writes: `sample_id`, `split`, then every sampled
+/// parameter of the description in its unit.
+pub const PARAMS_FILE: &str = "params.parquet";
+
+/// Each sampled parameter's range (`name`, `unit`, `min`, `max`): `train` stores it with every
+/// model so that `predict` flags designs outside it.
+pub const RANGES_FILE: &str = "ranges.parquet";
+
+/// Writes [`PARAMS_FILE`] and [`RANGES_FILE`] into `dir`, as `sample-params` does: sample
+/// `id` (`0..draws.len()`) has split `splits[id]` and the sampled parameters' values
+/// `draws[id]` (the description's order); `ranges[k]` is the `[min, max]` of its `k`-th
+/// sampled parameter. Returns the path of [`PARAMS_FILE`].
+pub fn write_sample_params(
+    dir: &Path,
+    system: &System,
+    splits: &[&str],
+    draws: &[Vec<f64>],
+    ranges: &[[f64; 2]],
+) -> Result<PathBuf> {
+    let names = system.sampled_names();
+    let mut params = crate::Table::default().with_units(units_of(system)?);
+    params.push(
+        crate::schema::SAMPLE_ID,
+        crate::Column::I64((0..draws.len() as i64).collect()),
+    )?;
+    params.push(
+        crate::schema::SPLIT,
+        crate::Column::Str(splits.iter().map(|s| s.to_string()).collect()),
+    )?;
+    for (j, name) in names.iter().enumerate() {
+        params.push(
+            name,
+            crate::Column::F64(draws.iter().map(|d| d[j]).collect()),
+        )?;
+    }
+    let params_path = dir.join(PARAMS_FILE);
+    crate::write_parquet(&params_path, &params)?;
+
+    let mut table = crate::Table::default();
+    table.push(
+        "name",
+        crate::Column::Str(names.iter().map(|s| s.to_string()).collect()),
+    )?;
+    let units = system
+        .sampled()
+        .into_iter()
+        .map(|i| system.parameters[i].unit.clone())
+        .collect();
+    table.push("unit", crate::Column::Str(units))?;
+    table.push(
+        "min",
+        crate::Column::F64(ranges.iter().map(|r| r[0]).collect()),
+    )?;
+    table.push(
+        "max",
+        crate::Column::F64(ranges.iter().map(|r| r[1]).collect()),
+    )?;
+    crate::write_parquet(&dir.join(RANGES_FILE), &table)?;
+    Ok(params_path)
+}
+
 /// The unit of every column `system` defines: its sampled parameters (as written in the
 /// description), its stored channels, the magnitude weight `phi_<dof>` of every DOF (N, or
 /// N m for a pitch) and its index columns (the railway family's when it binds them, its own).

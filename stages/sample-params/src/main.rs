@@ -16,7 +16,6 @@
 
 use anyhow::{Context, Result};
 use mbd_dataset::{SamplingPlan, SplitSizes};
-use pino_data::{schema, write_parquet, Column, Table};
 use std::collections::BTreeMap;
 
 #[derive(serde::Deserialize)]
@@ -56,40 +55,9 @@ fn run() -> Result<String> {
     let names = system.sampled_names();
     let n = plan.num_samples();
     let draws: Vec<Vec<f64>> = (0..n).map(|id| plan.draw(id)).collect();
-    let mut table = Table::default().with_units(pino_data::system::units_of(&system)?);
-    table.push(schema::SAMPLE_ID, Column::I64((0..n as i64).collect()))?;
-    let splits = (0..n)
-        .map(|id| plan.split(id).as_str().to_owned())
-        .collect();
-    table.push(schema::SPLIT, Column::Str(splits))?;
-    for (j, name) in names.iter().enumerate() {
-        table.push(name, Column::F64(draws.iter().map(|d| d[j]).collect()))?;
-    }
-    let path = ctx.output_path("params.parquet");
-    write_parquet(&path, &table).with_context(|| format!("writing {}", path.display()))?;
-    // The ranges, stored by `train` with each model so that `predict` can flag designs
-    // outside them.
-    let mut ranges = Table::default();
-    ranges.push(
-        "name",
-        Column::Str(names.iter().map(|s| s.to_string()).collect()),
-    )?;
-    let units = system
-        .sampled()
-        .into_iter()
-        .map(|i| system.parameters[i].unit.clone())
-        .collect();
-    ranges.push("unit", Column::Str(units))?;
-    ranges.push(
-        "min",
-        Column::F64(plan.ranges().iter().map(|r| r[0]).collect()),
-    )?;
-    ranges.push(
-        "max",
-        Column::F64(plan.ranges().iter().map(|r| r[1]).collect()),
-    )?;
-    let path = ctx.output_path("ranges.parquet");
-    write_parquet(&path, &ranges).with_context(|| format!("writing {}", path.display()))?;
+    let splits: Vec<&str> = (0..n).map(|id| plan.split(id).as_str()).collect();
+    pino_data::system::write_sample_params(&ctx.output, &system, &splits, &draws, plan.ranges())
+        .with_context(|| format!("writing the sampled designs into {}", ctx.output.display()))?;
     pino_data::system::write_record(&ctx.output, &source)?;
     Ok(format!(
         "{}: {} train + {} validation + {} test + {} calibration samples of {} parameters",
