@@ -700,10 +700,50 @@ pub fn plot_channels(
         .collect()
 }
 
+/// The split an evaluation scored, and why: every output that reports the split (Table 4's
+/// note, the stage's summary) reads it from here.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScoredOn {
+    /// The test split (asked for, or the default).
+    Test,
+    /// The validation split, asked for (`split: validation`): a selection study's figures.
+    AskedValidation,
+    /// The validation split because the dataset has no test split: optimistic figures.
+    FallbackValidation,
+}
+
+impl ScoredOn {
+    /// The dataset's split.
+    pub fn split(self) -> Split {
+        match self {
+            Self::Test => Split::Test,
+            Self::AskedValidation | Self::FallbackValidation => Split::Validation,
+        }
+    }
+
+    /// Table 4's note (Markdown), absent on the test split.
+    pub fn note(self) -> Option<&'static str> {
+        match self {
+            Self::Test => None,
+            Self::AskedValidation => Some(ASKED_VALIDATION_NOTE),
+            Self::FallbackValidation => Some(FALLBACK_VALIDATION_WARNING),
+        }
+    }
+
+    /// A short flag for one-line summaries (empty on the test split).
+    pub fn flag(self) -> &'static str {
+        match self {
+            Self::Test => "",
+            Self::AskedValidation => " (as asked: settings are chosen on it)",
+            Self::FallbackValidation => " (NO TEST SPLIT: validation, optimistic)",
+        }
+    }
+}
+
 /// Which split `evaluate` scores: the one asked for, which must hold samples; else `test` when
 /// `params.parquet` has one, else `validation` (flagged in every output as a fallback: the
 /// study chose settings on it).
-pub fn scored_split(params_file: &Path, asked: Option<ScoredSplit>) -> Result<Split> {
+pub fn scored_split(params_file: &Path, asked: Option<ScoredSplit>) -> Result<ScoredOn> {
     let present = splits_present(params_file)?;
     if let Some(asked) = asked {
         let split = asked.split();
@@ -717,12 +757,15 @@ pub fn scored_split(params_file: &Path, asked: Option<ScoredSplit>) -> Result<Sp
             }
             .into());
         }
-        return Ok(split);
+        return Ok(match asked {
+            ScoredSplit::Test => ScoredOn::Test,
+            ScoredSplit::Validation => ScoredOn::AskedValidation,
+        });
     }
     if present.contains(&Split::Test) {
-        Ok(Split::Test)
+        Ok(ScoredOn::Test)
     } else if present.contains(&Split::Validation) {
-        Ok(Split::Validation)
+        Ok(ScoredOn::FallbackValidation)
     } else {
         Err(LearnError::Dataset {
             path: params_file.to_owned(),
@@ -745,8 +788,8 @@ pub struct TruthRow {
 /// Everything `evaluate` wrote into its tables.
 #[derive(Debug, Clone)]
 pub struct Evaluation {
-    /// The split scored.
-    pub split: Split,
+    /// The split scored, and why.
+    pub scored_on: ScoredOn,
     /// Per model, by algorithm.
     pub models: Vec<ModelResult>,
     /// The truth row (of the first model's window and statistics).
@@ -772,7 +815,8 @@ pub fn evaluate(
         params_file,
         simulation_files,
     } = *data;
-    let split = scored_split(params_file, opts.split)?;
+    let scored_on = scored_split(params_file, opts.split)?;
+    let split = scored_on.split();
     let system = &info.system;
     let layout = Layout::of(system);
     let plot_channels = plot_channels(&opts.plot_channels, &layout, system)?;
@@ -890,7 +934,7 @@ pub fn evaluate(
         coverage.write(out)?;
     }
     let evaluation = Evaluation {
-        split,
+        scored_on,
         models: results,
         truth,
     };
@@ -1028,15 +1072,10 @@ impl CoverageReport {
 /// figures, the per-channel errors and the plots' legend.
 fn write_outputs(out: &Path, ev: &Evaluation, layout: &Layout, opts: &EvalOptions) -> Result<()> {
     let rows = table4_rows(ev, opts);
-    let split = ev.split.as_str();
+    let split = ev.scored_on.split().as_str();
     write_table4(out, split, &rows)?;
     write_speed(out, split, &ev.models)?;
-    let note = match (ev.split, opts.split) {
-        (Split::Test, _) => None,
-        (_, Some(_)) => Some(ASKED_VALIDATION_NOTE),
-        _ => Some(FALLBACK_VALIDATION_WARNING),
-    };
-    let md = table4_markdown(split, note, &rows, layout);
+    let md = table4_markdown(split, ev.scored_on.note(), &rows, layout);
     write_atomic(&out.join("table4.md"), md.as_bytes())?;
     write_channel_errors(out, &ev.models)?;
     write_plots_doc(out, &ev.models)
@@ -1406,15 +1445,15 @@ mod tests {
     fn the_scored_split_is_test_unless_validation_is_asked_for() {
         let fx = fixture();
         let params = &fx.files.params;
-        assert_eq!(scored_split(params, None).unwrap(), Split::Test);
+        assert_eq!(scored_split(params, None).unwrap(), ScoredOn::Test);
         assert_eq!(
             scored_split(params, Some(ScoredSplit::Test)).unwrap(),
-            Split::Test
+            ScoredOn::Test
         );
-        assert_eq!(
-            scored_split(params, Some(ScoredSplit::Validation)).unwrap(),
-            Split::Validation
-        );
+        let asked = scored_split(params, Some(ScoredSplit::Validation)).unwrap();
+        assert_eq!(asked, ScoredOn::AskedValidation);
+        assert_eq!(asked.split(), Split::Validation);
+        assert_eq!(asked.note(), Some(ASKED_VALIDATION_NOTE));
         let p: EvalParams = serde_json::from_value(serde_json::json!({
             "plot_samples": 0, "plot_channels": [], "batch_size": 1,
             "compare_with_paper": false, "split": "validation"
@@ -1432,10 +1471,10 @@ mod tests {
             ..Default::default()
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
-        assert_eq!(
-            scored_split(&files.params, None).unwrap(),
-            Split::Validation
-        );
+        let fallback = scored_split(&files.params, None).unwrap();
+        assert_eq!(fallback, ScoredOn::FallbackValidation);
+        assert_eq!(fallback.split(), Split::Validation);
+        assert_eq!(fallback.note(), Some(FALLBACK_VALIDATION_WARNING));
         let e = scored_split(&files.params, Some(ScoredSplit::Test))
             .unwrap_err()
             .to_string();

@@ -83,12 +83,8 @@ fn run() -> Result<()> {
         .fold(f64::INFINITY, f64::min);
     stage_kit::summary(&format!(
         "Table 4 on the {} split{} (solutions/first/second) {}; prediction >= {speed:.0} simulated s per wall s",
-        ev.split.as_str(),
-        match (ev.split, p.split) {
-            (pino_learn::data::Split::Test, _) => "",
-            (_, Some(_)) => " (as asked: settings are chosen on it)",
-            _ => " (NO TEST SPLIT: validation, optimistic)",
-        },
+        ev.scored_on.split().as_str(),
+        ev.scored_on.flag(),
         rows.join(", ")
     ));
     Ok(())
