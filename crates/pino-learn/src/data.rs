@@ -116,6 +116,26 @@ pub fn read_params(path: &Path, system: &System) -> Result<Vec<(i64, Split, Samp
         .collect()
 }
 
+/// `params.parquet` read once, by sample id: what a streaming pass ([`scan`]) looks each
+/// record up in.
+struct ParamsTable<'a> {
+    /// The file (named in errors and kept by the dataset).
+    file: &'a Path,
+    /// Split and design per `sample_id`, ids ascending.
+    by_id: BTreeMap<i64, (Split, Sampled)>,
+}
+
+impl<'a> ParamsTable<'a> {
+    /// [`read_params`] of `file`, keyed by sample id.
+    fn read(file: &'a Path, system: &System) -> Result<Self> {
+        let by_id = read_params(file, system)?
+            .into_iter()
+            .map(|(id, s, p)| (id, (s, p)))
+            .collect();
+        Ok(Self { file, by_id })
+    }
+}
+
 /// Reads `weights.parquet` into `(sample_id, phi)` rows (the `phi_<dof>` of each equation of
 /// `layout`); every phi must be finite and > 0.
 pub fn read_weights(path: &Path, layout: &Layout) -> Result<Vec<(i64, Vec<f64>)>> {
@@ -269,7 +289,7 @@ type WindowSink<'a> = dyn FnMut(&Sample, &[f64], &[Vec<f64>]) -> Result<()> + 'a
 /// whose id and split `want` accepts. Returns the dataset of those samples (no statistics).
 fn scan(
     info: &DatasetInfo,
-    params_file: &Path,
+    params_table: &ParamsTable<'_>,
     simulation_files: &[PathBuf],
     weights_file: Option<&Path>,
     window: &WindowConfig,
@@ -277,12 +297,9 @@ fn scan(
     on_window: &mut WindowSink<'_>,
 ) -> Result<Dataset> {
     window.validate()?;
+    let (params_file, params) = (params_table.file, &params_table.by_id);
     let system = &info.system;
     let layout = info.layout().clone();
-    let params: BTreeMap<i64, (Split, Sampled)> = read_params(params_file, system)?
-        .into_iter()
-        .map(|(id, s, p)| (id, (s, p)))
-        .collect();
     // The weights stage covers the training split only; `train` checks that every training
     // sample has its phi when the algorithm needs it.
     let weights: BTreeMap<i64, Vec<f64>> = match weights_file {
@@ -449,24 +466,22 @@ pub fn load_dataset_subset(
     train_samples: Option<usize>,
 ) -> Result<Dataset> {
     let layout = info.layout();
-    let kept_train: Option<BTreeSet<i64>> = match train_samples {
-        None => None,
-        Some(n) => Some(
-            read_params(params_file, &info.system)?
-                .into_iter()
-                .filter(|(_, split, _)| *split == Split::Train)
-                .map(|(id, _, _)| id)
-                .collect::<BTreeSet<i64>>()
-                .into_iter()
-                .take(n)
-                .collect(),
-        ),
-    };
+    let params = ParamsTable::read(params_file, &info.system)?;
+    // Ids in ascending order (a BTreeMap's): the first `n` of the training split.
+    let kept_train: Option<BTreeSet<i64>> = train_samples.map(|n| {
+        params
+            .by_id
+            .iter()
+            .filter(|(_, (split, _))| *split == Split::Train)
+            .map(|(&id, _)| id)
+            .take(n)
+            .collect()
+    });
     let mut acc = NormAccumulator::new(layout);
     let mut any_train = false;
     let mut ds = scan(
         info,
-        params_file,
+        &params,
         simulation_files,
         weights_file,
         window,
@@ -765,7 +780,7 @@ pub fn prepare(ds: &Dataset, norm: &Normalisation) -> Result<Prepared> {
     let wanted: BTreeSet<i64> = ds.samples.iter().map(|s| s.id).collect();
     scan(
         &ds.info,
-        &ds.params_file,
+        &ParamsTable::read(&ds.params_file, &ds.info.system)?,
         &ds.simulation_files,
         None,
         &ds.window,
@@ -791,14 +806,12 @@ pub fn load_split(
     norm: &Normalisation,
 ) -> Result<(Dataset, Prepared)> {
     let layout = info.layout();
-    let expected = splits_of(params_file)?
-        .iter()
-        .filter(|s| **s == split)
-        .count();
+    let params = ParamsTable::read(params_file, &info.system)?;
+    let expected = params.by_id.values().filter(|(s, _)| *s == split).count();
     let mut builder: Option<Builder> = None;
     let ds = scan(
         info,
-        params_file,
+        &params,
         simulation_files,
         None,
         window,
