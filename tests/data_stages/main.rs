@@ -986,7 +986,7 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
         (
             "configs/quarter-car.yaml",
             "systems/quarter-car.yaml",
-            800,
+            1600,
             100,
             100,
             1000,
