@@ -407,15 +407,15 @@ fn channel_label(layout: &Layout, c: usize, order: usize) -> (String, &'static s
         return (base.clone(), "kN", 1e-3);
     }
     if let Some(rate) = layout.rate_order(c) {
-        // A rate the network outputs directly, beside the difference of its displacement
-        // under the plain name.
+        // A rate the network outputs directly (labelled apart from the difference of its
+        // displacement, which keeps the plain name).
         let stem = if layout.unit(base).starts_with("rad") {
             "rad"
         } else {
             "m"
         };
         let (unit, scale) = unit_of(stem, rate.into());
-        return (format!("{base} (output)"), unit, scale);
+        return (layout.output_label(c), unit, scale);
     }
     let (unit, scale) = unit_of(layout.unit(base), order);
     let name = match order {

@@ -84,7 +84,8 @@ pub struct Dataset {
     /// Points of each full record before windowing.
     pub record_points: usize,
     simulation_files: Vec<PathBuf>,
-    params_file: PathBuf,
+    /// `params.parquet` as read by the index pass, kept for [`prepare`]'s second pass.
+    params: Arc<ParamsTable>,
     window: WindowConfig,
     train_stats: Option<Normalisation>,
     info: DatasetInfo,
@@ -118,21 +119,25 @@ pub fn read_params(path: &Path, system: &System) -> Result<Vec<(i64, Split, Samp
 
 /// `params.parquet` read once, by sample id: what a streaming pass ([`scan`]) looks each
 /// record up in.
-struct ParamsTable<'a> {
-    /// The file (named in errors and kept by the dataset).
-    file: &'a Path,
+#[derive(Debug)]
+struct ParamsTable {
+    /// The file (named in errors).
+    file: PathBuf,
     /// Split and design per `sample_id`, ids ascending.
     by_id: BTreeMap<i64, (Split, Sampled)>,
 }
 
-impl<'a> ParamsTable<'a> {
+impl ParamsTable {
     /// [`read_params`] of `file`, keyed by sample id.
-    fn read(file: &'a Path, system: &System) -> Result<Self> {
+    fn read(file: &Path, system: &System) -> Result<Arc<Self>> {
         let by_id = read_params(file, system)?
             .into_iter()
             .map(|(id, s, p)| (id, (s, p)))
             .collect();
-        Ok(Self { file, by_id })
+        Ok(Arc::new(Self {
+            file: file.to_owned(),
+            by_id,
+        }))
     }
 }
 
@@ -289,7 +294,7 @@ type WindowSink<'a> = dyn FnMut(&Sample, &[f64], &[Vec<f64>]) -> Result<()> + 'a
 /// whose id and split `want` accepts. Returns the dataset of those samples (no statistics).
 fn scan(
     info: &DatasetInfo,
-    params_table: &ParamsTable<'_>,
+    params_table: &Arc<ParamsTable>,
     simulation_files: &[PathBuf],
     weights_file: Option<&Path>,
     window: &WindowConfig,
@@ -297,7 +302,7 @@ fn scan(
     on_window: &mut WindowSink<'_>,
 ) -> Result<Dataset> {
     window.validate()?;
-    let (params_file, params) = (params_table.file, &params_table.by_id);
+    let (params_file, params) = (params_table.file.as_path(), &params_table.by_id);
     let system = &info.system;
     let layout = info.layout().clone();
     // The weights stage covers the training split only; `train` checks that every training
@@ -371,7 +376,7 @@ fn scan(
         dt: dt * window.time_stride as f64,
         record_points,
         simulation_files: simulation_files.to_vec(),
-        params_file: params_file.to_owned(),
+        params: Arc::clone(params_table),
         window: *window,
         train_stats: None,
         info: info.clone(),
@@ -544,14 +549,14 @@ impl Dataset {
     /// Z-score statistics over the training split (accumulated by [`load_dataset`]).
     pub fn normalisation(&self) -> Result<Normalisation> {
         self.train_stats.clone().ok_or_else(|| Error::Dataset {
-            path: self.params_file.clone(),
+            path: self.params.file.clone(),
             message: "no sample of split `train`: normalisation needs training data".into(),
         })
     }
 
     /// The `params.parquet` it was indexed from.
     pub fn params_file(&self) -> &Path {
-        &self.params_file
+        &self.params.file
     }
 
     /// The simulation files it streams from.
@@ -774,13 +779,14 @@ impl Prepared {
     }
 }
 
-/// Loads and z-scores every sample of `ds` (a second streaming pass over its files).
+/// Loads and z-scores every sample of `ds` (a second streaming pass over its simulation
+/// files; the parameters are those the index pass read).
 pub fn prepare(ds: &Dataset, norm: &Normalisation) -> Result<Prepared> {
     let mut b = Builder::new(norm, &ds.layout, ds.t.len(), ds.samples.len())?;
     let wanted: BTreeSet<i64> = ds.samples.iter().map(|s| s.id).collect();
     scan(
         &ds.info,
-        &ParamsTable::read(&ds.params_file, &ds.info.system)?,
+        &ds.params,
         &ds.simulation_files,
         None,
         &ds.window,

@@ -158,6 +158,23 @@ impl Layout {
         })
     }
 
+    /// The name output `k` is reported under beside the derived channels (`channel_errors`,
+    /// the calibration's bands, `coverage`): its column name, or `NAME (output)` for a rate
+    /// the network outputs whose name is also that of a DOF's velocity or acceleration (the
+    /// central difference of its displacement, reported under the plain name).
+    pub fn output_label(&self, k: usize) -> String {
+        let name = &self.outputs[k];
+        let dof_rate = |suffix: &str| {
+            name.strip_suffix(suffix)
+                .is_some_and(|dof| self.dofs.iter().any(|d| d == dof))
+        };
+        if self.rate_order(k).is_some() && (dof_rate("_v") || dof_rate("_a")) {
+            format!("{name} (output)")
+        } else {
+            name.clone()
+        }
+    }
+
     /// The rate outputs ([`Layout::with_rate_outputs`]; empty for the paper's networks).
     pub fn rate_outputs(&self) -> &[String] {
         &self.outputs[self.outputs.len() - self.rates..]
@@ -397,6 +414,15 @@ mod tests {
         );
         assert!(l.follows(&sys) && plain.follows(&sys));
         assert!(!l.follows(&system("bridge.yaml")));
+        // A rate output is told from the difference of its displacement by its label.
+        assert_eq!(
+            (l.output_label(18), l.output_label(19), l.output_label(17)),
+            (
+                "z_c_a (output)".to_owned(),
+                "beta_c_v (output)".to_owned(),
+                "p_4".to_owned()
+            )
+        );
         let back: Layout = serde_json::from_str(&serde_json::to_string(&l).unwrap()).unwrap();
         assert_eq!(back, l);
         // Asking again replaces the set; the record reads the rate columns with the outputs.
@@ -433,6 +459,8 @@ mod tests {
             .with_rate_outputs(&b, &["z_mid_a".to_owned()])
             .unwrap();
         assert_eq!(bl.rate_order(bl.n_outputs() - 1), Some(2));
+        // A sensor's rate has no difference beside it: its plain name.
+        assert_eq!(bl.output_label(bl.n_outputs() - 1), "z_mid_a");
     }
 
     /// The bridge's vehicle has its equation through the deck deflection under it; a

@@ -66,10 +66,6 @@ pub struct ConditionalRow {
 struct Quantity<'a> {
     kind: &'static str,
     scores: &'a QuantityScores,
-    /// Its name in the tables: the quantity's, or `NAME (output)` for a rate the network
-    /// outputs when the difference of its displacement is banded under the same name (as
-    /// `channel_errors` labels them), so (algorithm, kind, quantity, normaliser, level) is a key.
-    label: String,
     errors: Vec<f64>,
     /// Mean of the band's scale (1 for an index).
     scale_mean: f64,
@@ -102,38 +98,18 @@ impl<'a> CoverageAccumulator<'a> {
         let index = calibration.indices.iter().map(|q| Quantity {
             kind: "index",
             scores: q,
-            label: q.name.clone(),
             errors: Vec::new(),
             scale_mean: 1.0,
             moments: [0.0; 3],
         });
-        let names: Vec<&str> = calibration
-            .channels
-            .iter()
-            .map(|b| b.quantity.name.as_str())
-            .collect();
-        let label = |k: usize| {
-            // The bands list the outputs first: of a repeated name, the first is the output.
-            let name = names[k];
-            if names[k + 1..].contains(&name) {
-                format!("{name} (output)")
-            } else {
-                name.to_owned()
-            }
-        };
-        let channel = calibration
-            .channels
-            .iter()
-            .enumerate()
-            .map(|(k, b)| Quantity {
-                kind: "channel",
-                scores: &b.quantity,
-                label: label(k),
-                errors: Vec::new(),
-                scale_mean: b.scale.iter().map(|&v| v as f64).sum::<f64>()
-                    / b.scale.len().max(1) as f64,
-                moments: [0.0; 3],
-            });
+        let channel = calibration.channels.iter().map(|b| Quantity {
+            kind: "channel",
+            scores: &b.quantity,
+            errors: Vec::new(),
+            scale_mean: b.scale.iter().map(|&v| v as f64).sum::<f64>()
+                / b.scale.len().max(1) as f64,
+            moments: [0.0; 3],
+        });
         Self {
             calibration,
             quantities: index.chain(channel).collect(),
@@ -218,7 +194,7 @@ impl<'a> CoverageAccumulator<'a> {
                     rows.push(CoverageRow {
                         algorithm,
                         kind: q.kind,
-                        quantity: q.label.clone(),
+                        quantity: q.scores.name.clone(),
                         unit: q.scores.unit.clone(),
                         normaliser,
                         chosen: normaliser == calibration.normaliser,
@@ -271,7 +247,7 @@ fn conditional_rows(
         out.push(ConditionalRow {
             algorithm,
             kind: q.kind,
-            quantity: q.label.clone(),
+            quantity: q.scores.name.clone(),
             group,
             bin,
             n: members.len(),

@@ -33,19 +33,23 @@ pub struct Named {
     pub unit: String,
 }
 
-/// The predicted channels of a layout that get bands: outputs, velocities, accelerations.
+/// The predicted channels of a layout that get bands: outputs, velocities, accelerations,
+/// each under a name of its own (a rate output beside the difference of its displacement is
+/// [`Layout::output_label`]'s `NAME (output)`).
 pub fn band_channels(layout: &Layout) -> Vec<Named> {
-    layout
-        .outputs
-        .iter()
-        .cloned()
-        .chain(layout.velocities())
+    let outputs = layout.outputs.iter().enumerate().map(|(k, name)| Named {
+        name: layout.output_label(k),
+        unit: layout.unit(name).to_owned(),
+    });
+    let rates = layout
+        .velocities()
+        .into_iter()
         .chain(layout.accelerations())
         .map(|name| Named {
             unit: layout.unit(&name).to_owned(),
             name,
-        })
-        .collect()
+        });
+    outputs.chain(rates).collect()
 }
 
 /// The curves of `side` per band channel at the interior points: the prediction's rates are
@@ -205,5 +209,42 @@ impl<'a> Scorer<'a> {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::predict::prediction_channels;
+    use learn_fixtures::synthetic::vehicle_track_system;
+
+    /// Every band has a name of its own, a rate output told from the difference of its
+    /// displacement; each column `predict` writes reads the band of its own name.
+    #[test]
+    fn bands_are_named_apart_and_predict_reads_its_own() {
+        let system = vehicle_track_system();
+        let layout = Layout::of(&system)
+            .with_rate_outputs(&system, &["z_c_a".to_owned(), "z_t1_v".to_owned()])
+            .unwrap();
+        let bands = band_channels(&layout);
+        let names: Vec<&str> = bands.iter().map(|b| b.name.as_str()).collect();
+        let mut unique = names.clone();
+        unique.sort_unstable();
+        unique.dedup();
+        assert_eq!(unique.len(), names.len(), "{names:?}");
+        assert!(names.contains(&"z_c_a (output)") && names.contains(&"z_c_a"));
+        assert_eq!(
+            bands[names.iter().position(|&n| n == "z_c_a").unwrap()].unit,
+            "m/s^2"
+        );
+        let (o, d) = (layout.n_outputs(), layout.n_dofs());
+        for (column, source) in prediction_channels(&layout) {
+            let Some(band) = source.band(o, d) else {
+                continue;
+            };
+            // The network's own rate answers under the plain column name.
+            let plain = names[band].trim_end_matches(" (output)");
+            assert_eq!(plain, column, "{column} reads band {}", names[band]);
+        }
     }
 }
