@@ -133,6 +133,22 @@ pub struct Quantities {
     pub point_force: Vec<f64>,
 }
 
+impl Quantities {
+    /// Zeros for `elements` force elements and `points` moving points.
+    pub fn zeros(elements: usize, points: usize) -> Self {
+        Self {
+            point_x: vec![0.0; points],
+            point_w: vec![0.0; points],
+            point_rate: vec![0.0; points],
+            eta: vec![0.0; elements],
+            eta_rate: vec![0.0; elements],
+            deflection: vec![0.0; elements],
+            force: vec![0.0; elements],
+            point_force: vec![0.0; points],
+        }
+    }
+}
+
 /// What an observer sees at each step.
 #[derive(Debug)]
 pub struct StepView<'a> {
@@ -398,16 +414,7 @@ impl Engine {
             .unwrap_or(0);
         let max_modes = m.beams.iter().map(|b| b.modes).max().unwrap_or(0);
         Workspace {
-            q: Quantities {
-                point_x: vec![0.0; n_p],
-                point_w: vec![0.0; n_p],
-                point_rate: vec![0.0; n_p],
-                eta: vec![0.0; n_e],
-                eta_rate: vec![0.0; n_e],
-                deflection: vec![0.0; n_e],
-                force: vec![0.0; n_e],
-                point_force: vec![0.0; n_p],
-            },
+            q: Quantities::zeros(n_e, n_p),
             shapes: self
                 .beams
                 .iter()

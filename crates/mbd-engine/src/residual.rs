@@ -107,16 +107,7 @@ impl Equations {
     pub fn scratch(&self) -> Scratch {
         let (n_e, n_p) = (self.model.elements.len(), self.model.points.len());
         Scratch {
-            q: Quantities {
-                point_x: vec![0.0; n_p],
-                point_w: vec![0.0; n_p],
-                point_rate: vec![0.0; n_p],
-                eta: vec![0.0; n_e],
-                eta_rate: vec![0.0; n_e],
-                deflection: vec![0.0; n_e],
-                force: vec![0.0; n_e],
-                point_force: vec![0.0; n_p],
-            },
+            q: Quantities::zeros(n_e, n_p),
             total: vec![0.0; self.model.dof_mass.len()],
         }
     }

@@ -122,18 +122,7 @@ fn rigid_gershgorin(engine: &Engine, elements: &[(usize, f64)]) -> f64 {
     }
     let mut k = vec![vec![0.0; n]; n];
     for &(e, w) in elements {
-        let el = &m.elements[e];
-        let mut b = vec![0.0; n];
-        for (end, sign) in [(&el.from, 1.0), (&el.to, -1.0)] {
-            if let ModelEnd::Body(t) = end {
-                if let Some(z) = t.z {
-                    b[z] += sign;
-                }
-                if let Some((p, c)) = t.pitch {
-                    b[p] += sign * c;
-                }
-            }
-        }
+        let b = m.elements[e].incidence(n);
         for i in 0..n {
             for j in 0..n {
                 k[i][j] += w * b[i] * b[j];

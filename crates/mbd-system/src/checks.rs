@@ -9,7 +9,7 @@
 //! holds (a free body, or a pitch with all its elements at one point).
 
 use crate::diag::Diagnostics;
-use crate::model::{ModelEnd, ModelLaw};
+use crate::model::ModelLaw;
 use crate::reader::Field;
 use crate::schema::{RawDescription, RawLaw, RawLink, RawProfileKind};
 use crate::system::System;
@@ -164,17 +164,7 @@ pub fn nominal_checks(system: &System, raw: &RawDescription, diag: &mut Diagnost
             ModelLaw::Hertz { .. } => 1.0,
             ModelLaw::Table { .. } => 1.0,
         };
-        let mut b = vec![0.0; n];
-        for (end, sign) in [(&e.from, 1.0), (&e.to, -1.0)] {
-            if let ModelEnd::Body(t) = end {
-                if let Some(z) = t.z {
-                    b[z] += sign;
-                }
-                if let Some((p, c)) = t.pitch {
-                    b[p] += sign * c;
-                }
-            }
-        }
+        let b = e.incidence(n);
         for i in 0..n {
             for j in 0..n {
                 k[i][j] += stiffness * b[i] * b[j];

@@ -222,6 +222,26 @@ pub struct ModelElement {
     pub profile: Option<usize>,
 }
 
+impl ModelElement {
+    /// Its incidence on `n` rigid DOFs: `b` with `d = b . q + ...` for the rigid state `q`
+    /// (the body terms of the upper end counted +1, of the lower end -1, a pitch by its lever
+    /// arm), so a stiffness `k` adds `k b b^T` to the rigid stiffness matrix.
+    pub fn incidence(&self, n: usize) -> Vec<f64> {
+        let mut b = vec![0.0; n];
+        for (end, sign) in [(&self.from, 1.0), (&self.to, -1.0)] {
+            if let ModelEnd::Body(t) = end {
+                if let Some(z) = t.z {
+                    b[z] += sign;
+                }
+                if let Some((p, c)) = t.pitch {
+                    b[p] += sign * c;
+                }
+            }
+        }
+        b
+    }
+}
+
 /// A constant load in numbers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelLoad {
@@ -814,6 +834,40 @@ impl Checker<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The incidence is the deflection's gradient: `b . q` equals the upper end's
+    /// displacement minus the lower end's for any rigid state.
+    #[test]
+    fn incidence_is_the_deflection_gradient() {
+        let upper = PointTerms {
+            z: Some(0),
+            pitch: Some((1, -2.5)),
+        };
+        let lower = PointTerms {
+            z: Some(2),
+            pitch: None,
+        };
+        let el = |to| ModelElement {
+            law: ModelLaw::SpringDamper {
+                k: 1.0,
+                c: 0.0,
+                preload: 0.0,
+            },
+            from: ModelEnd::Body(upper),
+            to,
+            profile: None,
+        };
+        let q = [0.3, -0.02, 0.1, 7.0];
+        let dot = |b: Vec<f64>| b.iter().zip(q).map(|(b, q)| b * q).sum::<f64>();
+        let to_body = el(ModelEnd::Body(lower));
+        assert_eq!(to_body.incidence(4), [1.0, -2.5, -1.0, 0.0]);
+        assert!(
+            (dot(to_body.incidence(4)) - (upper.displacement(&q) - lower.displacement(&q))).abs()
+                < 1e-15
+        );
+        assert_eq!(el(ModelEnd::Ground).incidence(4), [1.0, -2.5, 0.0, 0.0]);
+        assert_eq!(el(ModelEnd::Moving(0)).incidence(2), [1.0, -2.5]);
+    }
 
     #[test]
     fn laws_forces_stiffness_and_static_deflection_agree() {
