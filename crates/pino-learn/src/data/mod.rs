@@ -14,8 +14,9 @@
 //! checks every record and accumulates the training split's normalisation statistics in f64
 //! (no time series kept); [`prepare`] makes a second pass storing each sample once:
 //! outputs `u [T, O]`, derivative targets `v, a [T, D]` (f32, z-scored), the excitations
-//! `eta [T, E]` (f64, physical, for the ODE residual), in a [`SeriesStore`] (memory, or a
-//! spill file past the memory budget), and the `P` parameters once per sample.
+//! `eta [T, E]` (f64, physical, for the ODE residual), in a
+//! [`SeriesStore`](crate::store::SeriesStore) (memory, or a spill file past the memory
+//! budget), and the `P` parameters once per sample.
 //! The `[T, 1 + E + P]` input block (`t`, excitations, parameters) is built only at batch
 //! time, with the same arithmetic as an all-in-memory f64 load, bitwise.
 //! [`load_split`] reads one split in a single pass (the `evaluate` stage).
@@ -24,14 +25,21 @@
 //! derivative targets `v, a [B, T-2, D]`, and f64 physical `params [B, P]`, `eta [B, T, E]`,
 //! `phi [B, Q]` (`Q` equations) and the force scale `f_scale [B]` for the ODE residual.
 
+mod batch;
+mod files;
+mod prepared;
+
+pub use batch::{make_batch, Batch};
+use files::{dataset_err, ParamsTable};
+pub use files::{read_params, read_weights, splits_present};
+pub use prepared::{input_block, load_split, prepare, Prepared};
+
 use crate::config::WindowConfig;
 use crate::layout::{Layout, Record};
 use crate::norm::{Normalisation, StatsAccumulator};
-use crate::store::{SampleSeries, SeriesStore};
 use crate::{Error, Result};
-use candle_core::{DType, Device, Tensor};
 use mbd_system::{Sampled, System};
-use pino_data::{read_parquet, schema};
+use pino_data::schema;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -42,15 +50,6 @@ pub use mbd_dataset::Split;
 /// unseen by every choice the training makes).
 fn trained_on(s: Split) -> bool {
     matches!(s, Split::Train | Split::Validation)
-}
-
-/// The message of an unknown split label.
-fn unknown_split(label: &str) -> String {
-    let allowed: Vec<String> = Split::ALL
-        .iter()
-        .map(|s| format!("`{}`", s.as_str()))
-        .collect();
-    format!("split `{label}`, allowed {}", allowed.join(", "))
 }
 
 /// One sample's identity: everything but its time series.
@@ -89,90 +88,6 @@ pub struct Dataset {
     window: WindowConfig,
     train_stats: Option<Normalisation>,
     info: DatasetInfo,
-}
-
-fn dataset_err(path: &Path, message: String) -> Error {
-    Error::Dataset {
-        path: path.to_owned(),
-        message,
-    }
-}
-
-/// Reads `params.parquet` ([`pino_data::records::read_params`]): `(sample_id, split, design)`
-/// rows, a design of `system` each, each split label known.
-pub fn read_params(path: &Path, system: &System) -> Result<Vec<(i64, Split, Sampled)>> {
-    let names = system.sampled_names();
-    let table = pino_data::records::read_params(std::slice::from_ref(&path.to_path_buf()), &names)?;
-    table
-        .ids
-        .into_iter()
-        .zip(&table.splits)
-        .zip(table.values)
-        .map(|((id, label), values)| {
-            let split = Split::from_label(label).ok_or_else(|| {
-                dataset_err(path, format!("sample {id}: {}", unknown_split(label)))
-            })?;
-            Ok((id, split, system.sampled_values(values)?))
-        })
-        .collect()
-}
-
-/// `params.parquet` read once, by sample id: what a streaming pass ([`scan`]) looks each
-/// record up in.
-#[derive(Debug)]
-struct ParamsTable {
-    /// The file (named in errors).
-    file: PathBuf,
-    /// Split and design per `sample_id`, ids ascending.
-    by_id: BTreeMap<i64, (Split, Sampled)>,
-}
-
-impl ParamsTable {
-    /// [`read_params`] of `file`, keyed by sample id.
-    fn read(file: &Path, system: &System) -> Result<Arc<Self>> {
-        let by_id = read_params(file, system)?
-            .into_iter()
-            .map(|(id, s, p)| (id, (s, p)))
-            .collect();
-        Ok(Arc::new(Self {
-            file: file.to_owned(),
-            by_id,
-        }))
-    }
-}
-
-/// Reads `weights.parquet` into `(sample_id, phi)` rows (the `phi_<dof>` of each equation of
-/// `layout`); every phi must be finite and > 0.
-pub fn read_weights(path: &Path, layout: &Layout) -> Result<Vec<(i64, Vec<f64>)>> {
-    let names = layout.phi_columns();
-    let mut cols = vec![schema::SAMPLE_ID];
-    cols.extend(names.iter().map(String::as_str));
-    let t = read_parquet(path, Some(&cols))?;
-    let ids = t.i64(schema::SAMPLE_ID)?;
-    let phis: Vec<&[f64]> = names
-        .iter()
-        .map(|n| t.f64(n))
-        .collect::<pino_data::Result<_>>()?;
-    let mut out = Vec::with_capacity(ids.len());
-    for (r, &id) in ids.iter().enumerate() {
-        let phi: Vec<f64> = phis.iter().map(|p| p[r]).collect();
-        if let Some(i) = phi.iter().position(|p| !(p.is_finite() && *p > 0.0)) {
-            return Err(dataset_err(
-                path,
-                format!(
-                    "sample {id}: {} = {} must be finite and > 0",
-                    names[i], phi[i]
-                ),
-            ));
-        }
-        out.push((id, phi));
-    }
-    Ok(out)
-}
-
-/// The splits present in `params.parquet`, without reading any simulation.
-pub fn splits_present(params_file: &Path) -> Result<BTreeSet<Split>> {
-    Ok(splits_of(params_file)?.into_iter().collect())
 }
 
 /// The first record's grid `(points, dt, t0, sample id)`, which every record must share.
@@ -565,364 +480,11 @@ impl Dataset {
     }
 }
 
-/// Physical input block `[T, 1 + E + P]`: `t`, the excitations (`eta` row-major `[T, E]`),
-/// the parameters.
-pub fn input_block(t: &[f64], eta: &[f64], params: &[f64]) -> Vec<f64> {
-    let e = if t.is_empty() { 0 } else { eta.len() / t.len() };
-    let mut out = Vec::with_capacity(t.len() * (1 + e + params.len()));
-    for (k, &tk) in t.iter().enumerate() {
-        out.push(tk);
-        out.extend_from_slice(&eta[e * k..e * k + e]);
-        out.extend_from_slice(params);
-    }
-    out
-}
-
-/// Samples prepared for batching, each stored once: z-scored f32 outputs `[T, O]` and
-/// derivative targets `[T, D]`, physical f64 excitations `[T, E]` (in a [`SeriesStore`], in
-/// memory or spilled to disk), the parameters once per sample (physical f64 and z-scored f32).
-/// Index `i` is the `i`-th sample of the dataset (or of the split) it was prepared from.
-#[derive(Debug)]
-pub struct Prepared {
-    layout: Layout,
-    t_points: usize,
-    /// z-scored window times `[T]`, shared by every sample.
-    t_n: Vec<f32>,
-    eta_mean: Vec<f64>,
-    eta_std: Vec<f64>,
-    ids: Vec<i64>,
-    params: Vec<Vec<f64>>,
-    params_n: Vec<Vec<f32>>,
-    phi: Vec<Vec<f64>>,
-    force_scale: Vec<f64>,
-    /// Record of each sample in the store.
-    slots: Vec<usize>,
-    store: SeriesStore,
-}
-
-/// Z-scores a window's column-major group into a row-major f32 block.
-fn zscore(cols: &[Vec<f64>], st: &crate::norm::ChannelStats) -> Vec<f32> {
-    let c = cols.len();
-    let rows = cols.first().map_or(0, Vec::len);
-    let mut out = vec![0.0f32; rows * c];
-    for (k, row) in out.chunks_exact_mut(c.max(1)).enumerate().take(rows) {
-        for (j, x) in row.iter_mut().enumerate().take(c) {
-            *x = ((cols[j][k] - st.mean[j]) / st.std[j]) as f32;
-        }
-    }
-    out
-}
-
-/// Builds a [`Prepared`] from streamed windows (any order), then orders it like a dataset.
-struct Builder<'a> {
-    norm: &'a Normalisation,
-    record: Record,
-    store: SeriesStore,
-    by_id: BTreeMap<i64, usize>,
-}
-
-impl<'a> Builder<'a> {
-    fn new(
-        norm: &'a Normalisation,
-        layout: &Layout,
-        t_points: usize,
-        expected: usize,
-    ) -> Result<Self> {
-        Ok(Self {
-            norm,
-            record: layout.training_record(),
-            store: SeriesStore::new(t_points, layout.series_shape(), expected)?,
-            by_id: BTreeMap::new(),
-        })
-    }
-
-    fn add(&mut self, s: &Sample, w: &[Vec<f64>]) -> Result<()> {
-        let (n, r) = (self.norm, &self.record);
-        let rows = w[0].len();
-        let ne = r.excitations.len();
-        let mut eta = vec![0.0; rows * ne];
-        for (k, row) in eta
-            .chunks_exact_mut(ne.max(1))
-            .enumerate()
-            .take(if ne == 0 { 0 } else { rows })
-        {
-            for (i, x) in row.iter_mut().enumerate() {
-                *x = w[r.excitations.start + i][k];
-            }
-        }
-        let slot = self.store.push(&SampleSeries {
-            u: zscore(&w[r.displacements.clone()], &n.outputs),
-            v: zscore(&w[r.velocities.clone()], &n.velocities),
-            a: zscore(&w[r.accelerations.clone()], &n.accelerations),
-            eta,
-        })?;
-        self.by_id.insert(s.id, slot);
-        Ok(())
-    }
-
-    /// The samples of `ds` in its order (its phi replaces the streamed one).
-    fn finish(self, ds: &Dataset) -> Prepared {
-        let Builder {
-            norm,
-            store,
-            mut by_id,
-            ..
-        } = self;
-        let ins = &norm.inputs;
-        let layout = ds.layout.clone();
-        let inputs = layout.input_ranges();
-        let n_eq = layout.equations.len();
-        let mut p = Prepared {
-            t_points: ds.t.len(),
-            t_n: ds
-                .t
-                .iter()
-                .map(|&x| ((x - ins.mean[inputs.time]) / ins.std[inputs.time]) as f32)
-                .collect(),
-            eta_mean: ins.mean[inputs.excitations.clone()].to_vec(),
-            eta_std: ins.std[inputs.excitations.clone()].to_vec(),
-            ids: Vec::with_capacity(ds.samples.len()),
-            params: Vec::with_capacity(ds.samples.len()),
-            params_n: Vec::with_capacity(ds.samples.len()),
-            phi: Vec::with_capacity(ds.samples.len()),
-            force_scale: Vec::with_capacity(ds.samples.len()),
-            slots: Vec::with_capacity(ds.samples.len()),
-            store,
-            layout,
-        };
-        for s in &ds.samples {
-            let slot = by_id.remove(&s.id).expect("every indexed sample streamed");
-            p.ids.push(s.id);
-            p.params.push(s.params.as_slice().to_vec());
-            p.params_n.push(
-                s.params
-                    .as_slice()
-                    .iter()
-                    .zip(inputs.params.clone())
-                    .map(|(v, k)| ((v - ins.mean[k]) / ins.std[k]) as f32)
-                    .collect(),
-            );
-            p.phi.push(s.phi.clone().unwrap_or_else(|| vec![1.0; n_eq]));
-            p.force_scale.push(s.force_scale.unwrap_or(1.0));
-            p.slots.push(slot);
-        }
-        p
-    }
-}
-
-impl Prepared {
-    /// Number of samples.
-    pub fn len(&self) -> usize {
-        self.ids.len()
-    }
-
-    /// Whether there are none.
-    pub fn is_empty(&self) -> bool {
-        self.ids.is_empty()
-    }
-
-    /// `sample_id` of sample `i`.
-    pub fn id(&self, i: usize) -> i64 {
-        self.ids[i]
-    }
-
-    /// Window length `T`.
-    pub fn t_points(&self) -> usize {
-        self.t_points
-    }
-
-    /// The layout.
-    pub fn layout(&self) -> &Layout {
-        &self.layout
-    }
-
-    /// The series of sample `i`: z-scored `u [T, O]`, `v, a [T, D]`, physical `eta [T, E]`.
-    pub fn series(&self, i: usize) -> Result<SampleSeries> {
-        self.store.get(self.slots[i])
-    }
-
-    /// Parameters of sample `i`.
-    pub fn params(&self, i: usize) -> &[f64] {
-        &self.params[i]
-    }
-
-    /// Force scale of sample `i` (N): its mean static contact force (1 when it has none).
-    pub fn force_scale(&self, i: usize) -> f64 {
-        self.force_scale[i]
-    }
-
-    /// Whether the series were spilled to disk (over the memory budget).
-    pub fn spilled(&self) -> bool {
-        self.store.spilled()
-    }
-
-    /// z-scored input block `[T, 1 + E + P]` of a sample with excitations `eta` and index `i`,
-    /// appended to `out`: the same values as `norm.inputs.normalise(&input_block(..))`.
-    fn push_inputs(&self, i: usize, eta: &[f64], out: &mut Vec<f32>) {
-        let pn = &self.params_n[i];
-        let ne = self.eta_mean.len();
-        for (k, &tn) in self.t_n.iter().enumerate() {
-            out.push(tn);
-            for j in 0..ne {
-                out.push(((eta[ne * k + j] - self.eta_mean[j]) / self.eta_std[j]) as f32);
-            }
-            out.extend_from_slice(pn);
-        }
-    }
-
-    /// Bytes held in memory by the samples (series in memory plus per-sample values).
-    pub fn heap_bytes(&self) -> usize {
-        let p = self.layout.params.len();
-        self.store.memory_bytes()
-            + 4 * self.t_n.len()
-            + self.ids.len() * (8 + p * 8 + p * 4 + self.layout.equations.len() * 8 + 16)
-    }
-}
-
-/// Loads and z-scores every sample of `ds` (a second streaming pass over its simulation
-/// files; the parameters are those the index pass read).
-pub fn prepare(ds: &Dataset, norm: &Normalisation) -> Result<Prepared> {
-    let mut b = Builder::new(norm, &ds.layout, ds.t.len(), ds.samples.len())?;
-    let wanted: BTreeSet<i64> = ds.samples.iter().map(|s| s.id).collect();
-    scan(
-        &ds.info,
-        &ds.params,
-        &ds.simulation_files,
-        None,
-        &ds.window,
-        &|id, _| wanted.contains(&id),
-        &mut |s, _, w| {
-            if wanted.contains(&s.id) {
-                b.add(s, w)?;
-            }
-            Ok(())
-        },
-    )?;
-    Ok(b.finish(ds))
-}
-
-/// Reads and z-scores (with `norm`, a model's statistics) only the samples of `split`, in one
-/// streaming pass: the dataset of that split and its prepared samples, index for index.
-pub fn load_split(
-    info: &DatasetInfo,
-    params_file: &Path,
-    simulation_files: &[PathBuf],
-    window: &WindowConfig,
-    split: Split,
-    norm: &Normalisation,
-) -> Result<(Dataset, Prepared)> {
-    let layout = info.layout();
-    let params = ParamsTable::read(params_file, &info.system)?;
-    let expected = params.by_id.values().filter(|(s, _)| *s == split).count();
-    let mut builder: Option<Builder> = None;
-    let ds = scan(
-        info,
-        &params,
-        simulation_files,
-        None,
-        window,
-        &|_, s| s == split,
-        &mut |s, t, w| {
-            if builder.is_none() {
-                builder = Some(Builder::new(norm, layout, t.len(), expected)?);
-            }
-            builder.as_mut().expect("created").add(s, w)
-        },
-    )?;
-    let b = match builder {
-        Some(b) => b,
-        None => Builder::new(norm, layout, ds.t.len(), 0)?,
-    };
-    let items = b.finish(&ds);
-    Ok((ds, items))
-}
-
-/// One batch of tensors (see the module doc for shapes).
-#[derive(Debug, Clone)]
-pub struct Batch {
-    /// Inputs `[B, T, 1 + E + P]` f32 z-scored.
-    pub x: Tensor,
-    /// Target outputs `[B, T, O]` f32 z-scored (solutions, then forces).
-    pub u: Tensor,
-    /// Target velocities at interior points `[B, T-2, D]` f32 z-scored.
-    pub v: Tensor,
-    /// Target accelerations at interior points `[B, T-2, D]` f32 z-scored.
-    pub a: Tensor,
-    /// Parameters `[B, P]` f64 physical.
-    pub params: Tensor,
-    /// Excitations `[B, T, E]` f64 physical (m).
-    pub eta: Tensor,
-    /// ODE magnitude weights `[B, Q]` f64 (ones when absent).
-    pub phi: Tensor,
-    /// The samples' force scales `[B]` f64 (N; 1 when absent).
-    pub f_scale: Tensor,
-    /// Index of each sample in its [`Prepared`].
-    pub index: Vec<usize>,
-}
-
-/// Builds the batch of `items[idx]` on `device`; the input blocks are assembled here.
-pub fn make_batch(
-    items: &Prepared,
-    idx: &[usize],
-    t_points: usize,
-    device: &Device,
-) -> Result<Batch> {
-    let b = idx.len();
-    let t = t_points;
-    debug_assert_eq!(t, items.t_points);
-    let l = &items.layout;
-    let (n_in, n_out, d, e) = (l.n_inputs(), l.n_outputs(), l.n_dofs(), l.n_excitations());
-    let mut x = Vec::with_capacity(b * t * n_in);
-    let mut u = Vec::with_capacity(b * t * n_out);
-    let mut v = Vec::with_capacity(b * (t - 2) * d);
-    let mut a = Vec::with_capacity(b * (t - 2) * d);
-    let mut eta = Vec::with_capacity(b * t * e);
-    for &i in idx {
-        let s = items.series(i)?;
-        items.push_inputs(i, &s.eta, &mut x);
-        u.extend_from_slice(&s.u);
-        v.extend_from_slice(&s.v[d..(t - 1) * d]);
-        a.extend_from_slice(&s.a[d..(t - 1) * d]);
-        eta.extend_from_slice(&s.eta);
-    }
-    let params: Vec<f64> = idx
-        .iter()
-        .flat_map(|&i| items.params[i].iter().copied())
-        .collect();
-    let phi: Vec<f64> = idx
-        .iter()
-        .flat_map(|&i| items.phi[i].iter().copied())
-        .collect();
-    let f_scale: Vec<f64> = idx.iter().map(|&i| items.force_scale[i]).collect();
-    let n_eq = l.equations.len();
-    Ok(Batch {
-        x: Tensor::from_vec(x, (b, t, n_in), device)?,
-        u: Tensor::from_vec(u, (b, t, n_out), device)?,
-        v: Tensor::from_vec(v, (b, t - 2, d), device)?,
-        a: Tensor::from_vec(a, (b, t - 2, d), device)?,
-        params: Tensor::from_vec(params, (b, l.params.len()), device)?,
-        eta: Tensor::from_vec(eta, (b, t, e), device)?,
-        phi: Tensor::from_vec(phi, (b, n_eq), device)?.to_dtype(DType::F64)?,
-        f_scale: Tensor::from_vec(f_scale, b, device)?,
-        index: idx.to_vec(),
-    })
-}
-
-/// The split label of every row of `params.parquet`.
-fn splits_of(params_file: &Path) -> Result<Vec<Split>> {
-    let t = read_parquet(params_file, Some(&[schema::SPLIT]))?;
-    t.str(schema::SPLIT)?
-        .iter()
-        .map(|label| {
-            Split::from_label(label).ok_or_else(|| dataset_err(params_file, unknown_split(label)))
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::synthetic::{write_dataset, SyntheticSpec};
+    use candle_core::Device;
     use pino_data::units::Units;
     use pino_data::{read_parquet, write_parquet, Column, Table};
 
