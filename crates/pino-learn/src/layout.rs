@@ -164,11 +164,8 @@ impl Layout {
     /// central difference of its displacement, reported under the plain name).
     pub fn output_label(&self, k: usize) -> String {
         let name = &self.outputs[k];
-        let dof_rate = |suffix: &str| {
-            name.strip_suffix(suffix)
-                .is_some_and(|dof| self.dofs.iter().any(|d| d == dof))
-        };
-        if self.rate_order(k).is_some() && (dof_rate("_v") || dof_rate("_a")) {
+        let dof_rate = self.velocities().contains(name) || self.accelerations().contains(name);
+        if self.rate_order(k).is_some() && dof_rate {
             format!("{name} (output)")
         } else {
             name.clone()
