@@ -242,7 +242,7 @@ impl PySystem {
     /// The engineering indices as columns: name, unit, limit (at the defaults), definition.
     fn _indices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let set = pino_indices::system::IndexSet::of(&self.system);
-        let cfg = pino_eval::indices_eval::eval_config().map_err(to_py)?;
+        let cfg = pino_eval::indices_eval::eval_config(&self.system).map_err(to_py)?;
         let cols = set.columns(&self.system);
         let limits = set.column_limits(&self.system, &cfg);
         let d = PyDict::new(py);

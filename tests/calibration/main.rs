@@ -40,7 +40,8 @@ fn dataset(dir: &Path, n_calibration: u64) -> PathBuf {
         n_validation: 3,
         n_test: 4,
         n_calibration,
-        duration: 0.2,
+        // The vehicle-track indices read from 0.2 s (`indices_from`): 0.1 s of them.
+        duration: 0.3,
         ..Default::default()
     };
     learn_fixtures::synthetic::write_dataset(&spec, &data).unwrap();

@@ -17,7 +17,7 @@ fn context(
     stage_context(dir, name, params, inputs, false)
 }
 
-/// A synthetic dataset of 4 + 2 + 2 samples of 0.2 s in `dir/data`: its spec and directory.
+/// A synthetic dataset of 4 + 2 + 2 samples of 0.3 s in `dir/data`: its spec and directory.
 fn tiny_dataset(dir: &Path) -> (learn_fixtures::synthetic::SyntheticSpec, PathBuf) {
     let data = dir.join("data");
     std::fs::create_dir_all(&data).unwrap();
@@ -25,7 +25,8 @@ fn tiny_dataset(dir: &Path) -> (learn_fixtures::synthetic::SyntheticSpec, PathBu
         n_train: 4,
         n_validation: 2,
         n_test: 2,
-        duration: 0.2,
+        // The vehicle-track indices read from 0.2 s (`indices_from`): 0.1 s of them.
+        duration: 0.3,
         ..Default::default()
     };
     learn_fixtures::synthetic::write_dataset(&spec, &data).unwrap();
@@ -193,8 +194,8 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     );
     assert!(o.status.success(), "{}", text(&o));
     let p = pino_data::read_parquet(&pred, None).unwrap();
-    // 180 window points -> 178 interior rows per set.
-    assert_eq!(p.num_rows(), 2 * 178);
+    // 270 window points -> 268 interior rows per set.
+    assert_eq!(p.num_rows(), 2 * 268);
     for c in [
         "set", "t", "z_c", "z_r4", "p_1", "p_4", "beta_c_v", "z_w4_a", "eta_1",
     ] {

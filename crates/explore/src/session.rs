@@ -647,7 +647,7 @@ impl Explorer {
                 &p.physical,
                 stored,
                 &p.eta,
-                meta.grid.dt,
+                &meta.grid,
                 &self.index_cfg,
             )
             .map(Some)

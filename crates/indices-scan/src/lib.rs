@@ -11,7 +11,8 @@
 //!    railway binding and the channels of the simple indices through the shared record reader
 //!    ([`pino_data::records::for_each_record`]), one group of whole samples at a time; checks
 //!    each record (a uniform grid, finite values in the window), fixes its evaluation window
-//!    (the first kept point `floor(f n)`, [`pino_indices::IndexConfig::first_index`]) and
+//!    (from the later of the start-up fraction's first point `floor(f n)` and the description's
+//!    `indices_from`, [`pino_indices::IndexConfig::first_row`]) and
 //!    computes everything of the car body (the Sperling index of the three car-body signals,
 //!    their peaks and sums of squares, in time order so the RMS has the same bits on every
 //!    run) and every simple index ([`pino_indices::system::simple`]).
@@ -222,7 +223,8 @@ pub struct Computed {
 }
 
 /// Both passes and the combination: the indices `system` defines of every sample of `files`
-/// (`params`: [`read_params`]).
+/// (`params`: [`read_params`]), with `cfg` for `system` ([`IndexConfig::of_system`]: from its
+/// `indices_from` on).
 pub fn compute_all(
     system: &System,
     params: &BTreeMap<i64, SampleInfo>,
@@ -236,6 +238,7 @@ pub fn compute_all(
             "no simulation.parquet given".into(),
         ));
     }
+    let cfg = &cfg.of_system(system);
     let set = IndexSet::of(system);
     check_columns(files, &needed_columns(&set))?;
     let pass = record_pass(files, system, &set, params, cfg, progress)?;

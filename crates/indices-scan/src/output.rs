@@ -51,9 +51,11 @@ pub fn to_table(system: &System, out: &Computed) -> pino_data::Result<Table> {
 
 /// The settings and column catalogue as JSON text (the `indices.json` beside the table): the
 /// description's name, the settings used, every index column of `system` (name, unit,
-/// definition; a simple index also its own `limit`) and the three bookkeeping columns.
+/// definition; a simple index also its own `limit`) and the three bookkeeping columns; the
+/// settings those of `system` ([`IndexConfig::of_system`]), as [`crate::compute_all`] uses.
 pub fn describe_json(system: &System, cfg: &IndexConfig) -> String {
     let params: serde_json::Map<String, serde_json::Value> = cfg
+        .of_system(system)
         .describe()
         .into_iter()
         .map(|(k, v)| (k.to_owned(), v.into()))

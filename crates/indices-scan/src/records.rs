@@ -104,7 +104,7 @@ fn indices_of(
     };
     let t = &r.columns[0];
     let n = t.len();
-    let first = cfg.first_index(n);
+    let first = cfg.first_row(t);
     if n < first + 2 {
         return Err(wrap(pino_indices::Error::TooShort {
             what: format!("record of {n} rows, window from row {first}"),

@@ -251,6 +251,13 @@ fn vtcd(edit: Edit) -> Fixture {
     fixture(compile("vtcd.yaml", VTCD), 1500, &railway_columns, edit)
 }
 
+/// [`vtcd`] read from t = 0 (`indices_from: 0`), for the tests of what the whole record holds.
+fn vtcd_from_start(edit: Edit) -> Fixture {
+    let mut system = compile("vtcd.yaml", VTCD);
+    system.indices_from = 0.0;
+    fixture(system, 1500, &railway_columns, edit)
+}
+
 fn cfg(fraction: f64) -> IndexConfig {
     IndexParams {
         window_start_fraction: fraction,
@@ -265,8 +272,11 @@ fn the_polars_aggregation_equals_the_plain_rust_fold() {
     let fx = vtcd(&|_, _| {});
     // The vehicle-track description samples the 14 parameters of the public schema, in order.
     assert_eq!(fx.system.sampled_names(), vehicle_track::PARAMETERS);
-    let c = cfg(0.1);
-    let got = fx.compute(&c).unwrap();
+    let got = fx.compute(&cfg(0.1)).unwrap();
+    // The stage reads from the later of the fraction's row 150 and the description's
+    // `indices_from` (0.2 s: row 200).
+    let c = cfg(0.1).of_system(&fx.system);
+    assert_eq!(fx.system.indices_from, 0.2);
     assert!(got.railway);
     assert_eq!(got.rows.len(), 5);
     assert_eq!(got.absent, 1);
@@ -286,8 +296,9 @@ fn the_polars_aggregation_equals_the_plain_rust_fold() {
             z_t_a: railway.z_t_a.each_ref().map(s),
             z_r: railway.z_r.each_ref().map(s),
         };
-        let first = c.first_index(1500);
-        assert_eq!(first, 150);
+        let times: Vec<f64> = (0..1500).map(|k| k as f64 * DT).collect();
+        let first = c.first_row(&times);
+        assert_eq!(first, 200);
         let win = rec.tail(first);
         let p = params_of(&fx.system, row.id);
         let value = |name: &str| p.get(name).unwrap();
@@ -611,7 +622,7 @@ fn a_missing_column_names_file_and_column() {
 #[test]
 fn nan_names_file_sample_and_column() {
     // In a signal of the polars pass (the row counted from the window's first, row 150) ...
-    let fx = vtcd(&|id, c| {
+    let fx = vtcd_from_start(&|id, c| {
         if id == 4 {
             c.iter_mut().find(|(n, _)| n == "z_r2").unwrap().1[900] = f64::NAN;
         }
@@ -626,7 +637,7 @@ fn nan_names_file_sample_and_column() {
         "{e}"
     );
     // ... in one of the record pass (with the row) ...
-    let fx = vtcd(&|id, c| {
+    let fx = vtcd_from_start(&|id, c| {
         if id == 1 {
             c.iter_mut().find(|(n, _)| n == "beta_c_a").unwrap().1[10] = f64::INFINITY;
         }
@@ -660,7 +671,7 @@ fn nan_names_file_sample_and_column() {
         "{e}"
     );
     // Before the window a NaN does not matter.
-    let fx = vtcd(&|id, c| {
+    let fx = vtcd_from_start(&|id, c| {
         if id == 1 {
             c.iter_mut().find(|(n, _)| n == "p_1").unwrap().1[10] = f64::NAN;
         }
@@ -671,7 +682,7 @@ fn nan_names_file_sample_and_column() {
 #[test]
 fn empty_and_inconsistent_samples_are_refused() {
     // A sample of one row.
-    let fx = vtcd(&|_, _| {});
+    let fx = vtcd_from_start(&|_, _| {});
     write_sim(
         &fx.files[1],
         &fx.system,
@@ -692,14 +703,14 @@ fn empty_and_inconsistent_samples_are_refused() {
         "{e}"
     );
     // Files without a single row.
-    let fx = vtcd(&|_, _| {});
+    let fx = vtcd_from_start(&|_, _| {});
     for f in &fx.files {
         write_sim(f, &fx.system, &[], 10, &railway_columns, &|_, _| {});
     }
     let e = fx.compute(&cfg(0.0)).unwrap_err().to_string();
     assert!(e.contains("no simulated sample"), "{e}");
     // A sample in two files; a sample twice in one file; a sample unknown to params.parquet.
-    let fx = vtcd(&|_, _| {});
+    let fx = vtcd_from_start(&|_, _| {});
     write_sim(
         &fx.files[1],
         &fx.system,

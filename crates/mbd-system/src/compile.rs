@@ -149,8 +149,8 @@ pub fn apply_overrides(
 ///
 /// The phases run in the order of the description's sections, so the problems are found in
 /// that order: the parameter table, bodies and their DOFs, beams, the moving frame, sensors,
-/// profiles, elements, loads, the columns (`outputs`), `indices`, `railway`, the parameters
-/// never used; then, when nothing was found, the checks at the nominal values.
+/// profiles, elements, loads, the columns (`outputs`), `indices`, `railway`, `indices_from`, the
+/// parameters never used; then, when nothing was found, the checks at the nominal values.
 pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
     let mut cx = Compiler::new(raw, diag);
     let parameters = cx.parameters();
@@ -171,6 +171,7 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
     let channels = stored_channels(&dofs, &table, raw, cx.diag);
     let indices = cx.indices(&channels);
     let railway = cx.railway(&channels);
+    let indices_from = cx.indices_from();
     cx.report_unused();
     let assembly = assemble(&bodies, &dofs, &elements, &loads);
     let sampled_list = parameters
@@ -196,6 +197,7 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
         channels,
         indices,
         railway,
+        indices_from,
         sampled_list,
     };
     if !diag.is_empty() {
@@ -790,6 +792,21 @@ impl<'a, 'd> Compiler<'a, 'd> {
             }
         }
         indices
+    }
+
+    /// `indices_from` (s): finite and at least 0; 0 when absent.
+    fn indices_from(&mut self) -> f64 {
+        match self.raw.indices_from {
+            Some((v, _)) if v.is_finite() && v >= 0.0 => v,
+            Some((v, pos)) => {
+                self.diag.push(
+                    pos,
+                    format!("indices_from: {v} is out of range: a time in s, finite and >= 0"),
+                );
+                0.0
+            }
+            None => 0.0,
+        }
     }
 
     /// The `railway` section: the stored columns its indices read and its two values (none

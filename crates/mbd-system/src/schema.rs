@@ -4,7 +4,7 @@
 //!
 //! Sections (`docs/systems.md` documents each field with its unit):
 //! `format` (1), `name`, `doc`, `parameters`, `bodies`, `beams`, `moving`, `sensors`,
-//! `profiles`, `elements`, `loads`, `outputs`, `indices`.
+//! `profiles`, `elements`, `loads`, `outputs`, `indices`, `railway`, `indices_from`.
 
 use crate::diag::Diagnostics;
 use crate::reader::{read_expr, read_names, read_pair, valid_name, Field, MapReader};
@@ -450,9 +450,11 @@ pub struct RawDescription {
     pub indices: Vec<RawIndex>,
     /// `railway`.
     pub railway: Option<RawRailway>,
+    /// `indices_from` (s) and where it was written.
+    pub indices_from: Option<(f64, Pos)>,
 }
 
-const TOP: [&str; 14] = [
+const TOP: [&str; 15] = [
     "format",
     "name",
     "doc",
@@ -467,6 +469,7 @@ const TOP: [&str; 14] = [
     "outputs",
     "indices",
     "railway",
+    "indices_from",
 ];
 
 /// Reads the whole description (the parse step); problems go to `diag`.
@@ -584,6 +587,7 @@ pub fn read(root: &Node, diag: &mut Diagnostics) -> RawDescription {
     if let Some(node) = top.get("railway") {
         out.railway = railway(node, diag);
     }
+    out.indices_from = top.number("indices_from", diag);
     top.finish(&TOP, diag);
     out
 }

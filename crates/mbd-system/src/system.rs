@@ -473,6 +473,9 @@ pub struct System {
     pub indices: Vec<Index>,
     /// The railway indices' binding, when declared.
     pub railway: Option<Railway>,
+    /// Time (s) from which the indices read a record (`indices_from`, default 0): what comes
+    /// before is the simulation's start-up, which the indices leave out.
+    pub indices_from: f64,
     /// The sampled parameters' names in declaration order, shared by every design of this
     /// system ([`crate::sampled::Sampled`]); fixed when the description is compiled.
     pub(crate) sampled_list: std::sync::Arc<[String]>,

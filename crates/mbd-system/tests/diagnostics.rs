@@ -691,3 +691,21 @@ fn a_profiles_interpolation_is_linear_by_default_cubic_on_request_and_nothing_el
         &["profiles.bumps", "unknown field `interpolation`"],
     );
 }
+
+#[test]
+fn indices_from_is_read_and_a_negative_or_non_numeric_time_is_refused_at_its_line() {
+    assert_eq!(
+        compiles(BASE).indices_from,
+        0.0,
+        "absent: every point is read"
+    );
+    let with = |v: &str| format!("{BASE}indices_from: {v}\n");
+    assert_eq!(compiles(&with("0.25")).indices_from, 0.25);
+    only(
+        &with("-0.1"),
+        "indices_from",
+        &["indices_from", "-0.1", ">= 0"],
+    );
+    let text = with("soon");
+    expect(&report(&text), &text, "indices_from", &["indices_from"]);
+}

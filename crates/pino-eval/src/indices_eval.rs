@@ -9,7 +9,8 @@
 //! central differences of the predicted displacement; an element's deflection is its
 //! kinematics over the predicted displacements and the exact profile; a profile is the exact
 //! input. Central differences exist on the interior points `1..T-1` of the window, so both
-//! sides use those points; the exact side reads the solver's values (its exact `_v` / `_a`,
+//! sides use those points (from the description's `indices_from` on, as the `indices` stage:
+//! [`IndexConfig::first_at`]); the exact side reads the solver's values (its exact `_v` / `_a`,
 //! and the stored column for anything the model does not carry). The truth row
 //! (algorithm 0) takes the exact displacements through the same reconstruction: the floor of
 //! every model. A column the prediction cannot give (a stored force of an element the model
@@ -27,7 +28,7 @@ use mbd_system::System;
 use pino_data::{schema, write_parquet, Column, Table};
 use pino_indices::system::IndexInfo;
 use pino_indices::{IndexConfig, IndexParams, IndexSet};
-use pino_learn::checkpoint::ModelMeta;
+use pino_learn::checkpoint::{ModelMeta, TimeGrid};
 use pino_learn::config::WindowConfig;
 use pino_learn::data::{Prepared, Split};
 use pino_learn::layout::Layout;
@@ -260,18 +261,20 @@ pub struct ModelIndices {
     pub direct: Vec<String>,
 }
 
-/// The settings `evaluate` uses: the stage's defaults with no start-up (the model's window
-/// already dropped it).
-pub fn eval_config() -> Result<IndexConfig> {
+/// The settings `evaluate` uses for the indices of `system`: the stage's defaults with no
+/// start-up fraction (the model's window already dropped it), from the description's
+/// `indices_from` on.
+pub fn eval_config(system: &System) -> Result<IndexConfig> {
     let params = IndexParams {
         window_start_fraction: 0.0,
         ..IndexParams::default()
     };
-    Ok(params.validate().map_err(|e| LearnError::OutOfRange {
+    let cfg = params.validate().map_err(|e| LearnError::OutOfRange {
         field: "indices".into(),
         value: e.to_string(),
         allowed: "valid index parameters".into(),
-    })?)
+    })?;
+    Ok(cfg.of_system(system))
 }
 
 /// The index inputs of one side of one sample, on the interior points `1..T-1`.
@@ -279,7 +282,8 @@ struct SampleColumns(BTreeMap<String, Vec<f64>>);
 
 /// Rebuilds the inputs from a prediction (`exact: None`) or reads the solver's values
 /// (`exact: Some(stored)`, the stored columns of sample `id`) of one sample with parameters
-/// `params`, physical series `side` and excitations `eta [T, E]`.
+/// `params`, physical series `side` and excitations `eta [T, E]` on `grid`, at the interior
+/// points from `first` on (at least 1).
 #[allow(clippy::too_many_arguments)]
 fn sample_columns(
     system: &System,
@@ -291,11 +295,23 @@ fn sample_columns(
     eta: &[f64],
     layout: &Layout,
     dt: f64,
+    first: usize,
 ) -> Result<SampleColumns> {
     let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
     let t = eta.len() / e.max(1);
     let t = if e == 0 { side.u.len() / o } else { t };
-    let interior = 1..t.saturating_sub(1);
+    let interior = first.max(1)..t.saturating_sub(1);
+    if interior.is_empty() && first > 1 {
+        return Err(LearnError::Dataset {
+            path: PathBuf::from(system.name.clone()),
+            message: format!(
+                "sample {id}: the description's `indices_from` leaves no point of the {t}-point \
+                 window, which ends before it: the indices need a longer run (or an earlier \
+                 `indices_from`)"
+            ),
+        }
+        .into());
+    }
     let map = ChannelMap::new(system, layout);
     let mut equations = None;
     let mut out = BTreeMap::new();
@@ -317,8 +333,8 @@ fn sample_columns(
                         // The solver's rates, stored at every window point.
                         interior.clone().map(|r| x[r * d + j]).collect()
                     } else {
-                        // Central differences, at the interior points only.
-                        x.chunks_exact(d).map(|row| row[j]).collect()
+                        // Central differences, at the interior points only (row r - 1).
+                        interior.clone().map(|r| x[(r - 1) * d + j]).collect()
                     }
                 }
                 Source::OutputRate(c, order) => interior
@@ -374,7 +390,8 @@ pub struct SampleIndices {
 
 impl IndexInputs {
     /// The indices of one sample (`params` its sampled parameters, `id` for messages) from
-    /// its physical series `side` and excitations `eta [T, E]` at spacing `dt`: rebuilt from a
+    /// its physical series `side` and excitations `eta [T, E]` on the window `grid`, from
+    /// `cfg`'s time on ([`IndexConfig::first_at`]): rebuilt from a
     /// prediction (`exact: None`, [`to_physical`]'s interior derivatives) or the solver's
     /// values (`exact: Some`, [`exact_physical`]'s and the stored columns).
     #[allow(clippy::too_many_arguments)]
@@ -387,10 +404,14 @@ impl IndexInputs {
         side: &Physical,
         exact: Option<&StoredColumns>,
         eta: &[f64],
-        dt: f64,
+        grid: &TimeGrid,
         cfg: &IndexConfig,
     ) -> Result<SampleIndices> {
-        let cols = sample_columns(system, self, params, id, side, exact, eta, layout, dt)?;
+        let dt = grid.dt;
+        let first = cfg.first_at(grid.t0, dt);
+        let cols = sample_columns(
+            system, self, params, id, side, exact, eta, layout, dt, first,
+        )?;
         let points = cols.0.values().next().map_or(0, Vec::len);
         let get = |name: &str| cols.0.get(name).cloned();
         let values = system.values(&system.sampled_values(params)?)?;
@@ -425,8 +446,7 @@ pub fn model_indices(
     stored: &StoredColumns,
     meta: &ModelMeta,
 ) -> Result<ModelIndices> {
-    let cfg = eval_config()?;
-    let dt = meta.grid.dt;
+    let cfg = eval_config(system)?;
     let layout = &meta.layout;
     let mut out = ModelIndices {
         algorithm: meta.train.algorithm.id(),
@@ -440,7 +460,9 @@ pub fn model_indices(
         let (ex, eta) = exact_physical(items, i, &meta.norm)?;
         let (params, id) = (items.params(i), items.id(i));
         let side = |phys: &Physical, exact: Option<&StoredColumns>| {
-            inputs.sample(system, layout, params, id, phys, exact, &eta, dt, &cfg)
+            inputs.sample(
+                system, layout, params, id, phys, exact, &eta, &meta.grid, &cfg,
+            )
         };
         out.exact.push(side(&ex, Some(stored))?.values);
         out.predicted.push(side(&preds[k], None)?.values);
@@ -912,6 +934,31 @@ mod tests {
             let d = t[reduction] - p[reduction];
             assert!((d - 5e3 / w).abs() < 1e-12, "{d}");
             assert_eq!(p[sperling], t[sperling]);
+        }
+        // The description reads from `indices_from` (0.2 s) on: a wheel unloaded to nothing
+        // before it leaves every index as it was; the same dip after it is the deepest.
+        assert_eq!(system.indices_from, 0.2);
+        let first = eval_config(&system)
+            .unwrap()
+            .first_at(meta.grid.t0, meta.grid.dt);
+        let at = meta.grid.t0 + first as f64 * meta.grid.dt;
+        assert!(first > 1 && (at - 0.2).abs() < 1e-9, "{first}: {at} s");
+        let dipped = |row: usize| -> Vec<Vec<f64>> {
+            let preds: Vec<Physical> = idx
+                .iter()
+                .map(|&i| {
+                    let mut ph = to_physical(&items.series(i).unwrap().u, &meta);
+                    ph.u[row * o + forces.start] = 0.0;
+                    ph
+                })
+                .collect();
+            model_indices(&system, &inputs, &items, &idx, &preds, &stored, &meta)
+                .unwrap()
+                .predicted
+        };
+        assert_eq!(dipped(first - 1), truth.predicted);
+        for p in dipped(first) {
+            assert_eq!(p[reduction], 1.0, "(W - 0) / W");
         }
         let out = dir.path().join("out");
         std::fs::create_dir_all(&out).unwrap();

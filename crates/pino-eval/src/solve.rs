@@ -122,7 +122,7 @@ pub fn exact_indices(
             &exact.values.physical,
             Some(&stored),
             &exact.values.eta,
-            predictor.meta.grid.dt,
+            &predictor.meta.grid,
             cfg,
         )
         .map_err(|e| SolveError::Indices(e.to_string()))

@@ -1,8 +1,11 @@
 //! Parameters of the indices (parse with serde, then [`IndexParams::validate`]): the start-up
 //! exclusion, the Sperling window, and the pass/fail limits, each with its default and where
-//! that default comes from.
+//! that default comes from. The description adds one setting of its own, the time its indices
+//! read from (`indices_from`, [`IndexConfig::of_system`]): a record's evaluation window starts
+//! at the later of the start-up fraction's first point and that time.
 
 use crate::{Error, Indices, Result};
+use mbd_system::System;
 use serde::{Deserialize, Serialize};
 
 /// Taper applied to each Sperling segment before its spectrum.
@@ -156,6 +159,9 @@ impl Default for IndexParams {
 pub struct IndexConfig {
     /// Start-up fraction dropped, in `[0, 1)`.
     pub window_start_fraction: f64,
+    /// Time (s) before which no point is read: the description's `indices_from`
+    /// ([`IndexConfig::of_system`]); 0 until then.
+    pub from_s: f64,
     /// Sperling settings (segment > 0 when given, `f_min_hz` > 0).
     pub sperling: SperlingParams,
     /// Limits (each > 0 when given).
@@ -205,6 +211,7 @@ impl IndexParams {
         }
         Ok(IndexConfig {
             window_start_fraction: f,
+            from_s: 0.0,
             sperling: self.sperling,
             limits: self.limits,
         })
@@ -212,9 +219,39 @@ impl IndexParams {
 }
 
 impl IndexConfig {
-    /// Index of the first point of the evaluation window of a record of `n` points.
+    /// These settings for the indices of `system`: its `indices_from` applied.
+    pub fn of_system(self, system: &System) -> Self {
+        Self {
+            from_s: system.indices_from,
+            ..self
+        }
+    }
+
+    /// Index of the first point the start-up fraction keeps of a record of `n` points.
     pub fn first_index(&self, n: usize) -> usize {
         (self.window_start_fraction * n as f64).floor() as usize
+    }
+
+    /// Index of the first point at or after `from_s` of the grid `t0 + k dt` (0 when `t0`
+    /// already is; a point within a millionth of a step before it counts as on it).
+    pub fn first_at(&self, t0: f64, dt: f64) -> usize {
+        let k = ((self.from_s - t0) / dt - 1e-6).ceil();
+        if k > 0.0 {
+            k as usize
+        } else {
+            0
+        }
+    }
+
+    /// Index of the first point of the evaluation window of the record sampled at times `t`
+    /// (a uniform grid): the later of [`IndexConfig::first_index`] and
+    /// [`IndexConfig::first_at`].
+    pub fn first_row(&self, t: &[f64]) -> usize {
+        let by_time = match t {
+            [a, b, ..] => self.first_at(*a, b - a),
+            _ => 0,
+        };
+        self.first_index(t.len()).max(by_time)
     }
 
     /// The settings as `(name, value)` text pairs, for the artifacts that state them.
@@ -225,6 +262,7 @@ impl IndexConfig {
                 "window_start_fraction",
                 self.window_start_fraction.to_string(),
             ),
+            ("indices_from_s", self.from_s.to_string()),
             (
                 "sperling.segment_s",
                 self.sperling

@@ -234,6 +234,47 @@ fn the_window_drops_the_start_up() {
 }
 
 #[test]
+fn the_window_starts_at_the_later_of_the_fraction_and_indices_from() {
+    let at = |fraction: f64, from_s: f64| IndexConfig {
+        from_s,
+        ..IndexParams {
+            window_start_fraction: fraction,
+            ..IndexParams::default()
+        }
+        .validate()
+        .unwrap()
+    };
+    // A record of 1000 points at 1 ms from t = 0 (times summed as a solver stores them).
+    let t: Vec<f64> = (0..1000).map(|k| k as f64 * 1e-3).collect();
+    assert_eq!(at(0.0, 0.0).first_row(&t), 0);
+    assert_eq!(at(0.0, 0.2).first_row(&t), 200, "t = 0.2 s is read");
+    assert_eq!(at(0.0, 0.2005).first_row(&t), 201);
+    assert_eq!(
+        at(0.5, 0.2).first_row(&t),
+        500,
+        "the fraction's start is later"
+    );
+    assert_eq!(at(0.1, 0.2).first_row(&t), 200, "indices_from is later");
+    // A window that starts later (a model's, from t0 = 0.05 s): 150 points to 0.2 s.
+    assert_eq!(at(0.0, 0.2).first_at(0.05, 1e-3), 150);
+    assert_eq!(
+        at(0.0, 0.2).first_at(0.3, 1e-3),
+        0,
+        "the window starts after it"
+    );
+    // Dropping those points drops the extremes before them, as the fraction does.
+    let h = Hand::new();
+    let rec = h.record();
+    let first = at(0.0, 0.5).first_at(0.0, rec.dt);
+    assert_eq!(first, 500);
+    let ix = compute(&rec.tail(first), L_C, W, &cfg()).unwrap();
+    assert!(rel(ix.wheel_load_reduction_rate, 0.5) < 1e-15);
+    assert!(at(0.0, 0.2)
+        .describe()
+        .contains(&("indices_from_s", "0.2".to_owned())));
+}
+
+#[test]
 fn limits_name_what_fails() {
     let h = Hand::new();
     let ix = compute(&h.record(), L_C, W, &cfg()).unwrap();

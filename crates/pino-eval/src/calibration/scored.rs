@@ -125,7 +125,7 @@ impl<'a> Scorer<'a> {
             meta: run.meta,
             inputs,
             probe: ResidualProbe::new(system, &run.meta.layout),
-            cfg: eval_config()?,
+            cfg: eval_config(system)?,
         })
     }
 
@@ -158,7 +158,7 @@ impl<'a> Scorer<'a> {
                     phys,
                     stored,
                     &eta,
-                    dt,
+                    &meta.grid,
                     &self.cfg,
                 )
             };

@@ -570,9 +570,10 @@ impl Predictor {
     }
 
     /// The settings of the indices of a prediction: the `indices` stage's defaults with no
-    /// start-up (the model's window already excludes it).
+    /// start-up fraction (the model's window already excludes it), from the description's
+    /// `indices_from` on.
     pub fn index_config(&self) -> Result<IndexConfig> {
-        eval_config()
+        eval_config(&self.system)
     }
 
     /// The index columns of the model's system.
@@ -633,7 +634,7 @@ impl Predictor {
             &p.physical,
             None,
             &p.eta,
-            self.meta.grid.dt,
+            &self.meta.grid,
             cfg,
         )
     }
@@ -1009,7 +1010,7 @@ mod tests {
             n_train: 2,
             n_validation: 1,
             n_test: 1,
-            duration: 0.2,
+            duration: 0.3,
             ..Default::default()
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
