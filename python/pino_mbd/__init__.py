@@ -115,6 +115,12 @@ class System:
         return self._native.design_parameters
 
     @property
+    def indices_from(self) -> float:
+        """The time (s) from which every index reads a record (the description's
+        ``indices_from``, docs/systems.md): the points before it are the simulation's start-up."""
+        return self._native.indices_from
+
+    @property
     def parameters(self) -> pl.DataFrame:
         """Every parameter: name, unit (as declared), kind (sampled / fixed / derived),
         nominal (a sampled one's default, a fixed one's value), min and max (a sampled one's

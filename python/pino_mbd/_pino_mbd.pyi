@@ -40,6 +40,9 @@ class System:
     def hash(self) -> str:
         """Content hash of the description and its overrides."""
     @property
+    def indices_from(self) -> float:
+        """The time (s) from which every index reads a record."""
+    @property
     def design_parameters(self) -> list[str]:
         """The sampled parameters, in value order."""
     def _parameters(self) -> dict[str, list[Any]]:

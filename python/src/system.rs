@@ -170,6 +170,12 @@ impl PySystem {
         self.source.hash()
     }
 
+    /// The time (s) from which every index reads a record (`indices_from`).
+    #[getter]
+    fn indices_from(&self) -> f64 {
+        self.system.indices_from
+    }
+
     /// The design parameters (sampled), in value order.
     #[getter]
     fn design_parameters(&self) -> Vec<String> {

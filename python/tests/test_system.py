@@ -15,6 +15,7 @@ import polars as pl
 import pytest
 
 import pino_mbd
+from conftest import ROOT
 
 
 def test_the_quarter_car_is_described_with_units(quarter_car: pino_mbd.System) -> None:
@@ -29,6 +30,9 @@ def test_the_quarter_car_is_described_with_units(quarter_car: pino_mbd.System) -
     assert cols["t"] == "s" and cols["z_s"] == "m" and cols["z_s_a"] == "m/s^2" and cols["f_tyre"] == "N"
     ix = quarter_car.indices.filter(pl.col("name") == "suspension_travel").row(0, named=True)
     assert (ix["unit"], ix["limit"]) == ("m", 0.08)
+    # The quarter car's indices read the whole record; the vehicle track's from 0.2 s.
+    assert quarter_car.indices_from == 0.0
+    assert pino_mbd.System.load(ROOT / "systems" / "vtcd.yaml").indices_from == 0.2
 
 
 def test_a_bad_description_raises_with_file_and_line(tmp_path) -> None:
