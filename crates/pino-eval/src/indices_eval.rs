@@ -277,13 +277,14 @@ pub fn eval_config(system: &System) -> Result<IndexConfig> {
     Ok(cfg.of_system(system))
 }
 
-/// The index inputs of one side of one sample, on the interior points `1..T-1`.
+/// The index inputs of one side of one sample, on the interior points `1..T-1` the indices
+/// read ([`IndexConfig::first_at`]).
 struct SampleColumns(BTreeMap<String, Vec<f64>>);
 
 /// Rebuilds the inputs from a prediction (`exact: None`) or reads the solver's values
 /// (`exact: Some(stored)`, the stored columns of sample `id`) of one sample with parameters
-/// `params`, physical series `side` and excitations `eta [T, E]` on `grid`, at the interior
-/// points from `first` on (at least 1).
+/// `params`, physical series `side` and excitations `eta [T, E]` at spacing `dt`, on the
+/// interior points from `first` on (at least 1).
 #[allow(clippy::too_many_arguments)]
 fn sample_columns(
     system: &System,
