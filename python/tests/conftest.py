@@ -5,9 +5,11 @@ the package's answers with the files those stages and the ``predict`` command wr
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 import shutil
+import types
 from pathlib import Path
 
 import pytest
@@ -78,3 +80,11 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
 @pytest.fixture(scope="session")
 def quarter_car() -> pino_mbd.System:
     return pino_mbd.System.load(ROOT / "systems" / "quarter-car.yaml")
+
+
+def script(file: str) -> types.ModuleType:
+    """The research script `scripts/<file>` loaded as a module (its name has dashes)."""
+    spec = importlib.util.spec_from_file_location(file.removesuffix(".py").replace("-", "_"), ROOT / "scripts" / file)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -4,19 +4,14 @@ own) and the ensemble of one model twice is that model."""
 
 from __future__ import annotations
 
-import importlib.util
-
 import pytest
 
-from conftest import ROOT
+from conftest import script as load_script
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def script():
-    spec = importlib.util.spec_from_file_location("force_error_study", ROOT / "scripts" / "force-error-study.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("force-error-study.py")
 
 
 def test_band_split_and_ensemble(run, script):

@@ -5,21 +5,17 @@ difference at all), and with a lead the start's trace in the wheel's acceleratio
 from __future__ import annotations
 
 import argparse
-import importlib.util
 
 import numpy as np
 import pytest
 
 import pino_mbd
-from conftest import ROOT
+from conftest import script as load_script
 
 
 @pytest.fixture(scope="module")
 def script():
-    spec = importlib.util.spec_from_file_location("startup_transient", ROOT / "scripts" / "startup-transient.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("startup-transient.py")
 
 
 def controls(lead: float) -> argparse.Namespace:
