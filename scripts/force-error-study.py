@@ -13,8 +13,8 @@ columns of kind `force`: `p_1..p_4` of the vehicle track), and for each model, t
 mean of all of them (an ensemble), the script prints:
 
 - the unloading rate `(W - min P) / W` over the force columns (the wheel-load reduction rate
-  of the vehicle track), the record's mean force standing for the static load W (it
-  reproduces `evaluate`'s figure), as a mean relative error, with the mean signed error of the
+  of the vehicle track), read from the description's `indices_from` as the indices are, the
+  record's mean force standing for the static load W (it reproduces `evaluate`'s figure), as a mean relative error, with the mean signed error of the
   deepest unloading and of the peak (positive / negative: predicted extremes too shallow);
 - that error with the error above / below `--cut-hz` (default 51 Hz, the default network's
   highest mode) taken out, i.e. what a perfect model of that band alone would give;
@@ -36,9 +36,9 @@ import polars as pl
 
 import pino_mbd as pm
 
-def reduction(p: np.ndarray, w: float) -> float:
-    """`(W - min_t,wheels P) / W`."""
-    return (w - p.min()) / w
+def reduction(p: np.ndarray, w: float, read: np.ndarray) -> float:
+    """`(W - min_t,wheels P) / W` over the rows `read` (the description's `indices_from` on)."""
+    return (w - p[read].min()) / w
 
 
 def band_removed(truth: np.ndarray, pred: np.ndarray, dt: float, keep_below: bool, cut: float) -> np.ndarray:
@@ -80,7 +80,8 @@ def study(
     params = pl.read_parquet(os.path.join(pipe.dir("sample-params", "params.parquet"), "params.parquet"))
     profiles = os.path.join(pipe.dir("irregularity", "irregularity.parquet"), "irregularity.parquet")
     sims = [p for p in pipe.show("simulate") if p.endswith("simulation.parquet")]
-    kinds = recorded_system(os.path.join(os.path.dirname(sims[0]), "system.json")).columns
+    system = recorded_system(os.path.join(os.path.dirname(sims[0]), "system.json"))
+    kinds = system.columns
     forces = kinds.filter(pl.col("kind") == "force")["name"].to_list()
     excitations = kinds.filter(pl.col("kind") == "excitation")["name"].to_list()
     ids = params.filter(pl.col("split") == split)["sample_id"].sort().to_list()
@@ -113,18 +114,19 @@ def study(
             s = on_times(truth[i], per[i])
             y, f = s.select(forces).to_numpy(), per[i].select(forces).to_numpy()
             dt = float(s["t"][1] - s["t"][0])
+            read = s["t"].to_numpy() >= system.indices_from - 0.5 * dt
             w = float(y.mean())
             rows.append(
                 (
-                    reduction(y, w),
-                    reduction(f, w),
-                    reduction(band_removed(y, f, dt, True, cut_hz), w),
-                    reduction(band_removed(y, f, dt, False, cut_hz), w),
-                    f.min() - y.min(),
-                    f.max() - y.max(),
+                    reduction(y, w, read),
+                    reduction(f, w, read),
+                    reduction(band_removed(y, f, dt, True, cut_hz), w, read),
+                    reduction(band_removed(y, f, dt, False, cut_hz), w, read),
+                    f[read].min() - y[read].min(),
+                    f[read].max() - y[read].max(),
                 )
             )
-            fir.append((i, lagged(s.select(excitations).to_numpy(), lags), (f - y)[lags : len(y) - lags], y, f, w))
+            fir.append((i, lagged(s.select(excitations).to_numpy(), lags), (f - y)[lags : len(y) - lags], y, f, w, read))
         r = np.array(rows)
         rel = lambda k: 100 * float(np.mean(np.abs(r[:, k] - r[:, 0]) / r[:, 0]))  # noqa: E731
         fit = [x for x in fir if x[0] % 2 == 0]
@@ -133,12 +135,12 @@ def study(
         e = np.concatenate([x[2] for x in held])
         left = e - np.concatenate([x[1] @ coef for x in held])
         before, after = [], []
-        for _, x, _, y, f, w in held:
+        for _, x, _, y, f, w, read in held:
             g = f.copy()
             g[lags : len(f) - lags] -= x @ coef
-            rt = reduction(y, w)
-            before.append(abs(reduction(f, w) - rt) / rt)
-            after.append(abs(reduction(g, w) - rt) / rt)
+            rt = reduction(y, w, read)
+            before.append(abs(reduction(f, w, read) - rt) / rt)
+            after.append(abs(reduction(g, w, read) - rt) / rt)
         out[name] = {
             "samples": len(ids),
             "reduction_error_pct": rel(1),
