@@ -1,0 +1,372 @@
+//! The stored columns: the table of every column a description can store (the naming rule
+//! of `docs/systems.md`, clashes reported), the ones it stores, and the sections that name
+//! them (`indices`, `indices_from`, `railway`).
+
+use super::*;
+
+impl Compiler<'_, '_> {
+    /// The indices: a stored column, a statistic, `subtract` and `divide` (an index with a
+    /// part missing or failed is left out; the system is refused anyway).
+    pub(super) fn indices(&mut self, channels: &[Channel]) -> Vec<Index> {
+        let mut indices = Vec::new();
+        for ix in &self.raw.indices {
+            let what = format!("indices.{}", ix.name);
+            let channel = ix.channel.as_ref().and_then(|named| {
+                stored_column(channels, named, &format!("{what}.channel"), self.diag)
+            });
+            let subtract =
+                self.scope
+                    .opt(&ix.subtract, 0.0, &format!("{what}.subtract"), self.diag);
+            let divide = self
+                .scope
+                .opt(&ix.divide, 1.0, &format!("{what}.divide"), self.diag);
+            if let (Some(channel), Some((stat, _)), Some(subtract), Some(divide)) =
+                (channel, ix.stat, subtract, divide)
+            {
+                let unit = ix.unit.clone().unwrap_or_else(|| {
+                    if matches!(divide, Expr::Num(v) if v == 1.0) {
+                        channels[channel].unit.clone()
+                    } else {
+                        "1".to_owned()
+                    }
+                });
+                indices.push(Index {
+                    name: ix.name.clone(),
+                    doc: ix.doc.clone(),
+                    stat,
+                    channel,
+                    subtract,
+                    divide,
+                    unit,
+                    limit: ix.limit,
+                });
+            }
+        }
+        indices
+    }
+
+    /// `indices_from` (s): finite and at least 0; 0 when absent.
+    pub(super) fn indices_from(&mut self) -> f64 {
+        match self.raw.indices_from {
+            Some((v, _)) if v.is_finite() && v >= 0.0 => v,
+            Some((v, pos)) => {
+                self.diag.push(
+                    pos,
+                    format!("indices_from: {v} is out of range: a time in s, finite and >= 0"),
+                );
+                0.0
+            }
+            None => 0.0,
+        }
+    }
+
+    /// The `railway` section: the stored columns its indices read and its two values (none
+    /// where a part fails).
+    pub(super) fn railway(&mut self, channels: &[Channel]) -> Option<Railway> {
+        let r = self.raw.railway.as_ref()?;
+        let diag = &mut *self.diag;
+        let mut cols = |v: &[Named]| -> Option<Vec<usize>> {
+            v.iter()
+                .map(|n| stored_column(channels, n, "railway", diag))
+                .collect()
+        };
+        let contact_forces = cols(&r.contact_forces);
+        let bogies = cols(&r.bogies);
+        let rails = cols(&r.rails);
+        let (cv, cp) = match &r.car_body {
+            Some((v, p)) => (
+                stored_column(channels, v, "railway", self.diag),
+                stored_column(channels, p, "railway", self.diag),
+            ),
+            None => (None, None),
+        };
+        let half_length = self
+            .scope
+            .req(&r.half_length, "railway.half_length", self.diag);
+        let static_wheel_load =
+            self.scope
+                .req(&r.static_wheel_load, "railway.static_wheel_load", self.diag);
+        Some(Railway {
+            contact_forces: contact_forces?,
+            car_body_vertical: cv?,
+            car_body_pitch: cp?,
+            half_length: half_length?,
+            bogies: bogies?,
+            rails: rails?,
+            static_wheel_load: static_wheel_load?,
+        })
+    }
+}
+
+/// The index of the stored column `name` (`what` in the message when there is none).
+fn stored_column(
+    channels: &[Channel],
+    (name, pos): &Named,
+    what: &str,
+    diag: &mut Diagnostics,
+) -> Option<usize> {
+    let found = channels.iter().position(|c| &c.name == name);
+    if found.is_none() {
+        diag.push(
+            *pos,
+            format!(
+                "{what}: `{name}` is not a stored column; stored: {}",
+                names(channels.iter().map(|c| &c.name))
+            ),
+        );
+    }
+    found
+}
+
+/// Every column the naming rule gives (stored or not): name, unit, quantity, role.
+pub(super) fn channel_table(
+    bodies: &[Body],
+    dofs: &[Dof],
+    points: &[MovingPoint],
+    sensors: &[Sensor],
+    elements: &[Element],
+    raw: &RawDescription,
+    diag: &mut Diagnostics,
+) -> Vec<Channel> {
+    let mut out = Vec::new();
+    // Who produces each column, for messages: what and its name.
+    let mut owners: Vec<(&str, &str)> = Vec::new();
+    let mut push = |name: String, unit: &str, quantity: Quantity, role: Role| {
+        out.push(Channel {
+            name,
+            unit: unit.to_owned(),
+            quantity,
+            role,
+        });
+        owners.push(match quantity {
+            Quantity::Dof(i, _) => ("body", bodies[dofs[i].body].name.as_str()),
+            Quantity::Point(i) => ("moving point", points[i].name.as_str()),
+            Quantity::Sensor(i, _) => ("sensor", sensors[i].name.as_str()),
+            Quantity::Excitation(i)
+            | Quantity::ExcitationRate(i)
+            | Quantity::Force(i)
+            | Quantity::Deflection(i) => ("element", elements[i].name.as_str()),
+        });
+    };
+    for (i, d) in dofs.iter().enumerate() {
+        let (u, v, a) = match d.kind {
+            DofKind::Z => ("m", "m/s", "m/s^2"),
+            DofKind::Pitch => ("rad", "rad/s", "rad/s^2"),
+        };
+        push(d.name.clone(), u, Quantity::Dof(i, 0), Role::Solution);
+        push(
+            format!("{}_v", d.name),
+            v,
+            Quantity::Dof(i, 1),
+            Role::Velocity,
+        );
+        push(
+            format!("{}_a", d.name),
+            a,
+            Quantity::Dof(i, 2),
+            Role::Acceleration,
+        );
+    }
+    for (i, p) in points.iter().enumerate() {
+        if p.beam.is_some() {
+            push(
+                format!("z_{}", p.name),
+                "m",
+                Quantity::Point(i),
+                Role::Solution,
+            );
+        }
+    }
+    for (i, s) in sensors.iter().enumerate() {
+        push(
+            format!("z_{}", s.name),
+            "m",
+            Quantity::Sensor(i, 0),
+            Role::Solution,
+        );
+        push(
+            format!("z_{}_v", s.name),
+            "m/s",
+            Quantity::Sensor(i, 1),
+            Role::Other,
+        );
+        push(
+            format!("z_{}_a", s.name),
+            "m/s^2",
+            Quantity::Sensor(i, 2),
+            Role::Other,
+        );
+    }
+    for (i, e) in elements.iter().enumerate() {
+        if e.profile.is_some() {
+            push(
+                format!("eta_{}", e.name),
+                "m",
+                Quantity::Excitation(i),
+                Role::Excitation,
+            );
+        }
+        if e.reads_profile_rate() {
+            push(
+                format!("eta_{}_v", e.name),
+                "m/s",
+                Quantity::ExcitationRate(i),
+                Role::Excitation,
+            );
+        }
+        let sym = if e.law.is_contact() { "p" } else { "f" };
+        push(
+            format!("{sym}_{}", e.name),
+            "N",
+            Quantity::Force(i),
+            Role::Force,
+        );
+        push(
+            format!("d_{}", e.name),
+            "m",
+            Quantity::Deflection(i),
+            Role::Other,
+        );
+    }
+    report_column_clashes(&out, &owners, raw, diag);
+    out
+}
+
+/// Unique column names: a collision (a body `c_v` beside a body `c`, a sensor named like a
+/// body) is reported once per pair of producers (`owners`, one per column), at the later
+/// declaration.
+fn report_column_clashes(
+    columns: &[Channel],
+    owners: &[(&str, &str)],
+    raw: &RawDescription,
+    diag: &mut Diagnostics,
+) {
+    let mut seen: HashMap<&str, usize> = HashMap::new();
+    let mut clashes: Vec<(usize, usize, Vec<&str>)> = Vec::new();
+    for (i, c) in columns.iter().enumerate() {
+        match seen.get(c.name.as_str()) {
+            Some(&j) => match clashes
+                .iter_mut()
+                .find(|(a, b, _)| owners[*a] == owners[j] && owners[*b] == owners[i])
+            {
+                Some(clash) => clash.2.push(&c.name),
+                None => clashes.push((j, i, vec![&c.name])),
+            },
+            None => {
+                seen.insert(&c.name, i);
+            }
+        }
+    }
+    for (j, i, columns) in clashes {
+        let (first, second) = (owners[j], owners[i]);
+        let also = if columns.len() > 1 {
+            let rest: Vec<String> = columns[1..].iter().map(|c| format!("`{c}`")).collect();
+            format!(" (also {})", rest.join(", "))
+        } else {
+            String::new()
+        };
+        diag.push(
+            declared(raw, first).max(declared(raw, second)),
+            format!(
+                "column `{}` is produced by both {} `{}` and {} `{}`{also}; rename one of them",
+                columns[0], first.0, first.1, second.0, second.1
+            ),
+        );
+    }
+}
+
+/// Where the producer of a column (its kind and name) is declared.
+fn declared(raw: &RawDescription, (kind, name): (&str, &str)) -> Pos {
+    let found = match kind {
+        "body" => raw.bodies.iter().find(|b| b.name == name).map(|b| b.pos),
+        "moving point" => raw
+            .moving
+            .as_ref()
+            .and_then(|m| m.points.iter().find(|p| p.name == name).map(|p| p.pos)),
+        "sensor" => raw.sensors.iter().find(|s| s.name == name).map(|s| s.pos),
+        _ => raw.elements.iter().find(|e| e.name == name).map(|e| e.pos),
+    };
+    found.unwrap_or_default()
+}
+
+/// The stored columns: DOF displacements, the listed displacement columns, DOF velocities,
+/// DOF accelerations, then the other listed columns in their listed order, each profile column
+/// `eta_<element>` followed by its rate `eta_<element>_v` where the element reads it.
+pub(super) fn stored_channels(
+    dofs: &[Dof],
+    table: &[Channel],
+    raw: &RawDescription,
+    diag: &mut Diagnostics,
+) -> Vec<Channel> {
+    let find = |name: &str| table.iter().find(|c| c.name == name);
+    let mut listed: Vec<&Channel> = Vec::new();
+    for (name, pos) in &raw.outputs {
+        match find(name) {
+            Some(c) if matches!(c.quantity, Quantity::Dof(..)) => {
+                diag.push(
+                    *pos,
+                    format!("outputs: `{name}` is a body DOF column, always stored"),
+                );
+            }
+            Some(c) if matches!(c.quantity, Quantity::ExcitationRate(..)) => {
+                diag.push(
+                    *pos,
+                    format!(
+                        "outputs: `{name}` is a profile's rate, stored with its profile's column; list that one"
+                    ),
+                );
+            }
+            Some(c) => {
+                if listed.iter().any(|l| l.name == c.name) {
+                    diag.push(*pos, format!("outputs: `{name}` listed twice"));
+                } else {
+                    listed.push(c);
+                }
+            }
+            None => {
+                let available: Vec<&str> = table
+                    .iter()
+                    .filter(|c| {
+                        !matches!(c.quantity, Quantity::Dof(..) | Quantity::ExcitationRate(..))
+                    })
+                    .map(|c| c.name.as_str())
+                    .collect();
+                diag.push(
+                    *pos,
+                    format!(
+                        "outputs: no column `{name}`; available: {}",
+                        available.join(", ")
+                    ),
+                );
+            }
+        }
+    }
+    let mut out = Vec::new();
+    let dof_col = |i: usize, d: u8| {
+        table
+            .iter()
+            .find(|c| c.quantity == Quantity::Dof(i, d))
+            .cloned()
+    };
+    out.extend((0..dofs.len()).filter_map(|i| dof_col(i, 0)));
+    out.extend(
+        listed
+            .iter()
+            .filter(|c| c.role == Role::Solution)
+            .map(|c| (*c).clone()),
+    );
+    out.extend((0..dofs.len()).filter_map(|i| dof_col(i, 1)));
+    out.extend((0..dofs.len()).filter_map(|i| dof_col(i, 2)));
+    for c in listed.iter().filter(|c| c.role != Role::Solution) {
+        out.push((*c).clone());
+        if let Quantity::Excitation(e) = c.quantity {
+            out.extend(
+                table
+                    .iter()
+                    .find(|r| r.quantity == Quantity::ExcitationRate(e))
+                    .cloned(),
+            );
+        }
+    }
+    out
+}
