@@ -17,7 +17,7 @@
 //! does not predict, ...) is named in the report and the indices are left out.
 //!
 //! Written: `indices_errors.{parquet,csv,md}` (per index and algorithm: mean and worst absolute
-//! error, mean and worst relative error (%), Pearson correlation), `indices_samples.parquet`
+//! error with the worst sample's id, mean and worst relative error (%), Pearson correlation), `indices_samples.parquet`
 //! (per algorithm and sample: predicted and exact) and `indices_scatter_<index>.png`.
 
 use crate::eval::{alg_label, exact_physical, to_physical, Physical};
@@ -700,7 +700,7 @@ fn errors_markdown(
     }
     for m in models {
         md.push_str(&format!(
-            " alg {}: mean abs / worst abs / mean rel % / r |",
+            " alg {}: mean abs / worst abs (sample) / mean rel % / worst rel % / r |",
             m.algorithm
         ));
     }
@@ -724,10 +724,12 @@ fn errors_markdown(
         for m in 0..models.len() {
             let s = &stats[m * columns.len() + k];
             md.push_str(&format!(
-                " {} / {} / {:.2} / {:.3} |",
+                " {} / {} ({}) / {:.2} / {:.2} / {:.3} |",
                 cell(s.mean_abs),
                 cell(s.worst_abs),
+                s.worst_abs_sample,
                 s.mean_rel_pct,
+                s.worst_rel_pct,
                 s.correlation
             ));
         }
@@ -979,9 +981,18 @@ mod tests {
                 .join(format!("indices_scatter_{}.png", c.name))
                 .is_file());
         }
+        assert!(out.join("indices_samples.parquet").is_file());
+        // The table for people names each worst sample beside the mean, as the file does.
+        let md = std::fs::read_to_string(out.join("indices_errors.md")).unwrap();
+        let worst_id = table.i64("worst_abs_sample_id").unwrap()[peak_row];
+        let peak_line = md
+            .lines()
+            .find(|l| l.starts_with("| `peak_wheel_rail_force_kn`"))
+            .unwrap();
         assert!(
-            out.join("indices_errors.md").is_file()
-                && out.join("indices_samples.parquet").is_file()
+            md.contains("worst abs (sample) / mean rel % / worst rel %")
+                && peak_line.contains(&format!(" 5.0000 / 5.0000 ({worst_id}) / ")),
+            "{md}"
         );
     }
 
