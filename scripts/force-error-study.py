@@ -14,8 +14,9 @@ mean of all of them (an ensemble), the script prints:
 
 - the unloading rate `(W - min P) / W` over the force columns (the wheel-load reduction rate
   of the vehicle track), read from the description's `indices_from` as the indices are, the
-  record's mean force standing for the static load W (it reproduces `evaluate`'s figure), as a mean relative error, with the mean signed error of the
-  deepest unloading and of the peak (positive / negative: predicted extremes too shallow);
+  record's mean force standing for the static load W (it reproduces `evaluate`'s figure), as a
+  mean relative error, with the mean signed error of the deepest unloading and of the peak
+  (positive / negative: predicted extremes too shallow);
 - that error with the error above / below `--cut-hz` (default 51 Hz, the default network's
   highest mode) taken out, i.e. what a perfect model of that band alone would give;
 - the share of the force error's variance a linear filter of the excitations (`--lags` steps

@@ -17,8 +17,8 @@
 //! does not predict, ...) is named in the report and the indices are left out.
 //!
 //! Written: `indices_errors.{parquet,csv,md}` (per index and algorithm: mean and worst absolute
-//! error with the worst sample's id, mean and worst relative error (%), Pearson correlation), `indices_samples.parquet`
-//! (per algorithm and sample: predicted and exact) and `indices_scatter_<index>.png`.
+//! error and the worst sample, mean and worst relative error (%), Pearson correlation),
+//! `indices_samples.parquet` (per algorithm and sample: predicted, exact), `indices_scatter_<index>.png`.
 
 use crate::eval::{alg_label, exact_physical, to_physical, Physical};
 use crate::Result;
