@@ -18,7 +18,8 @@
 //!
 //! Written: `indices_errors.{parquet,csv,md}` (per index and algorithm: mean and worst absolute
 //! error and the worst sample, mean and worst relative error (%), Pearson correlation),
-//! `indices_samples.parquet` (per algorithm and sample: predicted, exact), `indices_scatter_<index>.png`.
+//! `indices_samples.parquet` (per algorithm and sample: predicted and exact) and
+//! `indices_scatter_<index>.png`.
 
 use crate::eval::{alg_label, exact_physical, to_physical, Physical};
 use crate::Result;
