@@ -1,0 +1,474 @@
+//! The description as written: every section read from the YAML tree into typed records that
+//! keep their positions (the *parse* step). Names are not resolved here (that is
+//! [`crate::compile`]); only the shape of each entry is checked.
+//!
+//! Sections (`docs/systems.md` documents each field with its unit):
+//! `format` (1), `name`, `doc`, `parameters`, `bodies`, `beams`, `moving`, `sensors`,
+//! `profiles`, `elements`, `loads`, `outputs`, `indices`, `railway`, `indices_from`.
+//!
+//! This module holds the records; `sections` the readers, one per section, and [`read`] the
+//! whole description.
+
+mod sections;
+
+pub use sections::read;
+
+use crate::reader::Field;
+use crate::system::Interpolation;
+use crate::yaml::Pos;
+
+/// The only format version this crate reads.
+pub const FORMAT_VERSION: i64 = 1;
+
+/// A name and where it was written.
+pub type Named = (String, Pos);
+
+/// How a parameter gets its value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamKind {
+    /// Drawn per sample, uniform on `range`; `nominal` is the default of a design.
+    Sampled {
+        /// Default value.
+        nominal: f64,
+        /// `[min, max]`.
+        range: [f64; 2],
+    },
+    /// One value for every sample.
+    Fixed {
+        /// The value.
+        value: f64,
+    },
+    /// Computed from other parameters.
+    Derived {
+        /// The expression.
+        expr: Field,
+    },
+}
+
+/// One entry of `parameters`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawParameter {
+    /// Its name.
+    pub name: String,
+    /// Where it was declared.
+    pub pos: Pos,
+    /// Unit, as text (`kg`, `N s/m`, `1`).
+    pub unit: String,
+    /// What it is.
+    pub doc: Option<String>,
+    /// Sampled, fixed or derived.
+    pub kind: ParamKind,
+}
+
+/// Kinds of rigid-body degrees of freedom.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum DofKind {
+    /// Vertical displacement (m, positive downward); column `z_<body>`.
+    Z,
+    /// Pitch rotation (rad, positive nose-up: the front rises); column `beta_<body>`.
+    Pitch,
+}
+
+impl DofKind {
+    /// The keyword in `dofs:`.
+    pub fn keyword(self) -> &'static str {
+        match self {
+            DofKind::Z => "z",
+            DofKind::Pitch => "pitch",
+        }
+    }
+
+    /// The column prefix (`z`, `beta`).
+    pub fn symbol(self) -> &'static str {
+        match self {
+            DofKind::Z => "z",
+            DofKind::Pitch => "beta",
+        }
+    }
+
+    /// Unit of the displacement.
+    pub fn unit(self) -> &'static str {
+        match self {
+            DofKind::Z => "m",
+            DofKind::Pitch => "rad",
+        }
+    }
+}
+
+/// One entry of `bodies`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawBody {
+    /// Its name.
+    pub name: String,
+    /// Where.
+    pub pos: Pos,
+    /// Mass (kg).
+    pub mass: Option<Field>,
+    /// Pitch inertia about the centre (kg m^2), with a pitch DOF.
+    pub inertia: Option<Field>,
+    /// Its DOFs in the order written.
+    pub dofs: Vec<(DofKind, Pos)>,
+    /// Attachment points: name and longitudinal position `x` (m, forward positive).
+    pub points: Vec<(String, Pos, Field)>,
+    /// What it is.
+    pub doc: Option<String>,
+}
+
+/// A spring-damper link of a support chain (`k` N/m, `c` N s/m).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawLink {
+    /// Where.
+    pub pos: Pos,
+    /// Stiffness.
+    pub k: Option<Field>,
+    /// Damping (absent: 0).
+    pub c: Option<Field>,
+}
+
+/// One level of a support chain.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawLevel {
+    /// Name (sleeper, ballast, ...).
+    pub name: String,
+    /// Where.
+    pub pos: Pos,
+    /// Mass per support (kg).
+    pub mass: Option<Field>,
+    /// The link to the level above (the beam for the first level).
+    pub link: Option<RawLink>,
+    /// Shear coupling to the neighbouring supports' masses of this level.
+    pub shear: Option<RawLink>,
+}
+
+/// Discrete periodic supports of a beam.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawSupports {
+    /// Where.
+    pub pos: Pos,
+    /// Spacing (m).
+    pub spacing: Option<Field>,
+    /// Number of supports.
+    pub count: Option<Field>,
+    /// Position of the first support (m, default 0).
+    pub first: Option<Field>,
+    /// Levels from the beam down.
+    pub levels: Vec<RawLevel>,
+    /// The link of the last level to the ground.
+    pub ground: Option<RawLink>,
+}
+
+/// What a point off a beam sees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outside {
+    /// A point may never leave the beam (checked before the run).
+    Refuse,
+    /// Off the beam, a point rests on rigid level ground (approach embankments of a bridge).
+    Rigid,
+}
+
+/// One entry of `beams`: a simply supported Euler-Bernoulli beam by modal superposition.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawBeam {
+    /// Name.
+    pub name: String,
+    /// Where.
+    pub pos: Pos,
+    /// Length `L` (m).
+    pub length: Option<Field>,
+    /// Number of modes.
+    pub modes: Option<Field>,
+    /// Mass per length (kg/m).
+    pub mass_per_length: Option<Field>,
+    /// Bending stiffness `E I` (N m^2).
+    pub bending_stiffness: Option<Field>,
+    /// Modal damping ratio (every mode), default 0.
+    pub damping_ratio: Option<Field>,
+    /// Points off the beam.
+    pub outside: Outside,
+    /// Discrete supports.
+    pub supports: Option<RawSupports>,
+    /// What it is.
+    pub doc: Option<String>,
+}
+
+/// A point of the moving frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawMovingPoint {
+    /// Name.
+    pub name: String,
+    /// Where.
+    pub pos: Pos,
+    /// The beam it runs on, or `ground`.
+    pub on: Option<Named>,
+    /// Position relative to the frame origin (m, forward positive).
+    pub offset: Option<Field>,
+}
+
+/// The frame moving along the beams at `speed`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawMoving {
+    /// Where.
+    pub pos: Pos,
+    /// Speed (m/s).
+    pub speed: Option<Field>,
+    /// Its points.
+    pub points: Vec<RawMovingPoint>,
+}
+
+/// A fixed measuring point on a beam.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawSensor {
+    /// Name.
+    pub name: String,
+    /// Where.
+    pub pos: Pos,
+    /// The beam.
+    pub on: Option<Named>,
+    /// Position along the beam (m).
+    pub x: Option<Field>,
+}
+
+/// A displacement spectrum, piecewise power law `S(f) = a f^-n` from `f_start` (1/m).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawPsdSegment {
+    /// Lower bound (1/m).
+    pub f_start: f64,
+    /// Coefficient, in the profile's `unit`.
+    pub a: f64,
+    /// Exponent.
+    pub n: f64,
+}
+
+/// How a profile is made.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RawProfileKind {
+    /// One random-phase realisation per sample, from a spectrum.
+    Generated {
+        /// Segments, their coefficient in mm^2 m (`a` scaled from `unit`).
+        segments: Vec<RawPsdSegment>,
+        /// Wavelength band `[min, max]` (m).
+        wavelengths: [f64; 2],
+        /// `interpolation:` (default linear) and where it is given (the profile's entry when
+        /// not).
+        interpolation: (Interpolation, Pos),
+    },
+    /// `eta(x) = amplitude sin(2 pi x / wavelength + phase)` (an analytic test input).
+    Harmonic {
+        /// Amplitude (m).
+        amplitude: Option<Field>,
+        /// Wavelength (m).
+        wavelength: Option<Field>,
+        /// Phase (rad), default 0.
+        phase: Option<Field>,
+    },
+}
+
+/// One entry of `profiles`: a vertical profile along the track or road (m, positive downward:
+/// a dip).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawProfile {
+    /// Name.
+    pub name: String,
+    /// Where.
+    pub pos: Pos,
+    /// How it is made.
+    pub kind: RawProfileKind,
+}
+
+/// The force law of an element.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RawLaw {
+    /// `f = preload + k d + c d'` (Kelvin-Voigt, two-sided).
+    SpringDamper {
+        /// Stiffness (N/m).
+        k: Option<Field>,
+        /// Damping (N s/m), default 0.
+        c: Option<Field>,
+        /// Force at zero deflection (N), default 0.
+        preload: Option<Field>,
+    },
+    /// `f = (d / g)^exponent` for `d > 0`, else 0 (one-sided Hertz contact).
+    Hertz {
+        /// Contact constant `G` (m/N^(1/exponent)).
+        g: Option<Field>,
+        /// Exponent, default 3/2.
+        exponent: Option<Field>,
+    },
+    /// `f = table(d) + c d'`, the table linearly interpolated and extended by its end slopes.
+    Table {
+        /// Deflections (m), increasing.
+        deflection: Vec<Field>,
+        /// Forces (N).
+        force: Vec<Field>,
+        /// Damping (N s/m), default 0.
+        c: Option<Field>,
+    },
+}
+
+impl RawLaw {
+    /// The keyword of `kind:`.
+    pub fn keyword(&self) -> &'static str {
+        match self {
+            RawLaw::SpringDamper { .. } => "spring_damper",
+            RawLaw::Hertz { .. } => "hertz",
+            RawLaw::Table { .. } => "table",
+        }
+    }
+}
+
+/// One entry of `elements`: a force element between two points, compression positive when
+/// `from` moves down relative to `to`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawElement {
+    /// Name.
+    pub name: String,
+    /// Where.
+    pub pos: Pos,
+    /// Its law.
+    pub law: RawLaw,
+    /// Upper end (a body point).
+    pub from: Option<Named>,
+    /// Lower end (a body point, a moving point or `ground`).
+    pub to: Option<Named>,
+    /// A profile under the lower end (a moving point).
+    pub profile: Option<Named>,
+}
+
+/// One entry of `loads`: a constant downward force (N) at a point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawLoad {
+    /// Name.
+    pub name: String,
+    /// Where.
+    pub pos: Pos,
+    /// The point (a body point or a moving point).
+    pub at: Option<Named>,
+    /// Force (N, downward positive).
+    pub force: Option<Field>,
+}
+
+/// Statistics an index takes of a channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IndexStat {
+    /// Largest value.
+    Max,
+    /// Smallest value.
+    Min,
+    /// Largest absolute value.
+    MaxAbs,
+    /// Root mean square.
+    Rms,
+    /// Largest minus smallest.
+    PeakToPeak,
+}
+
+impl IndexStat {
+    /// Keyword in the description.
+    pub fn keyword(self) -> &'static str {
+        match self {
+            IndexStat::Max => "max",
+            IndexStat::Min => "min",
+            IndexStat::MaxAbs => "max_abs",
+            IndexStat::Rms => "rms",
+            IndexStat::PeakToPeak => "peak_to_peak",
+        }
+    }
+
+    /// Every statistic.
+    pub const ALL: [IndexStat; 5] = [
+        IndexStat::Max,
+        IndexStat::Min,
+        IndexStat::MaxAbs,
+        IndexStat::Rms,
+        IndexStat::PeakToPeak,
+    ];
+}
+
+/// One entry of `indices`: `stat(channel - subtract) / divide`, with an optional upper limit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawIndex {
+    /// Name (a column of the indices tables).
+    pub name: String,
+    /// Where.
+    pub pos: Pos,
+    /// The statistic.
+    pub stat: Option<(IndexStat, Pos)>,
+    /// The channel (a stored column name).
+    pub channel: Option<Named>,
+    /// A value subtracted from the channel first (a static level), default 0.
+    pub subtract: Option<Field>,
+    /// A value the statistic is divided by (a static reference), default 1.
+    pub divide: Option<Field>,
+    /// Unit of the index, as text.
+    pub unit: Option<String>,
+    /// Pass when the index is at most this.
+    pub limit: Option<f64>,
+    /// What it is.
+    pub doc: Option<String>,
+}
+
+/// The `railway` section: which stored columns the railway indices (`docs/indices.md`: wheel
+/// loads, Sperling, car-body and bogie accelerations, rail deflection) read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawRailway {
+    /// Where.
+    pub pos: Pos,
+    /// The contact force of each wheel, front to rear (4).
+    pub contact_forces: Vec<Named>,
+    /// The car body's vertical and pitch accelerations.
+    pub car_body: Option<(Named, Named)>,
+    /// Half the distance between the bogie centres (m), for the accelerations over them.
+    pub half_length: Option<Field>,
+    /// Each bogie frame's vertical acceleration, front then rear (2).
+    pub bogies: Vec<Named>,
+    /// The rail deflection under each wheel (4).
+    pub rails: Vec<Named>,
+    /// The static wheel load (N) the wheel load reduction refers to.
+    pub static_wheel_load: Option<Field>,
+}
+
+/// A description as written.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RawDescription {
+    /// The system's name.
+    pub name: String,
+    /// What it is.
+    pub doc: Option<String>,
+    /// `parameters`.
+    pub parameters: Vec<RawParameter>,
+    /// `bodies`.
+    pub bodies: Vec<RawBody>,
+    /// `beams`.
+    pub beams: Vec<RawBeam>,
+    /// `moving`.
+    pub moving: Option<RawMoving>,
+    /// `sensors`.
+    pub sensors: Vec<RawSensor>,
+    /// `profiles`.
+    pub profiles: Vec<RawProfile>,
+    /// `elements`.
+    pub elements: Vec<RawElement>,
+    /// `loads`.
+    pub loads: Vec<RawLoad>,
+    /// `outputs`: stored channels beyond the body DOFs.
+    pub outputs: Vec<Named>,
+    /// `indices`.
+    pub indices: Vec<RawIndex>,
+    /// `railway`.
+    pub railway: Option<RawRailway>,
+    /// `indices_from` (s) and where it was written.
+    pub indices_from: Option<(f64, Pos)>,
+}
+
+/// ISO 8608 road classes: `G_d(n0)` (m^3) at `n0 = 0.1` cycles/m, the geometric mean of each
+/// class; `G_d(n) = G_d(n0) (n / n0)^-2`.
+pub const ISO8608_CLASSES: [(&str, f64); 8] = [
+    ("A", 16e-6),
+    ("B", 64e-6),
+    ("C", 256e-6),
+    ("D", 1024e-6),
+    ("E", 4096e-6),
+    ("F", 16384e-6),
+    ("G", 65536e-6),
+    ("H", 262144e-6),
+];
