@@ -235,12 +235,7 @@ impl IndexConfig {
     /// Index of the first point at or after `from_s` of the grid `t0 + k dt` (0 when `t0`
     /// already is; a point within a millionth of a step before it counts as on it).
     pub fn first_at(&self, t0: f64, dt: f64) -> usize {
-        let k = ((self.from_s - t0) / dt - 1e-6).ceil();
-        if k > 0.0 {
-            k as usize
-        } else {
-            0
-        }
+        ((self.from_s - t0) / dt - 1e-6).ceil().max(0.0) as usize
     }
 
     /// Index of the first point of the evaluation window of the record sampled at times `t`
