@@ -6,6 +6,9 @@
 //! second order (~4x per halving). Measured by self-convergence, with no reference solution:
 //! `e(dt) = max |y_dt - y_{dt/2}|` over the stored rows (same output times) of each compared
 //! column, and the ratio `e(dt) / e(dt/2)` (4 for second order, 2 for first).
+//!
+//! Without a damper the jumps still act: a stiff contact rings at each one, which the last test
+//! measures on the vehicle track's wheels.
 
 use crate::common::{column, config, engine, generated_profile, load, system_text};
 use mbd_engine::{Route, StartMode};
@@ -177,5 +180,88 @@ fn a_damper_on_a_cubic_profile_keeps_second_order() {
                 );
             }
         }
+    }
+}
+
+/// The share of `x`'s variance at or above `f_min` (Hz), as a fraction of its standard
+/// deviation: `sqrt(sum_{f >= f_min} |X_f|^2 / sum_{f > 0} |X_f|^2)` of the mean-removed record
+/// sampled every `dt` (s), by Parseval.
+fn high_band_share(x: &[f64], dt: f64, f_min: f64) -> f64 {
+    use rustfft::{num_complex::Complex, FftPlanner};
+    let n = x.len();
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let mut spectrum: Vec<Complex<f64>> = x.iter().map(|&v| Complex::new(v - mean, 0.0)).collect();
+    FftPlanner::new().plan_fft_forward(n).process(&mut spectrum);
+    let (mut high, mut all) = (0.0, 0.0);
+    for (k, c) in spectrum.iter().enumerate().skip(1).take(n / 2) {
+        let power = c.norm_sqr();
+        all += power;
+        if k as f64 / (n as f64 * dt) >= f_min {
+            high += power;
+        }
+    }
+    (high / all).sqrt()
+}
+
+/// A Hertz contact, with no damper, still feels the slope jumps of a linear profile: met every
+/// `dx / v` (at 325 km/h over 0.1 m, 903 Hz), each is a kick near the wheel's ringing on its
+/// contact spring, and the contact forces ring. The vehicle track's nominal design on the
+/// pipeline's first profile (seed 1, 0.1 m, the full track), stored at every step (10 kHz) for
+/// 1 s and read from 0.2 s: with `linear` the forces above 300 Hz are 7.6-9.5 % of their standard
+/// deviation (the track's band ends at 49 Hz); the cubic spline through the same points leaves
+/// 0.3-1.8 % (BENCHMARKS.md, "The wheel-load reduction rate, third look": 9-10 % against
+/// 0.2-2.4 % on four profiles over 1.8 s), while the forces' spread is the same.
+#[test]
+fn a_linear_profile_rings_the_wheels_at_its_point_rate() {
+    let text = system_text("vtcd.yaml");
+    let (dt, duration, from) = (1e-4, 1.0, 0.2);
+    let mut shares = Vec::new();
+    let mut spreads = Vec::new();
+    for interpolation in ["linear", "cubic"] {
+        let system = load(&with_interpolation(&text, interpolation), &[]);
+        let profile = generated_profile(&system, 1, 0.1, 540.0, 0);
+        let cfg = config(duration, dt, 1, StartMode::Equilibrium, 20.0);
+        let run = engine(
+            &system,
+            &system.nominal(),
+            &cfg,
+            vec![Some(profile)],
+            Route::Fast,
+        )
+        .run()
+        .unwrap();
+        let first = (from / dt).round() as usize;
+        let (share, spread): (Vec<f64>, Vec<f64>) = ["p_1", "p_2", "p_3", "p_4"]
+            .iter()
+            .map(|name| {
+                let p = &column(&system, &run, name)[first..];
+                let mean = p.iter().sum::<f64>() / p.len() as f64;
+                let std =
+                    (p.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / p.len() as f64).sqrt();
+                (high_band_share(p, dt, 300.0), std)
+            })
+            .unzip();
+        println!("{interpolation}: above 300 Hz {share:.4?} of the spread {spread:.0?} N");
+        shares.push(share);
+        spreads.push(spread);
+    }
+    for wheel in 0..4 {
+        let (linear, cubic) = (shares[0][wheel], shares[1][wheel]);
+        assert!(
+            linear > 0.04,
+            "wheel {}: linear rings {linear:.4}",
+            wheel + 1
+        );
+        assert!(
+            cubic < linear / 3.0,
+            "wheel {}: cubic {cubic:.4} against linear {linear:.4}",
+            wheel + 1
+        );
+        let (a, b) = (spreads[0][wheel], spreads[1][wheel]);
+        assert!(
+            (a - b).abs() < 0.05 * a,
+            "wheel {}: spread {a} against {b} N",
+            wheel + 1
+        );
     }
 }
