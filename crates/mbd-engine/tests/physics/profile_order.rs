@@ -183,14 +183,15 @@ fn a_damper_on_a_cubic_profile_keeps_second_order() {
     }
 }
 
-/// The share of `x`'s variance at or above `f_min` (Hz), as a fraction of its standard
-/// deviation: `sqrt(sum_{f >= f_min} |X_f|^2 / sum_{f > 0} |X_f|^2)` of the mean-removed record
-/// sampled every `dt` (s), by Parseval.
-fn high_band_share(x: &[f64], dt: f64, f_min: f64) -> f64 {
+/// The standard deviation of `x` (sampled every `dt` s) and the share of it at or above `f_min`
+/// (Hz): `sqrt(sum_{f >= f_min} |X_f|^2 / sum_{f > 0} |X_f|^2)` of the mean-removed record, by
+/// Parseval.
+fn spread_and_high_band_share(x: &[f64], dt: f64, f_min: f64) -> (f64, f64) {
     use rustfft::{num_complex::Complex, FftPlanner};
     let n = x.len();
     let mean = x.iter().sum::<f64>() / n as f64;
     let mut spectrum: Vec<Complex<f64>> = x.iter().map(|&v| Complex::new(v - mean, 0.0)).collect();
+    let spread = (spectrum.iter().map(|c| c.re * c.re).sum::<f64>() / n as f64).sqrt();
     FftPlanner::new().plan_fft_forward(n).process(&mut spectrum);
     let (mut high, mut all) = (0.0, 0.0);
     for (k, c) in spectrum.iter().enumerate().skip(1).take(n / 2) {
@@ -200,7 +201,7 @@ fn high_band_share(x: &[f64], dt: f64, f_min: f64) -> f64 {
             high += power;
         }
     }
-    (high / all).sqrt()
+    (spread, (high / all).sqrt())
 }
 
 /// A Hertz contact, with no damper, still feels the slope jumps of a linear profile: met every
@@ -231,21 +232,20 @@ fn a_linear_profile_rings_the_wheels_at_its_point_rate() {
         .run()
         .unwrap();
         let first = (from / dt).round() as usize;
-        let (share, spread): (Vec<f64>, Vec<f64>) = ["p_1", "p_2", "p_3", "p_4"]
+        let contacts = &system
+            .railway
+            .as_ref()
+            .expect("railway binding")
+            .contact_forces;
+        let (spread, share): (Vec<f64>, Vec<f64>) = contacts
             .iter()
-            .map(|name| {
-                let p = &column(&system, &run, name)[first..];
-                let mean = p.iter().sum::<f64>() / p.len() as f64;
-                let std =
-                    (p.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / p.len() as f64).sqrt();
-                (high_band_share(p, dt, 300.0), std)
-            })
+            .map(|&c| spread_and_high_band_share(&run.columns[c][first..], dt, 300.0))
             .unzip();
         println!("{interpolation}: above 300 Hz {share:.4?} of the spread {spread:.0?} N");
         shares.push(share);
         spreads.push(spread);
     }
-    for wheel in 0..4 {
+    for wheel in 0..shares[0].len() {
         let (linear, cubic) = (shares[0][wheel], shares[1][wheel]);
         assert!(
             linear > 0.04,
