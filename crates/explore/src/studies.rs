@@ -531,14 +531,15 @@ fn run_study(
         "coverage": coverage,
     }))
     .map_err(|e| format!("the study's settings: {e}"))?;
-    pino_eval::study::run(
+    let surrogate = pino_eval::study::load_surrogate(
+        None,
         &[ex.model_dir().to_owned()],
         ex.calibration_file(),
         &params,
-        out,
         &candle_core::Device::Cpu,
     )
-    .map_err(|e| e.to_string())
+    .map_err(|e| e.to_string())?;
+    pino_eval::study::run(&surrogate, &params, out).map_err(|e| e.to_string())
 }
 
 /// Writes the declaration and the record into `partial`, then renames it to `name`.

@@ -138,6 +138,45 @@ impl IndexInputs {
         self.set.column_limits(system, cfg)
     }
 
+    /// The limits `values` (in [`IndexInputs::columns`] order) exceed, named as the `indices`
+    /// stage names them ([`pino_indices::IndexSet::failed`]): the railway family's limits by the
+    /// limit's name (the Sperling limit once, judged on the largest of its points), each simple
+    /// index by its own. What a surrogate judges on values assembled from several models.
+    pub fn failed_of(&self, system: &System, values: &[f64], cfg: &IndexConfig) -> Vec<String> {
+        const SPERLING: &str = "sperling_wz";
+        let railway = self.set.railway.is_some();
+        let mut out: Vec<String> = Vec::new();
+        let mut sperling = f64::NEG_INFINITY;
+        let mut sperling_limit = None;
+        for ((c, &v), limit) in self
+            .columns
+            .iter()
+            .zip(values)
+            .zip(self.limits(system, cfg))
+        {
+            let Some(limit) = limit else { continue };
+            if railway
+                && c.name.starts_with(SPERLING)
+                && pino_indices::INDEX_COLUMNS.iter().any(|r| r.name == c.name)
+            {
+                sperling = sperling.max(v);
+                sperling_limit = Some(limit);
+            } else if v > limit || v.is_nan() {
+                out.push(c.name.clone());
+            }
+        }
+        if let Some(limit) = sperling_limit {
+            if sperling > limit || sperling.is_nan() {
+                let at = out
+                    .iter()
+                    .position(|n| !pino_indices::INDEX_COLUMNS.iter().any(|c| c.name == n))
+                    .unwrap_or(out.len());
+                out.insert(at, SPERLING.into());
+            }
+        }
+        out
+    }
+
     /// Whether every index can be computed from a prediction (and there is one).
     pub fn computable(&self) -> bool {
         !self.set.is_empty() && self.underivable.is_empty()

@@ -559,6 +559,13 @@ impl Predictor {
         coverage: Option<f64>,
     ) -> Result<Table> {
         let mut table = self.histories(sets, profiles, run, batch, coverage)?;
+        self.flag_rows(&mut table, sets)?;
+        Ok(table)
+    }
+
+    /// Appends the column [`OUTSIDE_COLUMN`] to the histories `table` of `sets` (the same
+    /// number of rows per design): on each row, the [`outside_flag`] of its design.
+    pub fn flag_rows(&self, table: &mut Table, sets: &[Vec<f64>]) -> Result<()> {
         let per_row = (table.num_rows() / sets.len().max(1)).max(1);
         let rows: Vec<String> = self
             .outside_training(sets)?
@@ -566,7 +573,7 @@ impl Predictor {
             .flat_map(|o| std::iter::repeat_n(outside_flag(o), per_row))
             .collect();
         table.push(OUTSIDE_COLUMN, Column::Str(rows))?;
-        Ok(table)
+        Ok(())
     }
 
     /// The settings of the indices of a prediction: the `indices` stage's defaults with no

@@ -6,15 +6,18 @@
 use super::spec::StudyParams;
 use crate::predict::{DesignAnswer, GeneratedProfiles, Predictor, ProfileSource};
 use crate::solve::{exact, exact_indices};
+use crate::surrogate::Surrogate;
 use crate::Result;
 use mbd_engine::RunConfig;
 use pino_indices::IndexConfig;
 use rayon::prelude::*;
 
-/// What a study evaluates with: the model, its run controls, the index settings and the
+/// What a study evaluates with: the surrogate, its run controls, the index settings and the
 /// profile generators at the study's seed.
 pub struct Evaluator<'a> {
-    /// The model (with its calibration when there is one).
+    /// The surrogate (its members with their calibrations when they have one).
+    pub surrogate: &'a Surrogate,
+    /// Its primary member: the system, design space and run controls.
     pub predictor: &'a Predictor,
     /// The model's run controls.
     pub run: RunConfig,
@@ -35,12 +38,14 @@ pub struct Solved {
 }
 
 impl<'a> Evaluator<'a> {
-    /// The evaluator of `predictor` for a study with `params`.
-    pub fn new(predictor: &'a Predictor, params: &'a StudyParams) -> Result<Self> {
+    /// The evaluator of `surrogate` for a study with `params`.
+    pub fn new(surrogate: &'a Surrogate, params: &'a StudyParams) -> Result<Self> {
+        let predictor = surrogate.primary();
         Ok(Self {
             run: predictor.run_config(None)?,
             cfg: predictor.index_config()?,
             profiles: predictor.profile_generators(params.seed)?,
+            surrogate,
             predictor,
             params,
         })
@@ -48,15 +53,13 @@ impl<'a> Evaluator<'a> {
 
     /// Whether answers carry calibrated intervals.
     pub fn calibrated(&self) -> bool {
-        self.predictor
-            .calibration()
-            .is_some_and(|c| c.has_intervals())
+        self.surrogate.has_intervals()
     }
 
     /// The surrogate's answers for `designs`, design `k` under excitation `excitation[k]`.
     pub fn surrogate(&self, designs: &[Vec<f64>], excitation: &[u64]) -> Result<Vec<DesignAnswer>> {
         let of = |k: usize| self.profiles.of(excitation[k]);
-        self.predictor.answers_with(
+        self.surrogate.answers_with(
             designs,
             &ProfileSource::PerDesign(&of),
             &self.run,
