@@ -50,11 +50,18 @@ impl IndexInputs<'_, '_> {
         }
     }
 
-    /// A per-design value `[B, 1]` (or a scalar) of expression `e`.
-    fn per_design(&mut self, g: &mut Graph, e: &mbd_system::expr::Expr) -> Result<Value> {
+    /// Expression `e` per design: `[B]` (or a scalar), and `[B, 1]` to combine with a
+    /// series `[B, N]`.
+    fn per_design(&mut self, g: &mut Graph, e: &mbd_system::expr::Expr) -> Result<(Value, Value)> {
         Ok(match self.expressions.compile(g, e)? {
-            crate::expr::Compiled::Const(v) => g.scalar(v),
-            crate::expr::Compiled::Node(n) => g.unsqueeze(&n, &[1]),
+            crate::expr::Compiled::Const(v) => {
+                let s = g.scalar(v);
+                (s.clone(), s)
+            }
+            crate::expr::Compiled::Node(n) => {
+                let c = g.unsqueeze(&n, &[1]);
+                (n, c)
+            }
         })
     }
 
@@ -81,8 +88,8 @@ impl IndexInputs<'_, '_> {
 
     fn simple(&mut self, g: &mut Graph, ix: &mbd_system::system::Index) -> Result<Value> {
         let x = self.series(&self.system.channels[ix.channel].name)?;
-        let sub = self.per_design(g, &ix.subtract)?;
-        let div = self.per_design(g, &ix.divide)?;
+        let (_, sub) = self.per_design(g, &ix.subtract)?;
+        let (div, _) = self.per_design(g, &ix.divide)?;
         let d = g.sub(&x, &sub);
         let v = stat(g, ix.stat, &d, self.points);
         Ok(g.div(&v, &div))
@@ -95,8 +102,8 @@ impl IndexInputs<'_, '_> {
         cols: &pino_indices::RailwayColumns,
         binding: &mbd_system::system::Railway,
     ) -> Result<Vec<std::result::Result<Value, String>>> {
-        let w = self.per_design(g, &binding.static_wheel_load)?;
-        let l_c = self.per_design(g, &binding.half_length)?;
+        let (w, _) = self.per_design(g, &binding.static_wheel_load)?;
+        let (_, l_c) = self.per_design(g, &binding.half_length)?;
         let stack = |this: &Self, g: &mut Graph, names: &[String]| -> Result<Value> {
             let mut parts = Vec::new();
             for n in names {

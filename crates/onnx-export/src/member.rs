@@ -93,8 +93,8 @@ pub fn channel_values(g: &mut Graph, meta: &ModelMeta, p: &Prediction) -> Value 
     let t = meta.grid.t_points;
     let interior = g.slice(&p.u, 1, 1, t - 1);
     let all = g.concat(2, &[&interior, &p.v, &p.a]);
-    let index: Vec<i64> = channels(meta).iter().map(|(_, k)| *k as i64).collect();
-    g.gather(&all, 2, &index)
+    let index: Vec<usize> = channels(meta).iter().map(|(_, k)| *k).collect();
+    g.pick(&all, 2, &index)
 }
 
 /// A series by column name, or why the graph cannot give it.
@@ -107,7 +107,7 @@ pub fn index_series(g: &mut Graph, predictor: &Predictor, p: &Prediction, first:
     let t = meta.grid.t_points;
     let dt = meta.grid.dt;
     let column = |g: &mut Graph, x: &str, c: usize, from: usize, to: usize| {
-        let col = g.gather(x, 2, &[c as i64]);
+        let col = g.slice(x, 2, c, c + 1);
         let rows = g.slice(&col, 1, from, to);
         g.reshape(&rows, &[0, -1])
     };

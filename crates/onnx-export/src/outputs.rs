@@ -337,13 +337,13 @@ impl Plan {
     fn channels(&self, g: &mut Graph, answers: &[Answers]) -> Value {
         let m0 = self.channels.first().map_or(0, |c| c.2);
         if self.channels.iter().all(|c| c.2 == m0) {
-            let index: Vec<i64> = self.channels.iter().map(|c| c.3 as i64).collect();
-            return g.gather(&answers[m0].channels, 2, &index);
+            let index: Vec<usize> = self.channels.iter().map(|c| c.3).collect();
+            return g.pick(&answers[m0].channels, 2, &index);
         }
         let parts: Vec<Value> = self
             .channels
             .iter()
-            .map(|c| g.gather(&answers[c.2].channels, 2, &[c.3 as i64]))
+            .map(|c| g.slice(&answers[c.2].channels, 2, c.3, c.3 + 1))
             .collect();
         let refs: Vec<&str> = parts.iter().map(String::as_str).collect();
         g.concat(2, &refs)
@@ -511,6 +511,24 @@ fn index_limits(plan: &Plan, members: &[Member]) -> Result<Vec<Option<f64>>> {
         .collect()
 }
 
+/// The columns index `name` of `system` reads.
+fn reads(system: &mbd_system::System, name: &str) -> Vec<String> {
+    if let Some(ix) = system.indices.iter().find(|ix| ix.name == name) {
+        return vec![system.channels[ix.channel].name.clone()];
+    }
+    let set = pino_indices::IndexSet::of(system);
+    let Some(r) = set.railway else {
+        return Vec::new();
+    };
+    match name {
+        n if n.starts_with("peak_wheel") || n.starts_with("wheel_load") => r.p.to_vec(),
+        n if n.starts_with("car_body") || n.starts_with("sperling") => vec![r.z_c_a, r.beta_c_a],
+        n if n.starts_with("bogie") && n.contains("front") => vec![r.z_t_a[0].clone()],
+        n if n.starts_with("bogie") => vec![r.z_t_a[1].clone()],
+        _ => r.z_r.to_vec(),
+    }
+}
+
 /// The file's metadata: `pino.format`, `pino.system_hash` and `pino.surrogate` (one JSON
 /// document: members, inputs with the excitation recipe, outputs, intervals).
 fn metadata(
@@ -556,10 +574,19 @@ fn metadata(
                 "recipe": crate::recipe::recipe(system, meta)?,
             },
         },
-        "channels": plan.channels.iter().map(|c| json!({"name": c.0, "unit": c.1, "member": c.2})).collect::<Vec<_>>(),
+        "channels": plan.channels.iter().map(|c| {
+            let m = &members[c.2].predictor.meta.layout;
+            let (o, d) = (m.n_outputs(), m.n_dofs());
+            let derived = (c.4 >= o).then(|| {
+                let j = (c.4 - o) % d;
+                json!({"of": m.dofs[j], "order": 1 + (c.4 - o) / d})
+            });
+            json!({"name": c.0, "unit": c.1, "member": c.2, "derived": derived})
+        }).collect::<Vec<_>>(),
         "channel_times": {"first": meta.grid.t0 + meta.grid.dt, "dt": meta.grid.dt, "points": plan.rows},
         "indices": plan.indices.iter().zip(limits.iter().map(Some).chain(std::iter::repeat(None)))
-            .map(|(i, l)| json!({"name": i.0, "unit": i.1, "definition": i.2, "member": i.3, "limit": l.copied().flatten()}))
+            .map(|(i, l)| json!({"name": i.0, "unit": i.1, "definition": i.2, "member": i.3,
+                                 "limit": l.copied().flatten(), "reads": reads(system, &i.0)}))
             .collect::<Vec<_>>(),
         "left_out": plan.left_out.iter().map(|(n, w)| json!({"name": n, "why": w})).collect::<Vec<_>>(),
         "intervals": match &summary.no_intervals {
