@@ -13,6 +13,8 @@
 //! (`pip install -r tests/interop/requirements.txt`); without them this test fails, it never
 //! skips.
 
+mod onnx;
+
 use pino_mbd_tests::output_text;
 use pino_mbd_tests::{bin, pipeline_bin_dir, product_workspace, workspace_root, TINY};
 use std::path::{Path, PathBuf};
