@@ -2,7 +2,8 @@
 //! (`docs/export.md`), as a pipeline stage or from the command line.
 //!
 //! ```text
-//! export --context FILE                           (a stage: inputs `models`, `calibration`)
+//! export [--context FILE]                         (a stage: inputs `models`, `calibration`;
+//!                                                  the context from PINO_STAGE_CONTEXT too)
 //! export --model DIR [--calibration DIR|calibration.json] --out model.onnx
 //!        [--spectral matmul|dft] [--normaliser none|error_head] [--levels 0.8,0.9]
 //!        [--indices NAME,NAME]
@@ -26,18 +27,19 @@ const FILE: &str = "model.onnx";
     about = "Export a trained model with its intervals to ONNX"
 )]
 struct Args {
-    /// The stage context (pipeline mode).
+    /// The stage context (pipeline mode; without it and without --model, the context named
+    /// by the environment, as the orchestrator starts a stage).
     #[arg(long, conflicts_with_all = ["model", "out"])]
     context: Option<PathBuf>,
     /// Model directory (model.safetensors + model.json from `train`).
-    #[arg(long, required_unless_present = "context")]
+    #[arg(long, requires = "out")]
     model: Option<PathBuf>,
     /// Its calibration (the `calibrate` stage's output or a calibration.json); without it the
     /// file carries no interval and says so.
     #[arg(long)]
     calibration: Option<PathBuf>,
     /// The ONNX file to write.
-    #[arg(long, required_unless_present = "context")]
+    #[arg(long, requires = "model")]
     out: Option<PathBuf>,
     /// Spectral layers: `matmul` (opset 13) or `dft` (opset 17).
     #[arg(long, default_value = "matmul")]
@@ -78,8 +80,11 @@ fn line(s: &Summary, path: &std::path::Path) -> String {
     )
 }
 
-fn stage(context: &std::path::Path) -> Result<String> {
-    let ctx = stage_kit::StageContext::from_file(context)?;
+fn stage(context: Option<&std::path::Path>) -> Result<String> {
+    let ctx = match context {
+        Some(c) => stage_kit::StageContext::from_file(c)?,
+        None => stage_kit::StageContext::load()?,
+    };
     let p: ExportParams = ctx.params()?;
     onnx_export::Spectral::parse(&p.spectral)
         .with_context(|| format!("stage `{}`: bad parameters", ctx.stage))?;
@@ -93,7 +98,7 @@ fn stage(context: &std::path::Path) -> Result<String> {
     Ok(line(&export(&spec, &path)?, &path))
 }
 
-fn command_line(args: &Args) -> Result<String> {
+fn command_line(args: &Args, model: &std::path::Path, out: &std::path::Path) -> Result<String> {
     let normaliser = args
         .normaliser
         .as_ref()
@@ -107,23 +112,21 @@ fn command_line(args: &Args) -> Result<String> {
         indices: args.indices.clone(),
         algorithm: None,
     };
-    let model = args.model.clone().expect("required without --context");
-    let out = args.out.clone().expect("required without --context");
-    let spec = p.spec(&[model], args.calibration.as_deref())?;
-    Ok(line(&export(&spec, &out)?, &out))
+    let spec = p.spec(&[model.to_owned()], args.calibration.as_deref())?;
+    Ok(line(&export(&spec, out)?, out))
 }
 
 fn main() {
     pino_learn::candle_single_threaded_by_default();
     let args = Args::parse();
-    match &args.context {
-        Some(c) => stage_kit::finish(stage(c)),
-        None => match command_line(&args) {
+    match (&args.model, &args.out) {
+        (Some(model), Some(out)) => match command_line(&args, model, out) {
             Ok(text) => println!("{text}"),
             Err(e) => {
                 eprintln!("export: {e:#}");
                 std::process::exit(2);
             }
         },
+        _ => stage_kit::finish(stage(args.context.as_deref())),
     }
 }
