@@ -18,28 +18,6 @@ use pino_mbd_tests::{output_text, run_bin, run_stage, stage_context, system_path
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The interpreter with numpy, pyarrow and onnxruntime (as [`super::python`] finds one).
-fn python() -> String {
-    let venv = workspace_root().join("target/test-env/python/bin/python");
-    let python = std::env::var("PINO_PYTHON").unwrap_or_else(|_| {
-        if venv.is_file() {
-            venv.display().to_string()
-        } else {
-            "python3".to_owned()
-        }
-    });
-    let probe = Command::new(&python)
-        .args(["-c", "import numpy, pyarrow, onnxruntime"])
-        .output();
-    match probe {
-        Ok(o) if o.status.success() => python,
-        other => panic!(
-            "the ONNX test needs numpy, pyarrow and onnxruntime in `{python}`: run `scripts/test \
-             --install-only` (pinned in tests/interop/requirements.txt) or set PINO_PYTHON ({other:?})"
-        ),
-    }
-}
-
 /// A small dataset of `system` (a shipped description) with a calibration split.
 fn dataset(dir: &Path, file: &str, duration: f64) -> PathBuf {
     let data = dir.join("data");
@@ -244,7 +222,7 @@ fn system_round_trip(
 
 #[test]
 fn the_exported_graph_answers_as_predict_does_in_onnx_runtime() {
-    let python = python();
+    let python = super::python_with("numpy, pyarrow, onnxruntime");
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path();
     // The intervals under `none` and under error heads on the parameters: the normalisers a

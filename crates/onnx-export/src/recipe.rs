@@ -173,17 +173,11 @@ pub fn recipe(system: &System, meta: &ModelMeta) -> Result<Value> {
 mod tests {
     use super::*;
 
-    fn system(file: &str) -> System {
-        let path = format!("{}/../../systems/{file}", env!("CARGO_MANIFEST_DIR"));
-        let text = std::fs::read_to_string(&path).unwrap();
-        mbd_system::load_str(&text, file, &Default::default()).unwrap()
-    }
-
     /// The vehicle-track description's speed `v_kmh / 3.6` and the offsets `2 (l_c + l_t)`,
     /// `2 l_c`, `2 l_t`, `0`; a product of two sampled parameters is not affine.
     #[test]
     fn speeds_and_offsets_are_affine_forms_of_the_parameters() {
-        let s = system("vtcd.yaml");
+        let s = learn_fixtures::synthetic::vehicle_track_system();
         let nominal = s.values(&s.nominal()).unwrap();
         let speed = affine(&s, &nominal, &s.speed).unwrap();
         assert_eq!(speed.0, 0.0);
