@@ -94,8 +94,8 @@ fn stage(context: Option<&std::path::Path>) -> Result<String> {
     let models = ctx.input_dirs("models")?.to_vec();
     let calibration = ctx.optional_single_input_dir("calibration")?;
     let spec = p.spec(&models, calibration.as_deref())?;
-    let path = ctx.output_path(FILE);
-    Ok(line(&export(&spec, &path)?, &path))
+    let summary = export(&spec, &ctx.output_path(FILE))?;
+    Ok(line(&summary, std::path::Path::new(FILE)))
 }
 
 fn command_line(args: &Args, model: &std::path::Path, out: &std::path::Path) -> Result<String> {
