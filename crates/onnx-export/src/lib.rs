@@ -62,7 +62,7 @@ pub type Result<T> = std::result::Result<T, Error>;
 /// One model of a surrogate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MemberSpec {
-    /// Its key (`train[algorithm=5]`, or the directory's name).
+    /// Its key (`train[algorithm=5]`; empty: `algorithm-<A>` of its model).
     pub key: String,
     /// The model directory (`model.json`, `model.safetensors`).
     pub model: PathBuf,
@@ -95,12 +95,9 @@ pub struct ExportSpec {
 impl ExportSpec {
     /// A single model with its calibration, every default.
     pub fn single(model: &Path, calibration: Option<&Path>) -> Self {
-        let key = model
-            .file_name()
-            .map_or_else(|| "model".to_owned(), |n| n.to_string_lossy().into_owned());
         Self {
             members: vec![MemberSpec {
-                key,
+                key: String::new(),
                 model: model.to_owned(),
                 calibration: calibration.map(Path::to_owned),
             }],

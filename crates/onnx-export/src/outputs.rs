@@ -88,8 +88,13 @@ fn load(spec: &crate::MemberSpec) -> Result<Member> {
             .map_err(pino_learn::Error::from)?;
         weights.insert(name, (shape, data));
     }
+    let key = if spec.key.is_empty() {
+        format!("algorithm-{}", predictor.identity().algorithm)
+    } else {
+        spec.key.clone()
+    };
     Ok(Member {
-        key: spec.key.clone(),
+        key,
         dir: spec.model.clone(),
         predictor,
         weights,

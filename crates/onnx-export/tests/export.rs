@@ -139,7 +139,7 @@ fn a_calibrated_model_exports_with_its_intervals_and_refusals_leave_no_file() {
     assert!(bare.summary.levels.is_empty());
     assert_eq!(
         bare.summary.no_intervals.as_deref(),
-        Some("member `model` has no calibration")
+        Some("member `algorithm-2` has no calibration")
     );
     assert!(!contains(&bare.bytes, "channels_lo") && contains(&bare.bytes, "\"why\""));
 
