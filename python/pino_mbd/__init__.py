@@ -230,6 +230,13 @@ class Model:
         """Whether a calibration was loaded."""
         return self._native.calibration is not None
 
+    def export_onnx(self, path: PathLike, spectral: str | None = None, levels: list[float] | None = None) -> str:
+        """Writes the model, its calibrated intervals and its training-range flag as one ONNX
+        file (docs/export.md), atomically; ``spectral``: ``"matmul"`` (opset 13, default) or
+        ``"dft"`` (opset 17); ``levels``: the interval levels (default: those the calibration
+        supports). Returns what was written. A refusal raises ``PinoError``."""
+        return self._native._export_onnx(os.fspath(path), spectral, levels)
+
     def predict(
         self,
         designs: Any,

@@ -110,6 +110,8 @@ class Model:
         strict: bool,
     ) -> ArrowTable:
         """Indices with intervals and verdicts (``predict --indices``); ``x0`` in m."""
+    def _export_onnx(self, path: str, spectral: Optional[str], levels: Optional[list[float]]) -> str:
+        """The model with its intervals as one ONNX file (``export``)."""
 
 class Pipeline:
     """A pipeline file in its workspace."""

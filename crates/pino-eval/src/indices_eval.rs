@@ -42,7 +42,7 @@ use std::path::{Path, PathBuf};
 
 /// Where one index input comes from on the prediction's side.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Source {
+pub enum Source {
     /// An output the model predicts (its channel).
     Output(usize),
     /// Rigid DOF `i`'s velocity (1) or acceleration (2): central differences of the
@@ -131,6 +131,17 @@ impl IndexInputs {
     /// The index columns, in value order.
     pub fn columns(&self) -> &[IndexInfo] {
         &self.columns
+    }
+
+    /// Every column the indices read, with where a prediction's value comes from (the
+    /// description's index set's input order).
+    pub fn sources(&self) -> &[(String, Source)] {
+        &self.sources
+    }
+
+    /// The description's index set.
+    pub fn set(&self) -> &IndexSet {
+        &self.set
     }
 
     /// The limit of each index column (`None`: none); a value passes at or below it.

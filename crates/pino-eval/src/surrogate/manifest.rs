@@ -87,6 +87,22 @@ pub struct Manifest {
 }
 
 impl Manifest {
+    /// The member answering the most indices (ties: the first): the one whose system, design
+    /// space, time grid and channel order a surrogate presents ([`super::Surrogate::primary`]).
+    pub fn primary(&self) -> usize {
+        let index_member: Vec<usize> = self
+            .indices
+            .iter()
+            .map(|r| {
+                self.members
+                    .iter()
+                    .position(|m| m.name == r.member)
+                    .unwrap_or(0)
+            })
+            .collect();
+        super::primary_of(&index_member, self.members.len())
+    }
+
     /// The directory of member `name` under the surrogate's directory `dir`.
     pub fn member_dir(dir: &Path, name: &str) -> PathBuf {
         dir.join(MEMBERS_DIR).join(name)

@@ -166,14 +166,7 @@ impl Surrogate {
                 })?;
             channels.push((name.clone(), *m, source));
         }
-        let primary = (0..members.len())
-            .max_by_key(|&m| {
-                (
-                    index_member.iter().filter(|&&x| x == m).count(),
-                    std::cmp::Reverse(m),
-                )
-            })
-            .unwrap_or(0);
+        let primary = primary_of(&index_member, members.len());
         // The excitations are exact inputs: the primary's.
         channels.extend(
             own_channels(&members[primary], primary)
@@ -500,6 +493,19 @@ impl Surrogate {
     ) -> Result<Table> {
         self.primary().indices_table(sets, answers, outside)
     }
+}
+
+/// Of `n` members, the one answering the most indices (`index_member`: per index, its member;
+/// ties: the first).
+pub(crate) fn primary_of(index_member: &[usize], n: usize) -> usize {
+    (0..n)
+        .max_by_key(|&m| {
+            (
+                index_member.iter().filter(|&&x| x == m).count(),
+                std::cmp::Reverse(m),
+            )
+        })
+        .unwrap_or(0)
 }
 
 /// A member's own channels, all answered by it (`m`).
