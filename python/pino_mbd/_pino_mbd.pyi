@@ -139,6 +139,7 @@ def _study(
     params_json: str,
     out: str,
     calibration: Optional[str] = None,
+    surrogate: Optional[str] = None,
 ) -> str:
-    """One design study on the models; ``params_json``: the ``study`` stage's parameters.
-    Returns its summary line."""
+    """One design study through the surrogate (or the models); ``params_json``: the ``study``
+    stage's parameters. Returns its summary line."""

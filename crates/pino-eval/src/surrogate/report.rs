@@ -240,6 +240,13 @@ fn worst_of(pred: &[f64], exact: &[f64], ids: &[i64]) -> i64 {
 /// Writes `surrogate_errors.{parquet,csv}` and `surrogate.md` into `out`.
 pub fn write_surrogate(out: &Path, split: Split, rows: &[SurrogateRow]) -> Result<()> {
     let mut t = Table::default();
+    let dimensionless = pino_data::units::DIMENSIONLESS;
+    t.add_units([
+        ("member", dimensionless),
+        ("worst_rel_sample_id", dimensionless),
+        ("worst_cell_coverage", dimensionless),
+        ("worst_cell", dimensionless),
+    ])?;
     let s = |f: &dyn Fn(&SurrogateRow) -> String| Column::Str(rows.iter().map(f).collect());
     let x = |f: &dyn Fn(&SurrogateRow) -> f64| Column::F64(rows.iter().map(f).collect());
     t.push("kind", s(&|r| r.kind.to_owned()))?;
@@ -247,10 +254,10 @@ pub fn write_surrogate(out: &Path, split: Split, rows: &[SurrogateRow]) -> Resul
     t.push("unit", s(&|r| r.unit.clone()))?;
     t.push("member", s(&|r| r.member.clone()))?;
     t.push("n", Column::I64(rows.iter().map(|r| r.n as i64).collect()))?;
-    t.push("mean_rel_pct", x(&|r| r.mean_rel_pct))?;
-    t.push("worst_rel_pct", x(&|r| r.worst_rel_pct))?;
+    t.push("mean_rel_error_pct", x(&|r| r.mean_rel_pct))?;
+    t.push("worst_rel_error_pct", x(&|r| r.worst_rel_pct))?;
     t.push(
-        "worst_sample",
+        "worst_rel_sample_id",
         Column::I64(rows.iter().map(|r| r.worst_sample).collect()),
     )?;
     t.push("level", x(&|_| DEFAULT_COVERAGE))?;
