@@ -163,7 +163,10 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     // The surrogate: every index routed to a member among the seven candidates, every member a
     // model with its calibration; evaluate scores it per index beside Table 4.
     let sur = show(ws.path(), "surrogate", &[]);
-    let dir = named(&sur, "surrogate.json")[0].parent().unwrap().to_owned();
+    let dir = named(&sur, "surrogate.json")[0]
+        .parent()
+        .unwrap()
+        .to_owned();
     let manifest = pino_eval::surrogate::manifest::Manifest::load(&dir).unwrap();
     assert_eq!(manifest.candidates.len(), 7);
     assert_eq!(manifest.indices.len(), pino_indices::INDEX_COLUMNS.len());
