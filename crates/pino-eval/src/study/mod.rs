@@ -19,6 +19,7 @@ pub mod output;
 pub mod sensitivity;
 pub mod spec;
 
+pub use evaluate::Progress;
 pub use spec::{Study, StudyKind, StudyParams};
 
 /// The `source` values of a study's tables: which side answered.
@@ -103,23 +104,45 @@ pub fn run(
     out: &Path,
     device: &Device,
 ) -> Result<String> {
-    params.validate()?;
-    let mut predictor = None;
+    run_with(models, calibration, params, out, device, None)
+}
+
+/// The model of `params.algorithm` among `models`, with its calibration when given.
+fn study_model(
+    models: &[PathBuf],
+    calibration: Option<&Path>,
+    params: &StudyParams,
+    device: &Device,
+) -> Result<Predictor> {
     for dir in models {
-        let p = Predictor::load(dir, device)?;
+        let mut p = Predictor::load(dir, device)?;
         if p.meta.train.algorithm.id() == params.algorithm {
-            predictor = Some(p);
-            break;
+            if let Some(c) = calibration {
+                p.load_calibration(c)?;
+            }
+            return Ok(p);
         }
     }
-    let mut predictor = predictor.ok_or_else(|| LearnError::OutOfRange {
+    Err(LearnError::OutOfRange {
         field: "algorithm".into(),
         value: params.algorithm.to_string(),
         allowed: format!("an algorithm among the {} trained models", models.len()),
-    })?;
-    if let Some(c) = calibration {
-        predictor.load_calibration(c)?;
     }
+    .into())
+}
+
+/// [`run`] counting its designs in `progress`; once that is cancelled it stops at its next
+/// slice of designs or solve with [`crate::Error::Cancelled`].
+pub fn run_with(
+    models: &[PathBuf],
+    calibration: Option<&Path>,
+    params: &StudyParams,
+    out: &Path,
+    device: &Device,
+    progress: Option<&Progress>,
+) -> Result<String> {
+    params.validate()?;
+    let predictor = study_model(models, calibration, params, device)?;
     let parameters = model_parameters(&predictor);
     let names: Vec<String> = predictor
         .index_inputs()
@@ -129,6 +152,10 @@ pub fn run(
         .collect();
     let study = Study::parse(&params.study, &parameters, &names).map_err(spec_error)?;
     let ev = evaluate::Evaluator::new(&predictor, params)?;
+    let ev = match progress {
+        Some(p) => ev.with_progress(p),
+        None => ev,
+    };
     match &study.kind {
         StudyKind::MonteCarlo { n, limits } => {
             let mc = monte_carlo::run(&ev, &study, *n, limits, &parameters)?;
