@@ -950,7 +950,7 @@ fn the_documented_statuses_and_metadata_keys_are_the_servers(c: &mut Client) {
 }
 
 /// Polls the Studies list until the started study `name` has ended (two minutes at most).
-fn wait_study(c: &mut Client, name: &str) -> Value {
+pub(crate) fn wait_study(c: &mut Client, name: &str) -> Value {
     let t0 = Instant::now();
     loop {
         let list = c.get("/api/studies").unwrap().json();

@@ -17,6 +17,7 @@ use std::time::Duration;
 mod api;
 mod browser;
 mod page_logic;
+mod studies;
 
 /// The shared workspace's targets: every stage but the studies (the explorer serves the
 /// model the studies read, `train-rates`, with its calibration, and shows Table 4 and the

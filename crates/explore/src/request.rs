@@ -501,23 +501,39 @@ impl RequestRules {
                 "solver_check",
             ],
         )?;
-        let known = [StartedKind::MonteCarlo, StartedKind::Sensitivity];
-        let kinds = || {
-            let names: Vec<String> = known
-                .iter()
-                .map(|k| format!("\"{}\"", k.as_str()))
-                .collect();
-            format!(
-                "{} (an optimisation is declared in the pipeline file)",
-                names.join(" or ")
-            )
+        let kind = study_kind(obj)?;
+        let varied = self.varied(obj)?;
+        let max_n = match kind {
+            StartedKind::MonteCarlo => STUDY_MAX_MONTE_CARLO,
+            StartedKind::Sensitivity => STUDY_MAX_SENSITIVITY_ROWS,
         };
-        let kind = match obj.get("kind").and_then(Value::as_str) {
-            Some(name) => *known.iter().find(|k| k.as_str() == name).ok_or_else(|| {
-                ApiError::bad("kind", format!("unknown study kind `{name}`"), kinds())
-            })?,
-            None => return Err(ApiError::bad("kind", "`kind` is missing", kinds())),
-        };
+        const MIN_ROWS: usize = pino_eval::study::spec::MIN_SENSITIVITY_ROWS;
+        let n = obj.get("n").map_or(Ok(kind.default_n() as u64), |v| {
+            integer(v, "n", 1, max_n as u64)
+        })? as usize;
+        if kind == StartedKind::Sensitivity && !(n >= MIN_ROWS && n.is_power_of_two()) {
+            return Err(ApiError::bad(
+                "n",
+                format!("`n` = {n} rows is not a power of two from {MIN_ROWS} to {max_n}"),
+                format!("a power of two from {MIN_ROWS} to {max_n}"),
+            ));
+        }
+        let solver_check = obj.get("solver_check").map_or(Ok(0), |v| {
+            integer(v, "solver_check", 0, STUDY_MAX_SOLVER_CHECK.min(n) as u64)
+        })? as usize;
+        Ok(StudyRequest {
+            design: self.design(obj.get("design"))?,
+            coverage: self.coverage(obj.get("coverage"))?,
+            kind,
+            varied,
+            n,
+            solver_check,
+        })
+    }
+
+    /// The varied parameters of a study request: `parameters: [{name, from, to}]`, each
+    /// known, listed once, with `from < to` (the training range by default).
+    fn varied(&self, obj: &Map<String, Value>) -> Result<Vec<(usize, f64, f64)>, ApiError> {
         let list = obj
             .get("parameters")
             .and_then(Value::as_array)
@@ -565,24 +581,45 @@ impl RequestRules {
             }
             varied.push((k, from, to));
         }
-        let max_n = match kind {
-            StartedKind::MonteCarlo => STUDY_MAX_MONTE_CARLO,
-            StartedKind::Sensitivity => STUDY_MAX_SENSITIVITY_ROWS,
-        };
-        let n = obj.get("n").map_or(Ok(kind.default_n() as u64), |v| {
-            integer(v, "n", 1, max_n as u64)
-        })? as usize;
-        let solver_check = obj.get("solver_check").map_or(Ok(0), |v| {
-            integer(v, "solver_check", 0, STUDY_MAX_SOLVER_CHECK.min(n) as u64)
-        })? as usize;
-        Ok(StudyRequest {
-            design: self.design(obj.get("design"))?,
-            coverage: self.coverage(obj.get("coverage"))?,
-            kind,
-            varied,
-            n,
-            solver_check,
+        Ok(varied)
+    }
+}
+
+/// The study a cancel request names: `{"name": NAME}`.
+pub fn cancel_request(v: &Value) -> Result<String, ApiError> {
+    let obj = object(v, "body")?;
+    only_keys(obj, "", &["name"])?;
+    obj.get("name")
+        .and_then(Value::as_str)
+        .map(str::to_owned)
+        .ok_or_else(|| {
+            ApiError::bad(
+                "name",
+                "`name` (the running study's name) is missing",
+                "the name of a running study of the Studies page",
+            )
         })
+}
+
+/// The `kind` of a study request: one the sweep view starts.
+fn study_kind(obj: &Map<String, Value>) -> Result<StartedKind, ApiError> {
+    let known = [StartedKind::MonteCarlo, StartedKind::Sensitivity];
+    let kinds = || {
+        let names: Vec<String> = known
+            .iter()
+            .map(|k| format!("\"{}\"", k.as_str()))
+            .collect();
+        format!(
+            "{} (an optimisation is declared in the pipeline file)",
+            names.join(" or ")
+        )
+    };
+    match obj.get("kind").and_then(Value::as_str) {
+        Some(name) => known
+            .into_iter()
+            .find(|k| k.as_str() == name)
+            .ok_or_else(|| ApiError::bad("kind", format!("unknown study kind `{name}`"), kinds())),
+        None => Err(ApiError::bad("kind", "`kind` is missing", kinds())),
     }
 }
 

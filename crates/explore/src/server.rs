@@ -793,6 +793,23 @@ async fn start_study(State(app): State<Shared>, body: Bytes) -> HttpResponse {
     }
 }
 
+/// Cancels a running started study (`{"name": NAME}`): 202; it stops at its next slice of
+/// designs and is then listed `cancelled`.
+async fn cancel_study(State(app): State<Shared>, body: Bytes) -> HttpResponse {
+    let name = match request::body(&body).and_then(|v| request::cancel_request(&v)) {
+        Ok(n) => n,
+        Err(e) => return error_response(e),
+    };
+    match app.studies.cancel(&name) {
+        Ok(()) => (
+            StatusCode::ACCEPTED,
+            axum::Json(json!({"name": name, "state": "cancelling"})),
+        )
+            .into_response(),
+        Err(e) => error_response(e),
+    }
+}
+
 /// A file of a study's output: plots inline, every other file as a download.
 async fn study_file(
     State(app): State<Shared>,
@@ -862,6 +879,7 @@ pub fn router(app: Shared) -> Router {
         .route("/api/pipeline", get(pipeline_view))
         .route("/api/pipeline/plot/{name}", get(pipeline_plot))
         .route("/api/studies", get(studies_view).post(start_study))
+        .route("/api/studies/cancel", post(cancel_study))
         .route("/api/studies/{source}/{name}/{file}", get(study_file))
         .fallback(|| async { not_found() })
         .layer(DefaultBodyLimit::max(BODY_LIMIT))

@@ -569,6 +569,14 @@ impl Explorer {
             })
     }
 
+    /// Refuses `design` under `excitation` as a prediction would: a value outside the
+    /// description's domains, a run that leaves its profiles or beams, a value the network
+    /// cannot read (the parameter at fault named, `design.NAME`).
+    pub fn check_design(&self, design: &[f64], excitation: Excitation) -> Result<(), ApiError> {
+        let profiles = self.profiles(Some(excitation))?;
+        self.check(design, &profiles)
+    }
+
     fn predict_raw(
         &self,
         designs: &[Vec<f64>],

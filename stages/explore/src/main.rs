@@ -7,7 +7,8 @@
 //!         [--calibration calibration.json|DIR]
 //!         [--bind 127.0.0.1:8750] [--token T] [--allow-host NAME]...
 //!         [--solve-workers 1] [--solve-queue 4] [--solve-max-duration 30] [--sweep-max 400]
-//!         [--header-timeout 10] [--max-connections 512] [--study-dir explore-studies]
+//!         [--header-timeout 10] [--max-connections 512]
+//!         [--study-dir explore-studies] [--study-threads N]
 //! ```
 //! Prints `explore: serving ... on http://ADDR/` (the real port for `--bind HOST:0`) and serves
 //! until interrupted. Without `--model` the calibration is the pipeline's `calibrate` output
@@ -97,6 +98,10 @@ struct Args {
     /// in the workspace); the Studies page lists those of earlier sessions too.
     #[arg(long, value_name = "DIR")]
     study_dir: Option<PathBuf>,
+    /// Threads a started study runs on (default: the machine's cores), at a lower CPU
+    /// priority: predictions and solves never wait for it.
+    #[arg(long, value_name = "N")]
+    study_threads: Option<usize>,
 }
 
 /// A refusal of the command line's inputs (a calibration missing, corrupt or of another
@@ -121,6 +126,19 @@ fn random_token() -> Result<String> {
     Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
+/// The studies started from the page: in `--study-dir` (default: `explore-studies` in the
+/// workspace), each on `--study-threads` threads (default: the machine's cores).
+fn studies(args: &Args, workspace: &std::path::Path) -> Studies {
+    Studies::open(
+        args.study_dir
+            .clone()
+            .unwrap_or_else(|| workspace.join(STUDY_DIR)),
+        args.study_threads.unwrap_or_else(|| {
+            std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+        }),
+    )
+}
+
 async fn run(args: Args) -> Result<()> {
     if !(args.solve_max_duration.is_finite() && args.solve_max_duration > 0.0) {
         bail!(
@@ -135,6 +153,12 @@ async fn run(args: Args) -> Result<()> {
         bail!(
             "--header-timeout {}: allowed 0.1 to 3600 seconds",
             args.header_timeout
+        );
+    }
+    if args.study_threads.is_some_and(|n| !(1..=1024).contains(&n)) {
+        bail!(
+            "--study-threads {}: allowed 1..=1024",
+            args.study_threads.unwrap_or(0)
         );
     }
     if !(1..=1_000_000).contains(&args.max_connections) {
@@ -244,11 +268,7 @@ async fn run(args: Args) -> Result<()> {
         pipeline: pipeline.map(Arc::new),
         access,
         solves: Arc::new(SolveGate::new(args.solve_workers, args.solve_queue)),
-        studies: Arc::new(Studies::open(
-            args.study_dir
-                .clone()
-                .unwrap_or_else(|| workspace.join(STUDY_DIR)),
-        )),
+        studies: Arc::new(studies(&args, &workspace)),
     });
     let shown = if addr.ip().is_unspecified() {
         format!("localhost:{}", addr.port())
