@@ -1188,7 +1188,7 @@ fn a_study_started_from_the_sweep_view_is_the_stage_s_study_on_the_served_model(
 }
 
 /// Whether the server closed `s` within its read timeout: EOF or a reset, not a timeout.
-fn closed_by_server(s: &mut std::net::TcpStream) -> bool {
+pub(crate) fn closed_by_server(s: &mut std::net::TcpStream) -> bool {
     use std::io::Read;
     let mut buf = [0u8; 4096];
     loop {

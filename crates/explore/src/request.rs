@@ -65,6 +65,20 @@ impl ApiError {
             retry_after_s: None,
         }
     }
+
+    /// The HTTP answer: the status, the JSON body and, for a 429, `Retry-After`.
+    pub fn response(self) -> axum::response::Response {
+        use axum::http::{header, HeaderValue, StatusCode};
+        use axum::response::IntoResponse;
+        let status = StatusCode::from_u16(self.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
+        let retry = self.retry_after_s;
+        let mut r = (status, axum::Json(&self)).into_response();
+        if let Some(s) = retry {
+            r.headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(s));
+        }
+        r
+    }
 }
 
 /// Where the profiles under the system come from.
@@ -266,14 +280,89 @@ fn integer(v: &Value, field: &str, lo: u64, hi: u64) -> Result<u64, ApiError> {
     }
 }
 
-/// Parses a request body as a JSON object.
+/// The start of the message of a key given twice in one object.
+const DUPLICATE_KEY: &str = "duplicate key";
+
+/// A JSON value read strictly: an object naming a key twice is refused, where serde_json's
+/// own `Value` keeps the last one silently.
+struct Strict(Value);
+
+impl<'de> serde::Deserialize<'de> for Strict {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(StrictVisitor).map(Strict)
+    }
+}
+
+struct StrictVisitor;
+
+impl<'de> serde::de::Visitor<'de> for StrictVisitor {
+    type Value = Value;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a JSON value")
+    }
+
+    fn visit_bool<E>(self, v: bool) -> Result<Value, E> {
+        Ok(Value::Bool(v))
+    }
+
+    fn visit_i64<E>(self, v: i64) -> Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_u64<E>(self, v: u64) -> Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_f64<E>(self, v: f64) -> Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_str<E>(self, v: &str) -> Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_unit<E>(self) -> Result<Value, E> {
+        Ok(Value::Null)
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Value, A::Error> {
+        let mut out = Vec::new();
+        while let Some(Strict(v)) = seq.next_element()? {
+            out.push(v);
+        }
+        Ok(Value::Array(out))
+    }
+
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Value, A::Error> {
+        let mut out = Map::new();
+        while let Some(key) = map.next_key::<String>()? {
+            if out.contains_key(&key) {
+                return Err(serde::de::Error::custom(format!("{DUPLICATE_KEY} `{key}`")));
+            }
+            let Strict(v) = map.next_value()?;
+            out.insert(key, v);
+        }
+        Ok(Value::Object(out))
+    }
+}
+
+/// Parses a request body as a JSON object; a key given twice in one object is refused.
 pub fn body(bytes: &[u8]) -> Result<Value, ApiError> {
-    let v: Value = serde_json::from_slice(bytes).map_err(|e| {
-        ApiError::bad(
-            "body",
-            format!("the body is not valid JSON: {e}"),
-            "a JSON object",
-        )
+    let Strict(v) = serde_json::from_slice(bytes).map_err(|e| {
+        if e.to_string().starts_with(DUPLICATE_KEY) {
+            ApiError::bad(
+                "body",
+                format!("the body names a key twice: {e}"),
+                "a JSON object with each key once",
+            )
+        } else {
+            ApiError::bad(
+                "body",
+                format!("the body is not valid JSON: {e}"),
+                "a JSON object",
+            )
+        }
     })?;
     object(&v, "body")?;
     Ok(v)
@@ -674,6 +763,23 @@ mod tests {
         let e = refused(json!({"excitation": {"kind": "wind"}}));
         assert_eq!(e.field.as_deref(), Some("excitation.kind"));
         // JSON has no NaN or infinity: such bodies are malformed.
+        // A key twice, at any depth: refused, never the last one taken.
+        for text in [
+            "{\"design\": {\"k\": 1.0}, \"design\": {\"k\": 2.0}}",
+            "{\"design\": {\"k\": 1.0, \"k\": 2.0}}",
+            "{\"excitation\": [{\"kind\": \"seed\", \"kind\": \"test\"}]}",
+        ] {
+            let e = body(text.as_bytes()).unwrap_err();
+            assert_eq!(e.field.as_deref(), Some("body"), "{text}");
+            assert!(
+                e.error.contains("twice") && e.error.contains('`'),
+                "{text}: {e:?}"
+            );
+        }
+        assert_eq!(
+            body(b"{\"a\": [1, {\"b\": null}], \"c\": \"x\"}").unwrap(),
+            json!({"a": [1, {"b": null}], "c": "x"})
+        );
         for text in [
             "{\"design\": {\"k\": NaN}}",
             "{\"design\": {\"k\": 1e999}}",
