@@ -2,7 +2,7 @@
 //! arrive are cut and their slots freed; a declared body over the limit is refused before it
 //! is sent; every refusal carries the JSON error body, hyper's own included; one `Host` only,
 //! in every spelling a browser writes for the bound address; a token given is a token
-//! enforced; answers compressed as the client accepts.
+//! enforced; answers compressed as the client accepts and curves as float32 on request.
 
 use crate::api::closed_by_server;
 use crate::Trained;
@@ -199,6 +199,11 @@ fn decoded(a: &Answer) -> Vec<u8> {
     out
 }
 
+/// The values of a base64 float32 curve.
+fn f32s(v: &Value) -> Vec<f32> {
+    pino_explore::encoding::from_f32_base64(v.as_str().unwrap()).unwrap()
+}
+
 #[test]
 fn answers_are_compressed_as_the_client_accepts() {
     let trained = Trained::shared();
@@ -233,4 +238,61 @@ fn answers_are_compressed_as_the_client_accepts() {
         let page = c.get("/assets/main.js").unwrap();
         assert_eq!(page.header("content-encoding"), Some(coding));
     }
+}
+
+#[test]
+fn curves_are_sent_as_float32_on_request() {
+    let trained = Trained::shared();
+    let served = trained.serve(&[]);
+    let reference = served
+        .client()
+        .post_json("/api/predict", &json!({"design": {}}))
+        .unwrap();
+    let identity_len = reference.body.len();
+    let reference = reference.json();
+    // The compact curves: every channel and every band's half-width as float32, equal to the
+    // JSON answer's values rounded to float32.
+    let mut c = served.client();
+    let compact = c
+        .post_json("/api/predict", &json!({"design": {}, "encoding": "f32"}))
+        .unwrap();
+    assert_eq!(compact.status, 200, "{}", compact.json());
+    let v = compact.json();
+    assert_eq!(v["encoding"], "f32");
+    assert_eq!(v["t"], reference["t"], "the times stay exact");
+    assert_eq!(v["indices"], reference["indices"]);
+    let channels = reference["channels"].as_object().unwrap();
+    assert_eq!(v["channels"].as_object().unwrap().len(), channels.len());
+    for (name, x) in channels {
+        let want: Vec<f32> = x
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap() as f32)
+            .collect();
+        assert_eq!(f32s(&v["channels"][name]), want, "{name}");
+    }
+    let bands = reference["bands"].as_object().unwrap();
+    assert!(!bands.is_empty());
+    for (name, b) in bands {
+        let half = f32s(&v["bands"][name]["half"]);
+        let (lo, hi) = (b["lo"].as_array().unwrap(), b["hi"].as_array().unwrap());
+        for (k, h) in half.iter().enumerate() {
+            let want = (hi[k].as_f64().unwrap() - lo[k].as_f64().unwrap()) / 2.0;
+            assert!(
+                (f64::from(*h) - want).abs()
+                    <= 1e-6 * want.abs() + 1e-12 * hi[k].as_f64().unwrap().abs(),
+                "{name}[{k}]: {h} vs {want}"
+            );
+        }
+    }
+    assert!(
+        compact.body.len() * 3 < identity_len,
+        "float32 curves: {} bytes against {identity_len}",
+        compact.body.len(),
+    );
+    let bad = c
+        .post_json("/api/predict", &json!({"encoding": "f16"}))
+        .unwrap();
+    json_error(&bad, 400, Some("encoding"));
 }

@@ -5,6 +5,7 @@
 //!   description's names; [`solve`]: the solver run and its comparison with the prediction;
 //! - [`request`]: requests parsed and validated, errors naming the field and the allowed range;
 //! - [`download`]: the design and curve files, each with the model's identity and excitation;
+//!   [`encoding`]: the compact (float32) curves of an answer;
 //! - [`glance`]: the pipeline at a glance and the model found through the orchestrator's record;
 //! - [`studies`]: the pipeline's studies and those started from the sweep view;
 //! - [`client`]: the blocking HTTP client of the load benchmark and the tests;
@@ -19,6 +20,7 @@ pub mod assets;
 pub mod client;
 pub mod compress;
 pub mod download;
+pub mod encoding;
 pub mod glance;
 pub mod guard;
 pub mod request;

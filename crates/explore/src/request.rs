@@ -111,6 +111,19 @@ pub struct DesignRequest {
     pub coverage: f64,
     /// The channels whose bands the answer carries (`None`: every banded channel).
     pub bands: Option<Vec<String>>,
+    /// How the answer writes its curves.
+    pub encoding: Encoding,
+}
+
+/// How an answer writes its curves (`encoding` of a request).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Encoding {
+    /// Arrays of JSON numbers (every digit of the f64 values).
+    #[default]
+    Json,
+    /// Each curve a base64 string of its values as little-endian float32 (7 significant
+    /// digits, a fifth of the bytes), each band its half-width the same way.
+    F32,
 }
 
 /// The coverage of the intervals when a request names none.
@@ -504,14 +517,35 @@ impl RequestRules {
             excitation: self.excitation(obj.get("excitation"))?,
             coverage: self.coverage(obj.get("coverage"))?,
             bands: self.bands(obj.get("bands"))?,
+            encoding: Encoding::Json,
         })
     }
 
-    /// A design request: `{design, excitation, coverage, bands}`.
+    /// A design request: `{design, excitation, coverage, bands, encoding}` (`encoding`:
+    /// `"json"`, the default, or `"f32"`).
     pub fn design_request(&self, v: &Value) -> Result<DesignRequest, ApiError> {
         let obj = object(v, "body")?;
-        only_keys(obj, "", &["design", "excitation", "coverage", "bands"])?;
-        self.base(obj)
+        only_keys(
+            obj,
+            "",
+            &["design", "excitation", "coverage", "bands", "encoding"],
+        )?;
+        let encoding = match obj.get("encoding") {
+            None | Some(Value::Null) => Encoding::Json,
+            Some(Value::String(e)) if e == "json" => Encoding::Json,
+            Some(Value::String(e)) if e == "f32" => Encoding::F32,
+            Some(other) => {
+                return Err(ApiError::bad(
+                    "encoding",
+                    format!("`encoding` = {other} is not an encoding of curves"),
+                    "\"json\" (arrays of numbers) or \"f32\" (base64 float32 arrays)",
+                ))
+            }
+        };
+        Ok(DesignRequest {
+            encoding,
+            ..self.base(obj)?
+        })
     }
 
     /// A sweep request: `{design, excitation, coverage, parameter, from, to, steps,

@@ -13,9 +13,10 @@
 //!   future, whose `CancelOnDrop` guard sets the engine's stop flag.
 
 use crate::download;
+use crate::encoding;
 use crate::glance;
 use crate::guard;
-use crate::request::{self, ApiError, DesignRequest};
+use crate::request::{self, ApiError, DesignRequest, Encoding};
 use crate::session::{Explorer, Response};
 use crate::solve::{relative_error, relative_l2};
 use crate::studies::{self, Source, Studies};
@@ -162,13 +163,28 @@ fn not_found() -> HttpResponse {
 
 /// The answer of a prediction or a solve; a calibrated prediction adds each index's interval
 /// and verdict, the combined verdict, `coverage`, `extrapolated` and the bands of the channels
-/// `bands` names (every banded channel when `None`).
-fn response_json(ex: &Explorer, r: &Response, bands_of: Option<&[String]>) -> Value {
+/// `bands` names (every banded channel when `None`). With [`Encoding::F32`] each curve is a
+/// base64 float32 text and each band its half-width (`{"half"}`), else arrays of numbers and
+/// each band's `lo` and `hi`.
+fn response_json(
+    ex: &Explorer,
+    r: &Response,
+    bands_of: Option<&[String]>,
+    encoding: Encoding,
+) -> Value {
+    let f32 = encoding == Encoding::F32;
+    let curve = |v: &[f64]| {
+        if f32 {
+            json!(encoding::f32_base64(v))
+        } else {
+            json!(v)
+        }
+    };
     let channels: serde_json::Map<String, Value> = ex
         .channels()
         .iter()
         .zip(&r.channels)
-        .map(|(c, v)| (c.name.clone(), json!(v)))
+        .map(|(c, v)| (c.name.clone(), curve(v)))
         .collect();
     let cal = r.calibrated.as_ref();
     let indices: Vec<Value> = ex
@@ -199,10 +215,15 @@ fn response_json(ex: &Explorer, r: &Response, bands_of: Option<&[String]>) -> Va
             if bands_of.is_some_and(|names| !names.contains(&ch.name)) {
                 continue;
             }
-            let x = &r.channels[k];
-            let lo: Vec<f64> = x.iter().zip(h).map(|(x, h)| x - h).collect();
-            let hi: Vec<f64> = x.iter().zip(h).map(|(x, h)| x + h).collect();
-            bands.insert(ch.name.clone(), json!({"lo": lo, "hi": hi}));
+            let band = if f32 {
+                json!({"half": curve(h)})
+            } else {
+                let x = &r.channels[k];
+                let lo: Vec<f64> = x.iter().zip(h).map(|(x, h)| x - h).collect();
+                let hi: Vec<f64> = x.iter().zip(h).map(|(x, h)| x + h).collect();
+                json!({"lo": lo, "hi": hi})
+            };
+            bands.insert(ch.name.clone(), band);
         }
     }
     json!({
@@ -217,6 +238,7 @@ fn response_json(ex: &Explorer, r: &Response, bands_of: Option<&[String]>) -> Va
         "verdict": cal.and_then(|c| c.verdict).map(|v| v.as_str()),
         "bands": bands,
         "no_intervals": ex.calibration_note(),
+        "encoding": if f32 { "f32" } else { "json" },
     })
 }
 
@@ -258,7 +280,7 @@ fn inside_json(ex: &Explorer, pred: &Response, exact: &Response) -> (Value, Valu
 /// The answer of a prediction or a solve of `req`: the curves and indices, the full design,
 /// the parameters outside the training ranges and the excitation used.
 fn answer(ex: &Explorer, req: &DesignRequest, r: &Response) -> Result<Value, ApiError> {
-    let mut v = response_json(ex, r, req.bands.as_deref());
+    let mut v = response_json(ex, r, req.bands.as_deref(), req.encoding);
     v["design"] = Value::Object(ex.design_map(&req.design));
     v["outside"] = json!(ex.outside(&req.design)?);
     v["excitation"] = json!(ex.excitation_used(req.excitation));

@@ -827,6 +827,7 @@ impl Explorer {
             excitation,
             coverage: crate::request::DEFAULT_COVERAGE,
             bands: Some(Vec::new()),
+            encoding: crate::request::Encoding::Json,
         };
         Ok(self.exact(&req, cancel)?.0.indices)
     }
