@@ -222,14 +222,24 @@ fn input_errors_name_the_users_parameter_and_its_limit(c: &mut Client) {
         a.json()
     };
     for (name, value, internal) in [
-        ("m_c", -1.0, "bodies.c.mass"),
+        ("m_c", -1.0_f64, "bodies.c.mass"),
         ("j_c", -5.0, "bodies.c.inertia"),
         ("m_c", 1e308, "parameters.W"),
     ] {
         let v = refused(c, "/api/predict", json!({"design": {name: value}}));
         assert_eq!(v["field"], format!("design.{name}"), "{v}");
         let error = v["error"].as_str().unwrap();
-        assert!(error.contains(&format!("`design.{name}` = {value}")), "{v}");
+        // A value of many digits is quoted in exponent form (1e308, not 309 digits).
+        let typed = if value.abs() >= 1e9 {
+            format!("{value:e}")
+        } else {
+            format!("{value}")
+        };
+        assert!(
+            error.contains(&format!("`design.{name}` = {typed} ")),
+            "{v}"
+        );
+        assert!(error.len() < 200, "{v}");
         let allowed = v["allowed"].as_str().unwrap();
         assert!(allowed.contains(internal), "{v}");
     }
@@ -255,6 +265,9 @@ fn input_errors_name_the_users_parameter_and_its_limit(c: &mut Client) {
         let beyond = refused(c, "/api/predict", json!({"design": {name: limit * 1.01}}));
         assert_eq!(beyond["field"], format!("design.{name}"), "{beyond}");
     }
+    let v = refused(c, "/api/predict", json!({"design": {"m_c": 1e300}}));
+    let error = v["error"].as_str().unwrap();
+    assert!(error.contains("= 1e300 ") && error.len() < 200, "{v}");
     let v = refused(
         c,
         "/api/sweep",
