@@ -904,7 +904,8 @@ fn every_error_is_json_and_a_post_must_say_it_is_json() {
 
 /// docs/explore.md says which error statuses carry a JSON body and which `pino.*` keys a
 /// downloaded Parquet file carries: the statuses listed are exactly the ones the server gives
-/// (each provoked in these tests: 403, 404, 405, 413, 415 above, 429 in
+/// (each provoked in these tests: 403, 404, 405, 413, 415 above, 400, 408 and 431 in
+/// `serving`, 409 in `studies`, 429 in
 /// `the_solver_is_bounded_and_a_client_that_leaves_is_cancelled`; 500 only for a fault of the
 /// server itself), and the keys are exactly the downloaded file's.
 fn the_documented_statuses_and_metadata_keys_are_the_servers(c: &mut Client) {
@@ -921,7 +922,7 @@ fn the_documented_statuses_and_metadata_keys_are_the_servers(c: &mut Client) {
         flat[a..b].to_owned()
     };
     let sentence = between(
-        "Every error status carries such a body:",
+        "every error status carries such a body:",
         "only for a fault",
     );
     let documented: Vec<u16> = sentence
@@ -931,7 +932,7 @@ fn the_documented_statuses_and_metadata_keys_are_the_servers(c: &mut Client) {
         .collect();
     assert_eq!(
         documented,
-        [403, 404, 405, 413, 415, 429, 500],
+        [400, 403, 404, 405, 408, 409, 413, 415, 429, 431, 500],
         "{sentence}"
     );
 
