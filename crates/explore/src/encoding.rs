@@ -1,22 +1,52 @@
-//! The compact encoding of an answer's curves (`"encoding": "f32"`): each curve's values as
-//! IEEE 754 float32, each XORed with the one before it (the first with 0), the four bytes of
-//! those words laid out as four planes (every word's lowest byte first, then every word's
-//! second byte, ...), as base64 text (RFC 4648, with padding). Float32 keeps 7 significant
-//! digits, more than the page shows; the XORs and the planes put the bytes successive values
-//! share (sign, exponent, leading digits) side by side as runs of zeros, which the answer's
-//! compression then all but removes. The page decodes it back into numbers (`codec.js`).
+//! The compact encoding of an answer's curves (`"encoding": "f32"`). A curve's values `v_i` are
+//! IEEE 754 float32 (a band's half-widths rounded further to [`BAND_BITS`] significant bits);
+//! each is XORed with its prediction from the two before it, `p_0 = 0`, `p_1 = v_0`,
+//! `p_i = f32(2 v_(i-1) - v_(i-2))` (0 where that is not finite); the four bytes of those words
+//! are laid out as four planes (every word's lowest byte first, then every word's second
+//! byte, ...) and written as base64 (RFC 4648, with padding). Float32 keeps 7 significant
+//! digits, more than the page shows; the predictions and the planes turn what successive
+//! values of a smooth curve share into runs of zeros, which the answer's compression then all
+//! but removes. The page decodes it back into numbers (`codec.js`).
 
 use base64::Engine;
 
-/// `values` as float32, XORed in turn, in byte planes, base64.
-pub fn f32_base64(values: &[f64]) -> String {
-    let n = values.len();
+/// Significant bits of a band's half-width: each within 1/4096 of itself, far below a pixel
+/// of the band's edge (the curve's own values keep float32's 24).
+pub const BAND_BITS: u32 = 12;
+
+/// Significant bits of a float32.
+const F32_BITS: u32 = 24;
+
+/// `x` as float32 rounded to `significant` bits (the nearest, ties away from zero).
+fn rounded(x: f64, significant: u32) -> f32 {
+    let v = x as f32;
+    let drop = F32_BITS - significant.clamp(1, F32_BITS);
+    if drop == 0 || !v.is_finite() {
+        return v;
+    }
+    f32::from_bits(((v.to_bits() >> (drop - 1)) + 1) >> 1 << drop)
+}
+
+/// The prediction of value `i` from the values before it.
+fn predicted(v: &[f32], i: usize) -> u32 {
+    let p = match i {
+        0 => 0.0,
+        1 => v[0],
+        _ => (2.0 * f64::from(v[i - 1]) - f64::from(v[i - 2])) as f32,
+    };
+    if p.is_finite() {
+        p.to_bits()
+    } else {
+        0
+    }
+}
+
+fn encode(values: &[f64], significant: u32) -> String {
+    let v: Vec<f32> = values.iter().map(|&x| rounded(x, significant)).collect();
+    let n = v.len();
     let mut planes = vec![0u8; 4 * n];
-    let mut previous = 0u32;
-    for (i, &v) in values.iter().enumerate() {
-        let bits = (v as f32).to_bits();
-        let word = bits ^ previous;
-        previous = bits;
+    for i in 0..n {
+        let word = v[i].to_bits() ^ predicted(&v, i);
         for (j, byte) in word.to_le_bytes().into_iter().enumerate() {
             planes[j * n + i] = byte;
         }
@@ -24,7 +54,17 @@ pub fn f32_base64(values: &[f64]) -> String {
     base64::engine::general_purpose::STANDARD.encode(planes)
 }
 
-/// The values of an [`f32_base64`] text; `None` when it is not one.
+/// A curve's `values` as float32, compact.
+pub fn f32_base64(values: &[f64]) -> String {
+    encode(values, F32_BITS)
+}
+
+/// A band's half-widths as float32 of [`BAND_BITS`] significant bits, compact.
+pub fn band_base64(values: &[f64]) -> String {
+    encode(values, BAND_BITS)
+}
+
+/// The values of a compact curve; `None` when it is not one.
 pub fn from_f32_base64(text: &str) -> Option<Vec<f32>> {
     let planes = base64::engine::general_purpose::STANDARD
         .decode(text)
@@ -33,21 +73,18 @@ pub fn from_f32_base64(text: &str) -> Option<Vec<f32>> {
         return None;
     }
     let n = planes.len() / 4;
-    let mut previous = 0u32;
-    Some(
-        (0..n)
-            .map(|i| {
-                let word = u32::from_le_bytes([
-                    planes[i],
-                    planes[n + i],
-                    planes[2 * n + i],
-                    planes[3 * n + i],
-                ]);
-                previous ^= word;
-                f32::from_bits(previous)
-            })
-            .collect(),
-    )
+    let mut v: Vec<f32> = Vec::with_capacity(n);
+    for i in 0..n {
+        let word = u32::from_le_bytes([
+            planes[i],
+            planes[n + i],
+            planes[2 * n + i],
+            planes[3 * n + i],
+        ]);
+        let bits = word ^ predicted(&v, i);
+        v.push(f32::from_bits(bits));
+    }
+    Some(v)
 }
 
 #[cfg(test)]
@@ -55,11 +92,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn curves_round_trip_through_float32_and_base64() {
+    fn curves_round_trip_through_float32_and_bands_keep_12_bits() {
         let x = [
             0.0,
             -1.5,
             1e-30,
+            3.4e38,
             3.4e38,
             0.1,
             -2.0e5,
@@ -72,20 +110,26 @@ mod tests {
         assert_eq!(back.len(), x.len());
         for (a, b) in x.iter().zip(&back) {
             assert_eq!(b.to_bits(), (*a as f32).to_bits(), "{a}");
-            assert!((f64::from(*b) - a).abs() <= a.abs() * 6e-8, "{a} {b}");
         }
-        // The layout: 1.0f32 is 0x3f800000; alone, its planes are 00 00 80 3f.
-        assert_eq!(f32_base64(&[1.0]), "AACAPw==");
-        // Two equal values: the second XOR is all zeros, planes [00 00] [00 00] [80 00] [3f 00].
-        assert_eq!(
-            from_f32_base64(&f32_base64(&[1.0, 1.0])).unwrap(),
-            [1.0, 1.0]
-        );
+        let smooth: Vec<f64> = (0..500)
+            .map(|k| 1e-3 * (k as f64 * 0.01).sin() + 2e-3)
+            .collect();
+        let bands = from_f32_base64(&band_base64(&smooth)).unwrap();
+        for (a, b) in smooth.iter().zip(&bands) {
+            assert!((f64::from(*b) - a).abs() <= a.abs() / 4096.0, "{a} {b}");
+            assert_eq!(b.to_bits() & 0xfff, 0, "only 12 significant bits: {b}");
+        }
+        // The layout, as codec.js reads it: 1, 2, 3, 5 predict 0, 1, 3, 4, so the words are
+        // 3f800000, 7f800000, 0, 00200000, in planes.
         assert_eq!(
             base64::engine::general_purpose::STANDARD
-                .decode(f32_base64(&[1.0, 1.0]))
+                .decode(f32_base64(&[1.0, 2.0, 3.0, 5.0]))
                 .unwrap(),
-            [0, 0, 0, 0, 0x80, 0, 0x3f, 0]
+            [0, 0, 0, 0, 0, 0, 0, 0, 0x80, 0x80, 0, 0x20, 0x3f, 0x7f, 0, 0]
+        );
+        assert_eq!(
+            f32_base64(&[1.0, 2.0, 3.0, 5.0]),
+            "AAAAAAAAAACAgAAgP38AAA=="
         );
         assert_eq!(f32_base64(&[]), "");
         assert_eq!(from_f32_base64("AACA"), None);

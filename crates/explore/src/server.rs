@@ -164,8 +164,8 @@ fn not_found() -> HttpResponse {
 /// The answer of a prediction or a solve; a calibrated prediction adds each index's interval
 /// and verdict, the combined verdict, `coverage`, `extrapolated` and the bands of the channels
 /// `bands` names (every banded channel when `None`). With [`Encoding::F32`] each curve is a
-/// base64 float32 text and each band its half-width (`{"half"}`), else arrays of numbers and
-/// each band's `lo` and `hi`.
+/// compact float32 text and each band its half-width (`{"half"}`, [`encoding::BAND_BITS`]
+/// significant bits), else arrays of numbers and each band's `lo` and `hi`.
 fn response_json(
     ex: &Explorer,
     r: &Response,
@@ -216,7 +216,7 @@ fn response_json(
                 continue;
             }
             let band = if f32 {
-                json!({"half": curve(h)})
+                json!({"half": encoding::band_base64(h)})
             } else {
                 let x = &r.channels[k];
                 let lo: Vec<f64> = x.iter().zip(h).map(|(x, h)| x - h).collect();

@@ -79,22 +79,25 @@ test('range labels never show a bound outside the range they name', () => {
 });
 
 test('compact curves decode to the float32 values and bands to the curve minus and plus the half-width', () => {
-  // The server's layout: float32 words, each XORed with the one before, in byte planes.
+  // The server's encoding (crates/explore/src/encoding.rs): 1, 2, 3, 5 predicted as 0, 1, 3, 4.
+  assert.deepEqual(fromF32Base64('AAAAAAAAAACAgAAgP38AAA=='), [1, 2, 3, 5]);
+  assert.deepEqual(fromF32Base64(''), []);
+  // An encoder written from the docs, for the rest.
+  const dv = new DataView(new ArrayBuffer(4));
+  const bits = (x) => { dv.setFloat32(0, x, true); return dv.getUint32(0, true); };
   const b64 = (xs) => {
-    const words = new Uint32Array(new Float32Array(xs).buffer);
-    const n = words.length;
+    const v = xs.map(Math.fround);
+    const n = v.length;
     const planes = Buffer.alloc(4 * n);
-    let previous = 0;
-    words.forEach((w, i) => {
-      const x = (w ^ previous) >>> 0;
-      previous = w;
-      for (let j = 0; j < 4; j++) planes[j * n + i] = (x >>> (8 * j)) & 255;
+    v.forEach((x, i) => {
+      const p = i === 0 ? 0 : i === 1 ? v[0] : Math.fround(2 * v[i - 1] - v[i - 2]);
+      const w = (bits(x) ^ (Number.isFinite(p) ? bits(p) : 0)) >>> 0;
+      for (let j = 0; j < 4; j++) planes[j * n + i] = (w >>> (8 * j)) & 255;
     });
     return planes.toString('base64');
   };
-  assert.equal(b64([1, 1]), 'AAAAAIAAPwA=');
-  assert.deepEqual(fromF32Base64('AACAPw=='), [1]);
-  assert.deepEqual(fromF32Base64(b64([1, -2.5, 0.1])), [1, -2.5, Math.fround(0.1)]);
+  const xs = [1, -2.5, 0.1, 3.4e38, 3.4e38, -3.4e38, 1e-30, 0];
+  assert.deepEqual(fromF32Base64(b64(xs)), xs.map(Math.fround));
   const answer = decodeAnswer({
     encoding: 'f32', t: [0, 1], indices: [],
     channels: { x: b64([1, 2]), e: b64([0.5, 0.25]) }, bands: { x: { half: b64([0.5, 0.25]) } },
