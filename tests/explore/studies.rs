@@ -100,15 +100,19 @@ fn a_running_study_never_holds_up_a_prediction_shows_its_progress_and_can_be_can
     let a = c.post_json("/api/studies", &small).unwrap();
     assert_eq!(a.status, 202, "{}", a.json());
     let name = a.json()["name"].as_str().unwrap().to_owned();
-    assert_ne!(name, s["name"].as_str().unwrap(), "a cancelled study's name given again");
+    assert_ne!(
+        name,
+        s["name"].as_str().unwrap(),
+        "a cancelled study's name given again"
+    );
     let s = wait_study(&mut c, &name);
     assert_eq!(s["state"], "finished", "{s}");
     // Its one-line summary quotes the study's name as `code`.
     assert!(s["detail"].as_str().unwrap().contains('`'), "{s}");
     // Answered slice by slice, each design's indices are those `/api/predict` gives it under
     // the same generated profile: at either end of every slice.
-    let t = pino_data::read_parquet(&dir.path().join(&name).join("evaluations.parquet"), None)
-        .unwrap();
+    let t =
+        pino_data::read_parquet(&dir.path().join(&name).join("evaluations.parquet"), None).unwrap();
     let params: Vec<String> = model["parameters"]
         .as_array()
         .unwrap()

@@ -345,10 +345,11 @@ pub struct Started {
     pub declaration: String,
 }
 
-/// How many nice steps below the interactive work a started study runs: on a core both want,
-/// the kernel gives the interactive request three quarters of the time (CFS weights 1024 to
-/// 335) and wakes it first; a study is slowed, never starved, by the rest of the machine.
-const STUDY_NICENESS: i32 = 5;
+/// How many nice steps below the interactive work a started study runs (at most 19): on a
+/// core both want, the kernel gives the interactive request nine tenths of the time (CFS
+/// weights 1024 to 110) and wakes it first (BENCHMARKS.md, "Explorer": 5 steps left a
+/// slower p99).
+const STUDY_NICENESS: i32 = 10;
 
 /// The threads of a started study: `threads` of them, made by the calling thread (whose
 /// priority they inherit), so the interactive requests, on the default pool and the blocking

@@ -103,8 +103,8 @@ struct Args {
     /// in the workspace); the Studies page lists those of earlier sessions too.
     #[arg(long, value_name = "DIR")]
     study_dir: Option<PathBuf>,
-    /// Threads a started study runs on (default: the machine's cores), at a lower CPU
-    /// priority: predictions and solves never wait for it.
+    /// Threads a started study runs on (default: the machine's cores but one, at least one),
+    /// at a lower CPU priority: predictions and solves never wait for it.
     #[arg(long, value_name = "N")]
     study_threads: Option<usize>,
 }
@@ -196,14 +196,17 @@ fn token_for(args: &Args, addr: SocketAddr) -> Result<Option<String>> {
 }
 
 /// The studies started from the page: in `--study-dir` (default: `explore-studies` in the
-/// workspace), each on `--study-threads` threads (default: the machine's cores).
+/// workspace), each on `--study-threads` threads (default: the machine's cores but one, so a
+/// core is always free for the page's requests; BENCHMARKS.md, "Explorer").
 fn studies(args: &Args, workspace: &std::path::Path) -> Studies {
     Studies::open(
         args.study_dir
             .clone()
             .unwrap_or_else(|| workspace.join(STUDY_DIR)),
         args.study_threads.unwrap_or_else(|| {
-            std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+            std::thread::available_parallelism()
+                .map_or(1, |n| n.get().saturating_sub(1))
+                .max(1)
         }),
     )
 }
