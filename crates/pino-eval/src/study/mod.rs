@@ -19,6 +19,7 @@ pub mod output;
 pub mod sensitivity;
 pub mod spec;
 
+pub use evaluate::Progress;
 pub use spec::{Study, StudyKind, StudyParams};
 
 /// The `source` values of a study's tables: which side answered.
@@ -129,6 +130,17 @@ pub fn load_surrogate(
 /// Runs the study of `params` through `surrogate` and writes its files into `out`; returns the
 /// one-line summary.
 pub fn run(surrogate: &Surrogate, params: &StudyParams, out: &Path) -> Result<String> {
+    run_with(surrogate, params, out, None)
+}
+
+/// [`run`] counting its designs in `progress`; once that is cancelled it stops at its next
+/// slice of designs or solve with [`crate::Error::Cancelled`].
+pub fn run_with(
+    surrogate: &Surrogate,
+    params: &StudyParams,
+    out: &Path,
+    progress: Option<&Progress>,
+) -> Result<String> {
     params.validate()?;
     let predictor = surrogate.primary();
     let parameters = model_parameters(predictor);
@@ -140,6 +152,10 @@ pub fn run(surrogate: &Surrogate, params: &StudyParams, out: &Path) -> Result<St
         .collect();
     let study = Study::parse(&params.study, &parameters, &names).map_err(spec_error)?;
     let ev = evaluate::Evaluator::new(surrogate, params)?;
+    let ev = match progress {
+        Some(p) => ev.with_progress(p),
+        None => ev,
+    };
     match &study.kind {
         StudyKind::MonteCarlo { n, limits } => {
             let mc = monte_carlo::run(&ev, &study, *n, limits, &parameters)?;
