@@ -904,15 +904,15 @@ async function main() {
     }
   });
 
-  // ---- 10. the pipeline at a glance: every unit fresh but the study stages' (the test workspace
-  // does not run them), Table 4 and the plots shown -------------------------------------------
+  // ---- 10. the pipeline at a glance: every unit fresh but the studies' and the export's (the
+  // test workspace does not run them), Table 4 and the plots shown ------------------------------
   await step('pipeline', async () => {
     await page.goto(new URL('/pipeline', url).toString());
     await page.waitForSelector('body[data-polls]', { timeout: TIMEOUT_MS });
     const units = await page.$$eval('tr[data-unit]', (rows) => rows.map((r) => [r.dataset.unit, r.dataset.state]));
     check(units.length > 0, 'the pipeline page lists no unit');
-    const study = (unit) => /^study(-[a-z-]+)?\[/.test(unit); // `study[...]`, `study-differences[...]`
-    const wrong = units.filter(([unit, state]) => state !== (study(unit) ? 'never run' : 'fresh'));
+    const unrun = (unit) => /^(study\[|export$)/.test(unit); // `study[...]`, `export`
+    const wrong = units.filter(([unit, state]) => state !== (unrun(unit) ? 'never run' : 'fresh'));
     check(wrong.length === 0, `units in an unexpected state on the pipeline page: ${JSON.stringify(wrong)}`);
     const table4Rows = await page.$$eval('#table4 tbody tr', (rows) => rows.length);
     check(table4Rows > 0, 'the pipeline page shows no Table 4');

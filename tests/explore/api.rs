@@ -511,7 +511,7 @@ fn predictions_equal_the_predict_command_and_solves_equal_the_simulation() {
     let mut c = served.client();
     let model = c.get("/api/model").unwrap().json();
     let channels = names(&model, "channels");
-    let model_dir = model["model"]["dir"].as_str().unwrap().to_owned();
+    let surrogate_dir = model["model"]["dir"].as_str().unwrap().to_owned();
     let test = &model["excitation"]["test_samples"][0];
     assert_eq!(test["sample_id"], TEST_SAMPLE);
 
@@ -527,7 +527,7 @@ fn predictions_equal_the_predict_command_and_solves_equal_the_simulation() {
         .unwrap();
     assert_eq!(a.status, 200, "{}", String::from_utf8_lossy(&a.body));
     let served_pred = a.json();
-    // The calibration of the served model's calibrating stage: 10 samples support 0.8 and 0.9.
+    // The surrogate's calibrations: 10 samples support 0.8 and 0.9.
     let cal = &model["calibration"];
     assert_eq!(cal["n"], 10, "{cal}");
     let supported: Vec<(f64, bool)> = cal["levels"]
@@ -548,8 +548,8 @@ fn predictions_equal_the_predict_command_and_solves_equal_the_simulation() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("p.parquet");
     let o = std::process::Command::new(pino_mbd_tests::bin("predict"))
-        .arg("--model")
-        .arg(&model_dir)
+        .arg("--surrogate")
+        .arg(&surrogate_dir)
         .arg("--params")
         .arg(design_file(dir.path(), &design))
         .arg("--profile")
@@ -730,7 +730,7 @@ fn the_solver_is_bounded_and_a_client_that_leaves_is_cancelled() {
             "constants.system_values.n_f=900",
             "constants.system_values.n_m=450",
         ],
-        &[crate::SERVED_CALIBRATION],
+        &[crate::SERVED_SURROGATE],
     );
     let mut served = trained.serve(&["--solve-workers", "1", "--solve-queue", "0"]);
     let mut c = served.client();

@@ -305,14 +305,14 @@ fn a_user_explores_designs_in_a_real_browser() {
 
 /// `predict --params FILE` with the test sample's profile, its time histories read back.
 fn predict(trained: &Trained, params: &Path, sample_id: i64, dir: &Path) -> Table {
-    let model = trained.file(crate::SERVED_MODEL, "model.json");
-    let model_dir = model.parent().expect("model directory");
+    let manifest = trained.file(crate::SERVED_SURROGATE, "surrogate.json");
+    let surrogate = manifest.parent().expect("surrogate directory");
     let profile = trained.file("irregularity", "irregularity.parquet");
     let stem = params.file_stem().unwrap().to_string_lossy();
     let to = dir.join(format!("{stem}-predicted.parquet"));
     let o = Command::new(pino_mbd_tests::bin("predict"))
-        .arg("--model")
-        .arg(model_dir)
+        .arg("--surrogate")
+        .arg(surrogate)
         .arg("--params")
         .arg(params)
         .arg("--profile")

@@ -20,15 +20,13 @@ mod page_logic;
 mod serving;
 mod studies;
 
-/// The shared workspace's targets: every stage but the studies (the explorer serves the
-/// model the studies read, `train-rates`, with its calibration, and shows Table 4 and the
-/// indices; the studies are left unrun).
-const SERVED_STAGES: &[&str] = &["evaluate", "evaluate-rates", "indices"];
+/// The shared workspace's targets: every stage but the studies and the export (the explorer
+/// serves the surrogate, each member with its calibration, and shows Table 4 and the indices;
+/// the studies are left unrun).
+const SERVED_STAGES: &[&str] = &["evaluate", "indices"];
 
-/// The training stage whose model `explore` serves in the default pipeline: the one the
-/// most studies read (`pipeline.yaml`), and the stage calibrating it.
-pub const SERVED_MODEL: &str = "train-rates";
-pub const SERVED_CALIBRATION: &str = "calibrate-rates";
+/// The stage whose output `explore` serves in the default pipeline: its surrogate.
+pub const SERVED_SURROGATE: &str = "surrogate";
 
 /// A workspace in which the default pipeline ran with the TINY overrides and then `extra`.
 pub struct Trained {
@@ -113,7 +111,7 @@ impl Trained {
             .clone()
     }
 
-    /// Starts `explore` on this workspace's served model ([`SERVED_MODEL`]), on a free loopback port unless
+    /// Starts `explore` on this workspace's served surrogate ([`SERVED_SURROGATE`]), on a free loopback port unless
     /// `extra` binds elsewhere.
     pub fn serve(&self, extra: &[&str]) -> Served {
         let mut cmd = Command::new(pino_mbd_tests::bin("explore"));

@@ -62,7 +62,53 @@ pub fn locate(p: &Pipeline, algorithm: i64) -> Result<Located, String> {
         .first()
         .and_then(|f| f.parent().map(Path::to_path_buf))
         .ok_or_else(|| format!("{}: `{unit}` wrote no model.safetensors", p.file))?;
-    // Every stage upstream of the training stage, nearest first.
+    let dataset = dataset_of(p, stage);
+    let calibration = calibration_of(p, &stage.name);
+    Ok(Located {
+        unit,
+        model_dir,
+        dataset,
+        calibration,
+    })
+}
+
+/// The current output of the pipeline's `surrogate` stage (the first stage running the
+/// `surrogate` binary) and its dataset; `None` when it has no such stage, `Err` when the stage
+/// has no current output.
+pub fn locate_surrogate(
+    p: &Pipeline,
+) -> Option<Result<(PathBuf, crate::session::DatasetFiles), String>> {
+    let (_, stage) = p.stages_running(SURROGATE_COMMAND).next()?;
+    let found = show(p, &stage.name)
+        .map_err(|e| {
+            format!(
+                "{}: no current surrogate of `{}` ({e}); run `pipeline -f {} run` first, or give --surrogate DIR or --model DIR",
+                p.file, stage.name, p.file
+            )
+        })
+        .and_then(|text| {
+            let files: Vec<PathBuf> = text.lines().map(PathBuf::from).collect();
+            files_named(&files, pino_eval::surrogate::manifest::SURROGATE_FILE)
+                .first()
+                .and_then(|f| f.parent().map(Path::to_path_buf))
+                .ok_or_else(|| {
+                    format!(
+                        "{}: `{}` wrote no {}",
+                        p.file,
+                        stage.name,
+                        pino_eval::surrogate::manifest::SURROGATE_FILE
+                    )
+                })
+        });
+    Some(found.map(|dir| (dir, dataset_of(p, stage))))
+}
+
+/// The stage binary that builds a surrogate.
+const SURROGATE_COMMAND: &str = "surrogate";
+
+/// The `params.parquet` and `irregularity.parquet` of the stages upstream of `stage`.
+fn dataset_of(p: &Pipeline, stage: &orchestrator::spec::Stage) -> crate::session::DatasetFiles {
+    // Every stage upstream, nearest first.
     let mut upstream: Vec<String> = stage.inputs.values().flatten().cloned().collect();
     let mut k = 0;
     while k < upstream.len() {
@@ -86,13 +132,7 @@ pub fn locate(p: &Pipeline, algorithm: i64) -> Result<Located, String> {
     }
     dataset.params.dedup();
     dataset.profiles.dedup();
-    let calibration = calibration_of(p, &stage.name);
-    Ok(Located {
-        unit,
-        model_dir,
-        dataset,
-        calibration,
-    })
+    dataset
 }
 
 /// The stage and unit that train `algorithm`: of the training stage whose models answer the

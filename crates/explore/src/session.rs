@@ -20,10 +20,12 @@ use crate::request::{ApiError, DesignRequest, Excitation, RequestRules, SweepReq
 use crate::solve::{self, Rates};
 use mbd_engine::{Profile, RunConfig};
 use pino_eval::calibration::{CalibratedAnswer, REPORTED_LEVELS};
-use pino_eval::indices_eval::{SampleIndices, StoredColumns};
+use pino_eval::indices_eval::StoredColumns;
 use pino_eval::predict::{
-    prediction_channels, ChannelSource, DesignAnswer, Predictor, ProfileChoice, SetPrediction,
+    prediction_channels, ChannelSource, DesignAnswer, Predictor, ProfileChoice, ProfileSource,
+    SetPrediction,
 };
+use pino_eval::surrogate::Surrogate;
 use pino_indices::IndexConfig;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -103,9 +105,16 @@ pub struct Channel {
     pub unit: String,
     /// Family.
     pub group: Group,
-    /// Where its values sit in a prediction.
+    /// The surrogate's member predicting it.
+    #[serde(skip)]
+    pub(crate) member: usize,
+    /// Where its values sit in that member's prediction.
     #[serde(skip)]
     pub(crate) slot: ChannelSource,
+    /// Where they sit in the solver's answer (laid out as the primary member's prediction;
+    /// `None` when the primary has no channel of that name).
+    #[serde(skip)]
+    pub(crate) exact: Option<ChannelSource>,
 }
 
 /// A test sample of the dataset: its design and its profiles.
@@ -155,7 +164,7 @@ const PROFILE_CACHE: usize = 8;
 
 /// A model opened for exploration.
 pub struct Explorer {
-    predictor: Predictor,
+    surrogate: Surrogate,
     identity: ModelIdentity,
     run: RunConfig,
     index_cfg: IndexConfig,
@@ -183,39 +192,41 @@ fn internal(e: impl std::fmt::Display) -> ApiError {
 }
 
 impl Explorer {
-    /// Opens the model in `model_dir` (and its dataset, when given) on the CPU.
+    /// Opens the model in `model_dir` (and its dataset, when given) on the CPU; its
+    /// calibration comes with [`Explorer::load_calibration`].
     pub fn open(model_dir: &Path, dataset: DatasetFiles, limits: Limits) -> Result<Self, Error> {
-        let device = candle_core::Device::Cpu;
-        let predictor = Predictor::load(model_dir, &device)?;
+        let predictor = Predictor::load(model_dir, &candle_core::Device::Cpu)?;
+        Self::of(Surrogate::of_model(predictor), model_dir, dataset, limits)
+    }
+
+    /// Opens the surrogate in `dir` (the `surrogate` stage's output: its members, each with
+    /// its calibration) on the CPU: every index and channel answered by its member.
+    pub fn open_surrogate(
+        dir: &Path,
+        dataset: DatasetFiles,
+        limits: Limits,
+    ) -> Result<Self, Error> {
+        let surrogate = Surrogate::load(dir, &candle_core::Device::Cpu)?;
+        let mut ex = Self::of(surrogate, dir, dataset, limits)?;
+        ex.calibration_file = Some(dir.to_owned());
+        ex.intervals_loaded(dir, None);
+        Ok(ex)
+    }
+
+    fn of(
+        surrogate: Surrogate,
+        model_dir: &Path,
+        dataset: DatasetFiles,
+        limits: Limits,
+    ) -> Result<Self, Error> {
+        let predictor = surrogate.primary();
         let system = predictor.system().clone();
         let column_units = pino_data::system::units_of(&system)?;
         let meta = &predictor.meta;
         let run = predictor.run_config(None)?;
         let index_cfg = predictor.index_config()?;
         let index_limits = predictor.index_inputs().limits(&system, &index_cfg);
-        let layout = &meta.layout;
-        let channels = prediction_channels(layout)
-            .into_iter()
-            .map(|(name, slot)| {
-                let group = match slot {
-                    ChannelSource::Output(i) => match layout.rate_order(i) {
-                        Some(1) => Group::Velocity,
-                        Some(_) => Group::Acceleration,
-                        None if i < layout.solutions => Group::Displacement,
-                        None => Group::Force,
-                    },
-                    ChannelSource::Velocity(_) => Group::Velocity,
-                    ChannelSource::Acceleration(_) => Group::Acceleration,
-                    ChannelSource::Excitation(_) => Group::Excitation,
-                };
-                Channel {
-                    unit: layout.unit(&name).to_owned(),
-                    name,
-                    group,
-                    slot,
-                }
-            })
-            .collect();
+        let channels = channels_of(&surrogate);
         let names = predictor.space.names().to_vec();
         let ranges = names
             .iter()
@@ -257,9 +268,9 @@ impl Explorer {
             algorithm: meta.train.algorithm.id(),
             system: system.name.clone(),
         };
-        let test = test_samples(&predictor, &rules.names, &dataset)?;
+        let test = test_samples(predictor, &rules.names, &dataset)?;
         Ok(Self {
-            predictor,
+            surrogate,
             identity,
             run,
             index_cfg,
@@ -283,29 +294,40 @@ impl Explorer {
     /// directory): refused, naming the file, when missing, corrupt or of another model. A
     /// calibration without intervals (`n_calibration: 0`) is accepted and its reason noted.
     pub fn load_calibration(&mut self, path: &Path) -> Result<(), Error> {
-        let cal = self
-            .predictor
+        let why = self
+            .surrogate
             .load_calibration(path)
-            .map_err(|e| Error::Calibration(format!("calibration {}: {e}", path.display())))?;
-        let (n, has, why) = (cal.n, cal.has_intervals(), cal.no_intervals.clone());
+            .map_err(|e| Error::Calibration(format!("calibration {}: {e}", path.display())))?
+            .no_intervals
+            .clone();
         self.calibration_file = Some(path.to_owned());
-        if has {
-            self.rules.calibration_n = Some(n);
-            self.calibration_note = None;
-            self.rules.band_channels = (0..self.channels.len())
-                .filter(|&k| self.band_index(k).is_some())
-                .map(|k| self.channels[k].name.clone())
-                .collect();
-        } else {
-            self.rules.calibration_n = None;
-            self.rules.band_channels.clear();
-            self.calibration_note = Some(format!(
-                "no error bar: the calibration {} has no intervals: {}",
-                path.display(),
-                why.unwrap_or_else(|| "it has no calibration samples".into())
-            ));
-        }
+        self.intervals_loaded(path, why);
         Ok(())
+    }
+
+    /// The request rules and the note after the calibration(s) from `path` were loaded
+    /// (`why`: the reason a calibration without intervals gives).
+    fn intervals_loaded(&mut self, path: &Path, why: Option<String>) {
+        let n = self.predictor().calibration().map(|c| c.n);
+        match n.filter(|_| self.surrogate.has_intervals()) {
+            Some(n) => {
+                self.rules.calibration_n = Some(n);
+                self.calibration_note = None;
+                self.rules.band_channels = (0..self.channels.len())
+                    .filter(|&k| self.band_index(k).is_some())
+                    .map(|k| self.channels[k].name.clone())
+                    .collect();
+            }
+            None => {
+                self.rules.calibration_n = None;
+                self.rules.band_channels.clear();
+                self.calibration_note = Some(format!(
+                    "no error bar: the calibration {} has no intervals: {}",
+                    path.display(),
+                    why.unwrap_or_else(|| "it has no calibration samples".into())
+                ));
+            }
+        }
     }
 
     /// Records why no calibration was loaded (shown on the page and in the summary).
@@ -323,20 +345,19 @@ impl Explorer {
         self.rules.calibration_n.is_some()
     }
 
-    /// The band index of each channel ([`Explorer::channels`] order) in a calibrated answer's
-    /// `bands` (outputs, velocities, accelerations; `None` for excitations, exact inputs).
+    /// Where channel `channel`'s band sits in a calibrated answer's `bands` (its own index:
+    /// the bands follow [`Explorer::channels`]); `None` for excitations, exact inputs, and
+    /// without intervals.
     pub fn band_index(&self, channel: usize) -> Option<usize> {
         if !self.has_intervals() {
             return None;
         }
-        let layout = &self.predictor.meta.layout;
-        let (o, d) = (layout.n_outputs(), layout.n_dofs());
-        self.channels.get(channel)?.slot.band(o, d)
+        self.surrogate.channel_band(channel).map(|_| channel)
     }
 
     /// The calibration as the summary lists it (`null` without intervals).
     fn calibration_summary(&self) -> serde_json::Value {
-        let Some(cal) = self.predictor.calibration().filter(|c| c.has_intervals()) else {
+        let Some(cal) = self.predictor().calibration().filter(|c| c.has_intervals()) else {
             return serde_json::Value::Null;
         };
         let levels: Vec<_> = REPORTED_LEVELS
@@ -358,9 +379,14 @@ impl Explorer {
         })
     }
 
-    /// The model's directory (a `train` output).
+    /// The model's directory (a `train` output) or the surrogate's.
     pub fn model_dir(&self) -> &Path {
         &self.model_dir
+    }
+
+    /// The surrogate answering (a single model is one of one member).
+    pub fn surrogate(&self) -> &Surrogate {
+        &self.surrogate
     }
 
     /// The calibration file or directory the intervals come from, when one was loaded.
@@ -368,9 +394,10 @@ impl Explorer {
         self.calibration_file.as_deref()
     }
 
-    /// The model as loaded.
+    /// The model whose system, design space, time grid and ranges the answers share (the
+    /// surrogate's primary member).
     pub fn predictor(&self) -> &Predictor {
-        &self.predictor
+        self.surrogate.primary()
     }
 
     /// The parser of this model's requests.
@@ -414,7 +441,7 @@ impl Explorer {
 
     /// The summary (`GET /api/model`).
     pub fn summary(&self) -> serde_json::Value {
-        let meta = &self.predictor.meta;
+        let meta = &self.predictor().meta;
         let r = &self.rules;
         let parameters: Vec<_> = (0..r.names.len())
             .map(|k| {
@@ -427,7 +454,7 @@ impl Explorer {
                 })
             })
             .collect();
-        let inputs = self.predictor.index_inputs();
+        let inputs = self.predictor().index_inputs();
         let columns = if inputs.computable() {
             inputs.columns()
         } else {
@@ -456,7 +483,7 @@ impl Explorer {
             "parameters": parameters,
             "channels": self.channels,
             "indices": indices,
-            "indices_note": if self.predictor.index_inputs().computable() { String::new() } else { self.predictor.index_inputs().why_not() },
+            "indices_note": if self.predictor().index_inputs().computable() { String::new() } else { self.predictor().index_inputs().why_not() },
             "excitation": {
                 "generated_profiles": self.generated,
                 "test_samples": tests,
@@ -483,12 +510,12 @@ impl Explorer {
     /// of another count (built by the server, not the client) is a fault of the server.
     pub fn outside(&self, design: &[f64]) -> Result<Vec<serde_json::Value>, ApiError> {
         let design = self
-            .predictor
+            .predictor()
             .system()
             .sampled_values(design)
             .map_err(ApiError::internal)?;
         Ok(self
-            .predictor
+            .predictor()
             .meta
             .training_ranges
             .outside(&design)
@@ -502,7 +529,10 @@ impl Explorer {
     /// The profiles of an excitation (the default when `None`).
     pub fn profiles(&self, ex: Option<Excitation>) -> Result<Profiles, ApiError> {
         if self.generated.is_empty() {
-            return Ok(Arc::new(vec![None; self.predictor.system().profiles.len()]));
+            return Ok(Arc::new(vec![
+                None;
+                self.predictor().system().profiles.len()
+            ]));
         }
         match ex.unwrap_or_else(|| self.default_excitation()) {
             Excitation::Test { sample_id } => self
@@ -528,7 +558,7 @@ impl Explorer {
                     return Ok(p.clone());
                 }
                 let p = self
-                    .predictor
+                    .predictor()
                     .profiles(Some(&ProfileChoice::Generated { seed, id }))
                     .map_err(|e| ApiError::bad("excitation", e.to_string(), "a seed the dataset's generator accepts"))?;
                 let p = Arc::new(p);
@@ -547,9 +577,9 @@ impl Explorer {
     /// error naming the design parameter at fault (`design.NAME`, the row the page marks) and,
     /// for a run, its limit.
     fn check(&self, design: &[f64], profiles: &[Option<Profile>]) -> Result<(), ApiError> {
-        self.predictor
+        self.predictor()
             .excitations_of(design, profiles, &self.run, "design")
-            .and_then(|_| self.predictor.readable(design, "design"))
+            .and_then(|_| self.predictor().readable(design, "design"))
             .map_err(|e| match e {
                 pino_eval::Error::Learn(pino_learn::Error::OutOfRange {
                     field,
@@ -577,17 +607,21 @@ impl Explorer {
         self.check(design, &profiles)
     }
 
+    /// Every member's prediction of `design` (`None` for a member answering nothing).
     fn predict_raw(
         &self,
-        designs: &[Vec<f64>],
+        design: &[f64],
         profiles: &[Option<Profile>],
-    ) -> Result<Vec<SetPrediction>, ApiError> {
-        for d in designs {
-            self.check(d, profiles)?;
-        }
-        self.predictor
-            .forward(0, designs, profiles, &self.run)
-            .map_err(|e| self.refusal(e, None))
+    ) -> Result<Vec<Option<SetPrediction>>, ApiError> {
+        self.check(design, profiles)?;
+        let sets = [design.to_vec()];
+        Ok(self
+            .surrogate
+            .forward_with(0, &sets, &ProfileSource::Shared(profiles), &self.run)
+            .map_err(|e| self.refusal(e, None))?
+            .into_iter()
+            .map(|m| m.and_then(|mut v| v.pop()))
+            .collect())
     }
 
     /// A refusal of the predictor in the request's words: a design parameter at fault
@@ -633,60 +667,76 @@ impl Explorer {
         e
     }
 
-    /// The indices of `design` from its values `p` (a prediction, or the solver's with its
-    /// `stored` columns); `None` when the model computes none.
-    fn indices_of(
+    /// The solver's answer of `design` (its values `exact` laid out as the primary member's
+    /// prediction, with its `stored` columns): the curves at the interior rows and the indices.
+    fn exact_response(
         &self,
         design: &[f64],
-        p: &SetPrediction,
-        stored: Option<&StoredColumns>,
-    ) -> Result<Option<SampleIndices>, ApiError> {
-        let inputs = self.predictor.index_inputs();
-        if !inputs.computable() {
-            return Ok(None);
-        }
-        let meta = &self.predictor.meta;
-        inputs
-            .sample(
-                self.predictor.system(),
-                &meta.layout,
-                design,
-                0,
-                &p.physical,
-                stored,
-                &p.eta,
-                &meta.grid,
-                &self.index_cfg,
-            )
-            .map(Some)
-            .map_err(internal)
-    }
-
-    /// The answer of `design` from its values `p`: the curves at the interior rows and the
-    /// indices; with `coverage` (a prediction), the intervals and bands of the calibration.
-    fn response(
-        &self,
-        design: &[f64],
-        p: &SetPrediction,
-        rates: Rates,
-        stored: Option<&StoredColumns>,
-        coverage: Option<f64>,
+        exact: &SetPrediction,
+        stored: &StoredColumns,
     ) -> Result<Response, ApiError> {
-        let ix = self.indices_of(design, p, stored)?;
-        let (t, channels) = solve::curves(&self.channels, &self.predictor.meta, p, rates);
-        let indices = ix.as_ref().map_or_else(Vec::new, |ix| ix.values.clone());
-        let calibrated = match coverage {
-            Some(c) if self.has_intervals() => self
-                .predictor
-                .calibrated(design, p, &indices, c, true)
-                .map_err(calibration_error)?,
-            _ => None,
+        let meta = &self.predictor().meta;
+        let inputs = self.predictor().index_inputs();
+        let ix = if inputs.computable() {
+            let ix = inputs
+                .sample(
+                    self.predictor().system(),
+                    &meta.layout,
+                    design,
+                    0,
+                    &exact.physical,
+                    Some(stored),
+                    &exact.eta,
+                    &meta.grid,
+                    &self.index_cfg,
+                )
+                .map_err(internal)?;
+            Some(ix)
+        } else {
+            None
         };
+        let (t, channels) = solve::curves(&self.channels, &meta.grid, |c| {
+            Some((exact, meta, c.exact?, Rates::EveryPoint))
+        });
         Ok(Response {
             t,
             channels,
-            failed: ix.map_or_else(Vec::new, |ix| ix.failed),
-            indices,
+            failed: ix.as_ref().map_or_else(Vec::new, |ix| ix.failed.clone()),
+            indices: ix.map_or_else(Vec::new, |ix| ix.values),
+            calibrated: None,
+        })
+    }
+
+    /// The answer of `design` from its members' predictions `per`: each channel's curve at the
+    /// interior rows and each index from the member answering it, with the intervals, bands and
+    /// verdicts at `coverage` when calibrated.
+    fn predicted_response(
+        &self,
+        design: &[f64],
+        per: &[Option<SetPrediction>],
+        coverage: f64,
+    ) -> Result<Response, ApiError> {
+        let refs: Vec<Option<&SetPrediction>> = per.iter().map(Option::as_ref).collect();
+        let coverage = Some(coverage).filter(|_| self.has_intervals());
+        let (ix, calibrated) = self
+            .surrogate
+            .respond(design, &refs, &self.index_cfg, coverage)
+            .map_err(calibration_error)?;
+        let members = self.surrogate.members();
+        let (t, channels) = solve::curves(&self.channels, &self.predictor().meta.grid, |c| {
+            Some((
+                refs[c.member]?,
+                &members[c.member].meta,
+                c.slot,
+                Rates::Interior,
+            ))
+        });
+        let computable = self.predictor().index_inputs().computable();
+        Ok(Response {
+            t,
+            channels,
+            failed: if computable { ix.failed } else { Vec::new() },
+            indices: if computable { ix.values } else { Vec::new() },
             calibrated,
         })
     }
@@ -694,11 +744,8 @@ impl Explorer {
     /// Predicts one design.
     pub fn predict(&self, req: &DesignRequest) -> Result<Response, ApiError> {
         let profiles = self.profiles(req.excitation)?;
-        let p = self
-            .predict_raw(std::slice::from_ref(&req.design), &profiles)?
-            .pop()
-            .ok_or_else(|| internal("no prediction"))?;
-        self.response(&req.design, &p, Rates::Interior, None, Some(req.coverage))
+        let per = self.predict_raw(&req.design, &profiles)?;
+        self.predicted_response(&req.design, &per, req.coverage)
     }
 
     /// The designs of a sweep.
@@ -724,12 +771,12 @@ impl Explorer {
         req: &SweepRequest,
     ) -> Result<(Vec<Vec<f64>>, Vec<DesignAnswer>), ApiError> {
         let designs = self.sweep_designs(req);
-        if !self.predictor.index_inputs().computable() {
+        if !self.predictor().index_inputs().computable() {
             return Err(ApiError::bad(
                 "parameter",
                 format!(
                     "this model computes no index: {}",
-                    self.predictor.index_inputs().why_not()
+                    self.predictor().index_inputs().why_not()
                 ),
                 "a model whose description defines indices",
             ));
@@ -744,7 +791,7 @@ impl Explorer {
             .div_ceil(rayon::current_num_threads().max(1))
             .max(1);
         let answers = if self.has_intervals() {
-            self.predictor
+            self.surrogate
                 .answers(
                     &designs,
                     &profiles,
@@ -760,7 +807,7 @@ impl Explorer {
                     e => self.refusal(e, Some(req)),
                 })?
         } else {
-            self.predictor
+            self.surrogate
                 .indices(&designs, &profiles, &self.run, &self.index_cfg, batch)
                 .map_err(|e| self.refusal(e, Some(req)))?
                 .into_iter()
@@ -802,16 +849,10 @@ impl Explorer {
         }
         let profiles = self.profiles(req.excitation)?;
         let started = std::time::Instant::now();
-        let exact = solve::exact(&self.predictor, &self.run, &req.design, &profiles, cancel)?;
+        let exact = solve::exact(self.predictor(), &self.run, &req.design, &profiles, cancel)?;
         let solve_ms = started.elapsed().as_secs_f64() * 1e3;
-        let stored = StoredColumns::of_sample(self.predictor.index_inputs(), 0, exact.stored);
-        let solved = self.response(
-            &req.design,
-            &exact.values,
-            Rates::EveryPoint,
-            Some(&stored),
-            None,
-        )?;
+        let stored = StoredColumns::of_sample(self.predictor().index_inputs(), 0, exact.stored);
+        let solved = self.exact_response(&req.design, &exact.values, &stored)?;
         Ok((solved, solve_ms))
     }
 
@@ -834,7 +875,7 @@ impl Explorer {
 
     /// Index columns (name, unit) in value order; empty when the model computes none.
     pub fn index_names(&self) -> Vec<String> {
-        let inputs = self.predictor.index_inputs();
+        let inputs = self.predictor().index_inputs();
         if !inputs.computable() {
             return Vec::new();
         }
@@ -848,8 +889,13 @@ impl Explorer {
 
     /// The `predict` command line that reproduces a design file with this excitation.
     pub fn predict_command(&self, ex: Option<Excitation>, design_file: &str) -> String {
+        let flag = if self.surrogate.dir().is_some() {
+            "--surrogate"
+        } else {
+            "--model"
+        };
         let mut cmd = format!(
-            "predict --model {} --params {design_file}",
+            "predict {flag} {} --params {design_file}",
             self.identity.dir
         );
         if !self.generated.is_empty() {
@@ -876,6 +922,39 @@ impl Explorer {
     pub fn excitation_used(&self, ex: Option<Excitation>) -> Option<Excitation> {
         (!self.generated.is_empty()).then(|| ex.unwrap_or_else(|| self.default_excitation()))
     }
+}
+
+/// The channels of `surrogate` as the page groups them: each with the member predicting it,
+/// where, and where the solver's answer (laid out as the primary's prediction) holds it.
+fn channels_of(surrogate: &Surrogate) -> Vec<Channel> {
+    let members = surrogate.members();
+    let primary = prediction_channels(&surrogate.primary().meta.layout);
+    surrogate
+        .channels()
+        .iter()
+        .map(|(name, m, slot)| {
+            let layout = &members[*m].meta.layout;
+            let group = match *slot {
+                ChannelSource::Output(i) => match layout.rate_order(i) {
+                    Some(1) => Group::Velocity,
+                    Some(_) => Group::Acceleration,
+                    None if i < layout.solutions => Group::Displacement,
+                    None => Group::Force,
+                },
+                ChannelSource::Velocity(_) => Group::Velocity,
+                ChannelSource::Acceleration(_) => Group::Acceleration,
+                ChannelSource::Excitation(_) => Group::Excitation,
+            };
+            Channel {
+                unit: layout.unit(name).to_owned(),
+                name: name.clone(),
+                group,
+                member: *m,
+                slot: *slot,
+                exact: primary.iter().find(|(n, _)| n == name).map(|(_, s)| *s),
+            }
+        })
+        .collect()
 }
 
 /// A value as an error message quotes it: a number of many digits (`1e300`, written by the

@@ -51,39 +51,44 @@ pub(crate) enum Rates {
     EveryPoint,
 }
 
-/// The curves of `p` at the window's interior rows (`n = 1..T-2`), per channel.
-pub(crate) fn curves(
+/// The window's interior times (`n = 1..T-2`, s) and, per channel, its values there from
+/// `source` of the channel: the prediction holding it (with its model's layout), where, and
+/// which points its rates cover; a channel without one is NaN throughout.
+pub(crate) fn curves<'a>(
     channels: &[Channel],
-    meta: &ModelMeta,
-    p: &SetPrediction,
-    rates: Rates,
+    grid: &pino_learn::checkpoint::TimeGrid,
+    source: impl Fn(&Channel) -> Option<(&'a SetPrediction, &'a ModelMeta, ChannelSource, Rates)>,
 ) -> (Vec<f64>, Vec<Vec<f64>>) {
-    let layout = &meta.layout;
-    let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
-    let first_rate_row = match rates {
-        Rates::Interior => 1,
-        Rates::EveryPoint => 0,
-    };
-    let times = meta.grid.times();
+    let times = grid.times();
     let rows = 1..times.len() - 1;
-    let ph = &p.physical;
     let curves = channels
         .iter()
-        .map(|c| {
-            rows.clone()
-                .map(|n| {
-                    let r = n - first_rate_row;
-                    match c.slot {
-                        ChannelSource::Output(i) => ph.u[n * o + i],
-                        ChannelSource::Velocity(j) => ph.v[r * d + j],
-                        ChannelSource::Acceleration(j) => ph.a[r * d + j],
-                        ChannelSource::Excitation(j) => p.eta[n * e + j],
-                    }
-                })
-                .collect()
+        .map(|c| match source(c) {
+            Some((p, meta, slot, rates)) => rows
+                .clone()
+                .map(|n| value(p, meta, slot, rates, n))
+                .collect(),
+            None => vec![f64::NAN; rows.len()],
         })
         .collect();
     (times[rows].to_vec(), curves)
+}
+
+/// The value of `slot` of prediction `p` (laid out as `meta`'s model) at window row `n`.
+fn value(p: &SetPrediction, meta: &ModelMeta, slot: ChannelSource, rates: Rates, n: usize) -> f64 {
+    let layout = &meta.layout;
+    let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
+    let r = match rates {
+        Rates::Interior => n - 1,
+        Rates::EveryPoint => n,
+    };
+    let ph = &p.physical;
+    match slot {
+        ChannelSource::Output(i) => ph.u[n * o + i],
+        ChannelSource::Velocity(j) => ph.v[r * d + j],
+        ChannelSource::Acceleration(j) => ph.a[r * d + j],
+        ChannelSource::Excitation(j) => p.eta[n * e + j],
+    }
 }
 
 /// `||pred - exact|| / ||exact||` (0 when both vanish, infinite when only the exact does).

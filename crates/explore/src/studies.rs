@@ -748,7 +748,7 @@ impl Run {
     }
 }
 
-/// Runs the study `declaration` on the explorer's model (and its calibration) into `out`,
+/// Runs the study `declaration` through the explorer's surrogate (its calibrations) into `out`,
 /// counting its designs in `progress`.
 fn run_study(
     ex: &Explorer,
@@ -758,15 +758,8 @@ fn run_study(
     progress: &Progress,
 ) -> Result<String, String> {
     let params = study_params(ex, declaration, coverage)?;
-    let surrogate = pino_eval::study::load_surrogate(
-        None,
-        &[ex.model_dir().to_owned()],
-        ex.calibration_file(),
-        &params,
-        &candle_core::Device::Cpu,
-    )
-    .map_err(|e| e.to_string())?;
-    pino_eval::study::run_with(&surrogate, &params, out, Some(progress)).map_err(|e| e.to_string())
+    pino_eval::study::run_with(ex.surrogate(), &params, out, Some(progress))
+        .map_err(|e| e.to_string())
 }
 
 /// Writes the declaration and the record into `partial`, then renames it to `name`.

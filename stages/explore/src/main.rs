@@ -2,22 +2,25 @@
 //! trained model's parameters and sees its responses, indices and the exact solver's verdict.
 //!
 //! ```text
-//! explore [-C DIR] [-f pipeline.yaml] [--algorithm 5]            # the workspace's current model
-//! explore --model DIR [--params params.parquet --profiles irregularity.parquet]
-//!         [--calibration calibration.json|DIR]
+//! explore [-C DIR] [-f pipeline.yaml] [--algorithm N]     # the workspace's current surrogate
+//! explore --surrogate DIR [--params params.parquet --profiles irregularity.parquet]
+//! explore --model DIR [--params ... --profiles ...] [--calibration calibration.json|DIR]
 //!         [--bind 127.0.0.1:8750] [--token T] [--allow-host NAME]...
 //!         [--solve-workers 1] [--solve-queue 4] [--solve-max-duration 30] [--sweep-max 400]
 //!         [--header-timeout 10] [--body-timeout 10] [--max-connections 512]
 //!         [--study-dir explore-studies] [--study-threads N]
 //! ```
 //! Prints `explore: serving ... on http://ADDR/` (the real port for `--bind HOST:0`) and serves
-//! until interrupted. Without `--model` the calibration is the pipeline's `calibrate` output
-//! (when it ran); a calibration that is missing, corrupt or of another model is refused at
-//! startup, naming the file (exit 2).
+//! until interrupted. Without `--model` or `--surrogate` it serves the pipeline's surrogate
+//! (the output of its `surrogate` stage, each member with its calibration), or with
+//! `--algorithm N` (or when the pipeline builds no surrogate) the model of that algorithm with
+//! the pipeline's `calibrate` output; a surrogate or calibration that is missing, corrupt, changed
+//! or of another model is refused at startup, naming the file (exit 2).
 use anyhow::{bail, Context, Result};
 use clap::Parser;
+use orchestrator::spec::Pipeline;
 use pino_explore::access::is_loopback;
-use pino_explore::glance::{locate, DEFAULT_ALGORITHM};
+use pino_explore::glance::{locate, locate_surrogate, DEFAULT_ALGORITHM};
 use pino_explore::serve::{serve, ConnectionLimits};
 use pino_explore::server::{router, Access, App, SolveGate, MIN_TOKEN_CHARS};
 use pino_explore::session::{DatasetFiles, Explorer, Limits};
@@ -48,17 +51,23 @@ struct Args {
     /// overrides the run was made with find its units fresh.
     #[arg(long = "set", value_name = "STAGE.KEY=VALUE")]
     sets: Vec<String>,
-    /// The algorithm whose model the pipeline file's record names.
-    #[arg(long, default_value_t = DEFAULT_ALGORITHM)]
-    algorithm: i64,
+    /// Serve the pipeline's model of this algorithm instead of its surrogate (the default
+    /// when the pipeline builds no surrogate: 5).
+    #[arg(long)]
+    algorithm: Option<i64>,
+    /// A surrogate directory (the `surrogate` stage's output) instead of the pipeline's.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["model", "calibration", "algorithm"])]
+    surrogate: Option<PathBuf>,
     /// A model directory (model.safetensors + model.json) instead of the pipeline's.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", conflicts_with = "algorithm")]
     model: Option<PathBuf>,
-    /// With --model: the dataset's `params.parquet` (test samples and their designs).
-    #[arg(long, requires = "model", value_name = "FILE")]
+    /// With --model or --surrogate: the dataset's `params.parquet` (test samples and their
+    /// designs).
+    #[arg(long, value_name = "FILE")]
     params: Vec<PathBuf>,
-    /// With --model: the dataset's `irregularity.parquet` (the test samples' profiles).
-    #[arg(long, requires = "model", value_name = "FILE")]
+    /// With --model or --surrogate: the dataset's `irregularity.parquet` (the test samples'
+    /// profiles).
+    #[arg(long, value_name = "FILE")]
     profiles: Vec<PathBuf>,
     /// The model's calibration (a `calibration.json`, or the `calibrate` stage's output
     /// directory): the answers' intervals and verdicts (default without --model: the
@@ -225,39 +234,36 @@ fn url_of(addr: SocketAddr, token: Option<&str>) -> String {
     }
 }
 
-async fn run(args: Args) -> Result<()> {
-    let connections = checked_limits(&args)?;
-    let workspace = args.workspace.clone().unwrap_or_else(|| PathBuf::from("."));
-    let file = workspace.join(&args.file);
-    let opts = orchestrator::spec::LoadOptions {
-        bin_dir: args.bin_dir.clone().or_else(|| {
-            std::env::var_os("PINO_BIN_DIR")
-                .filter(|v| !v.is_empty())
-                .map(PathBuf::from)
-        }),
-        sets: args.sets.clone(),
+/// Opens what the command line names: `--surrogate`, `--model` (with `--calibration`), else
+/// the pipeline's surrogate, or its model of `--algorithm` with its calibration.
+fn open(args: &Args, pipeline: Option<&Pipeline>, limits: Limits) -> Result<Explorer> {
+    let given = DatasetFiles {
+        params: args.params.clone(),
+        profiles: args.profiles.clone(),
     };
-    // The pipeline file: where the model comes from (without --model) and the glance page.
-    let pipeline = if args.model.is_none() || file.is_file() {
-        Some(
-            orchestrator::spec::Pipeline::load(&workspace, &file, &opts)
-                .with_context(|| format!("loading {}", file.display()))?,
-        )
-    } else {
-        None
-    };
-    let (model_dir, dataset, what, calibration) = match (&args.model, &pipeline) {
+    if let Some(dir) = &args.surrogate {
+        eprintln!("explore: opening the surrogate {} ...", dir.display());
+        return Explorer::open_surrogate(dir, given, limits)
+            .map_err(|e| Refused(format!("surrogate {}: {e}", dir.display())).into());
+    }
+    let (model_dir, dataset, what, calibration) = match (&args.model, pipeline) {
         (Some(dir), _) => (
             dir.clone(),
-            DatasetFiles {
-                params: args.params.clone(),
-                profiles: args.profiles.clone(),
-            },
+            given,
             dir.display().to_string(),
             Err(pino_explore::session::NO_CALIBRATION.to_owned()),
         ),
         (None, Some(p)) => {
-            let found = locate(p, args.algorithm).map_err(anyhow::Error::msg)?;
+            if args.algorithm.is_none() {
+                if let Some(found) = locate_surrogate(p) {
+                    let (dir, dataset) = found.map_err(anyhow::Error::msg)?;
+                    eprintln!("explore: opening the surrogate of {} ...", p.file);
+                    return Explorer::open_surrogate(&dir, dataset, limits)
+                        .map_err(|e| Refused(format!("surrogate {}: {e}", dir.display())).into());
+                }
+            }
+            let found = locate(p, args.algorithm.unwrap_or(DEFAULT_ALGORITHM))
+                .map_err(anyhow::Error::msg)?;
             (
                 found.model_dir,
                 found.dataset,
@@ -265,16 +271,13 @@ async fn run(args: Args) -> Result<()> {
                 found.calibration,
             )
         }
-        (None, None) => bail!("no model: give --model DIR or a pipeline file with -f"),
+        (None, None) => {
+            bail!("no model: give --surrogate DIR, --model DIR or a pipeline file with -f")
+        }
     };
     let calibration = match &args.calibration {
         Some(path) => Ok(path.clone()),
         None => calibration,
-    };
-    let limits = Limits {
-        solve_max_duration_s: args.solve_max_duration,
-        sweep_max_designs: args.sweep_max,
-        ..Limits::default()
     };
     eprintln!("explore: opening {what} ...");
     let mut explorer = Explorer::open(&model_dir, dataset, limits)
@@ -294,6 +297,40 @@ async fn run(args: Args) -> Result<()> {
             explorer.no_calibration(why);
         }
     }
+    Ok(explorer)
+}
+
+async fn run(args: Args) -> Result<()> {
+    let connections = checked_limits(&args)?;
+    let workspace = args.workspace.clone().unwrap_or_else(|| PathBuf::from("."));
+    let file = workspace.join(&args.file);
+    let opts = orchestrator::spec::LoadOptions {
+        bin_dir: args.bin_dir.clone().or_else(|| {
+            std::env::var_os("PINO_BIN_DIR")
+                .filter(|v| !v.is_empty())
+                .map(PathBuf::from)
+        }),
+        sets: args.sets.clone(),
+    };
+    // The pipeline file: where the model comes from (without --model) and the glance page.
+    let given = args.model.is_some() || args.surrogate.is_some();
+    if !given && (!args.params.is_empty() || !args.profiles.is_empty()) {
+        bail!("--params and --profiles go with --model or --surrogate (the pipeline's dataset is found by itself)");
+    }
+    let pipeline = if !given || file.is_file() {
+        Some(
+            orchestrator::spec::Pipeline::load(&workspace, &file, &opts)
+                .with_context(|| format!("loading {}", file.display()))?,
+        )
+    } else {
+        None
+    };
+    let limits = Limits {
+        solve_max_duration_s: args.solve_max_duration,
+        sweep_max_designs: args.sweep_max,
+        ..Limits::default()
+    };
+    let explorer = open(&args, pipeline.as_ref(), limits)?;
     let listener = tokio::net::TcpListener::bind(args.bind)
         .await
         .with_context(|| format!("binding {}", args.bind))?;
@@ -310,8 +347,9 @@ async fn run(args: Args) -> Result<()> {
     });
     let url = url_of(addr, token.as_deref());
     println!(
-        "explore: serving the {} model ({what}) on {url}",
-        app.explorer.identity().system
+        "explore: serving the {} model ({}) on {url}",
+        app.explorer.identity().system,
+        app.explorer.model_dir().display()
     );
     use std::io::Write;
     std::io::stdout().flush().ok();

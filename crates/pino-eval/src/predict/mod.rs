@@ -626,7 +626,7 @@ impl Predictor {
     }
 
     /// The indices of design `k` (parameters `set`) from its prediction `p`.
-    fn design_indices(
+    pub(crate) fn design_indices(
         &self,
         set: &[f64],
         k: usize,

@@ -224,6 +224,93 @@ impl Surrogate {
         &self.channels
     }
 
+    /// Loads the calibration of a single model made a surrogate ([`Surrogate::of_model`]);
+    /// a surrogate loaded from its directory carries its members' own and refuses another.
+    pub fn load_calibration(&mut self, path: &Path) -> Result<&crate::calibration::Calibration> {
+        if let Some(dir) = &self.dir {
+            return Err(fmt_err(
+                path,
+                format!(
+                    "the surrogate {} carries its members' calibrations; another cannot be given",
+                    dir.display()
+                ),
+            ));
+        }
+        self.members[self.primary].load_calibration(path)
+    }
+
+    /// The band of channel `k` ([`Surrogate::channels`]) among its member's calibration
+    /// channels; `None` for an excitation or without a calibration with intervals.
+    pub fn channel_band(&self, k: usize) -> Option<usize> {
+        let (_, m, source) = self.channels.get(k)?;
+        let p = &self.members[*m];
+        p.calibration().filter(|c| c.has_intervals())?;
+        let layout = &p.meta.layout;
+        source.band(layout.n_outputs(), layout.n_dofs())
+    }
+
+    /// One design's answer from each member's prediction `per` (indexed as
+    /// [`Surrogate::members`], `None` for members answering nothing, as
+    /// [`Surrogate::forward_with`] gives them): every index from the member answering it, the
+    /// failed limits judged on the assembled values; with `coverage` and intervals, each
+    /// index's interval and verdict from its member and the bands of the channels in
+    /// [`Surrogate::channels`] order (empty for a channel without one).
+    pub fn respond(
+        &self,
+        design: &[f64],
+        per: &[Option<&SetPrediction>],
+        cfg: &IndexConfig,
+        coverage: Option<f64>,
+    ) -> Result<(SampleIndices, Option<CalibratedAnswer>)> {
+        let computable = self.primary().index_inputs().computable();
+        let mut own: Vec<Option<SampleIndices>> = vec![None; self.members.len()];
+        let mut calibrated: Vec<Option<CalibratedAnswer>> = vec![None; self.members.len()];
+        let banded: Vec<bool> = (0..self.members.len())
+            .map(|m| self.channels.iter().any(|(_, x, _)| *x == m))
+            .collect();
+        for (m, p) in per.iter().enumerate() {
+            let Some(p) = p else { continue };
+            let member = &self.members[m];
+            if computable && (self.index_member.contains(&m) || m == self.primary) {
+                own[m] = Some(member.design_indices(design, 0, p, cfg)?);
+            }
+            if let Some(c) = coverage.filter(|_| self.has_intervals()) {
+                let values = own[m].as_ref().map_or(&[][..], |s| &s.values[..]);
+                calibrated[m] = member.calibrated(design, p, values, c, banded[m])?;
+            }
+        }
+        let indices = if computable {
+            self.assemble_values(own.iter().map(Option::as_ref).collect(), cfg)?
+        } else {
+            SampleIndices {
+                values: Vec::new(),
+                window_s: f64::NAN,
+                failed: Vec::new(),
+            }
+        };
+        let refs: Vec<Option<&CalibratedAnswer>> = calibrated.iter().map(Option::as_ref).collect();
+        let answer = if computable {
+            self.assemble_calibrated(&refs)
+        } else {
+            refs[self.primary].cloned().map(|mut a| {
+                a.bands = Vec::new();
+                a
+            })
+        };
+        let answer = answer.map(|mut a| {
+            a.bands = (0..self.channels.len())
+                .map(|k| {
+                    let m = self.channels[k].1;
+                    self.channel_band(k)
+                        .and_then(|b| refs[m]?.bands.get(b).cloned())
+                        .unwrap_or_default()
+                })
+                .collect();
+            a
+        });
+        Ok((indices, answer))
+    }
+
     /// Whether every member answering a quantity has a calibration with intervals.
     pub fn has_intervals(&self) -> bool {
         self.used().all(|m| {
