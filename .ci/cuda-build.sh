@@ -2,7 +2,7 @@
 # CI section "GPU build": builds the learning stages and the CUDA-vs-CPU test with
 # `--features cuda` against the pinned PyPI CUDA toolkit (.ci/cuda-env.sh), on a machine with
 # no GPU and no CUDA installation, so the GPU build cannot rot unnoticed. Nothing here runs on
-# a GPU: the CUDA-vs-CPU test only compiles (see README "GPU build").
+# a GPU: the CUDA-vs-CPU test only compiles (see docs/gpu.md, "Build").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -23,7 +23,7 @@ fi
 source .ci/cuda-env.sh
 nvcc --version | tail -n 2
 
-# What is built: by default the release binaries a GPU machine runs (README, "GPU"), in
+# What is built: by default the release binaries a GPU machine runs (docs/gpu.md), in
 # target/cuda. CI sets PINO_CUDA_CHECK=dev: the same crates in the dev profile in the tests'
 # own target/ (after the tests), so every dependency the CPU build compiled is reused and only
 # the crates that change with the feature are rebuilt (BENCHMARKS.md, "CI"). That leaves

@@ -17,7 +17,7 @@ outside the store (`predict --out`). For every file:
 
 Then one figure per file type is recomputed from the data with a different library than the
 writer used (a DuckDB query for the peak wheel-rail force per sample against indices.parquet,
-time grids and parameter ranges with polars, ...), and the README's "Reading the outputs"
+time grids and parameter ranges with polars, ...), and docs/outputs.md's "Reading the outputs"
 examples (the ```python blocks after a `<!-- checked by tests/interop -->` line) are run in the
 workspace, in order, in one session, so they cannot rot.
 
@@ -50,6 +50,8 @@ except ImportError as e:
 
 REPO = Path(__file__).resolve().parents[2]
 README_MARK = "<!-- checked by tests/interop -->"
+# The page holding the "Reading the outputs" examples.
+EXAMPLES = "docs/outputs.md"
 
 
 class Failure(Exception):
@@ -77,7 +79,7 @@ def lits(paths):
     return "[" + ", ".join(lit(p) for p in paths) + "]"
 
 
-# ---- The expected schema: the spec (docs/model.md, README), stated independently ----------
+# ---- The expected schema: the spec (docs/model.md, docs/outputs.md), stated independently ----------
 
 DOFS = ["z_c", "beta_c", "z_t1", "beta_t1", "z_t2", "beta_t2", "z_w1", "z_w2", "z_w3", "z_w4"]
 RAIL = [f"z_r{i}" for i in range(1, 5)]
@@ -656,15 +658,15 @@ def recompute(arts, say):
         say(f"predict: {len(sets)} sets x {len(dt) + 1} points")
 
 
-# ---- The README's examples ------------------------------------------------------------------
+# ---- The examples of docs/outputs.md ------------------------------------------------------------------
 
 
 def readme_blocks():
-    text = (REPO / "README.md").read_text()
+    text = (REPO / EXAMPLES).read_text()
     blocks = re.findall(re.escape(README_MARK) + r"\n```python\n(.*?)\n```", text, re.S)
-    check(len(blocks) >= 3, f"README.md: {len(blocks)} python blocks after `{README_MARK}`, expected the pandas, polars and DuckDB examples")
+    check(len(blocks) >= 3, f"{EXAMPLES}: {len(blocks)} python blocks after `{README_MARK}`, expected the pandas, polars and DuckDB examples")
     for lib in ["pandas", "polars", "duckdb"]:
-        check(any(re.search(rf"^import .*\b{lib}\b", b, re.M) for b in blocks), f"README.md: no checked example imports {lib}")
+        check(any(re.search(rf"^import .*\b{lib}\b", b, re.M) for b in blocks), f"{EXAMPLES}: no checked example imports {lib}")
     return blocks
 
 
@@ -676,12 +678,12 @@ def run_readme(ws, say):
         scope = {"__name__": "__readme__"}
         for i, block in enumerate(blocks, 1):
             try:
-                exec(compile(block, f"README.md checked block {i}", "exec"), scope)
+                exec(compile(block, f"{EXAMPLES} checked block {i}", "exec"), scope)
             except Exception as e:
-                raise Failure(f"README.md checked block {i} fails in {ws}: {type(e).__name__}: {e}\n{block}") from e
+                raise Failure(f"{EXAMPLES} checked block {i} fails in {ws}: {type(e).__name__}: {e}\n{block}") from e
     finally:
         os.chdir(cwd)
-    say(f"README: {len(blocks)} examples ran")
+    say(f"{EXAMPLES}: {len(blocks)} examples ran")
 
 
 def main():

@@ -1,12 +1,12 @@
 //! Interop: the artifacts of a small real pipeline run, read from Python with pyarrow, polars
 //! and DuckDB by `tests/interop/check_parquet.py` (schema with units, provenance, the same
-//! values in all three, one figure per file type recomputed independently, the README's
+//! values in all three, one figure per file type recomputed independently, docs/outputs.md's
 //! "Reading the outputs" examples run against the files).
 //!
 //! The run is the real `pipeline.yaml` with the [`TINY`] overrides, plus one `predict` output.
 //! The workspace gets a `target/release` of links to this profile's binaries (checked fresh),
 //! so the pipeline file's `bin_dir` (inside the workspace, as the orchestrator requires) and
-//! the README's `target/release/pipeline show` work there unchanged.
+//! the examples' `target/release/pipeline show` work there unchanged.
 //!
 //! Needs Python 3 with the pinned readers: `PINO_PYTHON` when set, else the virtual environment
 //! `scripts/test` installs them into (`target/test-env/python`) when it exists, else `python3`
