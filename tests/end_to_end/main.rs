@@ -175,7 +175,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         .indices
         .iter()
         .chain(&manifest.channels)
-        .all(|r| members.contains(&r.member) && r.validation.len() >= 5));
+        .all(|r| members.contains(&r.member.as_str()) && r.validation.len() >= 5));
     let rows = read_parquet(named(&eval, "surrogate_errors.parquet")[0], None).unwrap();
     let kinds = rows.str("kind").unwrap();
     let quantities = rows.str("quantity").unwrap();
