@@ -2,7 +2,9 @@
 
 `excitation(recipe, design, profiles)` follows the recipe the exporter writes into the file's
 metadata (`pino.surrogate` -> `inputs.excitation.recipe`) exactly as `predict` builds the
-excitation (docs/export.md):
+excitation (docs/export.md). For many designs under one set of profiles, build the profiles'
+readers once (`readers(recipe, profiles)`, which solves the cubic spline's system) and pass
+them instead of the points:
 
     t_n   = t0 + n dt                               n = 0 .. points - 1
     x_e   = (x0 + v t) + o_e                        v, o_e affine in the design's parameters
@@ -85,9 +87,20 @@ def profile_reader(spec, points):
     return at, slope
 
 
+class Readers(dict):
+    """The (eta, slope) functions of a recipe's profiles by name."""
+
+
+def readers(recipe, profiles):
+    """The readers of every profile of the recipe; `profiles` maps each generated profile's
+    name to its points (x, eta) in metres."""
+    return Readers({p["name"]: profile_reader(p, profiles.get(p["name"])) for p in recipe["profiles"]})
+
+
 def excitation(recipe, design, profiles):
     """The excitation `[points, columns]` of one design (a dict of its parameters by name);
-    `profiles` maps each generated profile's name to its points (x, eta) in metres."""
+    `profiles` maps each generated profile's name to its points (x, eta) in metres, or is
+    what `readers` built of them."""
     t = recipe["t0"] + recipe["dt"] * np.arange(recipe["points"])
     on, width = recipe["profile_on"], recipe["ramp"]
     if width > 0:
@@ -97,13 +110,22 @@ def excitation(recipe, design, profiles):
         ramp = np.where(t < on, 0.0, 1.0)
         ramp_rate = np.zeros_like(t)
     speed = affine(recipe["speed"], design)
-    readers = {p["name"]: profile_reader(p, profiles.get(p["name"])) for p in recipe["profiles"]}
-    out = np.zeros((len(t), len(recipe["columns"])))
-    for j, col in enumerate(recipe["columns"]):
-        x = (recipe["x0"] + speed * t) + affine(col["offset"], design)
-        at, slope = readers[col["profile"]]
-        if col["kind"] == "profile":
-            out[:, j] = np.where(ramp > 0, ramp * at(x), 0.0)
-        else:
-            out[:, j] = ramp * speed * slope(x) + ramp_rate * at(x)
+    built = profiles if isinstance(profiles, Readers) else readers(recipe, profiles)
+    columns = recipe["columns"]
+    out = np.zeros((len(t), len(columns)))
+    travelled = recipe["x0"] + speed * t
+    # The columns of one profile at once: x [points, columns of the profile].
+    for name in dict.fromkeys(col["profile"] for col in columns):
+        js = [j for j, col in enumerate(columns) if col["profile"] == name]
+        offsets = np.array([affine(columns[j]["offset"], design) for j in js])
+        x = travelled[:, None] + offsets[None, :]
+        at, slope = built[name]
+        eta = at(x)
+        rates = any(columns[j]["kind"] != "profile" for j in js)
+        d_eta = slope(x) if rates else None
+        for k, j in enumerate(js):
+            if columns[j]["kind"] == "profile":
+                out[:, j] = np.where(ramp > 0, ramp * eta[:, k], 0.0)
+            else:
+                out[:, j] = ramp * speed * d_eta[:, k] + ramp_rate * eta[:, k]
     return out

@@ -1,6 +1,6 @@
 """The exported ONNX file against the product's own answers (tests/interop/onnx.rs).
 
-    check_onnx.py MODEL.onnx PROFILE.csv DESIGNS.json OUT_DIR [--no-intervals]
+    check_onnx.py MODEL.onnx PROFILE.csv DESIGNS.json OUT_DIR [--no-intervals] [--routes FILE]
 
 DESIGNS.json: a list of designs (dicts by parameter name). OUT_DIR holds what `predict` wrote
 for them under the same profile: `histories-<level>.parquet` (`--out`) and
@@ -15,7 +15,9 @@ output's measured deviation (`1/dt` of it for a velocity, `4/dt^2` for an accele
 index within 1e-5 of its value, or 20 times the relative deviation of the differenced channels
 it reads. Everything after the network is double precision: every interval's and band's
 half-width equals `predict`'s to 1e-9, verdicts and range flags exactly. The worst deviations
-are printed.
+are printed. `--routes FILE` (JSON: `{"indices": {name: member}, "channels": {name: member}}`,
+a surrogate's manifest): every index and channel of the file is answered by that member (its
+key in the metadata's `members`).
 """
 
 import json
@@ -52,9 +54,22 @@ def check(what, dev, tol):
     return dev
 
 
+def check_routes(meta, routes):
+    """Each index and channel of the file answered by the member its route names."""
+    keys = [m["key"] for m in meta["members"]]
+    for kind in ("indices", "channels"):
+        for q in meta[kind]:
+            want = routes[kind].get(q["name"])
+            if keys[q["member"]] != want:
+                failures.append(f"{kind} {q['name']}: member {keys[q['member']]}, routed to {want}")
+
+
 def main():
     model, profile, designs_file, out = sys.argv[1:5]
     intervals = "--no-intervals" not in sys.argv
+    routes = None
+    if "--routes" in sys.argv:
+        routes = json.load(open(sys.argv[sys.argv.index("--routes") + 1]))
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = 1
     session = ort.InferenceSession(model, opts, providers=["CPUExecutionProvider"])
@@ -138,6 +153,10 @@ def main():
             mine = {params["names"][j] for j in np.flatnonzero(got["outside_training_range"][k])}
             if named != mine:
                 failures.append(f"design {k}: outside {mine} against predict's {named}")
+    if routes is not None:
+        check_routes(meta, routes)
+        used = sorted({meta["members"][q["member"]]["key"] for k in ("indices", "channels") for q in meta[k]})
+        print(f"members {[m['key'] for m in meta['members']]}, answering: {used}")
     print(f"{os.path.basename(model)}: {b} designs, {len(meta['channels'])} channels, "
           f"{len(meta['indices'])} indices, levels {levels}; worst deviation over the scale: "
           + ", ".join(f"{k} {v:.2g}" for k, v in worst.items()))

@@ -1,5 +1,6 @@
 //! A small builder of ONNX graphs: values are named by the builder, every node has one
-//! output, constants are initializers (deduplicated by content), and only operators whose
+//! output, constants are initializers (deduplicated by content), a graph output is the value
+//! its node computes (renamed, not copied), and only operators whose
 //! signature is the same from opset 13 to 17 are emitted (`ReduceSum` with its axes as an
 //! input, `ReduceMax`/`ReduceMin` with theirs as an attribute, `Slice`, `Unsqueeze`, `Pad`
 //! with inputs), so one graph serves both opsets the exporter writes.
@@ -10,12 +11,24 @@ use std::collections::HashMap;
 /// A value of the graph (its name).
 pub type Value = String;
 
+/// A node, encoded when the graph is finished (its values renamed then).
+#[derive(Debug)]
+struct Node {
+    op: String,
+    inputs: Vec<Value>,
+    output: Value,
+    attrs: Vec<(String, Attr)>,
+}
+
 /// A graph under construction.
 #[derive(Debug, Default)]
 pub struct Graph {
     parts: GraphParts,
+    nodes: Vec<Node>,
     counter: usize,
     constants: HashMap<(i32, Vec<usize>, Vec<u8>), Value>,
+    /// Node outputs that are graph outputs, by their output names.
+    renamed: HashMap<Value, String>,
 }
 
 impl Graph {
@@ -32,9 +45,16 @@ impl Graph {
         name.to_owned()
     }
 
-    /// Names `value` as graph output `name` (element type `ty`, shape `[batch, dims..]`).
+    /// Names `value` as graph output `name` (element type `ty`, shape `[batch, dims..]`): the
+    /// node computing it writes the output (an `Identity` copies a graph input, a constant or
+    /// a value already output under another name).
     pub fn output(&mut self, name: &str, value: &str, ty: DataType, dims: &[usize]) {
-        self.node("Identity", &[value], &[], Some(name));
+        let computed = self.nodes.iter().any(|n| n.output == value);
+        if computed && !self.renamed.contains_key(value) {
+            self.renamed.insert(value.to_owned(), name.to_owned());
+        } else {
+            self.node("Identity", &[value], &[], Some(name));
+        }
         self.parts
             .outputs
             .push(proto::value_info(name, ty, Some("batch"), dims));
@@ -48,15 +68,15 @@ impl Graph {
         out: Option<&str>,
     ) -> Value {
         let out = out.map_or_else(|| self.fresh(op), str::to_owned);
-        let name = format!("node_{}", self.parts.nodes.len());
-        let inputs: Vec<String> = inputs.iter().map(|s| (*s).to_owned()).collect();
-        self.parts.nodes.push(proto::node(
-            &name,
-            op,
-            &inputs,
-            std::slice::from_ref(&out),
-            attrs,
-        ));
+        self.nodes.push(Node {
+            op: op.to_owned(),
+            inputs: inputs.iter().map(|s| (*s).to_owned()).collect(),
+            output: out.clone(),
+            attrs: attrs
+                .iter()
+                .map(|(n, a)| ((*n).to_owned(), a.clone()))
+                .collect(),
+        });
         out
     }
 
@@ -152,12 +172,7 @@ impl Graph {
 
     /// `a[.., start..end, ..]` on `axis`.
     pub fn slice(&mut self, a: &str, axis: i64, start: usize, end: usize) -> Value {
-        let (s, e, ax) = (
-            self.i64s(&[start as i64]),
-            self.i64s(&[end as i64]),
-            self.i64s(&[axis]),
-        );
-        self.op("Slice", &[a, &s, &e, &ax], &[])
+        self.slice_axes(a, &[(axis, start, end)])
     }
 
     /// Concatenation on `axis`.
@@ -171,25 +186,16 @@ impl Graph {
         self.op("Gather", &[a, &i], &[("axis", Attr::Int(axis))])
     }
 
-    /// The entries `index` of `a` on `axis`, as slices of its consecutive runs (ONNX Runtime
-    /// copies a slice far faster than it gathers on an inner axis).
-    pub fn pick(&mut self, a: &str, axis: i64, index: &[usize]) -> Value {
-        let mut runs: Vec<(usize, usize)> = Vec::new();
-        for &i in index {
-            match runs.last_mut() {
-                Some((_, end)) if *end == i => *end += 1,
-                _ => runs.push((i, i + 1)),
-            }
+    /// `a` cut to `start..end` on each `(axis, start, end)` (none: `a` itself).
+    pub fn slice_axes(&mut self, a: &str, cuts: &[(i64, usize, usize)]) -> Value {
+        if cuts.is_empty() {
+            return a.to_owned();
         }
-        let parts: Vec<Value> = runs
-            .iter()
-            .map(|&(s, e)| self.slice(a, axis, s, e))
-            .collect();
-        if parts.len() == 1 {
-            return parts[0].clone();
-        }
-        let refs: Vec<&str> = parts.iter().map(String::as_str).collect();
-        self.concat(axis, &refs)
+        let starts: Vec<i64> = cuts.iter().map(|c| c.1 as i64).collect();
+        let ends: Vec<i64> = cuts.iter().map(|c| c.2 as i64).collect();
+        let axes: Vec<i64> = cuts.iter().map(|c| c.0).collect();
+        let (s, e, ax) = (self.i64s(&starts), self.i64s(&ends), self.i64s(&axes));
+        self.op("Slice", &[a, &s, &e, &ax], &[])
     }
 
     /// Converts to element type `to`.
@@ -225,25 +231,36 @@ impl Graph {
         )
     }
 
-    /// Zero padding of the last axis of a rank-3 tensor by `after` points.
-    pub fn pad_last(&mut self, a: &str, after: usize) -> Value {
-        let pads = self.i64s(&[0, 0, 0, 0, 0, after as i64]);
-        self.op("Pad", &[a, &pads], &[])
-    }
-
     /// The finished graph's parts.
     pub fn into_parts(self) -> GraphParts {
-        self.parts
+        let mut parts = self.parts;
+        let name = |v: &Value| self.renamed.get(v).unwrap_or(v).clone();
+        for (k, n) in self.nodes.iter().enumerate() {
+            let inputs: Vec<String> = n.inputs.iter().map(name).collect();
+            let attrs: Vec<(&str, Attr)> = n
+                .attrs
+                .iter()
+                .map(|(a, v)| (a.as_str(), v.clone()))
+                .collect();
+            parts.nodes.push(proto::node(
+                &format!("node_{k}"),
+                &n.op,
+                &inputs,
+                &[name(&n.output)],
+                &attrs,
+            ));
+        }
+        parts
     }
 
     /// Number of nodes so far.
     pub fn len(&self) -> usize {
-        self.parts.nodes.len()
+        self.nodes.len()
     }
 
     /// Whether the graph has no node.
     pub fn is_empty(&self) -> bool {
-        self.parts.nodes.is_empty()
+        self.nodes.is_empty()
     }
 }
 
@@ -276,15 +293,26 @@ mod tests {
         let y = g.mul(&x, &a);
         let z = g.mul(&x, &a);
         assert_ne!(y, z);
+        // A computed value is renamed; an input, or a value output twice, is copied.
         g.output("y", &z, DataType::Double, &[3]);
+        g.output("y2", &z, DataType::Double, &[3]);
+        g.output("x2", &x, DataType::Double, &[3]);
+        let w = g.add(&z, &y);
+        assert_eq!(g.len(), 5);
         let parts = g.into_parts();
         assert_eq!(
             (
                 parts.initializers.len(),
                 parts.nodes.len(),
-                parts.inputs.len()
+                parts.inputs.len(),
+                parts.outputs.len()
             ),
-            (2, 3, 1)
+            (2, 5, 1, 3)
         );
+        let text =
+            |k: usize| String::from_utf8_lossy(&parts.nodes[k].clone().into_bytes()).into_owned();
+        assert!(text(1).contains('y') && !text(1).contains(&z));
+        assert!(text(2).contains("Identity") && text(2).contains("y2"));
+        assert!(text(4).contains(w.as_str()) && !text(4).contains(&z));
     }
 }

@@ -6,11 +6,14 @@
 //!
 //! Sperling: with the window's `N` points at spacing `dt`, the lines `k = 1..N/2` at
 //! `f_k = k / (N dt) >= f_min` of the signal in cm/s^2, `a_k = c_k |X_k| / N` (`c_k` 2, 1 at
-//! the Nyquist line), `W_z = 0.896 (sum a_k^3 F(f_k) / f_k)^(1/10)`; `|X_k|` from fixed cosine
-//! and sine rows (single precision, opset 13) or the `DFT` operator (double, opset 17). Only
-//! the product's settings are exported: one spectrum over the whole window, no taper (a
-//! segmented or tapered Sperling is refused by name).
+//! the Nyquist line), `W_z = 0.896 (sum a_k^3 F(f_k) / f_k)^(1/10)`; `X_k` by the truncated
+//! DFT's fixed matrices ([`crate::dft`], single precision, opset 13) or the `DFT` operator
+//! (double, opset 17), of the car body's vertical and pitch accelerations alone: the front and
+//! rear ends' spectra are combined from theirs (the DFT is linear). Only the product's
+//! settings are exported: one spectrum over the whole window, no taper (a segmented or tapered
+//! Sperling is refused by name).
 
+use crate::dft::{Analysis, Plan};
 use crate::expr::Expressions;
 use crate::graph::{Graph, Value};
 use crate::network::Spectral;
@@ -103,7 +106,7 @@ impl IndexInputs<'_, '_> {
         binding: &mbd_system::system::Railway,
     ) -> Result<Vec<std::result::Result<Value, String>>> {
         let (w, _) = self.per_design(g, &binding.static_wheel_load)?;
-        let (_, l_c) = self.per_design(g, &binding.half_length)?;
+        let (l, l_c) = self.per_design(g, &binding.half_length)?;
         let stack = |this: &Self, g: &mut Graph, names: &[String]| -> Result<Value> {
             let mut parts = Vec::new();
             for n in names {
@@ -132,10 +135,10 @@ impl IndexInputs<'_, '_> {
             car.iter()
                 .map(|s| Ok(stat(g, IndexStat::Rms, s, self.points))),
         );
-        v.extend(
-            car.iter()
-                .map(|s| self.sperling(g, s).map_err(|e| e.to_string())),
-        );
+        match self.sperlings(g, &car[0], &beta, &l) {
+            Ok(w) => v.extend(w.into_iter().map(Ok)),
+            Err(e) => v.extend(car.iter().map(|_| Err(e.to_string()))),
+        }
         for n in &cols.z_t_a {
             let s = self.series(n)?;
             v.push(Ok(abs_max(g, &s)));
@@ -148,8 +151,10 @@ impl IndexInputs<'_, '_> {
         Ok(v)
     }
 
-    /// `W_z` `[B]` of an acceleration series `[B, N]` (m/s^2).
-    fn sperling(&self, g: &mut Graph, a: &str) -> Result<Value> {
+    /// `W_z` `[B]` of the car body's accelerations `z`, `z - l beta` and `z + l beta` (`[B,
+    /// N]`, m/s^2; `l [B]` or a scalar), from the spectra of `z` and `beta` alone (the
+    /// spectrum is linear), both in one transform.
+    fn sperlings(&self, g: &mut Graph, z: &str, beta: &str, l: &str) -> Result<[Value; 3]> {
         let p = &self.config.sperling;
         if p.segment_s.is_some() || p.taper != Taper::None {
             return Err(Error::Unsupported(
@@ -162,71 +167,86 @@ impl IndexInputs<'_, '_> {
             .filter(|&k| k as f64 / span >= p.f_min_hz)
             .collect();
         if lines.is_empty() {
-            return Ok(g.scalar(0.0));
+            let zero = g.scalar(0.0);
+            return Ok([zero.clone(), zero.clone(), zero]);
         }
-        let k_n = lines.len();
+        // [2, B, N] in cm/s^2 -> [2B, N] -> the slots [K, 2, 2B] -> [K, 2, 2, B].
+        let parts = [g.unsqueeze(z, &[0]), g.unsqueeze(beta, &[0])];
+        let both = g.concat(0, &[&parts[0], &parts[1]]);
         let cm = g.scalar(100.0);
-        let a = g.mul(a, &cm);
-        let (re, im) = match self.spectral {
+        let both = g.mul(&both, &cm);
+        let rows = g.reshape(&both, &[-1, n as i64]);
+        let (spec, slots) = match self.spectral {
             Spectral::Matmul => {
-                let mut cos = vec![0.0f32; n * k_n];
-                let mut sin = vec![0.0f32; n * k_n];
-                for t in 0..n {
-                    for (j, &k) in lines.iter().enumerate() {
-                        let th = 2.0 * std::f64::consts::PI * ((k * t) % n) as f64 / n as f64;
-                        cos[t * k_n + j] = th.cos() as f32;
-                        sin[t * k_n + j] = th.sin() as f32;
-                    }
-                }
-                let a32 = g.cast(&a, DataType::Float);
-                let (c, s) = (g.f32s(&[n, k_n], &cos), g.f32s(&[n, k_n], &sin));
-                let re = g.matmul(&a32, &c);
-                let im = g.matmul(&a32, &s);
-                (g.cast(&re, DataType::Double), g.cast(&im, DataType::Double))
+                let plan = Plan::for_layer(n, n / 2 + 1, 1);
+                let rows = g.cast(&rows, DataType::Float);
+                let cols = g.transpose(&rows, &[1, 0]);
+                let spec = Analysis::new(g, &plan).apply(g, &plan, &cols);
+                (g.cast(&spec, DataType::Double), plan.slots)
             }
             Spectral::Dft => {
-                let rows = g.unsqueeze(&a, &[2]);
+                let rows = g.unsqueeze(&rows, &[2]);
                 let spec = g.op(
                     "DFT",
                     &[&rows],
                     &[("axis", Attr::Int(1)), ("onesided", Attr::Int(1))],
                 );
-                let picked = g.gather(
-                    &spec,
-                    1,
-                    &lines.iter().map(|&k| k as i64).collect::<Vec<_>>(),
-                );
-                let re = g.slice(&picked, 2, 0, 1);
-                let im = g.slice(&picked, 2, 1, 2);
-                (g.reshape(&re, &[0, -1]), g.reshape(&im, &[0, -1]))
+                let index: Vec<i64> = lines.iter().map(|&k| k as i64).collect();
+                let picked = g.gather(&spec, 1, &index); // [2B, K, 2]
+                let spec = g.transpose(&picked, &[1, 2, 0]);
+                (spec, lines.iter().map(|&k| Some(k)).collect())
             }
         };
-        let re2 = g.mul(&re, &re);
-        let im2 = g.mul(&im, &im);
-        let sq = g.add(&re2, &im2);
+        let spec = g.reshape(&spec, &[slots.len() as i64, 2, 2, -1]);
+        let zs = g.slice(&spec, 2, 0, 1);
+        let bs = g.slice(&spec, 2, 1, 2);
+        let lb = g.mul(l, &bs);
+        let front = g.sub(&zs, &lb);
+        let rear = g.add(&zs, &lb);
+        let lines: Vec<Option<usize>> = slots
+            .iter()
+            .map(|k| k.filter(|k| lines.contains(k)))
+            .collect();
+        Ok([zs, front, rear].map(|s| self.weighted(g, &s, &lines)))
+    }
+
+    /// `W_z` `[B]` of the spectrum `[K, 2, 1, B]` (real, imaginary) of a window of `N`
+    /// points in cm/s^2, its slots holding `lines` (`None`: a slot the sum leaves out).
+    fn weighted(&self, g: &mut Graph, spec: &str, lines: &[Option<usize>]) -> Value {
+        let n = self.points;
+        let span = n as f64 * self.dt;
+        let k_n = lines.len();
+        let sq = g.mul(spec, spec);
+        let sq = g.reduce_sum(&sq, &[1], false); // [K, 1, B]
         let modulus = g.unary("Sqrt", &sq);
         let scale: Vec<f64> = lines
             .iter()
-            .map(|&k| if 2 * k == n { 1.0 } else { 2.0 } / n as f64)
+            .map(|k| match *k {
+                Some(k) if 2 * k == n => 1.0 / n as f64,
+                Some(_) => 2.0 / n as f64,
+                None => 0.0,
+            })
             .collect();
         let weight: Vec<f64> = lines
             .iter()
-            .map(|&k| {
-                let f = k as f64 / span;
-                weighting(f) / f
+            .map(|k| {
+                k.map_or(0.0, |k| {
+                    let f = k as f64 / span;
+                    weighting(f) / f
+                })
             })
             .collect();
-        let scale = g.f64s(&[k_n], &scale);
-        let weight = g.f64s(&[k_n], &weight);
+        let scale = g.f64s(&[k_n, 1, 1], &scale);
+        let weight = g.f64s(&[k_n, 1, 1], &weight);
         let amp = g.mul(&modulus, &scale);
         let amp2 = g.mul(&amp, &amp);
         let amp3 = g.mul(&amp2, &amp);
         let terms = g.mul(&amp3, &weight);
-        let sum = g.reduce_sum(&terms, &[1], false);
+        let sum = g.reduce_sum(&terms, &[0, 1], false); // [B]
         let tenth = g.scalar(0.1);
         let root = g.op("Pow", &[&sum, &tenth], &[]);
         let c = g.scalar(0.896);
-        Ok(g.mul(&c, &root))
+        g.mul(&c, &root)
     }
 }
 

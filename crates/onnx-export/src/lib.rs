@@ -13,11 +13,13 @@
 //! `verdicts`, `outside_training_range`, `extrapolated`.
 //!
 //! Modules: [`proto`] (the protobuf messages, hand-encoded), [`graph`] (a graph builder),
-//! [`expr`] (the description's expressions per design), [`network`] (the FNO), [`member`]
+//! [`expr`] (the description's expressions per design), [`network`] (the FNO), [`dft`] (its
+//! truncated DFT as fixed matrices), [`member`]
 //! (one model's prediction, channels and index inputs), [`indices`], [`intervals`],
 //! [`recipe`] (the excitation's description), [`outputs`] (assembly and metadata).
 #![warn(missing_docs)]
 
+pub mod dft;
 pub mod expr;
 pub mod graph;
 pub mod indices;

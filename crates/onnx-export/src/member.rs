@@ -1,7 +1,7 @@
 //! One model of a surrogate in the graph: its network, its prediction in physical units and
 //! its rates (`pino_eval::eval::to_physical`), the channels `predict --out` writes, and the
 //! series every index reads (`pino_eval::indices_eval`), all in double precision after the
-//! network.
+//! network, channel-major until the channels are assembled.
 
 use crate::graph::{Graph, Value};
 use crate::network::{Network, Spectral, Weights};
@@ -11,15 +11,16 @@ use pino_eval::indices_eval::Source;
 use pino_eval::predict::{prediction_channels, ChannelSource, Predictor};
 use pino_learn::checkpoint::ModelMeta;
 
-/// A model's prediction in the graph, physical units, f64.
+/// A model's prediction in the graph, physical units, f64, channel-major (`[channel, B,
+/// time]`: a channel's series is one contiguous block per design).
 pub struct Prediction {
-    /// Outputs `[B, T, O]` (m, rad, N, and the rate outputs' units).
+    /// Outputs `[O, B, T]` (m, rad, N, and the rate outputs' units).
     pub u: Value,
-    /// Central-difference velocities of the rigid DOFs at the interior points `[B, T-2, D]`.
+    /// Central-difference velocities of the rigid DOFs at the interior points `[D, B, T-2]`.
     pub v: Value,
-    /// Second differences, the accelerations `[B, T-2, D]`.
+    /// Second differences, the accelerations `[D, B, T-2]`.
     pub a: Value,
-    /// The excitation input `[B, T, E]` (m, m/s).
+    /// The excitation input `[E, B, T]` (m, m/s).
     pub eta: Value,
 }
 
@@ -38,39 +39,36 @@ pub fn predict(
         weights,
         spectral,
     };
-    let x = net.input(g, eta, params);
-    let u_n = net.forward(g, &x)?;
+    let u_n = net.forward(g, eta, params)?;
     let u_n = g.cast(&u_n, DataType::Double);
     let (o, d) = (meta.layout.n_outputs(), meta.layout.n_dofs());
     let t = meta.grid.t_points;
     let stats = &meta.norm.outputs;
-    let std = g.f64s(&[o], &stats.std);
-    let mean = g.f64s(&[o], &stats.mean);
+    let std = g.f64s(&[o, 1, 1], &stats.std);
+    let mean = g.f64s(&[o, 1, 1], &stats.mean);
     let scaled = g.mul(&u_n, &std);
     let u = g.add(&scaled, &mean);
     // Differences of the z-scored values times the standard deviation (the mean cancels).
-    let dofs = g.slice(&u_n, 2, 0, d);
-    let prev = g.slice(&dofs, 1, 0, t - 2);
-    let mid = g.slice(&dofs, 1, 1, t - 1);
-    let next = g.slice(&dofs, 1, 2, t);
-    let s = g.f64s(&[d], &stats.std[..d]);
+    let dofs = g.slice(&u_n, 0, 0, d);
+    let prev = g.slice(&dofs, 2, 0, t - 2);
+    let mid = g.slice(&dofs, 2, 1, t - 1);
+    let next = g.slice(&dofs, 2, 2, t);
     let dt = meta.grid.dt;
+    let per = |k: f64| -> Vec<f64> { stats.std[..d].iter().map(|s| s * k).collect() };
     let diff = g.sub(&next, &prev);
-    let sv = g.mul(&s, &diff);
-    let two_dt = g.scalar(2.0 * dt);
-    let v = g.div(&sv, &two_dt);
+    let sv = g.f64s(&[d, 1, 1], &per(0.5 / dt));
+    let v = g.mul(&diff, &sv);
     let two = g.scalar(2.0);
     let twice = g.mul(&mid, &two);
     let first = g.sub(&next, &twice);
     let second = g.add(&first, &prev);
-    let sa = g.mul(&s, &second);
-    let dt2 = g.scalar(dt * dt);
-    let a = g.div(&sa, &dt2);
+    let sa = g.f64s(&[d, 1, 1], &per(1.0 / (dt * dt)));
+    let a = g.mul(&second, &sa);
     Ok(Prediction {
         u,
         v,
         a,
-        eta: eta.to_owned(),
+        eta: g.transpose(eta, &[2, 0, 1]),
     })
 }
 
@@ -88,13 +86,72 @@ pub fn channels(meta: &ModelMeta) -> Vec<(String, usize)> {
         .collect()
 }
 
-/// The channels `[B, T-2, C]` at the interior points, in [`channels`] order.
-pub fn channel_values(g: &mut Graph, meta: &ModelMeta, p: &Prediction) -> Value {
-    let t = meta.grid.t_points;
-    let interior = g.slice(&p.u, 1, 1, t - 1);
-    let all = g.concat(2, &[&interior, &p.v, &p.a]);
-    let index: Vec<usize> = channels(meta).iter().map(|(_, k)| *k).collect();
-    g.pick(&all, 2, &index)
+/// Where a channel's values lie: row `row` of `of` (`[rows, B, time]`), over the whole
+/// window (`whole`: the outputs, cut to the interior points when read) or over the interior
+/// points (the differences).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChannelAt {
+    /// The block.
+    pub of: Value,
+    /// Its rows.
+    pub rows: usize,
+    /// The channel's row.
+    pub row: usize,
+    /// Whether the block spans the whole window.
+    pub whole: bool,
+}
+
+/// Every channel of a prediction, in [`channels`] order.
+pub fn channel_values(meta: &ModelMeta, p: &Prediction) -> Vec<ChannelAt> {
+    let (o, d) = (meta.layout.n_outputs(), meta.layout.n_dofs());
+    channels(meta)
+        .into_iter()
+        .map(|(_, k)| {
+            let (of, rows, row, whole) = match k {
+                k if k < o => (&p.u, o, k, true),
+                k if k < o + d => (&p.v, d, k - o, false),
+                k => (&p.a, d, k - o - d, false),
+            };
+            ChannelAt {
+                of: of.clone(),
+                rows,
+                row,
+                whole,
+            }
+        })
+        .collect()
+}
+
+/// The channels `[B, T-2, C]` of `picked` (each over a `T`-point window): consecutive rows of
+/// one block are read by one slice, the blocks joined and turned design-major once.
+pub fn assemble_channels(g: &mut Graph, picked: &[&ChannelAt], t: usize) -> Value {
+    let mut runs: Vec<(&ChannelAt, usize)> = Vec::new();
+    for c in picked {
+        match runs.last_mut() {
+            Some((first, n)) if first.of == c.of && first.row + *n == c.row => *n += 1,
+            _ => runs.push((c, 1)),
+        }
+    }
+    let parts: Vec<Value> = runs
+        .iter()
+        .map(|&(c, n)| {
+            let mut cuts = Vec::new();
+            if c.row > 0 || n < c.rows {
+                cuts.push((0, c.row, c.row + n));
+            }
+            if c.whole {
+                cuts.push((2, 1, t - 1));
+            }
+            g.slice_axes(&c.of, &cuts)
+        })
+        .collect();
+    let refs: Vec<&str> = parts.iter().map(String::as_str).collect();
+    let all = if refs.len() == 1 {
+        parts[0].clone()
+    } else {
+        g.concat(0, &refs)
+    };
+    g.transpose(&all, &[1, 2, 0])
 }
 
 /// A series by column name, or why the graph cannot give it.
@@ -107,9 +164,8 @@ pub fn index_series(g: &mut Graph, predictor: &Predictor, p: &Prediction, first:
     let t = meta.grid.t_points;
     let dt = meta.grid.dt;
     let column = |g: &mut Graph, x: &str, c: usize, from: usize, to: usize| {
-        let col = g.slice(x, 2, c, c + 1);
-        let rows = g.slice(&col, 1, from, to);
-        g.reshape(&rows, &[0, -1])
+        let cut = g.slice_axes(x, &[(0, c, c + 1), (2, from, to)]);
+        g.reshape(&cut, &[-1, (to - from) as i64])
     };
     let mut out = Vec::new();
     for (name, source) in predictor.index_inputs().sources() {
@@ -207,10 +263,11 @@ fn deflection(
     }
     let c = coefficients.unwrap_or_default();
     let t = meta.grid.t_points;
-    let u = g.slice(&p.u, 1, first, t - 1);
-    let x = g.slice(&p.eta, 1, first, t - 1);
-    let both = g.concat(2, &[&u, &x]);
-    let w = g.f64s(&[o + n_e, 1], &c);
-    let sum = g.matmul(&both, &w);
-    Ok(g.reshape(&sum, &[0, -1]))
+    let u = g.slice(&p.u, 2, first, t - 1);
+    let x = g.slice(&p.eta, 2, first, t - 1);
+    let both = g.concat(0, &[&u, &x]);
+    let both = g.reshape(&both, &[(o + n_e) as i64, -1]);
+    let w = g.f64s(&[1, o + n_e], &c);
+    let sum = g.matmul(&w, &both);
+    Ok(g.reshape(&sum, &[-1, (t - 1 - first) as i64]))
 }

@@ -141,16 +141,16 @@ fn calibrations(members: &[Member]) -> std::result::Result<Vec<&Calibration>, St
         .collect()
 }
 
-/// Per member: its channels `[B, T-2, C_m]` and index values, from the graph inputs.
+/// Per member: where its channels lie and its index values, from the graph inputs.
 struct Answers {
-    channels: Value,
+    channels: Vec<member::ChannelAt>,
     indices: Vec<std::result::Result<Value, String>>,
 }
 
 fn answers(g: &mut Graph, m: &Member, spectral: Spectral, inputs: (&str, &str)) -> Result<Answers> {
     let meta = &m.predictor.meta;
     let p: Prediction = member::predict(g, meta, &m.weights, spectral, inputs.0, inputs.1)?;
-    let channels = member::channel_values(g, meta, &p);
+    let channels = member::channel_values(meta, &p);
     let inputs_ix = m.predictor.index_inputs();
     if inputs_ix.columns().is_empty() {
         return Ok(Answers {
@@ -338,20 +338,14 @@ impl Plan {
         })
     }
 
-    /// The channels `[B, T-2, C]` picked from the members' `[B, T-2, C_m]`.
+    /// The channels `[B, T-2, C]`, each from the member answering it.
     fn channels(&self, g: &mut Graph, answers: &[Answers]) -> Value {
-        let m0 = self.channels.first().map_or(0, |c| c.2);
-        if self.channels.iter().all(|c| c.2 == m0) {
-            let index: Vec<usize> = self.channels.iter().map(|c| c.3).collect();
-            return g.pick(&answers[m0].channels, 2, &index);
-        }
-        let parts: Vec<Value> = self
+        let picked: Vec<&member::ChannelAt> = self
             .channels
             .iter()
-            .map(|c| g.slice(&answers[c.2].channels, 2, c.3, c.3 + 1))
+            .map(|c| &answers[c.2].channels[c.3])
             .collect();
-        let refs: Vec<&str> = parts.iter().map(String::as_str).collect();
-        g.concat(2, &refs)
+        member::assemble_channels(g, &picked, self.rows + 2)
     }
 
     /// The indices `[B, I]`.
