@@ -765,12 +765,13 @@ mod tests {
         for k in 0..2 {
             for (got, want) in oracle[1 + k].iter().zip(&floor[k]) {
                 // A real floor (the O(dt^2) truncation error of central differences), and the
-                // metric reproduces it from the f32 z-scored storage to 1e-3 of its value
+                // metric reproduces it from the f32 z-scored storage to 5 % of its value
                 // (f32 rounding of the displacements, amplified by 1/dt^2 for the second
-                // difference).
+                // difference, about 1e-4 absolute; the smooth cubic profile leaves a floor of
+                // 0.3 %, so that rounding is a larger share of it than under a linear one).
                 assert!(*want > 1e-6, "derivative {k}: floor {want}");
                 assert!(
-                    (got - want).abs() <= 1e-3 * want,
+                    (got - want).abs() <= 5e-2 * want,
                     "derivative {}: {got} vs f64 {want}",
                     k + 1
                 );
