@@ -49,9 +49,10 @@ pub enum Command {
         /// Rerun the targets even when fresh (upstream fresh stages are reused).
         #[arg(long)]
         force: bool,
-        /// Units (stages, shards, expansions) run at once.
-        #[arg(short = 'j', long = "jobs", default_value_t = 1)]
-        jobs: usize,
+        /// Units (stages, shards, expansions) run at once (default: the machine's cores; a
+        /// training runs on one core, so the candidate models train side by side).
+        #[arg(short = 'j', long = "jobs")]
+        jobs: Option<usize>,
         /// Fail at once (exit 2) instead of waiting when another run holds the workspace.
         #[arg(long)]
         no_wait: bool,
@@ -118,7 +119,7 @@ fn execute(cli: Cli) -> Result<()> {
                 &RunOptions {
                     targets,
                     force,
-                    jobs,
+                    jobs: jobs.unwrap_or_else(default_jobs),
                     wait: !no_wait,
                     executor,
                 },
@@ -165,4 +166,9 @@ pub fn main() -> ExitCode {
             ExitCode::from(e.exit_code())
         }
     }
+}
+
+/// `run`'s units at once without `-j`: the machine's cores (1 when they cannot be read).
+fn default_jobs() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
