@@ -312,16 +312,24 @@ class Pipeline:
         bin_dir: PathLike | None = None,
         set: Mapping[str, Any] | None = None,
     ) -> None:
-        """``path``: the pipeline file, relative to ``workspace`` (default: the current
-        directory, as the CLI); ``bin_dir``: where the stage binaries are (default: the file's
-        ``bin_dir``, or ``PINO_BIN_DIR``); ``set``: ``{"stage.key": value}`` overrides applied
-        to every call (``--set``)."""
+        """``path``: the pipeline file, relative to ``workspace`` when one is given, else to
+        the current directory; ``workspace``: where ``artifacts/`` lives (default: the file's
+        ``workspace:`` key, relative to the file, else the file's directory: as the
+        ``pipeline`` command, a file opened from anywhere runs in its own workspace);
+        ``bin_dir``: where the stage binaries are (default: the file's ``bin_dir``, or
+        ``PINO_BIN_DIR``); ``set``: ``{"stage.key": value}`` overrides applied to every call
+        (``--set``)."""
         self._native = _native.Pipeline(
             os.fspath(path),
             None if workspace is None else os.fspath(workspace),
             None if bin_dir is None else os.fspath(bin_dir),
             _sets(set),
         )
+
+    @property
+    def workspace(self) -> str:
+        """The workspace the pipeline runs in (absolute when derived from the file)."""
+        return os.fspath(self._native.workspace)
 
     def status(self) -> pl.DataFrame:
         """Every unit: ``unit``, ``state`` (fresh, stale, never run, running, submitted) and

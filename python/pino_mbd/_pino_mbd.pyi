@@ -121,10 +121,14 @@ class Pipeline:
         bin_dir: Optional[str],
         sets: list[str],
     ) -> None:
-        """``sets``: ``STAGE.KEY=VALUE`` overrides (YAML values) for every call."""
+        """``file`` relative to ``workspace`` when given, else to the current directory;
+        ``sets``: ``STAGE.KEY=VALUE`` overrides (YAML values) for every call."""
     @property
     def file(self) -> str:
         """The pipeline file."""
+    @property
+    def workspace(self) -> str:
+        """The workspace: the one given, else the file's ``workspace:`` or directory."""
     def _status(self) -> dict[str, list[str]]:
         """Columns unit, state, detail."""
     def _run(self, targets: list[str], sets: list[str], force: bool, jobs: int) -> None:

@@ -66,7 +66,8 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
     ws = tmp_path_factory.mktemp("ws")
     # The pipeline file's bin_dir must lie inside the workspace: links to the binaries there.
     text = (ROOT / "configs" / "quarter-car.yaml").read_text()
-    (ws / "pipeline.yaml").write_text(re.sub(r"(?m)^bin_dir: .*$", "bin_dir: bin", text))
+    text = re.sub(r"(?m)^workspace: .*\n", "", re.sub(r"(?m)^bin_dir: .*$", "bin_dir: bin", text))
+    (ws / "pipeline.yaml").write_text(text)
     shutil.copytree(ROOT / "systems", ws / "systems")
     (ws / "bin").mkdir()
     for exe in bins.iterdir():

@@ -1,10 +1,11 @@
 """Model.load, predict and indices against the `predict` command on the same model,
 calibration, designs and excitation (equal tables, bit for bit), the flags and verdicts of a
 calibrated answer, the refusals (a model of another system, another model's calibration), and
-Pipeline.status / show / the study function."""
+Pipeline.status / show / workspace and the study function."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 
 import numpy as np
@@ -13,6 +14,7 @@ import pytest
 
 import pino_mbd
 
+from conftest import TINY
 from test_system import assert_bit_identical
 
 
@@ -94,3 +96,19 @@ def test_pipeline_status_and_show(run) -> None:
     assert sum(p.endswith("/simulation.parquet") for p in sims) == 2
     with pytest.raises(ValueError, match="no_such_stage"):
         run.pipeline.show("no_such_stage")
+
+
+def test_a_pipeline_runs_in_its_files_workspace_from_anywhere(run, tmp_path) -> None:
+    """`Pipeline(path)` without a workspace: the file's directory, from any current
+    directory; `show` of a stage never run names the workspace it looked in."""
+    here = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        p = pino_mbd.Pipeline(run.ws / "pipeline.yaml", set=TINY)
+        assert p.workspace == str(run.ws)
+        assert p.show("calibrate") == run.pipeline.show("calibrate")
+        with pytest.raises(pino_mbd.PinoError, match=f"no outputs yet in the workspace {run.ws}: `pipeline -C {run.ws} -f pipeline.yaml run evaluate`"):
+            p.show("evaluate")
+    finally:
+        os.chdir(here)
+    assert not (tmp_path / "artifacts").exists()
