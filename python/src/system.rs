@@ -144,7 +144,13 @@ impl PySystem {
             overrides.insert(name, o);
         }
         let source = SystemSource::read(&path, overrides).map_err(to_py)?;
-        let system = Arc::new(source.compile().map_err(to_py)?);
+        let system = Arc::new(source.compile().map_err(|e| match e {
+            // The argument's name, not the stages' `system_values` or a line of the file.
+            mbd_system::SourceError::Override { error, .. } => {
+                value_error(format!("values.{}: {}", error.name, error.message))
+            }
+            e => to_py(e),
+        })?);
         Ok(Self {
             space: DesignSpace::of(system.clone()),
             source,

@@ -56,6 +56,14 @@ def test_values_override_the_description(quarter_car) -> None:
     assert s.hash != quarter_car.hash
     with pytest.raises(ValueError, match="no_such"):
         pino_mbd.System.load(quarter_car.path, values={"no_such": 1.0})
+    # In the argument's words: not the stages' `system_values`, not a line of the file.
+    for values, pattern in [
+        ({"k_q": 1}, r"^values\.k_q: `k_q` is not a parameter of the description; parameters: "),
+        ({"g": [1.0, 2.0]}, r"^values\.g: a fixed parameter takes a finite number"),
+    ]:
+        with pytest.raises(pino_mbd.PinoError, match=pattern) as e:
+            pino_mbd.System.load(quarter_car.path, values=values)
+        assert "system_values" not in str(e.value) and ":1:1" not in str(e.value), e.value
 
 
 def stage_inputs(run):
