@@ -72,7 +72,7 @@ def _frame(table: Any) -> pl.DataFrame:
 
 
 def _warn_outside(df: pl.DataFrame) -> None:
-    flagged = df.filter(pl.col("outside_training_range") != "")
+    flagged = df.filter(pl.col("outside_training_range").is_not_null())
     if flagged.height:
         warnings.warn(
             f"{flagged.height} of {df.height} design row(s) outside the model's training ranges, where its "
@@ -246,7 +246,7 @@ class Model:
         the rigid DOFs' velocities and accelerations, the excitations (m), with a calibration
         a band ``<channel>_lo``/``_hi`` at ``coverage`` (default 0.9), and
         ``outside_training_range`` (``name=value`` of each parameter outside the training
-        ranges; a warning, or ``PinoError`` with ``strict=True``).
+        ranges, null inside; a warning, or ``PinoError`` with ``strict=True``).
 
         ``excitation``: a seed (the profiles generated with the model's dataset's settings,
         stream ``excitation_id``, default 0) or a profile file (rows of ``sample_id`` =
@@ -270,8 +270,9 @@ class Model:
     ) -> pl.DataFrame:
         """The engineering indices of every design, one row each (the table of ``predict
         --indices``): ``set``, the design parameters, each index in its unit, ``window_s``
-        (s), ``pass``, ``failed``, ``outside_training_range``; with a calibration also
-        ``coverage``, ``extrapolated``, ``<index>_lo``/``_hi`` and the three-valued verdicts
+        (s), ``pass`` (Boolean), ``failed`` (the limits exceeded; null when none),
+        ``outside_training_range`` (null inside); with a calibration also ``coverage``,
+        ``extrapolated`` (Boolean), ``<index>_lo``/``_hi`` and the three-valued verdicts
         ``<index>_verdict``, ``verdict`` (pass / uncertain / fail). The numbers are those of
         ``predict`` for the same designs and excitation, bit for bit. Arguments as
         ``predict``."""

@@ -47,9 +47,10 @@ pub fn designs(space: &DesignSpace, table: &Table, what: &str) -> PyResult<Desig
                         }
                     })
                     .collect::<PyResult<_>>()?,
-                Column::Str(_) => {
+                other => {
                     return Err(value_error(format!(
-                        "{what}.{name}: strings; allowed integers >= 0"
+                        "{what}.{name}: {}; allowed integers >= 0",
+                        other.type_name()
                     )))
                 }
             };
@@ -69,6 +70,12 @@ pub fn designs(space: &DesignSpace, table: &Table, what: &str) -> PyResult<Desig
             Column::Str(_) => {
                 return Err(value_error(format!(
                     "{what}.{name}: strings; allowed numbers"
+                )))
+            }
+            other => {
+                return Err(value_error(format!(
+                    "{what}.{name}: {}; allowed numbers",
+                    other.type_name()
                 )))
             }
         };

@@ -230,7 +230,12 @@ impl PySystem {
     /// The columns of `simulate` (and `simulation.parquet`) as columns: name, unit, kind.
     fn _columns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let mut name = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
-        let mut unit = vec!["-".to_owned(), "s".to_owned()];
+        let fixed = |n| {
+            pino_data::units::fixed_unit(n)
+                .unwrap_or_default()
+                .to_owned()
+        };
+        let mut unit = vec![fixed(schema::SAMPLE_ID), fixed(schema::TIME)];
         let mut kind = vec!["id", "time"];
         for c in &self.system.channels {
             name.push(c.name.clone());

@@ -10,6 +10,7 @@ import subprocess
 
 import numpy as np
 import polars as pl
+import pyarrow.parquet as pq
 import pytest
 
 import pino_mbd
@@ -52,9 +53,12 @@ def test_predict_and_indices_equal_the_cli(run, model, model_dir, calibration, t
     with pytest.warns(UserWarning):
         i = model.indices(designs, excitation=7)
     assert_bit_identical(i, ix)
+    assert i["outside_training_range"].to_list()[0] is None
     assert i["outside_training_range"].to_list()[1].startswith("k_s=")
+    assert p.filter(pl.col("set") == 0)["outside_training_range"].null_count() == p.height // 2
     assert set(i["verdict"]) <= {"pass", "uncertain", "fail"}
-    assert i["extrapolated"].to_list() == [0, 1]
+    assert i["extrapolated"].to_list() == [False, True]
+    assert i.schema["pass"] == pl.Boolean and i.schema["extrapolated"] == pl.Boolean
     lo, hi, v = i["suspension_travel_lo"], i["suspension_travel_hi"], i["suspension_travel"]
     assert ((lo <= v) & (v <= hi)).all()
     # One design by itself gives the same row as in the batch.
@@ -96,6 +100,24 @@ def test_pipeline_status_and_show(run) -> None:
     assert sum(p.endswith("/simulation.parquet") for p in sims) == 2
     with pytest.raises(ValueError, match="no_such_stage"):
         run.pipeline.show("no_such_stage")
+
+
+def test_tables_have_booleans_nulls_and_one_dimensionless_unit(run, model) -> None:
+    """`pass`, `extrapolated` are Booleans, an absent flag is null, and every dimensionless
+    column is in `1`: in the package's tables and in the files the stages write."""
+    native = model._native._indices(pl.DataFrame({"k_s": [2.0e4, 4.0e4]}), 7, None, None, None, 16, False)
+    units = dict(native.units)
+    assert units["pass"] == units["extrapolated"] == units["set"] == units["outside_training_range"] == "1"
+    assert "-" not in units.values(), units
+    i = pl.DataFrame(native)
+    assert i.schema["pass"] == pl.Boolean and i.schema["extrapolated"] == pl.Boolean
+    assert i["outside_training_range"][0] is None
+    indices = pq.read_schema(run.files("indices", "indices.parquet")[0])
+    assert str(indices.field("pass").type) == "bool" and not indices.field("pass").nullable
+    assert indices.field("failed").nullable
+    assert all(f.metadata[b"unit"] != b"-" for f in indices), indices
+    columns = pino_mbd.System.load(run.ws / "systems" / "quarter-car.yaml").columns
+    assert dict(columns.select("name", "unit").iter_rows())["sample_id"] == "1"
 
 
 def test_a_pipeline_runs_in_its_files_workspace_from_anywhere(run, tmp_path) -> None:

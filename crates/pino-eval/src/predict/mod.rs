@@ -548,8 +548,8 @@ impl Predictor {
     }
 
     /// [`Predictor::histories`] with the column [`OUTSIDE_COLUMN`] last: on each row, the
-    /// [`outside_flag`] of its design ([`Predictor::outside_training`]). The table of
-    /// `predict --out` and of the Python package's `Model.predict`.
+    /// [`outside_flag`] of its design ([`Predictor::outside_training`]; null inside). The
+    /// table of `predict --out` and of the Python package's `Model.predict`.
     pub fn histories_flagged(
         &self,
         sets: &[Vec<f64>],
@@ -564,8 +564,8 @@ impl Predictor {
             .outside_training(sets)?
             .iter()
             .flat_map(|o| std::iter::repeat_n(outside_flag(o), per_row))
-            .collect();
-        table.push(OUTSIDE_COLUMN, Column::Str(rows))?;
+            .collect::<Vec<_>>();
+        table.push(OUTSIDE_COLUMN, Column::null_if_empty(rows))?;
         Ok(table)
     }
 
@@ -677,10 +677,11 @@ impl Predictor {
     }
 
     /// The indices table of `predict`: `set`, the design's parameters, the indices of the
-    /// description, `window_s`, `pass`, `failed`, and [`OUTSIDE_COLUMN`]; with calibrated
-    /// answers also `coverage`, `extrapolated`, `relative_residual` (when the model has
-    /// equations), `<index>_lo` and `<index>_hi` of every index, `<index>_verdict` of every
-    /// index with a limit and the combined `verdict` (`pass`, `uncertain`, `fail`).
+    /// description, `window_s`, `pass` (Boolean), `failed` and [`OUTSIDE_COLUMN`] (null when
+    /// none); with calibrated answers also `coverage`, `extrapolated` (Boolean),
+    /// `relative_residual` (when the model has equations), `<index>_lo` and `<index>_hi` of
+    /// every index, `<index>_verdict` of every index with a limit and the combined `verdict`
+    /// (`pass`, `uncertain`, `fail`; null where a design has none).
     pub fn indices_table(
         &self,
         sets: &[Vec<f64>],
@@ -703,20 +704,20 @@ impl Predictor {
         )?;
         t.push(
             pino_indices::PASS_COLUMN,
-            Column::I64(
+            Column::Bool(
                 answers
                     .iter()
-                    .map(|a| a.indices.failed.is_empty() as i64)
+                    .map(|a| a.indices.failed.is_empty())
                     .collect(),
             ),
         )?;
         t.push(
             pino_indices::FAILED_COLUMN,
-            Column::Str(answers.iter().map(|a| a.indices.failed.join(",")).collect()),
+            Column::null_if_empty(answers.iter().map(|a| a.indices.failed.join(","))),
         )?;
         t.push(
             OUTSIDE_COLUMN,
-            Column::Str(outside.iter().map(|o| outside_flag(o)).collect()),
+            Column::null_if_empty(outside.iter().map(|o| outside_flag(o))),
         )?;
         let calibrated: Option<Vec<&CalibratedAnswer>> =
             answers.iter().map(|a| a.calibrated.as_ref()).collect();
@@ -729,7 +730,7 @@ impl Predictor {
         )?;
         t.push(
             "extrapolated",
-            Column::I64(cal.iter().map(|c| c.extrapolated as i64).collect()),
+            Column::Bool(cal.iter().map(|c| c.extrapolated).collect()),
         )?;
         if cal[0].relative_residual.is_some() {
             t.push(
@@ -765,9 +766,9 @@ impl Predictor {
             if cal[0].verdicts[k].is_some() {
                 t.push(
                     &format!("{}_verdict", c.name),
-                    Column::Str(
+                    Column::OptStr(
                         cal.iter()
-                            .map(|a| a.verdicts[k].map_or("", |v| v.as_str()).to_owned())
+                            .map(|a| a.verdicts[k].map(|v| v.as_str().to_owned()))
                             .collect(),
                     ),
                 )?;
@@ -776,9 +777,9 @@ impl Predictor {
         if cal[0].verdict.is_some() {
             t.push(
                 "verdict",
-                Column::Str(
+                Column::OptStr(
                     cal.iter()
-                        .map(|a| a.verdict.map_or("", |v| v.as_str()).to_owned())
+                        .map(|a| a.verdict.map(|v| v.as_str().to_owned()))
                         .collect(),
                 ),
             )?;
@@ -791,7 +792,7 @@ impl Predictor {
 pub const OUTSIDE_COLUMN: &str = "outside_training_range";
 
 /// The [`OUTSIDE_COLUMN`] value of one design: its parameters outside the training ranges as
-/// `name=value`, comma-separated (empty inside).
+/// `name=value`, comma-separated (empty inside, written as a null).
 pub fn outside_flag(outside: &[OutOfRange]) -> String {
     outside
         .iter()
