@@ -97,7 +97,7 @@ def study(
     for stage in stages:
         model = pm.Model.load(pipe.dir(stage, "model.json"))
         predictions[stage] = {
-            i: model.predict(params.filter(pl.col("sample_id") == i), excitation=profiles, excitation_id=i).select(
+            i: model.predict(params.filter(pl.col("sample_id") == i), excitation=profiles).select(
                 ["t", *forces]
             )
             for i in ids

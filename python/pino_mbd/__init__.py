@@ -14,7 +14,17 @@ every column is in ``System.columns`` and in the ``units`` of the native result.
 
 Every refusal (a description's problem with its ``file:line``, an unknown parameter, a
 non-finite value, a wrong shape, a model of another system) raises ``PinoError``, a
-``ValueError`` naming the field at fault.
+``ValueError`` naming the argument and field at fault (``designs.k_s[1]``, ``values.k_q``,
+``excitation``).
+
+An excitation (the ``excitation`` argument of ``System.simulate``, ``Model.predict`` and
+``Model.indices``) is one of: a seed (an ``int`` >= 0, short for ``{"seed": N}``);
+``{"seed": N, "dx": m, "length": m}``, profiles generated as the ``irregularity`` stage
+generates them (``dx`` and ``length`` optional: a model's default to its dataset's, the
+solver's to 0.1 m and a length that covers the run); or a profile table (``sample_id``, ``x``
+and ``eta`` in m, ``profile`` with several generated profiles: the ``irregularity`` artifact)
+as a DataFrame, a pyarrow table or a Parquet file's path. A design row's ``sample_id`` names
+its stream (generated) or sample (table).
 """
 
 from __future__ import annotations
@@ -34,6 +44,8 @@ from ._pino_mbd import PinoError, __version__
 __all__ = ["PinoError", "System", "Model", "Pipeline", "study", "__version__"]
 
 PathLike = Union[str, "os.PathLike[str]"]
+# A seed, {"seed": N, "dx": m, "length": m}, a profile table or its Parquet file (module doc).
+Excitation = Union[int, Mapping[str, float], PathLike, Any, None]
 
 
 def _designs(obj: Any, what: str = "designs") -> Any:
@@ -69,6 +81,18 @@ def _designs(obj: Any, what: str = "designs") -> Any:
 def _frame(table: Any) -> pl.DataFrame:
     """A native result (an Arrow stream) as a polars DataFrame, without a copy."""
     return pl.DataFrame(table)
+
+
+def _excitation(e: Any) -> Any:
+    """The ``excitation`` argument as the native module reads it (a path as ``str``, a mapping
+    as ``dict``, a NumPy integer as ``int``); the native module checks it."""
+    if isinstance(e, os.PathLike):
+        return os.fspath(e)
+    if isinstance(e, Mapping):
+        return dict(e)
+    if isinstance(e, np.integer):
+        return int(e)
+    return e
 
 
 def _warn_outside(df: pl.DataFrame) -> None:
@@ -146,7 +170,7 @@ class System:
         duration: float,
         dt: float,
         output_every: int,
-        excitation: Any = None,
+        excitation: Excitation = None,
         start: str = "equilibrium",
         x0: float = 0.0,
         startup_zero_fraction: float = 0.0,
@@ -158,11 +182,16 @@ class System:
         parallel on all cores with the GIL released.
 
         ``designs``: one row per design, a column per design parameter (missing ones take
-        their nominal values), optionally ``sample_id`` (names the design's rows and its
-        excitation) and ``split`` (ignored). ``excitation``: for a system with generated
-        profiles, a profile file or table (``sample_id``, ``x`` in m, ``eta`` in m, positive
-        downward; the ``irregularity`` artifact) or ``{"seed": N, "dx": m, "length": m}`` to
-        generate them as ``irregularity`` does. ``duration`` (s), ``dt`` (s, below the
+        their nominal values), optionally ``sample_id`` (the key of the design's rows in the
+        result and the stream or sample of the excitation it runs on; default: its row
+        number) and ``split`` (ignored). ``excitation`` (needed for a system with generated
+        profiles): a seed (``int``), ``{"seed": N, "dx": m, "length": m}`` (generated as
+        ``irregularity`` does; ``dx`` defaults to 0.1 m, ``length`` to the farthest point
+        read over the description's sampling ranges in this run plus ``dx``, rounded up to
+        whole 10 m and at least the longest generated wavelength: give ``length`` to keep
+        one road across runs of other durations) or a profile table (``sample_id``, ``x``
+        in m, ``eta`` in m, positive downward: the ``irregularity`` artifact, or its file's
+        path). ``duration`` (s), ``dt`` (s, below the
         stability bound), ``output_every`` (steps per stored row), ``start``
         (``"equilibrium"`` or ``"rest"``), ``x0`` (m, the moving frame at t = 0), the two
         start-up fractions (of the duration) are the run controls of ``pipeline.yaml``.
@@ -173,7 +202,7 @@ class System:
         (``sample_id``, ``reason``)."""
         sim, failed = self._native._simulate(
             _designs(designs),
-            os.fspath(excitation) if isinstance(excitation, os.PathLike) else excitation,
+            _excitation(excitation),
             float(duration),
             float(dt),
             int(output_every),
@@ -234,7 +263,7 @@ class Model:
         self,
         designs: Any,
         *,
-        excitation: int | PathLike | None = None,
+        excitation: Excitation = None,
         excitation_id: int | None = None,
         x0: float | None = None,
         coverage: float | None = None,
@@ -248,11 +277,16 @@ class Model:
         ``outside_training_range`` (``name=value`` of each parameter outside the training
         ranges, null inside; a warning, or ``PinoError`` with ``strict=True``).
 
-        ``excitation``: a seed (the profiles generated with the model's dataset's settings,
-        stream ``excitation_id``, default 0) or a profile file (rows of ``sample_id`` =
-        ``excitation_id``, default the first); ``x0`` (m) overrides the run's start."""
+        ``excitation``: a seed (``int``: the profiles generated as ``irregularity`` does with
+        the model's dataset's ``dx`` and ``length``), ``{"seed": N, "dx": m, "length": m}``
+        (``dx`` and ``length`` default to the dataset's) or a profile table (``sample_id``,
+        ``x``, ``eta`` in m; a DataFrame or a Parquet file's path). Each row runs on the
+        stream (generated) or sample (table) of its ``sample_id`` when ``designs`` has that
+        column (the answer of ``predict --profile-id SAMPLE_ID``, row by row), else every row
+        on ``excitation_id`` (default: stream 0, or the table's first sample). ``x0`` (m)
+        overrides the run's start."""
         df = _frame(
-            self._native._predict(_designs(designs), _excitation(excitation), excitation_id, x0, coverage, int(batch), bool(strict))
+            self._native._predict(_designs(designs), _excitation(excitation), _id(excitation_id), x0, coverage, int(batch), bool(strict))
         )
         _warn_outside(df)
         return df
@@ -261,7 +295,7 @@ class Model:
         self,
         designs: Any,
         *,
-        excitation: int | PathLike | None = None,
+        excitation: Excitation = None,
         excitation_id: int | None = None,
         x0: float | None = None,
         coverage: float | None = None,
@@ -277,7 +311,7 @@ class Model:
         ``predict`` for the same designs and excitation, bit for bit. Arguments as
         ``predict``."""
         df = _frame(
-            self._native._indices(_designs(designs), _excitation(excitation), excitation_id, x0, coverage, int(batch), bool(strict))
+            self._native._indices(_designs(designs), _excitation(excitation), _id(excitation_id), x0, coverage, int(batch), bool(strict))
         )
         _warn_outside(df)
         return df
@@ -286,14 +320,12 @@ class Model:
         return repr(self._native)
 
 
-def _excitation(e: Any) -> Any:
-    if e is None or isinstance(e, (str, os.PathLike)):
-        return None if e is None else os.fspath(e)
-    if isinstance(e, (bool, float)) or not isinstance(e, (int, np.integer)):
-        raise PinoError(f"excitation: allowed a seed (an integer >= 0) or the path of a profile file, got {e!r}")
-    if e < 0:
-        raise PinoError(f"excitation = {e}: a seed is an integer >= 0")
-    return int(e)
+def _id(i: Any) -> int | None:
+    if i is None:
+        return None
+    if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+        raise PinoError(f"excitation_id = {i!r}: allowed an integer >= 0")
+    return int(i)
 
 
 def _sets(values: Mapping[str, Any] | None) -> list[str]:

@@ -64,8 +64,10 @@ class System:
         startup_ramp_fraction: float,
         progress: bool,
     ) -> tuple[ArrowTable, ArrowTable]:
-        """The solver on every design (an Arrow table); ``duration`` and ``dt`` in s, ``x0``
-        in m, the fractions of the duration. Returns (simulation, failures)."""
+        """The solver on every design (an Arrow table), each on the excitation of its
+        ``sample_id`` (a seed, ``{"seed", "dx", "length"}`` in m, a profile table or its
+        path); ``duration`` and ``dt`` in s, ``x0`` in m, the fractions of the duration.
+        Returns (simulation, failures)."""
 
 class Model:
     """A trained model with its optional calibration."""
@@ -91,25 +93,27 @@ class Model:
     def _predict(
         self,
         designs: object,
-        excitation: Optional[int | str],
+        excitation: object,
         excitation_id: Optional[int],
         x0: Optional[float],
         coverage: Optional[float],
         batch: int,
         strict: bool,
     ) -> ArrowTable:
-        """Time histories (``predict --out``); ``x0`` in m."""
+        """Time histories (``predict --out``): each row on the excitation of its
+        ``sample_id``, else of ``excitation_id``; ``x0`` in m."""
     def _indices(
         self,
         designs: object,
-        excitation: Optional[int | str],
+        excitation: object,
         excitation_id: Optional[int],
         x0: Optional[float],
         coverage: Optional[float],
         batch: int,
         strict: bool,
     ) -> ArrowTable:
-        """Indices with intervals and verdicts (``predict --indices``); ``x0`` in m."""
+        """Indices with intervals and verdicts (``predict --indices``), rows as
+        ``_predict``; ``x0`` in m."""
 
 class Pipeline:
     """A pipeline file in its workspace."""

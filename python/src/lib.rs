@@ -6,11 +6,14 @@
 //! - [`model`]: `Model` (a trained model: predictions and indices with calibrated intervals).
 //! - [`pipeline`]: `Pipeline` (status, run, show) and `_study` (one design study).
 //! - [`arrow`]: tables in and out through `__arrow_c_stream__`; [`designs`]: a table of
-//!   designs checked by name; [`progress`]: the stderr progress bar; [`error`]: `PinoError`.
+//!   designs checked by name; [`excitation`]: the `excitation` argument and each row's
+//!   profiles (every front that runs designs shares it); [`progress`]: the stderr progress
+//!   bar; [`error`]: `PinoError`.
 
 pub mod arrow;
 pub mod designs;
 pub mod error;
+pub mod excitation;
 pub mod model;
 pub mod pipeline;
 pub mod progress;

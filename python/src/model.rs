@@ -2,15 +2,17 @@
 //! through the `predict` command's library (`pino_eval::predict::Predictor`): time histories
 //! of designs, and their engineering indices with calibrated intervals and three-valued
 //! verdicts; the same tables, numbers and `outside_training_range` flags as `predict --out`
-//! and `predict --indices`, computed with the GIL released.
+//! and `predict --indices` (row by row with `--profile-id` the row's excitation id), computed
+//! with the GIL released. Each design row runs on its own excitation
+//! ([`crate::excitation`]).
 
 use crate::arrow::{import, ArrowTable};
 use crate::designs::designs;
 use crate::error::{to_py, value_error};
-use pino_eval::predict::{outside_flag, Predictor, ProfileChoice};
+use crate::excitation::{Excitation, RowProfiles};
+use pino_eval::predict::{outside_flag, Predictor, ProfileSource};
 use pino_learn::config::DeviceKind;
 use pyo3::prelude::*;
-use pyo3::types::PyString;
 use std::path::PathBuf;
 
 /// A trained model loaded for prediction.
@@ -21,15 +23,20 @@ pub struct PyModel {
     calibration: Option<PathBuf>,
 }
 
-/// The designs of a call and their run: sets, profiles, run controls, outside flags.
+/// The designs of a call and their run: sets, each row's profiles, run controls, outside
+/// flags.
 struct Call {
     sets: Vec<Vec<f64>>,
-    profiles: Vec<Option<mbd_engine::Profile>>,
+    profiles: RowProfiles,
     run: mbd_engine::RunConfig,
     outside: Vec<Vec<pino_learn::checkpoint::OutOfRange>>,
 }
 
 impl PyModel {
+    /// The designs of `designs_obj` on `excitation` ([`crate::excitation`]): row `k` on the
+    /// stream or sample of its `sample_id` when the designs have that column (an
+    /// `excitation_id` beside it must name the same), else of `excitation_id` (default: the
+    /// excitation's first, [`Excitation::first_id`]).
     fn call(
         &self,
         designs_obj: &Bound<'_, PyAny>,
@@ -40,35 +47,31 @@ impl PyModel {
     ) -> PyResult<Call> {
         let p = &self.predictor;
         let table = import(designs_obj, "designs")?;
-        let sets = designs(&p.space, &table, "designs")?.sets;
-        if let Some(id) = excitation_id.filter(|id| *id < 0) {
-            return Err(value_error(format!(
-                "excitation_id = {id}: allowed an integer >= 0"
-            )));
-        }
-        let choice = match excitation.filter(|e| !e.is_none()) {
-            None => None,
-            Some(e) if e.is_instance_of::<PyString>() || e.hasattr("__fspath__")? => {
-                Some(ProfileChoice::File {
-                    path: e.extract()?,
-                    sample_id: excitation_id,
-                })
+        let d = designs(&p.space, &table, "designs")?;
+        let excitation = Excitation::parse(excitation)?;
+        let ids = match (d.ids, excitation_id) {
+            (Some(ids), Some(id)) => match ids.iter().position(|&i| i != id) {
+                Some(k) => {
+                    return Err(value_error(format!(
+                        "excitation_id = {id}, but designs.sample_id[{k}] = {}: the `sample_id` column names each row's excitation (drop it to run every row on excitation_id)",
+                        ids[k]
+                    )))
+                }
+                None => ids,
+            },
+            (Some(ids), None) => ids,
+            (None, Some(id)) if id < 0 => {
+                return Err(value_error(format!(
+                    "excitation_id = {id}: allowed an integer >= 0"
+                )))
             }
-            Some(e) => {
-                let seed: u64 = e.extract().map_err(|_| {
-                    value_error(
-                        "excitation: allowed a seed (an integer >= 0: the profiles generated with the model's dataset's settings) or the path of a profile file",
-                    )
-                })?;
-                Some(ProfileChoice::Generated {
-                    seed,
-                    id: excitation_id.unwrap_or(0) as u64,
-                })
-            }
+            (None, Some(id)) => vec![id; d.sets.len()],
+            (None, None) => vec![excitation.first_id(); d.sets.len()],
         };
-        let profiles = p.profiles(choice.as_ref()).map_err(to_py)?;
+        let generation = || dataset_generation(p);
+        let profiles = excitation.rows(p.system(), &generation, ids)?;
         let run = p.run_config(x0).map_err(to_py)?;
-        let outside = p.outside_training(&sets).map_err(to_py)?;
+        let outside = p.outside_training(&d.sets).map_err(to_py)?;
         if strict {
             if let Some(k) = outside.iter().position(|o| !o.is_empty()) {
                 return Err(value_error(format!(
@@ -79,12 +82,23 @@ impl PyModel {
             }
         }
         Ok(Call {
-            sets,
+            sets: d.sets,
             profiles,
             run,
             outside,
         })
     }
+}
+
+/// The profile spacing and length (m) of the model's dataset: a generated excitation's
+/// defaults.
+fn dataset_generation(p: &Predictor) -> PyResult<(f64, f64)> {
+    let settings = p.meta.data.as_ref().and_then(|d| d.profiles.as_ref());
+    settings.map(|s| (s.dx, s.length)).ok_or_else(|| {
+        value_error(
+            "excitation: the model's dataset records no profile spacing and length: give {\"seed\": N, \"dx\": m, \"length\": m} or a profile table",
+        )
+    })
 }
 
 #[pymethods]
@@ -98,6 +112,7 @@ impl PyModel {
             pino_learn::candle_single_threaded_by_default();
             let device = DeviceKind::Cpu.device().map_err(to_py)?;
             let mut predictor = Predictor::load(&dir, &device).map_err(to_py)?;
+            predictor.name_designs("designs");
             if let Some(path) = &calibration {
                 predictor
                     .load_calibration(path)
@@ -159,8 +174,15 @@ impl PyModel {
         let p = &self.predictor;
         let level = p.interval_level(coverage).map_err(to_py)?;
         let table = py.detach(|| {
-            p.histories_flagged(&c.sets, &c.profiles, &c.run, batch, level)
-                .map_err(to_py)
+            let of = |k| c.profiles.of(k);
+            p.histories_flagged_with(
+                &c.sets,
+                &ProfileSource::PerDesign(&of),
+                &c.run,
+                batch,
+                level,
+            )
+            .map_err(to_py)
         })?;
         ArrowTable::new(table, "predict")
     }
@@ -187,8 +209,10 @@ impl PyModel {
             .unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
         let table = py.detach(|| -> PyResult<_> {
             let cfg = p.index_config().map_err(to_py)?;
+            let of = |k| c.profiles.of(k);
+            let profiles = ProfileSource::PerDesign(&of);
             let answers = p
-                .answers(&c.sets, &c.profiles, &c.run, &cfg, batch, level)
+                .answers_with(&c.sets, &profiles, &c.run, &cfg, batch, level)
                 .map_err(to_py)?;
             p.indices_table(&c.sets, &answers, &c.outside)
                 .map_err(to_py)

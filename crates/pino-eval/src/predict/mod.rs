@@ -79,6 +79,8 @@ pub struct Predictor {
     identity: ModelIdentity,
     calibration: Option<Calibration>,
     probe: Option<ResidualProbe>,
+    /// What a refusal calls the designs (`sets[k]`, `predict`'s; [`Predictor::name_designs`]).
+    designs: String,
 }
 
 /// One design's answer: its indices, and what a calibration adds to them.
@@ -138,7 +140,14 @@ impl Predictor {
             device: device.clone(),
             identity: ModelIdentity::of(model_dir)?,
             calibration: None,
+            designs: "sets".to_owned(),
         })
+    }
+
+    /// Names the designs `label` in refusals (`label[k].NAME`; default `sets`, the name of
+    /// `predict`'s YAML list): the Python package's are `designs`.
+    pub fn name_designs(&mut self, label: &str) {
+        label.clone_into(&mut self.designs);
     }
 
     /// The model's identity (the hashes of its files).
@@ -286,6 +295,7 @@ impl Predictor {
         if generated_names(&self.system).is_empty() {
             return Ok(GeneratedProfiles {
                 generators: vec![None; self.system.profiles.len()],
+                what: String::new(),
             });
         }
         let settings = self.meta.data.as_ref().and_then(|d| d.profiles.as_ref());
@@ -342,7 +352,7 @@ impl Predictor {
         profiles: &[Option<Profile>],
         run: &RunConfig,
     ) -> Result<Vec<f64>> {
-        let ex = self.excitations_of(design, profiles, run, &format!("sets[{k}]"))?;
+        let ex = self.excitations_of(design, profiles, run, &format!("{}[{k}]", self.designs))?;
         let times = self.meta.grid.times();
         let mut out = Vec::with_capacity(times.len() * self.excitation_columns.len());
         for &t in &times {
@@ -412,7 +422,7 @@ impl Predictor {
                     self.excitations(first + k, p, &of(first + k)?, run)?
                 }
             };
-            self.readable(p, &format!("sets[{}]", first + k))?;
+            self.readable(p, &format!("{}[{}]", self.designs, first + k))?;
             x.extend(meta.norm.inputs.normalise(&input_block(&times, &eta, p)));
             etas.push(eta);
         }
@@ -477,23 +487,31 @@ impl Predictor {
         batch: usize,
         coverage: Option<f64>,
     ) -> Result<Table> {
+        let profiles = ProfileSource::Shared(profiles);
+        self.histories_with(sets, &profiles, run, batch, coverage)
+    }
+
+    /// [`Predictor::histories`] with the profiles of each design from `profiles` (each design
+    /// under its own excitation).
+    pub fn histories_with(
+        &self,
+        sets: &[Vec<f64>],
+        profiles: &ProfileSource<'_>,
+        run: &RunConfig,
+        batch: usize,
+        coverage: Option<f64>,
+    ) -> Result<Table> {
         let layout = &self.meta.layout;
         let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
         let times = self.meta.grid.times();
         let tp = self.meta.grid.t_points;
-        let preds = self.batched(
-            sets,
-            &ProfileSource::Shared(profiles),
-            run,
-            batch,
-            &|k, p| {
-                let bands = match coverage {
-                    Some(c) => self.calibrated(&sets[k], p, &[], c, true)?,
-                    None => None,
-                };
-                Ok((p.clone(), bands))
-            },
-        )?;
+        let preds = self.batched(sets, profiles, run, batch, &|k, p| {
+            let bands = match coverage {
+                Some(c) => self.calibrated(&sets[k], p, &[], c, true)?,
+                None => None,
+            };
+            Ok((p.clone(), bands))
+        })?;
         let columns = prediction_channels(layout);
         let names: Vec<&str> = columns.iter().map(|(n, _)| n.as_str()).collect();
         let mut cols: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
@@ -558,9 +576,22 @@ impl Predictor {
         batch: usize,
         coverage: Option<f64>,
     ) -> Result<Table> {
-        let mut table = self.histories(sets, profiles, run, batch, coverage)?;
+        let profiles = ProfileSource::Shared(profiles);
+        self.histories_flagged_with(sets, &profiles, run, batch, coverage)
+    }
+
+    /// [`Predictor::histories_flagged`] with the profiles of each design from `profiles`.
+    pub fn histories_flagged_with(
+        &self,
+        sets: &[Vec<f64>],
+        profiles: &ProfileSource<'_>,
+        run: &RunConfig,
+        batch: usize,
+        coverage: Option<f64>,
+    ) -> Result<Table> {
+        let mut table = self.histories_with(sets, profiles, run, batch, coverage)?;
         let per_row = (table.num_rows() / sets.len().max(1)).max(1);
-        let rows: Vec<String> = self
+        let rows = self
             .outside_training(sets)?
             .iter()
             .flat_map(|o| std::iter::repeat_n(outside_flag(o), per_row))
