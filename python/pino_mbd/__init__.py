@@ -259,6 +259,13 @@ class Model:
         """Whether a calibration was loaded."""
         return self._native.calibration is not None
 
+    def export_onnx(self, path: PathLike, spectral: str | None = None, levels: list[float] | None = None) -> str:
+        """Writes the model, its calibrated intervals and its training-range flag as one ONNX
+        file (docs/export.md), atomically; ``spectral``: ``"matmul"`` (opset 13, default) or
+        ``"dft"`` (opset 17); ``levels``: the interval levels (default: those the calibration
+        supports). Returns what was written. A refusal raises ``PinoError``."""
+        return self._native._export_onnx(os.fspath(path), spectral, levels)
+
     def predict(
         self,
         designs: Any,
@@ -405,18 +412,24 @@ def study(
     **params: Any,
 ) -> dict[str, Any]:
     """Runs one design study (``docs/studies.md``) as the ``study`` stage does, with the same
-    results: ``models`` (the ``train`` output directories; the one of ``params["algorithm"]``,
-    default 5, is used), ``study`` (the declaration: ``name``, ``kind`` = monte_carlo /
-    sensitivity / optimise, ...), ``calibration`` (the ``calibrate`` output), and the stage's
-    other parameters (``coverage``, ``seed``, ``batch_size``, ``bootstrap``, ``confidence``).
-    Writes its files into ``out`` and returns ``{"summary": str, "files": [paths]}``."""
+    results: ``models`` (the ``surrogate`` stage's output directory, or ``train`` output
+    directories, of which the one of ``params["algorithm"]``, default 5, answers alone),
+    ``study`` (the declaration: ``name``, ``kind`` = monte_carlo / sensitivity / optimise, ...),
+    ``calibration`` (with models: the ``calibrate`` output), and the stage's other parameters
+    (``coverage``, ``seed``, ``batch_size``, ``bootstrap``, ``confidence``). Writes its files
+    into ``out`` and returns ``{"summary": str, "files": [paths]}``."""
+    surrogate = None
     if isinstance(models, (str, os.PathLike)):
-        models = [models]
+        if os.path.isfile(os.path.join(os.fspath(models), "surrogate.json")):
+            surrogate, models = os.fspath(models), []
+        else:
+            models = [models]
     summary = _native._study(
         [os.fspath(m) for m in models],
         json.dumps({"study": dict(study), **params}),
         os.fspath(out),
         None if calibration is None else os.fspath(calibration),
+        surrogate,
     )
     files = sorted(os.path.join(r, f) for r, _, fs in os.walk(os.fspath(out)) for f in fs)
     return {"summary": summary, "files": files}

@@ -114,6 +114,8 @@ class Model:
     ) -> ArrowTable:
         """Indices with intervals and verdicts (``predict --indices``), rows as
         ``_predict``; ``x0`` in m."""
+    def _export_onnx(self, path: str, spectral: Optional[str], levels: Optional[list[float]]) -> str:
+        """The model with its intervals as one ONNX file (``export``)."""
 
 class Pipeline:
     """A pipeline file in its workspace."""
@@ -145,6 +147,7 @@ def _study(
     params_json: str,
     out: str,
     calibration: Optional[str] = None,
+    surrogate: Optional[str] = None,
 ) -> str:
-    """One design study on the models; ``params_json``: the ``study`` stage's parameters.
-    Returns its summary line."""
+    """One design study through the surrogate (or the models); ``params_json``: the ``study``
+    stage's parameters. Returns its summary line."""

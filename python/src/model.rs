@@ -126,6 +126,33 @@ impl PyModel {
         })
     }
 
+    /// Writes the model with its calibration as one ONNX file (`export`, docs/export.md);
+    /// returns the output line `export` prints.
+    #[pyo3(signature = (path, spectral=None, levels=None))]
+    fn _export_onnx(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        spectral: Option<String>,
+        levels: Option<Vec<f64>>,
+    ) -> PyResult<String> {
+        py.detach(|| {
+            let mut spec = onnx_export::ExportSpec::single(&self.dir, self.calibration.as_deref());
+            if let Some(s) = spectral {
+                spec.spectral = onnx_export::Spectral::parse(&s).map_err(to_py)?;
+            }
+            spec.levels = levels;
+            let s = onnx_export::export(&spec, &path).map_err(to_py)?;
+            Ok(format!(
+                "{}: {} channels, {} indices, levels {:?}",
+                path.display(),
+                s.channels.len(),
+                s.indices.len(),
+                s.levels
+            ))
+        })
+    }
+
     /// The model's directory.
     #[getter]
     fn dir(&self) -> PathBuf {

@@ -126,18 +126,19 @@ impl PyPipeline {
     }
 }
 
-/// One design study (`docs/studies.md`) on the models `models` (directories of `train`, one
-/// per algorithm), with the calibration's output when given, written to `out`; `params_json`
-/// is the `study` stage's parameters (`study`, `algorithm`, `coverage`, `seed`, ...). Returns
-/// the stage's summary line.
+/// One design study (`docs/studies.md`) through the surrogate in `surrogate` or, without one,
+/// the model of the parameters' `algorithm` among `models` (directories of `train`) with the
+/// calibration's output when given, written to `out`; `params_json` is the `study` stage's
+/// parameters (`study`, `algorithm`, `coverage`, `seed`, ...). Returns the stage's summary line.
 #[pyfunction]
-#[pyo3(signature = (models, params_json, out, calibration=None))]
+#[pyo3(signature = (models, params_json, out, calibration=None, surrogate=None))]
 pub fn _study(
     py: Python<'_>,
     models: Vec<PathBuf>,
     params_json: String,
     out: PathBuf,
     calibration: Option<PathBuf>,
+    surrogate: Option<PathBuf>,
 ) -> PyResult<String> {
     let params: pino_eval::study::StudyParams = serde_json::from_str(&params_json)
         .map_err(|e| crate::error::value_error(format!("study parameters: {e}")))?;
@@ -146,13 +147,14 @@ pub fn _study(
         let device = params.device.device().map_err(to_py)?;
         std::fs::create_dir_all(&out)
             .map_err(|e| crate::error::value_error(format!("{}: {e}", out.display())))?;
-        pino_eval::study::run(
+        let surrogate = pino_eval::study::load_surrogate(
+            surrogate.as_deref(),
             &models,
             calibration.as_deref(),
             &params,
-            Path::new(&out),
             &device,
         )
-        .map_err(to_py)
+        .map_err(to_py)?;
+        pino_eval::study::run(&surrogate, &params, Path::new(&out)).map_err(to_py)
     })
 }

@@ -195,3 +195,20 @@ def test_a_pipeline_runs_in_its_files_workspace_from_anywhere(run, tmp_path) -> 
     finally:
         os.chdir(here)
     assert not (tmp_path / "artifacts").exists()
+
+
+def test_export_onnx_writes_the_export_commands_file(run, model, model_dir, calibration, tmp_path) -> None:
+    import onnxruntime as ort
+
+    mine, cli = tmp_path / "model.onnx", tmp_path / "cli.onnx"
+    assert "indices" in model.export_onnx(mine)
+    cmd = [str(run.bins / "export"), "--model", str(model_dir), "--calibration", str(calibration),
+           "--out", str(cli)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert mine.read_bytes() == cli.read_bytes()
+    meta = ort.InferenceSession(str(mine)).get_modelmeta().custom_metadata_map
+    assert json.loads(meta["pino.surrogate"])["system"]["name"] == model.system_name
+    with pytest.raises(ValueError, match="level 0.9999"):
+        model.export_onnx(tmp_path / "refused.onnx", levels=[0.9999])
+    assert not (tmp_path / "refused.onnx").exists()

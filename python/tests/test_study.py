@@ -1,7 +1,7 @@
-"""The study function gives the study stages' results: the quarter car's Monte Carlo study
-(`bump_stop` of configs/quarter-car.yaml, in its `study-differences` stage, which reads `train`
-and `calibrate`) run by the pipeline and by `pino_mbd.study` with the same declaration and
-parameters, on the same models and calibration, write equal tables."""
+"""The study function gives the study stage's results: the quarter car's Monte Carlo study
+(`bump_stop` of configs/quarter-car.yaml, which reads the surrogate) run by the pipeline and by
+`pino_mbd.study` with the same declaration and parameters, on the same surrogate, write equal
+tables."""
 
 from __future__ import annotations
 
@@ -18,15 +18,14 @@ BUMP_STOP = {"name": "bump_stop", "kind": "monte_carlo", "n": 2000, "solver_chec
 
 
 def test_the_study_function_equals_the_stage(run, tmp_path) -> None:
-    unit = "study-differences[study=bump_stop]"
+    unit = "study[study=bump_stop]"
     run.pipeline.run(unit, set={"study.bootstrap": 100})
     stage = Path(run.pipeline.dir(unit, "evaluations.parquet"))
-    models = sorted({str(Path(p).parent) for p in run.pipeline.show("train") if p.endswith("model.safetensors")})
-    calibration = Path(run.dir("calibrate", "calibration.json")).parent
+    surrogate = Path(run.dir("surrogate", "surrogate.json"))
     out = tmp_path / "bump_stop"
     result = pino_mbd.study(
-        models, BUMP_STOP, out=out, calibration=calibration,
-        algorithm=5, coverage=0.9, seed=7, batch_size=8, bootstrap=100, confidence=0.95,
+        surrogate, BUMP_STOP, out=out,
+        coverage=0.9, seed=7, batch_size=8, bootstrap=100, confidence=0.95,
     )
     assert str(out / "evaluations.parquet") in result["files"]
     for name in ("evaluations.parquet", "summary.parquet"):

@@ -266,6 +266,16 @@ async function main() {
     check(clipped.length === 0, `axis labels clipped: ${JSON.stringify(clipped)}`);
     const fewTicks = r.yTicks.filter(([, ticks]) => ticks.filter((t) => t !== '').length < 2);
     check(fewTicks.length === 0, `y axes with fewer than 2 ticks: ${JSON.stringify(fewTicks)}`);
+    // The range labels never show a bound outside the range they name (31100 for 31104).
+    const labels = await page.$$eval('#params .param', (rows) => rows.map((row) => [row.dataset.param,
+      row.querySelector('.param-range').firstChild.textContent]));
+    const outsideLabels = labels.filter(([name, text]) => {
+      const p = summary.parameters.find((q) => q.name === name);
+      const [lo, hi] = text.split('…').map((x) => Number(x.trim()));
+      return !(lo >= p.min && hi <= p.max && lo <= hi);
+    });
+    check(outsideLabels.length === 0, `range labels outside their ranges: ${JSON.stringify(outsideLabels)}`);
+    results.rangeLabels = labels;
   });
 
   // ---- 2. choose the test sample: the design becomes the sample's ------------------------
@@ -397,6 +407,10 @@ async function main() {
     // Inside / outside marks: per channel beside its error, per index beside the solver value.
     const channelMarks = await page.$$eval('.channel .inside-mark', (ms) => ms.map((m) => m.textContent));
     check(channelMarks.length > 0, 'no channel says whether the solver curve lies inside its band');
+    // Every banded channel says it, plotted or not (the excitations are exact inputs).
+    const unmarked = await page.$$eval('.chart-section:not(.group-excitation) .channel',
+      (ls) => ls.filter((l) => !l.querySelector('.inside-mark')).map((l) => l.dataset.channel));
+    check(unmarked.length === 0, `banded channels without an inside mark: ${JSON.stringify(unmarked)}`);
     const rows = await shownIntervals();
     check(rows.every((r) => r.inside), `indices without an inside mark: ${JSON.stringify(rows)}`);
     const inside = await page.evaluate(() => window.explorerState.solve.index_inside);
@@ -463,6 +477,39 @@ async function main() {
     };
   });
 
+  // ---- 6b. drag a slider without letting go: the plots follow while it moves ------------
+  await step('drag-live', async () => {
+    const p = summary.parameters[0];
+    const slider = page.locator(`.param[data-param="${p.name}"] input[type=range]`);
+    await slider.scrollIntoViewIfNeeded();
+    const box = await slider.boundingBox();
+    const y = box.y + box.height / 2;
+    const at = (f) => box.x + 8 + f * (box.width - 16);
+    const cur = await slider.evaluate((s) => (Number(s.value) - Number(s.min)) / (Number(s.max) - Number(s.min)));
+    await page.mouse.move(at(cur), y);
+    await page.mouse.down();
+    const seen = [];
+    try {
+      for (const f of [0.3, 0.5, 0.7]) {
+        const n = await counter('predictions');
+        await page.mouse.move(at(f), y, { steps: 3 });
+        await page.waitForFunction((k) => Number(document.body.dataset.predictions || 0) > k, n, { timeout: 20_000 })
+          .catch(() => { throw new Error(`no prediction drawn while the slider is held at ${f} of its track`); });
+        seen.push(await page.evaluate(() => window.explorerState.prediction.design));
+      }
+    } finally {
+      await page.mouse.up();
+    }
+    const moved = new Set(seen.map((d) => d[p.name]));
+    check(moved.size === seen.length, `the predictions drawn during the drag are of one position: ${JSON.stringify([...moved])}`);
+    await page.waitForFunction(() => document.body.dataset.state === 'idle');
+    await expectNoError();
+    const s = await state();
+    const drawn = await page.evaluate(() => window.explorerState.prediction.design);
+    check(drawn[p.name] === s.design[p.name], `after the release the plots show ${drawn[p.name]}, the design is ${s.design[p.name]}`);
+    results.dragLive = { param: p.name, during: [...moved], released: s.design[p.name] };
+  });
+
   // ---- 7. type a value outside the training range: the flag ------------------------------
   await step('outside', async () => {
     const p = summary.parameters[Math.min(1, summary.parameters.length - 1)];
@@ -475,7 +522,14 @@ async function main() {
     check(await rowFlag.isVisible(), `the ${p.name} row shows no outside flag`);
     const s = await state();
     const outside = await page.evaluate(() => window.explorerState.prediction.outside);
+    // Extrapolated, the surrogate's headline is never a green pass beside "no coverage claim".
+    const headline = await page.evaluate(() => {
+      const v = document.querySelector('#verdict');
+      return { text: v.textContent, classes: [...v.classList] };
+    });
+    check(!headline.classes.includes('pass'), `a green headline while extrapolating: ${JSON.stringify(headline)}`);
     results.outside = {
+      headline,
       param: p.name, value, previous, design: s.design,
       banner: (await banner.textContent()).trim(),
       row_flag: (await rowFlag.textContent()).trim(),
@@ -518,6 +572,43 @@ async function main() {
     results.invalid = { param: p.name, previous, ...shown, cleared };
   });
 
+  // ---- 7c. an invalid seed: the results greyed as for any refused input -------------------
+  await step('invalid-seed', async () => {
+    const sampleValue = await page.inputValue('select#excitation');
+    let n = await counter('predictions');
+    await page.selectOption('select#excitation', 'seed');
+    await waitCounter('predictions', n + 1);
+    const seed = page.locator('#excitation-seed');
+    await seed.click({ clickCount: 3 });
+    await seed.fill('-3');
+    await seed.press('Tab');
+    await page.waitForFunction(() => !document.querySelector('#error').hidden);
+    const shown = {
+      field: await page.locator('#error').evaluate((b) => b.dataset.field),
+      message: (await page.locator('#error .error-message').textContent()).trim(),
+      stale: await page.evaluate(() => window.explorerState.stale),
+      staleBanner: await page.locator('#stale-banner').isVisible(),
+      chartsOpacity: Number(await page.locator('#charts').evaluate((c) => getComputedStyle(c).opacity)),
+    };
+    check(shown.field === 'excitation.seed', `the error names ${shown.field}`);
+    check(shown.stale && shown.staleBanner && shown.chartsOpacity < 1,
+      `the results are not marked out of date after a negative seed: ${JSON.stringify(shown)}`);
+    n = await counter('predictions');
+    await seed.fill('1');
+    await seed.press('Tab');
+    await waitCounter('predictions', n + 1);
+    check(!(await page.evaluate(() => window.explorerState.stale)), 'the out-of-date mark stayed after the seed was fixed');
+    // Back to the test sample, and the design before it.
+    n = await counter('predictions');
+    await page.selectOption('select#excitation', sampleValue);
+    await waitCounter('predictions', n + 1);
+    n = await counter('predictions');
+    await page.click('#undo-design');
+    await waitCounter('predictions', n + 1);
+    await expectNoError();
+    results.invalidSeed = shown;
+  });
+
   // ---- 8. back inside the range (the flag goes), then a sweep ----------------------------
   await step('sweep', async () => {
     await typeValue(results.outside.param, results.outside.previous);
@@ -553,6 +644,26 @@ async function main() {
     };
   });
 
+  // ---- 8b. a failed sweep: the last sweep's chart stays, marked out of date ----------------
+  await step('sweep-failed', async () => {
+    const p = summary.parameters.find((q) => q.name === 'm_c') || summary.parameters[0];
+    await page.selectOption('#sweep-param', p.name);
+    await page.fill('#sweep-from', '-1');
+    await page.click('#run-sweep');
+    await page.waitForFunction(() => !document.querySelector('#error').hidden && document.body.dataset.state === 'idle');
+    const shown = {
+      error: (await page.locator('#error .error-message').textContent()).trim(),
+      stale: await page.locator('#sweep').evaluate((n) => n.classList.contains('stale')),
+      note: await page.locator('#sweep-stale').isVisible(),
+      opacity: Number(await page.locator('#sweep-chart').evaluate((c) => getComputedStyle(c).opacity)),
+      chart: !!(await page.evaluate(() => window.explorerCharts.sweep)),
+    };
+    check(shown.chart && shown.stale && shown.note && shown.opacity < 1,
+      `the chart of the last sweep is not marked out of date after a failed one: ${JSON.stringify(shown)}`);
+    await page.click('#error-dismiss');
+    results.sweepFailed = shown;
+  });
+
   // ---- 9. download the design (predict --params reads it back: browser.rs) ---------------
   await step('download', async () => {
     await page.locator('#download-design').scrollIntoViewIfNeeded();
@@ -575,6 +686,7 @@ async function main() {
   // ---- benchmark: slider release -> redrawn plots (EXPLORE_BENCH=1) ----------------------
   if (bench) {
     const p = summary.parameters[0];
+    await page.evaluate(() => performance.clearResourceTimings());
     const start = await page.evaluate(() => window.explorerMetrics.predictToRedrawMs.length);
     for (let i = 0; i < benchMoves; i++) {
       const n = await counter('predictions');
@@ -584,9 +696,19 @@ async function main() {
     const ms = await page.evaluate((k) => window.explorerMetrics.predictToRedrawMs.slice(k), start);
     const sorted = [...ms].sort((a, b) => a - b);
     const q = (f) => sorted[Math.min(sorted.length - 1, Math.ceil(f * sorted.length) - 1)];
-    results.bench = { moves: benchMoves, samples: ms.length, p50_ms: q(0.5), p99_ms: q(0.99), max_ms: sorted[sorted.length - 1], ms };
+    // What each prediction cost on the wire (the compressed answer with its head) and
+    // decoded, as the browser counts it.
+    const wire = await page.evaluate(() => performance.getEntriesByType('resource')
+      .filter((e) => e.name.endsWith('/api/predict'))
+      .map((e) => ({ transfer: e.transferSize, body: e.encodedBodySize, decoded: e.decodedBodySize })));
+    const median = (xs) => [...xs].sort((a, b) => a - b)[Math.floor(xs.length / 2)];
+    results.bench = {
+      moves: benchMoves, samples: ms.length, p50_ms: q(0.5), p99_ms: q(0.99), max_ms: sorted[sorted.length - 1], ms, wire,
+    };
     console.log(`explore.mjs: bench: slider release -> redrawn plots over ${ms.length} moves of ${p.name}: `
       + `p50 ${q(0.5).toFixed(1)} ms, p99 ${q(0.99).toFixed(1)} ms, max ${sorted[sorted.length - 1].toFixed(1)} ms`);
+    console.log(`explore.mjs: bench: ${wire.length} predictions on the wire (slider drags included): median `
+      + `${median(wire.map((w) => w.transfer))} B transferred, ${median(wire.map((w) => w.decoded))} B decoded`);
   }
 
   /**
@@ -812,6 +934,20 @@ async function main() {
     check(table4.fits, 'Table 4 is wider than its card');
     const long = table4.numbers.filter((t) => t.replace(/^-/, '').replace(/e.*$/, '').replace('.', '').replace(/^0+/, '').length > 4);
     check(table4.numbers.length > 0 && long.length === 0, `Table 4 numbers with more than 4 digits: ${JSON.stringify(long)}`);
+    // Headers break only between words (after `_`), never inside one; no cell reads NaN.
+    const headers = await page.evaluate(() => [...document.querySelectorAll('#table4 th')].map((th) => {
+      const broken = [...th.childNodes].filter((node) => node.nodeType === Node.TEXT_NODE).filter((node) => {
+        const range = document.createRange();
+        range.selectNodeContents(node);
+        return new Set([...range.getClientRects()].map((r) => Math.round(r.top))).size > 1;
+      }).map((node) => node.textContent);
+      return { text: th.textContent, broken };
+    }));
+    const brokenHeaders = headers.filter((h) => h.broken.length);
+    check(brokenHeaders.length === 0, `Table 4 headers broken inside a word: ${JSON.stringify(brokenHeaders)}`);
+    const nanCells = await page.$$eval('#table4 td', (cells) => cells.map((c) => c.textContent).filter((t) => /nan/i.test(t)));
+    check(nanCells.length === 0, `Table 4 shows NaN: ${JSON.stringify(nanCells)}`);
+    table4.headers = headers.map((h) => h.text);
     results.pipeline = { units, table4_rows: table4Rows, plots: plots.length, table4 };
   });
 
@@ -869,7 +1005,59 @@ async function main() {
     check(plots.length > 0 && plots.every(([, w]) => w > 100), `the study's plots are not shown: ${JSON.stringify(plots)}`);
     check(reportTables > 0, 'the report (summary.md) shows no table');
     const declaration = await card.locator('.study-declaration pre').textContent();
-    results.studies = { listed, table, plots, report_tables: reportTables, declaration };
+    // Its one-line summary shows the study's name as code, not Markdown backticks.
+    const detail = await card.locator('.study-detail').evaluate((p) => ({
+      text: p.textContent, code: [...p.querySelectorAll('code')].map((c) => c.textContent),
+    }));
+    check(!detail.text.includes('`') && detail.code.includes(name),
+      `the study's summary shows raw Markdown: ${JSON.stringify(detail)}`);
+    results.studies = { listed, table, plots, report_tables: reportTables, declaration, detail };
+  });
+
+  // ---- 13. a study of 5000 designs runs beside the page: a slider move redraws at once ----
+  await step('study-beside', async () => {
+    await page.goto(url);
+    await waitCounter('predictions', 1);
+    const params = summary.parameters.map((p) => p.name);
+    await page.locator('#study-start').scrollIntoViewIfNeeded();
+    await page.click('#study-start summary');
+    await page.selectOption('#sweep-param', params[0]);
+    await page.selectOption('#study-kind', 'monte_carlo');
+    await page.selectOption('#study-param2', '');
+    await page.fill('#study-n', '5000');
+    await page.fill('#study-solver-check', '32');
+    const before = await page.evaluate(() => document.body.dataset.study || '');
+    await page.click('#start-study');
+    await page.waitForFunction((b) => (document.body.dataset.study || '') !== b, before);
+    const name = await page.evaluate(() => document.body.dataset.study);
+    const running = async () => page.evaluate(async (n) => {
+      const list = await (await fetch('/api/studies')).json();
+      const s = list.explorer.find((x) => x.name === n);
+      return s && s.state === 'running';
+    }, name);
+    check(await running(), `the study ${name} is not running`);
+    const n = await counter('predictions');
+    await dragSlider(params[0], 0.4);
+    await waitCounter('predictions', n + 1);
+    await expectNoError();
+    check(await running(), 'the slider move was drawn only after the study ended');
+    results.studyBeside = { name, status: await page.textContent('#study-status') };
+  });
+
+  // ---- 14. the Studies page: its progress and a Cancel button; cancelled ------------------
+  await step('study-cancel', async () => {
+    const { name } = results.studyBeside;
+    await page.goto(new URL('/studies', url).toString());
+    const row = page.locator(`#study-list tbody tr[data-name="${name}"]`);
+    await row.locator('progress').waitFor({ timeout: 30_000 });
+    const progress = await row.locator('progress').evaluate((p) => ({ value: p.value, max: p.max }));
+    check(progress.max >= 5000, `the progress bar counts ${JSON.stringify(progress)}`);
+    await page.screenshot({ path: path.join(outDir, `step-${stepNo + 1}-study-progress.png`), fullPage: true });
+    await row.locator('button.cancel-study').click();
+    await page.waitForSelector(`#study-list tbody tr[data-name="${name}"][data-state="cancelled"]`, { timeout: 60_000 });
+    await expectNoError();
+    const detail = await page.locator(`#study-list tbody tr[data-name="${name}"] td.detail`).textContent();
+    results.studyCancel = { name, progress, detail };
   });
 
   check(results.consoleErrors.length === 0, `console errors on the page:\n  ${results.consoleErrors.join('\n  ')}`);

@@ -150,20 +150,46 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         1
     );
 
-    // One calibration per model on the ten calibration samples; evaluate reports their
-    // coverage on the test split for every model.
+    // One calibration per model (the paper's five, the rate and the force candidates) on the
+    // ten calibration samples; evaluate reports the coverage on the test split of the five.
     let cals = show(ws.path(), "calibrate", &[]);
-    assert_eq!(named(&cals, "calibration.json").len(), 5, "{cals:?}");
+    assert_eq!(named(&cals, "calibration.json").len(), 7, "{cals:?}");
     let cov = read_parquet(named(&eval, "coverage.parquet")[0], None).unwrap();
     let mut algs: Vec<i64> = cov.i64("algorithm").unwrap().to_vec();
     algs.dedup();
     assert_eq!(algs, [1, 2, 3, 4, 5]);
     assert!(cov.i64("n_calibration").unwrap().iter().all(|&n| n == 10));
 
+    // The surrogate: every index routed to a member among the seven candidates, every member a
+    // model with its calibration; evaluate scores it per index beside Table 4.
+    let sur = show(ws.path(), "surrogate", &[]);
+    let dir = named(&sur, "surrogate.json")[0]
+        .parent()
+        .unwrap()
+        .to_owned();
+    let manifest = pino_eval::surrogate::manifest::Manifest::load(&dir).unwrap();
+    assert_eq!(manifest.candidates.len(), 7);
+    assert_eq!(manifest.indices.len(), pino_indices::INDEX_COLUMNS.len());
+    let members: Vec<&str> = manifest.members.iter().map(|m| m.name.as_str()).collect();
+    assert!(manifest
+        .indices
+        .iter()
+        .chain(&manifest.channels)
+        .all(|r| members.contains(&r.member) && r.validation.len() >= 5));
+    let rows = read_parquet(named(&eval, "surrogate_errors.parquet")[0], None).unwrap();
+    let kinds = rows.str("kind").unwrap();
+    let quantities = rows.str("quantity").unwrap();
+    let index_rows: Vec<&str> = (0..rows.num_rows())
+        .filter(|&r| kinds[r] == "index")
+        .map(|r| quantities[r].as_str())
+        .collect();
+    let index_names: Vec<&str> = pino_indices::INDEX_COLUMNS.iter().map(|c| c.name).collect();
+    assert_eq!(index_rows, index_names);
+
     // The study: every design evaluated, the exceedance probability of its summary recomputed
     // from the evaluations, the solver beside 20 of them, and the same bytes from the unit's
     // context run again by hand on 1 and on 2 threads.
-    let study = show(ws.path(), "study-differences[study=wheel_unloading]", &[]);
+    let study = show(ws.path(), "study[study=wheel_unloading]", &[]);
     let evals = read_parquet(named(&study, "evaluations.parquet")[0], None).unwrap();
     assert_eq!(evals.num_rows(), 2000);
     let checked = |t: &pino_data::Table| {

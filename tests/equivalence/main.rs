@@ -1,7 +1,8 @@
 //! The vehicle-track description through the generic engine reproduces, bit for bit, the
 //! outputs of the hand-written engine it replaced (frozen in `golden.json`, written once from
 //! that engine before it was retired): every stored column of a full sample with
-//! irregularity, for both start protocols.
+//! irregularity, for both start protocols. The retired engine read the profile linearly between
+//! its points; the test sets that reading in its copy of the description.
 //!
 //! The fixture holds each case's inputs (run controls, the sample's 14 parameters exactly,
 //! the profile's seed and sample id; the profile itself comes from the live generator with
@@ -44,9 +45,18 @@ struct Column {
     kept: Vec<f64>,
 }
 
+/// The shipped description with its track read `linear`, as the retired engine read it (the
+/// description reads it `cubic`; everything else is the shipped file's).
 fn system() -> Arc<mbd_system::System> {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../systems/vtcd.yaml");
-    let text = std::fs::read_to_string(path).unwrap();
+    let shipped = std::fs::read_to_string(path).unwrap();
+    const READING: &str = "    interpolation: cubic\n";
+    assert_eq!(
+        shipped.matches(READING).count(),
+        1,
+        "systems/vtcd.yaml: expected its one profile read `cubic`"
+    );
+    let text = shipped.replace(READING, "    interpolation: linear\n");
     Arc::new(
         mbd_system::load_str(&text, "systems/vtcd.yaml", &Default::default())
             .unwrap_or_else(|d| panic!("{d}")),

@@ -1,9 +1,11 @@
 //! The explorer as a user sees it: Chromium (Debian's, driven by the pinned `playwright-core`
 //! of `tests/browser`) opens the page `explore` serves for a small trained model of the real
 //! pipeline and works it (`tests/browser/explore.mjs`: parameters, test sample, "Solve
-//! exactly", a slider move, a value outside the training range, a sweep, the design download,
-//! "Pin as A" and a solve while requests are in flight or failed, a model without sampled
-//! parameters),
+//! exactly", a slider move and a drag the plots follow, a value outside the training range,
+//! refused inputs and a failed sweep marked out of date, a sweep, the design download, "Pin as
+//! A" and a solve while requests are in flight or failed, a model without sampled parameters,
+//! the pipeline page, studies started from the sweep view, one of 5000 designs running beside
+//! a slider move and cancelled from the Studies page),
 //! saving a screenshot of each step under `target/explore-browser/`. This test then checks
 //! what the page plotted against the real `predict` and `simulate` outputs.
 //!
@@ -83,9 +85,12 @@ fn a_user_explores_designs_in_a_real_browser() {
             "level",
             "solve",
             "slider",
+            "drag-live",
             "outside",
             "invalid",
+            "invalid-seed",
             "sweep",
+            "sweep-failed",
             "download",
             "pin-in-flight",
             "solve-after-failed-prediction",
@@ -93,7 +98,9 @@ fn a_user_explores_designs_in_a_real_browser() {
             "no-parameters",
             "pipeline",
             "study-start",
-            "studies"
+            "studies",
+            "study-beside",
+            "study-cancel"
         ]
     );
     check_started_study(trained, &r);

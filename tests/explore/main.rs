@@ -17,6 +17,8 @@ use std::time::Duration;
 mod api;
 mod browser;
 mod page_logic;
+mod serving;
+mod studies;
 
 /// The shared workspace's targets: every stage but the studies (the explorer serves the
 /// model the studies read, `train-rates`, with its calibration, and shows Table 4 and the
@@ -190,8 +192,16 @@ impl Served {
             .split('/')
             .next()
             .unwrap_or_default();
+        // An IPv4-mapped IPv6 address is reached at the IPv4 address it maps.
         let addr: SocketAddr = std::net::ToSocketAddrs::to_socket_addrs(host)
             .unwrap_or_else(|e| panic!("{host}: {e}"))
+            .map(|a| match a {
+                SocketAddr::V6(v6) => v6
+                    .ip()
+                    .to_ipv4_mapped()
+                    .map_or(a, |ip| SocketAddr::new(ip.into(), v6.port())),
+                v4 => v4,
+            })
             .find(SocketAddr::is_ipv4)
             .unwrap_or_else(|| panic!("{host}: no IPv4 address"));
         Self { child, addr, url }

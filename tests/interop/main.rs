@@ -13,6 +13,8 @@
 //! (`pip install -r tests/interop/requirements.txt`); without them this test fails, it never
 //! skips.
 
+mod onnx;
+
 use pino_mbd_tests::output_text;
 use pino_mbd_tests::{bin, pipeline_bin_dir, product_workspace, workspace_root, TINY};
 use std::path::{Path, PathBuf};
@@ -24,6 +26,12 @@ const INSTALL: &str = "scripts/test --install-only` (into target/test-env/python
 /// The Python interpreter (`PINO_PYTHON`, else `scripts/test`'s virtual environment when it
 /// exists, else `python3`), checked for the readers before any work is done.
 fn python() -> String {
+    python_with("pyarrow, polars, duckdb, pandas")
+}
+
+/// The interpreter as [`python`] finds it, checked for the Python `modules` (comma-separated)
+/// before any work is done: without them the test fails, naming how to install them.
+fn python_with(modules: &str) -> String {
     let venv = workspace_root().join("target/test-env/python/bin/python");
     let python = std::env::var("PINO_PYTHON").unwrap_or_else(|_| {
         if venv.is_file() {
@@ -33,16 +41,16 @@ fn python() -> String {
         }
     });
     let probe = Command::new(&python)
-        .args(["-c", "import pyarrow, polars, duckdb, pandas"])
+        .args(["-c", &format!("import {modules}")])
         .output();
     match probe {
         Err(e) => panic!(
-            "the interop test needs Python 3 (`{python}`: {e}) with pyarrow, polars, duckdb and \
-             pandas: install Python 3, then run `{INSTALL}`, or set PINO_PYTHON"
+            "the interop test needs Python 3 (`{python}`: {e}) with {modules}: install Python 3, \
+             then run `{INSTALL}`, or set PINO_PYTHON"
         ),
         Ok(o) if !o.status.success() => panic!(
-            "the interop test needs pyarrow, polars, duckdb and pandas in `{python}`: run \
-             `{INSTALL}`, or set PINO_PYTHON to an interpreter that has them\n{}",
+            "the interop test needs {modules} in `{python}`: run `{INSTALL}`, or set PINO_PYTHON \
+             to an interpreter that has them\n{}",
             String::from_utf8_lossy(&o.stderr)
         ),
         Ok(_) => python,

@@ -19,6 +19,24 @@ export function fmt(v, digits = 4) {
   return String(Number(v.toPrecision(digits)));
 }
 
+/**
+ * A bound of a training range as its label shows it: the fewest significant digits (4 to 8)
+ * that give the value exactly, else 6 digits rounded inwards (`side` `min` up, `max` down),
+ * so a label never shows a value outside the range it names.
+ */
+export function fmtBound(v, side) {
+  if (v == null || !Number.isFinite(v)) return fmt(v);
+  for (let d = 4; d <= 8; d++) {
+    if (Number(v.toPrecision(d)) === v) return fmt(v, d);
+  }
+  const shown = Number(v.toPrecision(6));
+  if (side === 'min' ? shown >= v : shown <= v) return fmt(shown, 6);
+  const e = Math.floor(Math.log10(Math.abs(v))) - 5;
+  const step = 10 ** e;
+  const inward = (side === 'min' ? Math.ceil(v / step) : Math.floor(v / step)) * step;
+  return fmt(Number(inward.toPrecision(6)), 6);
+}
+
 /** `fmt` with a `+` before a positive value. */
 export function fmtSigned(v, digits = 4) {
   if (v == null || !Number.isFinite(v)) return fmt(v, digits);

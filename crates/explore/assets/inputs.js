@@ -7,7 +7,7 @@
  * `act.changed(result)` and `act.predict(t0)` (main.js).
  */
 import { $, el } from './dom.js';
-import { fmt, percent, isOutside, roundForDisplay, sliderStep, fieldValue } from './format.js';
+import { fmt, fmtBound, percent, isOutside, roundForDisplay, sliderStep, fieldValue } from './format.js';
 import * as S from './state.js';
 import { showError, markStale, paramRow, publishState } from './ui.js';
 
@@ -99,7 +99,7 @@ export function buildParams(st, act) {
         flag),
       el('div', { class: 'param-controls' }, slider, number),
       el('div', { class: 'param-range' },
-        `${fmt(p.min)} … ${fmt(p.max)}`,
+        `${fmtBound(p.min, 'min')} … ${fmtBound(p.max, 'max')}`,
         el('span', { class: 'nominal' }, ` · nominal ${fmt(p.nominal)}`)));
 
     const set = (v, t0) => {
@@ -108,11 +108,15 @@ export function buildParams(st, act) {
       act.changed(S.setParam(st, p.name, v));
       act.predict(t0);
     };
-    // Dragging updates the number only; releasing (change) predicts.
+    // Dragging predicts as it goes (one prediction in flight, the latest position next:
+    // act.drag); releasing (change) predicts the final position.
     slider.addEventListener('input', () => {
       const v = roundForDisplay(Number(slider.value));
       number.value = String(v);
       markOutside(p, v);
+      offerUndo(st, null);
+      number.title = '';
+      act.drag(p.name, v);
     });
     slider.addEventListener('change', () => {
       const t0 = performance.now();
@@ -216,11 +220,11 @@ export function buildExcitation(st, act) {
       $('#excitation-id').value = String(def.id ?? 0);
     }
   }
-  st.excitation = readExcitation();
+  st.excitation = readExcitation(st);
 
   select.addEventListener('change', () => {
     const t0 = performance.now();
-    const excitation = readExcitation();
+    const excitation = readExcitation(st);
     if (!excitation) return;
     act.changed(S.setExcitation(st, excitation));
     const sample = selectedTestSample(st);
@@ -234,7 +238,7 @@ export function buildExcitation(st, act) {
   for (const id of ['#excitation-seed', '#excitation-id']) {
     $(id).addEventListener('change', () => {
       const t0 = performance.now();
-      const excitation = readExcitation();
+      const excitation = readExcitation(st);
       if (!excitation) return;
       act.changed(S.setExcitation(st, excitation));
       act.predict(t0);
@@ -260,8 +264,11 @@ function selectedTestSample(st) {
   return (st.summary.excitation.test_samples || []).find((s) => s.sample_id === id) || null;
 }
 
-/** The chooser's excitation; null (and an error shown) when invalid. */
-function readExcitation() {
+/**
+ * The chooser's excitation; null when invalid: the error shown and the results on screen
+ * marked as another excitation's until one is answered again.
+ */
+function readExcitation(st) {
   const v = $('#excitation').value;
   const seedFields = $('#seed-fields');
   if (v.startsWith('test:')) {
@@ -273,8 +280,9 @@ function readExcitation() {
   const id = $('#excitation-id').valueAsNumber;
   for (const [name, x] of [['seed', seed], ['id', id]]) {
     if (!Number.isInteger(x) || x < 0) {
-      showError({ message: `${name} must be a non-negative integer`,
+      showError({ message: `excitation ${name} = ${Number.isNaN(x) ? 'nothing' : x} must be a non-negative integer`,
         field: `excitation.${name}`, allowed: 'a non-negative integer' }, 'Input');
+      markStale(st, true);
       return null;
     }
   }

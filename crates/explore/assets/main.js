@@ -8,7 +8,9 @@
  *     chart section per channel group; tables.js: the indices; sweep.js, studies-start.js).
  *     Nothing here is written for one particular system; a model without sampled parameters
  *     says so and still predicts, solves and downloads its one design.
- *   - on every design or excitation change asks the surrogate (POST /api/predict) and redraws;
+ *   - on every design or excitation change asks the surrogate (POST /api/predict, the compact
+ *     float32 curves decoded by codec.js) and redraws, while a slider is dragged too (one
+ *     prediction in flight, the latest position next);
  *     "Solve exactly" (POST /api/solve) overlays the exact solver's curves (dashed) and shows
  *     the surrogate's errors; "Pin as A" keeps a design with its own prediction to compare the
  *     following ones with; downloads fetch the design YAML and the curves (CSV / Parquet).
@@ -20,7 +22,8 @@
  * Hooks for browser tests:
  *   window.explorerState   = state.js's publicView: {summary, design, excitation, prediction,
  *                            solve, sweep, coverage, stale, rev, pinned}
- *   window.explorerMetrics = {predictToRedrawMs: [...]}   (change event -> redraw done, ms)
+ *   window.explorerMetrics = {predictToRedrawMs: [...]}   (change event -> redraw done, ms;
+ *                            the predictions of a slider while it is dragged are not timed)
  *   window.explorerCharts, window.explorerBandAlpha: see charts.js
  *   body[data-state]       = loading | idle | predicting | solving | sweeping
  *   body[data-predictions], body[data-solves], body[data-sweeps]: counters bumped after drawing
@@ -34,6 +37,7 @@
 import { $, el } from './dom.js';
 import { fmt } from './format.js';
 import { api, ApiError, postRetryingOnce, isAbort, sleep } from './api.js';
+import { decodeAnswer } from './codec.js';
 import * as S from './state.js';
 import { solvedWithoutPrediction } from './verdicts.js';
 import {
@@ -50,8 +54,15 @@ const st = S.createState();
 window.explorerMetrics = { predictToRedrawMs: [] };
 publishState(st);
 
-/** What the inputs call: after a design change, and to predict the current design. */
-const act = { changed, predict };
+/** What the inputs call: after a design change, to predict, and while a slider is dragged. */
+const act = { changed, predict, drag };
+
+/** A slider dragged to `v`: the design follows, and its prediction goes out when none is in
+ * flight (else once the one in flight ends: state.js's dragWantsPrediction). */
+function drag(name, v) {
+  changed(S.setParam(st, name, v));
+  if (S.dragWantsPrediction(st)) predict(null);
+}
 
 /** After a design or excitation change (state.js's designChanged result). */
 function changed(result) {
@@ -85,7 +96,7 @@ async function predict(t0 = null) {
   $('#predict-status').textContent = 'predicting…';
   renderPin();
   try {
-    const answer = await api('POST', '/api/predict', ticket.body, { signal: ticket.abort.signal });
+    const answer = decodeAnswer(await api('POST', '/api/predict', ticket.body, { signal: ticket.abort.signal }));
     if (!S.isLatestPrediction(st, ticket)) return;
     await nextFrame();
     const { drawn, solveCleared } = S.predictAnswered(st, ticket, answer);
@@ -113,6 +124,7 @@ async function predict(t0 = null) {
     publishState(st);
     setBusy(st, 'predicting', -1);
     renderPin();
+    if (S.takeDragPending(st)) predict(null);
   }
 }
 

@@ -58,16 +58,24 @@ import { $, el, fmt, poll } from './dom.js';
     }
     $('#table4-empty').hidden = true;
     const [header, ...rows] = table4;
+    // A value not computed (NaN, written `NaN` or `nan`) is a missing number, shown as `—`.
+    const missing = (c) => typeof c === 'string' && /^[-+]?nan$/i.test(c.trim());
     const isNum = (c) => typeof c === 'number'
-      || (typeof c === 'string' && c.trim() !== '' && !Number.isNaN(Number(c)));
+      || (typeof c === 'string' && c.trim() !== '' && (missing(c) || !Number.isNaN(Number(c))));
     // A column is right-aligned when every row holds a number there (the first is a label).
     const numeric = header.map((_, j) => j > 0 && rows.length > 0 && rows.every((r) => isNum(r[j])));
+    // A header breaks only after `_`, `-` or `/`, never inside a word.
+    const breakable = (h) => String(h ?? '').split(/(?<=[_/-])/)
+      .flatMap((part, i) => (i ? [el('wbr'), part] : [part]));
     table.tHead.replaceChildren(el('tr', {}, ...header.map((h, j) =>
-      el('th', { class: numeric[j] ? 'num' : '' }, h))));
+      el('th', { class: numeric[j] ? 'num' : '' }, ...breakable(h)))));
     // Numbers to 4 significant digits (the file's exact value as the cell's tooltip).
-    const cell = (c, j) => (numeric[j]
-      ? el('td', { class: 'num', title: String(c) }, fmt(Number(c)))
-      : el('td', {}, c == null ? '' : c));
+    const cell = (c, j) => {
+      if (numeric[j] && missing(c)) return el('td', { class: 'num missing', title: 'not computed (NaN)' }, '—');
+      return numeric[j]
+        ? el('td', { class: 'num', title: String(c) }, fmt(Number(c)))
+        : el('td', {}, c == null ? '' : c);
+    };
     table.tBodies[0].replaceChildren(...rows.map((r) => el('tr', {}, ...r.map(cell))));
   }
 

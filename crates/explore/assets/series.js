@@ -72,12 +72,16 @@ export function indexInside(pred, solve, name) {
   return p.lo <= s.value && s.value <= p.hi;
 }
 
-/** The fraction of the solver curve's rows inside the prediction's band (null: no band). */
+/**
+ * The fraction of the solver curve's rows inside the prediction's band (null: no band): the
+ * solve's own answer at the prediction's level (every banded channel, plotted or not), else
+ * counted against the band the prediction carries.
+ */
 export function channelInside(pred, solve, name) {
+  const given = solve.inside && solve.inside[name];
+  if (given && pred && solve.coverage === pred.coverage) return given.fraction_inside;
   const b = pred && pred.bands && pred.bands[name];
   if (!b) return null;
-  const given = solve.inside && solve.inside[name];
-  if (given && solve.coverage === pred.coverage) return given.fraction_inside;
   const x = alignTo(pred.t, solve.t, solve.channels && solve.channels[name]);
   let n = 0;
   let inside = 0;

@@ -24,6 +24,7 @@ export function createState() {
     undoDesign: null,      // the design a test sample replaced, while its undo is offered
     predictSeq: 0,         // sequence number of the latest prediction request
     predicting: null,      // the prediction in flight: {seq, rev, body, abort}
+    dragPending: false,    // a dragged slider moved on while its prediction was in flight
     prediction: null,      // the last prediction drawn: {rev, design, excitation, answer}
     predictError: null,    // why the latest prediction failed: {rev, message}
     solving: null,         // the solve in flight: {rev, body, abort}
@@ -100,14 +101,38 @@ export function requestBody(st) {
 }
 
 /**
- * A prediction of the current design goes out: the one in flight is aborted (superseded).
+ * A prediction of the current design goes out: the one in flight is aborted (superseded), and
+ * so is a drag position waiting for it. It asks for the compact curves (`encoding: f32`).
  * Returns its ticket `{seq, rev, body, abort}` (`abort`: the fetch's AbortController).
  */
 export function startPredict(st) {
   if (st.predicting) st.predicting.abort.abort();
-  const ticket = { seq: ++st.predictSeq, rev: st.rev, body: requestBody(st), abort: new AbortController() };
+  st.dragPending = false;
+  const ticket = {
+    seq: ++st.predictSeq, rev: st.rev, body: { ...requestBody(st), encoding: 'f32' }, abort: new AbortController(),
+  };
   st.predicting = ticket;
   return ticket;
+}
+
+/**
+ * A dragged slider's new position wants a prediction: `true` to send it now (none in flight),
+ * else `false` and it is sent once the one in flight ends (`takeDragPending`), so a drag has
+ * at most one prediction in flight and the latest position is always predicted next.
+ */
+export function dragWantsPrediction(st) {
+  if (st.predicting) {
+    st.dragPending = true;
+    return false;
+  }
+  return true;
+}
+
+/** After a prediction ended: whether a drag position waits for its prediction (now taken). */
+export function takeDragPending(st) {
+  const pending = st.dragPending && !st.predicting;
+  if (pending) st.dragPending = false;
+  return pending;
 }
 
 /** Whether `ticket` is the latest prediction request (an older one is never drawn). */

@@ -88,7 +88,7 @@ async function startStudy(st) {
   }
 }
 
-/** Polls the Studies list until the started study `name` is finished or failed. */
+/** Polls the Studies list until the started study `name` is finished, failed or cancelled. */
 async function followStudy(name, status) {
   const link = () => el('a', { href: `/studies#study-explorer-${name}` }, 'on the Studies page');
   for (;;) {

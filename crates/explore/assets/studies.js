@@ -3,17 +3,20 @@
  *
  * Polls GET /api/studies every 2 s and shows every study: the pipeline's (the units of its
  * `study` stage, with their state) and those started from the explorer's sweep view (running,
- * finished or failed). Each study with files gets a card: its Markdown report (summary.md,
+ * with its progress and a Cancel button, finished, failed or cancelled; the one-line summary
+ * with its `code` as code). Each study with files gets a card: its Markdown report (summary.md,
  * rendered with DOM nodes only: headings, paragraphs, lists, tables, `code`), its plots, the
  * table a reader opens next (summary.csv, sobol.csv or optimum.csv, folded), its declaration
  * as YAML (ready for the pipeline file) and links to every file
  * (GET /api/studies/SOURCE/NAME/FILE).
  *
  * Test hooks: body[data-state] = loading | idle (after each answer drawn), body[data-polls]
- * counts the answers drawn, window.studiesState = the last answer.
+ * counts the answers drawn, window.studiesState = the last answer; a running study's row and
+ * card hold `progress` and `button.cancel-study`.
  * An ES module (dom.js's helpers); plain ES2020, no inline scripts, no eval, no innerHTML.
  */
 import { $, el, poll } from './dom.js';
+import { api } from './api.js';
 
 (() => {
   const POLL_MS = 2000;
@@ -26,7 +29,7 @@ import { $, el, poll } from './dom.js';
   /** `never run` -> `state-never-run`; the started studies' states share the units' colours. */
   function stateClass(state) {
     const colour = { fresh: 'fresh', finished: 'fresh', stale: 'stale', failed: 'stale',
-      'never run': 'never-run', submitted: 'submitted', running: 'running' }[state];
+      'never run': 'never-run', submitted: 'submitted', running: 'running', cancelled: 'never-run' }[state];
     return colour ? `state state-${colour}` : 'state state-other';
   }
 
@@ -109,12 +112,39 @@ import { $, el, poll } from './dom.js';
     return Number.isFinite(x) ? String(Number(x.toPrecision(4))) : c;
   }
 
+  /** Asks the server to cancel the running started study `name`. */
+  async function cancelStudy(button, name) {
+    button.disabled = true;
+    button.textContent = 'cancelling…';
+    try {
+      await api('POST', '/api/studies/cancel', { name });
+    } catch (err) {
+      $('.error-message').textContent = `Cancelling ${name}: ${err.message || err}`;
+      $('#error').hidden = false;
+      button.disabled = false;
+      button.textContent = 'Cancel';
+    }
+  }
+
+  /** A running started study's progress bar and Cancel button (null for any other). */
+  function progressOf(s) {
+    if (s.state !== 'running' || !s.progress) return null;
+    const p = s.progress;
+    const bar = el('progress', { max: String(Math.max(1, p.total)), value: String(p.done) });
+    const cancel = el('button', { type: 'button', class: 'btn small cancel-study', disabled: p.cancelling },
+      p.cancelling ? 'cancelling…' : 'Cancel');
+    cancel.addEventListener('click', () => cancelStudy(cancel, s.name));
+    return el('div', { class: 'progress study-progress' }, bar,
+      el('span', { class: 'progress-text' }, `${p.done}/${p.total}`), s.source === 'explorer' ? cancel : null);
+  }
+
   function renderCard(s) {
     const children = [
       el('div', { class: 'card-head' },
         el('h2', {}, `${s.name} `, el('span', { class: 'subtitle' }, `${s.kind} · ${s.source}`)),
         el('span', { class: stateClass(s.state) }, s.state)),
-      s.detail ? el('p', { class: 'hint study-detail' }, s.detail) : null,
+      s.detail ? el('p', { class: 'hint study-detail' }, ...inline(s.detail)) : null,
+      progressOf(s),
     ];
     if (s.summary_md) children.push(el('div', { class: 'study-report' }, ...renderMarkdown(s.summary_md)));
     if (s.plots.length) {
@@ -147,7 +177,7 @@ import { $, el, poll } from './dom.js';
       el('td', {}, s.kind),
       el('td', {}, s.source === 'explorer' ? 'explorer (sweep view)' : 'pipeline'),
       el('td', {}, el('span', { class: stateClass(s.state) }, s.state)),
-      el('td', { class: 'detail' }, s.detail || ''))));
+      el('td', { class: 'detail' }, ...inline(s.detail || ''), progressOf(s)))));
     $('#studies-empty').hidden = all.length > 0;
     const host = $('#studies');
     const keep = new Set();

@@ -19,6 +19,16 @@ let chart = null;
 /** The sweep's uPlot chart, once drawn. */
 export const sweepChart = () => chart;
 
+/**
+ * Marks the sweep's chart as the last sweep answered, not the one asked for (it failed):
+ * greyed with a note until a sweep is answered again.
+ */
+function markSweepStale(st, stale) {
+  const on = stale && !!st.sweep;
+  $('#sweep').classList.toggle('stale', on);
+  $('#sweep-stale').hidden = !on;
+}
+
 const paramMeta = (st, name) => st.summary.parameters.find((p) => p.name === name);
 
 export function buildSweep(st) {
@@ -82,6 +92,7 @@ export async function runSweep(st) {
     st.sweepRequest = body;
     publishState(st);
     clearError();
+    markSweepStale(st, false);
     renderSweep(st);
     status.textContent = answer.elapsed_ms != null
       ? `${answer.values.length} designs in ${fmt(answer.elapsed_ms, 3)} ms` : '';
@@ -90,6 +101,7 @@ export async function runSweep(st) {
   } catch (err) {
     status.textContent = '';
     showError(err, 'Sweep');
+    markSweepStale(st, true);
   } finally {
     button.disabled = false;
     button.classList.remove('busy');

@@ -101,7 +101,7 @@ export function renderIndices(st) {
   verdict.className = 'verdict';
   const h = headline(pred, solve);
   verdict.textContent = h ? h.text : '';
-  if (h) verdict.classList.add(h.pass ? 'pass' : 'fail');
+  if (h) verdict.classList.add(h.tone);
   verdict.dataset.pass = h ? String(h.pass) : '';
   verdict.dataset.source = h ? h.source : '';
 

@@ -18,7 +18,11 @@ export const said = (answer) => (answer.pass ? 'all limits met' : `fails ${(answ
 
 /**
  * The headline verdict of prediction `pred` and the solve `solve` of the same design (or
- * null): `{text, pass, source}` (`source`: `solver` or `surrogate`), or null without `pred`.
+ * null): `{text, pass, source, tone}` (`source`: `solver` or `surrogate`; `tone`: `pass`,
+ * `uncertain` or `fail`, its colour), or null without `pred`. The solver's verdict is the
+ * design's; the surrogate's alone is never green where the intervals say to solve the design
+ * (`uncertain`) or where the design is extrapolated (no claim), so it never contradicts the
+ * intervals' verdict beside it.
  */
 export function headline(pred, solve) {
   if (!pred) return null;
@@ -26,10 +30,14 @@ export function headline(pred, solve) {
   if (solve) {
     return {
       text: `solver: ${said(solve)}; surrogate: ${said(pred)}${extrapolated ? ' (extrapolated)' : ''}`,
-      pass: !!solve.pass, source: 'solver',
+      pass: !!solve.pass, source: 'solver', tone: solve.pass ? 'pass' : 'fail',
     };
   }
-  return { text: `${said(pred)}${extrapolated ? ' (surrogate, extrapolated)' : ''}`, pass: !!pred.pass, source: 'surrogate' };
+  const unsure = !!pred.pass && (extrapolated || pred.verdict === 'uncertain');
+  let text = said(pred);
+  if (extrapolated) text += pred.pass ? ' by the surrogate, extrapolated: no claim, solve it' : ' (surrogate, extrapolated)';
+  else if (unsure) text += ' by the surrogate, but its intervals straddle a limit: solve it';
+  return { text, pass: !!pred.pass, source: 'surrogate', tone: !pred.pass ? 'fail' : unsure ? 'uncertain' : 'pass' };
 }
 
 /**

@@ -11,6 +11,18 @@
 //! 4. a client that disconnects mid-solve, then a prediction: the server still serves.
 //!
 //! Exits nonzero when any request of the load failed or the server stopped answering.
+//!
+//! ```text
+//! cargo run --release -p pino-explore --example load -- ADDR --study 5000
+//! ```
+//! instead measures the explorer beside a study (BENCHMARKS.md, "Explorer"):
+//! 1. the bytes of one slider move: the page's prediction (the plotted channels' bands) and
+//!    the API's default (every band), as JSON numbers and as float32 curves, uncompressed, gzip
+//!    and brotli;
+//! 2. predictions as the page sends them (float32 curves, brotli), one after the other: 40
+//!    with nothing else running, then as many as fit while a Monte Carlo study of `--study`
+//!    designs runs (started here, then listed until it ends): p50, p99 and max latency seen by
+//!    the client, and the study's wall time.
 
 use pino_explore::client::Client;
 use serde_json::{json, Value};
@@ -96,6 +108,12 @@ fn main() {
         params.len(),
         model["time"]["points"]
     );
+    let study: usize = arg(&args, "--study", 0);
+    if study > 0 {
+        bytes_per_move(addr, host, &model);
+        beside_study(addr, host, &params, study);
+        return;
+    }
 
     // 1. Concurrent load.
     let deadline = Instant::now() + Duration::from_secs_f64(seconds);
@@ -209,4 +227,142 @@ fn main() {
     if !errors.is_empty() || !serving {
         std::process::exit(1);
     }
+}
+
+/// The channels the page plots (and asks the bands of) when it opens: the first two of each
+/// group but the excitations.
+fn page_bands(model: &Value) -> Vec<String> {
+    let mut per_group: std::collections::BTreeMap<&str, usize> = Default::default();
+    model["channels"]
+        .as_array()
+        .map(Vec::as_slice)
+        .unwrap_or_default()
+        .iter()
+        .filter(|c| c["group"] != "excitation")
+        .filter(|c| {
+            let n = per_group
+                .entry(c["group"].as_str().unwrap_or(""))
+                .or_default();
+            *n += 1;
+            *n <= 2
+        })
+        .filter_map(|c| c["name"].as_str().map(str::to_owned))
+        .collect()
+}
+
+/// The bytes of one prediction of the nominal design: the page's request and the API's
+/// default, JSON and float32, uncompressed, gzip and brotli.
+fn bytes_per_move(addr: SocketAddr, host: &str, model: &Value) {
+    let bands = [
+        ("the page's bands", json!(page_bands(model))),
+        ("every band", json!(true)),
+    ];
+    for (what, b) in bands {
+        for encoding in ["json", "f32"] {
+            let mut sizes = Vec::new();
+            for coding in [None, Some("gzip"), Some("br")] {
+                let mut c = Client::new(addr).with_host(host);
+                if let Some(k) = coding {
+                    c.headers.push(format!("Accept-Encoding: {k}"));
+                }
+                let a = c
+                    .post_json("/api/predict", &json!({"bands": b, "encoding": encoding}))
+                    .expect("POST /api/predict");
+                assert_eq!(a.status, 200, "{}", String::from_utf8_lossy(&a.body));
+                sizes.push(format!(
+                    "{} {} B",
+                    coding.unwrap_or("identity"),
+                    a.body.len()
+                ));
+            }
+            println!(
+                "bytes per slider move, {what}, {encoding}: {}",
+                sizes.join(", ")
+            );
+        }
+    }
+}
+
+/// Latencies (ms) of predictions as the page sends them, one after the other, while `go`.
+fn page_predictions(
+    c: &mut Client,
+    params: &[Value],
+    mut go: impl FnMut(usize) -> bool,
+) -> Vec<f64> {
+    let mut designs = Designs(7);
+    let mut lat = Vec::new();
+    while go(lat.len()) {
+        let mut body = designs.design(params);
+        body["encoding"] = json!("f32");
+        let t0 = Instant::now();
+        let a = c
+            .post_json("/api/predict", &body)
+            .expect("POST /api/predict");
+        assert_eq!(a.status, 200, "{}", String::from_utf8_lossy(&a.body));
+        lat.push(t0.elapsed().as_secs_f64() * 1e3);
+    }
+    lat.sort_by(f64::total_cmp);
+    lat
+}
+
+fn summary(lat: &[f64]) -> String {
+    format!(
+        "{} predictions, p50 {:.1} ms, p99 {:.1} ms, max {:.1} ms",
+        lat.len(),
+        percentile(lat, 0.5),
+        percentile(lat, 0.99),
+        lat.last().copied().unwrap_or(f64::NAN)
+    )
+}
+
+/// Predictions with nothing else running, then beside a Monte Carlo study of `n` designs.
+fn beside_study(addr: SocketAddr, host: &str, params: &[Value], n: usize) {
+    let mut c = Client::new(addr).with_host(host);
+    c.headers.push("Accept-Encoding: br".into());
+    let idle = page_predictions(&mut c, params, |k| k < 40);
+    println!("predict alone: {}", summary(&idle));
+    let p0 = params
+        .first()
+        .and_then(|p| p["name"].as_str())
+        .expect("a parameter");
+    let started = c
+        .post_json(
+            "/api/studies",
+            &json!({"kind": "monte_carlo", "parameters": [{"name": p0}], "n": n}),
+        )
+        .expect("POST /api/studies");
+    assert_eq!(
+        started.status,
+        202,
+        "{}",
+        String::from_utf8_lossy(&started.body)
+    );
+    let name = started.json()["name"]
+        .as_str()
+        .unwrap_or_default()
+        .to_owned();
+    let t0 = Instant::now();
+    let mut lister = Client::new(addr).with_host(host);
+    let running = |lister: &mut Client| {
+        let list = lister.get("/api/studies").expect("GET /api/studies").json();
+        list["explorer"]
+            .as_array()
+            .and_then(|l| l.iter().find(|s| s["name"] == name.as_str()).cloned())
+            .map(|s| (s["state"] == "running", s["detail"].clone()))
+            .unwrap_or((false, Value::Null))
+    };
+    let mut last = Value::Null;
+    let beside = page_predictions(&mut c, params, |k| {
+        if k % 10 != 0 {
+            return true;
+        }
+        let (on, detail) = running(&mut lister);
+        last = detail;
+        on
+    });
+    println!(
+        "predict beside a {n}-design study ({name}, {:.1} s, ended: {last}): {}",
+        t0.elapsed().as_secs_f64(),
+        summary(&beside)
+    );
 }

@@ -33,6 +33,7 @@ pub const MODULES: &[Asset] = &[
     asset!("main.js", JS),
     asset!("state.js", JS),
     asset!("api.js", JS),
+    asset!("codec.js", JS),
     asset!("format.js", JS),
     asset!("series.js", JS),
     asset!("verdicts.js", JS),

@@ -147,6 +147,16 @@ impl Client {
     }
 }
 
+/// Sends `raw` bytes (a request as written, well-formed or not) on a new connection to `addr`
+/// and reads the answer.
+pub fn exchange(addr: SocketAddr, raw: &[u8]) -> std::io::Result<Answer> {
+    let s = TcpStream::connect(addr)?;
+    s.set_read_timeout(Some(Duration::from_secs(120)))?;
+    let mut r = BufReader::new(s);
+    r.get_mut().write_all(raw)?;
+    read_answer(&mut r)
+}
+
 fn invalid(msg: impl Into<String>) -> std::io::Error {
     std::io::Error::new(std::io::ErrorKind::InvalidData, msg.into())
 }

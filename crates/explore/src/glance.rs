@@ -63,11 +63,11 @@ pub fn locate(p: &Pipeline, algorithm: i64) -> Result<Located, String> {
         .and_then(|f| f.parent().map(Path::to_path_buf))
         .ok_or_else(|| format!("{}: `{unit}` wrote no model.safetensors", p.file))?;
     // Every stage upstream of the training stage, nearest first.
-    let mut upstream: Vec<String> = stage.inputs.values().cloned().collect();
+    let mut upstream: Vec<String> = stage.inputs.values().flatten().cloned().collect();
     let mut k = 0;
     while k < upstream.len() {
         if let Some(s) = p.stages.iter().find(|s| s.name == upstream[k]) {
-            for u in s.inputs.values() {
+            for u in s.inputs.values().flatten() {
                 if !upstream.contains(u) {
                     upstream.push(u.clone());
                 }
@@ -86,7 +86,7 @@ pub fn locate(p: &Pipeline, algorithm: i64) -> Result<Located, String> {
     }
     dataset.params.dedup();
     dataset.profiles.dedup();
-    let calibration = calibration_of(p, &stage.name, algorithm);
+    let calibration = calibration_of(p, &stage.name);
     Ok(Located {
         unit,
         model_dir,
@@ -107,7 +107,7 @@ fn training_unit(p: &Pipeline, algorithm: i64) -> Option<(&orchestrator::spec::S
     };
     let mut studied: Vec<(&str, usize)> = Vec::new();
     for (_, s) in p.stages_running(STUDY_COMMAND) {
-        let Some(models) = s.inputs.get(STUDY_MODELS) else {
+        let Some(models) = s.inputs.get(STUDY_MODELS).and_then(|m| m.first()) else {
             continue;
         };
         match studied.iter_mut().find(|(m, _)| m == models) {
@@ -125,14 +125,13 @@ fn training_unit(p: &Pipeline, algorithm: i64) -> Option<(&orchestrator::spec::S
 
 /// The stage that calibrates the models of the training stage `train`: a stage running the
 /// `calibrate` binary when one reads them, else any stage reading them whose output holds a
-/// `calibration.json`. Its current output's file of `algorithm` (`algorithm-<A>/`) or, when
-/// the files are named otherwise, the output directory (the model's own file is then found in
-/// it by identity).
-fn calibration_of(p: &Pipeline, train: &str, algorithm: i64) -> Result<PathBuf, String> {
+/// `calibration.json`. Its current output directory: the model's own file is found in it by
+/// the model's identity.
+fn calibration_of(p: &Pipeline, train: &str) -> Result<PathBuf, String> {
     let mut readers: Vec<&orchestrator::spec::Stage> = p
         .stages
         .iter()
-        .filter(|s| s.inputs.values().any(|u| u == train))
+        .filter(|s| s.inputs.values().flatten().any(|u| u == train))
         .collect();
     readers.sort_by_key(|s| !s.runs(CALIBRATE_COMMAND));
     let mut why = format!(
@@ -153,14 +152,7 @@ fn calibration_of(p: &Pipeline, train: &str, algorithm: i64) -> Result<PathBuf, 
             }
         };
         let found = files_named(&files, pino_eval::calibration::CALIBRATION_FILE);
-        let own = pino_eval::calibration::build::model_subdir(algorithm);
-        if let Some(f) = found.iter().find(|f| {
-            f.parent()
-                .and_then(|d| d.file_name())
-                .is_some_and(|n| n == own.as_str())
-        }) {
-            return Ok(f.clone());
-        }
+        // The model's own file is found in the output directory by its identity.
         if let Some(dir) = found.first().and_then(|f| f.parent()?.parent()) {
             return Ok(dir.to_path_buf());
         }

@@ -65,6 +65,20 @@ impl ApiError {
             retry_after_s: None,
         }
     }
+
+    /// The HTTP answer: the status, the JSON body and, for a 429, `Retry-After`.
+    pub fn response(self) -> axum::response::Response {
+        use axum::http::{header, HeaderValue, StatusCode};
+        use axum::response::IntoResponse;
+        let status = StatusCode::from_u16(self.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
+        let retry = self.retry_after_s;
+        let mut r = (status, axum::Json(&self)).into_response();
+        if let Some(s) = retry {
+            r.headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(s));
+        }
+        r
+    }
 }
 
 /// Where the profiles under the system come from.
@@ -97,6 +111,19 @@ pub struct DesignRequest {
     pub coverage: f64,
     /// The channels whose bands the answer carries (`None`: every banded channel).
     pub bands: Option<Vec<String>>,
+    /// How the answer writes its curves.
+    pub encoding: Encoding,
+}
+
+/// How an answer writes its curves (`encoding` of a request).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Encoding {
+    /// Arrays of JSON numbers (every digit of the f64 values).
+    #[default]
+    Json,
+    /// Each curve a base64 string of its values as little-endian float32 (7 significant
+    /// digits, a fifth of the bytes), each band its half-width the same way.
+    F32,
 }
 
 /// The coverage of the intervals when a request names none.
@@ -266,14 +293,89 @@ fn integer(v: &Value, field: &str, lo: u64, hi: u64) -> Result<u64, ApiError> {
     }
 }
 
-/// Parses a request body as a JSON object.
+/// The start of the message of a key given twice in one object.
+const DUPLICATE_KEY: &str = "duplicate key";
+
+/// A JSON value read strictly: an object naming a key twice is refused, where serde_json's
+/// own `Value` keeps the last one silently.
+struct Strict(Value);
+
+impl<'de> serde::Deserialize<'de> for Strict {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(StrictVisitor).map(Strict)
+    }
+}
+
+struct StrictVisitor;
+
+impl<'de> serde::de::Visitor<'de> for StrictVisitor {
+    type Value = Value;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a JSON value")
+    }
+
+    fn visit_bool<E>(self, v: bool) -> Result<Value, E> {
+        Ok(Value::Bool(v))
+    }
+
+    fn visit_i64<E>(self, v: i64) -> Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_u64<E>(self, v: u64) -> Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_f64<E>(self, v: f64) -> Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_str<E>(self, v: &str) -> Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_unit<E>(self) -> Result<Value, E> {
+        Ok(Value::Null)
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Value, A::Error> {
+        let mut out = Vec::new();
+        while let Some(Strict(v)) = seq.next_element()? {
+            out.push(v);
+        }
+        Ok(Value::Array(out))
+    }
+
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Value, A::Error> {
+        let mut out = Map::new();
+        while let Some(key) = map.next_key::<String>()? {
+            if out.contains_key(&key) {
+                return Err(serde::de::Error::custom(format!("{DUPLICATE_KEY} `{key}`")));
+            }
+            let Strict(v) = map.next_value()?;
+            out.insert(key, v);
+        }
+        Ok(Value::Object(out))
+    }
+}
+
+/// Parses a request body as a JSON object; a key given twice in one object is refused.
 pub fn body(bytes: &[u8]) -> Result<Value, ApiError> {
-    let v: Value = serde_json::from_slice(bytes).map_err(|e| {
-        ApiError::bad(
-            "body",
-            format!("the body is not valid JSON: {e}"),
-            "a JSON object",
-        )
+    let Strict(v) = serde_json::from_slice(bytes).map_err(|e| {
+        if e.to_string().starts_with(DUPLICATE_KEY) {
+            ApiError::bad(
+                "body",
+                format!("the body names a key twice: {e}"),
+                "a JSON object with each key once",
+            )
+        } else {
+            ApiError::bad(
+                "body",
+                format!("the body is not valid JSON: {e}"),
+                "a JSON object",
+            )
+        }
     })?;
     object(&v, "body")?;
     Ok(v)
@@ -415,14 +517,35 @@ impl RequestRules {
             excitation: self.excitation(obj.get("excitation"))?,
             coverage: self.coverage(obj.get("coverage"))?,
             bands: self.bands(obj.get("bands"))?,
+            encoding: Encoding::Json,
         })
     }
 
-    /// A design request: `{design, excitation, coverage, bands}`.
+    /// A design request: `{design, excitation, coverage, bands, encoding}` (`encoding`:
+    /// `"json"`, the default, or `"f32"`).
     pub fn design_request(&self, v: &Value) -> Result<DesignRequest, ApiError> {
         let obj = object(v, "body")?;
-        only_keys(obj, "", &["design", "excitation", "coverage", "bands"])?;
-        self.base(obj)
+        only_keys(
+            obj,
+            "",
+            &["design", "excitation", "coverage", "bands", "encoding"],
+        )?;
+        let encoding = match obj.get("encoding") {
+            None | Some(Value::Null) => Encoding::Json,
+            Some(Value::String(e)) if e == "json" => Encoding::Json,
+            Some(Value::String(e)) if e == "f32" => Encoding::F32,
+            Some(other) => {
+                return Err(ApiError::bad(
+                    "encoding",
+                    format!("`encoding` = {other} is not an encoding of curves"),
+                    "\"json\" (arrays of numbers) or \"f32\" (base64 float32 arrays)",
+                ))
+            }
+        };
+        Ok(DesignRequest {
+            encoding,
+            ..self.base(obj)?
+        })
     }
 
     /// A sweep request: `{design, excitation, coverage, parameter, from, to, steps,
@@ -501,23 +624,39 @@ impl RequestRules {
                 "solver_check",
             ],
         )?;
-        let known = [StartedKind::MonteCarlo, StartedKind::Sensitivity];
-        let kinds = || {
-            let names: Vec<String> = known
-                .iter()
-                .map(|k| format!("\"{}\"", k.as_str()))
-                .collect();
-            format!(
-                "{} (an optimisation is declared in the pipeline file)",
-                names.join(" or ")
-            )
+        let kind = study_kind(obj)?;
+        let varied = self.varied(obj)?;
+        let max_n = match kind {
+            StartedKind::MonteCarlo => STUDY_MAX_MONTE_CARLO,
+            StartedKind::Sensitivity => STUDY_MAX_SENSITIVITY_ROWS,
         };
-        let kind = match obj.get("kind").and_then(Value::as_str) {
-            Some(name) => *known.iter().find(|k| k.as_str() == name).ok_or_else(|| {
-                ApiError::bad("kind", format!("unknown study kind `{name}`"), kinds())
-            })?,
-            None => return Err(ApiError::bad("kind", "`kind` is missing", kinds())),
-        };
+        const MIN_ROWS: usize = pino_eval::study::spec::MIN_SENSITIVITY_ROWS;
+        let n = obj.get("n").map_or(Ok(kind.default_n() as u64), |v| {
+            integer(v, "n", 1, max_n as u64)
+        })? as usize;
+        if kind == StartedKind::Sensitivity && !(n >= MIN_ROWS && n.is_power_of_two()) {
+            return Err(ApiError::bad(
+                "n",
+                format!("`n` = {n} rows is not a power of two from {MIN_ROWS} to {max_n}"),
+                format!("a power of two from {MIN_ROWS} to {max_n}"),
+            ));
+        }
+        let solver_check = obj.get("solver_check").map_or(Ok(0), |v| {
+            integer(v, "solver_check", 0, STUDY_MAX_SOLVER_CHECK.min(n) as u64)
+        })? as usize;
+        Ok(StudyRequest {
+            design: self.design(obj.get("design"))?,
+            coverage: self.coverage(obj.get("coverage"))?,
+            kind,
+            varied,
+            n,
+            solver_check,
+        })
+    }
+
+    /// The varied parameters of a study request: `parameters: [{name, from, to}]`, each
+    /// known, listed once, with `from < to` (the training range by default).
+    fn varied(&self, obj: &Map<String, Value>) -> Result<Vec<(usize, f64, f64)>, ApiError> {
         let list = obj
             .get("parameters")
             .and_then(Value::as_array)
@@ -565,24 +704,45 @@ impl RequestRules {
             }
             varied.push((k, from, to));
         }
-        let max_n = match kind {
-            StartedKind::MonteCarlo => STUDY_MAX_MONTE_CARLO,
-            StartedKind::Sensitivity => STUDY_MAX_SENSITIVITY_ROWS,
-        };
-        let n = obj.get("n").map_or(Ok(kind.default_n() as u64), |v| {
-            integer(v, "n", 1, max_n as u64)
-        })? as usize;
-        let solver_check = obj.get("solver_check").map_or(Ok(0), |v| {
-            integer(v, "solver_check", 0, STUDY_MAX_SOLVER_CHECK.min(n) as u64)
-        })? as usize;
-        Ok(StudyRequest {
-            design: self.design(obj.get("design"))?,
-            coverage: self.coverage(obj.get("coverage"))?,
-            kind,
-            varied,
-            n,
-            solver_check,
+        Ok(varied)
+    }
+}
+
+/// The study a cancel request names: `{"name": NAME}`.
+pub fn cancel_request(v: &Value) -> Result<String, ApiError> {
+    let obj = object(v, "body")?;
+    only_keys(obj, "", &["name"])?;
+    obj.get("name")
+        .and_then(Value::as_str)
+        .map(str::to_owned)
+        .ok_or_else(|| {
+            ApiError::bad(
+                "name",
+                "`name` (the running study's name) is missing",
+                "the name of a running study of the Studies page",
+            )
         })
+}
+
+/// The `kind` of a study request: one the sweep view starts.
+fn study_kind(obj: &Map<String, Value>) -> Result<StartedKind, ApiError> {
+    let known = [StartedKind::MonteCarlo, StartedKind::Sensitivity];
+    let kinds = || {
+        let names: Vec<String> = known
+            .iter()
+            .map(|k| format!("\"{}\"", k.as_str()))
+            .collect();
+        format!(
+            "{} (an optimisation is declared in the pipeline file)",
+            names.join(" or ")
+        )
+    };
+    match obj.get("kind").and_then(Value::as_str) {
+        Some(name) => known
+            .into_iter()
+            .find(|k| k.as_str() == name)
+            .ok_or_else(|| ApiError::bad("kind", format!("unknown study kind `{name}`"), kinds())),
+        None => Err(ApiError::bad("kind", "`kind` is missing", kinds())),
     }
 }
 
@@ -637,6 +797,23 @@ mod tests {
         let e = refused(json!({"excitation": {"kind": "wind"}}));
         assert_eq!(e.field.as_deref(), Some("excitation.kind"));
         // JSON has no NaN or infinity: such bodies are malformed.
+        // A key twice, at any depth: refused, never the last one taken.
+        for text in [
+            "{\"design\": {\"k\": 1.0}, \"design\": {\"k\": 2.0}}",
+            "{\"design\": {\"k\": 1.0, \"k\": 2.0}}",
+            "{\"excitation\": [{\"kind\": \"seed\", \"kind\": \"test\"}]}",
+        ] {
+            let e = body(text.as_bytes()).unwrap_err();
+            assert_eq!(e.field.as_deref(), Some("body"), "{text}");
+            assert!(
+                e.error.contains("twice") && e.error.contains('`'),
+                "{text}: {e:?}"
+            );
+        }
+        assert_eq!(
+            body(b"{\"a\": [1, {\"b\": null}], \"c\": \"x\"}").unwrap(),
+            json!({"a": [1, {"b": null}], "c": "x"})
+        );
         for text in [
             "{\"design\": {\"k\": NaN}}",
             "{\"design\": {\"k\": 1e999}}",

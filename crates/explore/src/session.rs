@@ -557,7 +557,7 @@ impl Explorer {
                     allowed,
                 }) => ApiError::bad(
                     field.clone(),
-                    format!("`{field}` = {value} is out of range"),
+                    format!("`{field}` = {} is out of range", short_number(&value)),
                     allowed,
                 ),
                 // A run no design parameter explains: the profiles under it.
@@ -567,6 +567,14 @@ impl Explorer {
                     "profiles that cover the run",
                 ),
             })
+    }
+
+    /// Refuses `design` under `excitation` as a prediction would: a value outside the
+    /// description's domains, a run that leaves its profiles or beams, a value the network
+    /// cannot read (the parameter at fault named, `design.NAME`).
+    pub fn check_design(&self, design: &[f64], excitation: Excitation) -> Result<(), ApiError> {
+        let profiles = self.profiles(Some(excitation))?;
+        self.check(design, &profiles)
     }
 
     fn predict_raw(
@@ -600,7 +608,7 @@ impl Explorer {
                 let field = format!("design.{name}");
                 let error = ApiError::bad(
                     field.clone(),
-                    format!("`{field}` = {value} is out of range"),
+                    format!("`{field}` = {} is out of range", short_number(value)),
                     allowed.clone(),
                 );
                 return match sweep {
@@ -819,6 +827,7 @@ impl Explorer {
             excitation,
             coverage: crate::request::DEFAULT_COVERAGE,
             bands: Some(Vec::new()),
+            encoding: crate::request::Encoding::Json,
         };
         Ok(self.exact(&req, cancel)?.0.indices)
     }
@@ -869,6 +878,15 @@ impl Explorer {
     }
 }
 
+/// A value as an error message quotes it: a number of many digits (`1e300`, written by the
+/// library as 301 digits) in exponent form, anything else as it is.
+fn short_number(value: &str) -> String {
+    match value.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() && x != 0.0 && !(1e-6..1e9).contains(&x.abs()) => format!("{x:e}"),
+        _ => value.to_owned(),
+    }
+}
+
 /// A calibration's refusal of a request: a level it cannot support is the request's `coverage`;
 /// anything else is a fault of the calibration file.
 fn calibration_error(e: pino_eval::Error) -> ApiError {
@@ -913,4 +931,19 @@ fn test_samples(
             profiles: Arc::new(profiles.remove(&table.ids[r]).unwrap_or_default()),
         })
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::short_number;
+
+    #[test]
+    fn numbers_of_many_digits_are_quoted_in_exponent_form() {
+        assert_eq!(1e300_f64.to_string().len(), 301);
+        assert_eq!(short_number(&1e300_f64.to_string()), "1e300");
+        assert_eq!(short_number(&(-2.5e-12_f64).to_string()), "-2.5e-12");
+        for same in ["-1", "573.547", "31104", "0", "NaN", "inf", "sample"] {
+            assert_eq!(short_number(same), same);
+        }
+    }
 }

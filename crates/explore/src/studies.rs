@@ -13,15 +13,20 @@
 //! every file is written, so a run cut short is never listed as finished. Beside the study's
 //! files it keeps its declaration ([`DECLARATION_FILE`], ready to paste under the pipeline
 //! file's `study:` matrix) and the record the page lists it by ([`RECORD_FILE`]), so a later
-//! session of the explorer lists it again. One started study runs at a time and it cannot be
-//! cancelled: the request caps ([`crate::request::STUDY_MAX_MONTE_CARLO`], ...) keep it to
-//! seconds or a minute; larger studies belong in the pipeline file.
+//! session of the explorer lists it again. One started study runs at a time, beside the
+//! interactive requests, never in front of them: on its own thread pool (`--study-threads`),
+//! so a prediction or a solve never queues behind its work, at a lower CPU priority, so they
+//! take the cores they need whenever they ask. Its progress (designs answered by the surrogate and the solver) is
+//! listed while it runs, and it can be cancelled (it stops at its next slice of designs). The
+//! request caps ([`crate::request::STUDY_MAX_MONTE_CARLO`], ...) keep it to a minute or two;
+//! larger studies belong in the pipeline file.
 
-use crate::request::{ApiError, StudyRequest};
+use crate::request::{ApiError, Excitation, StudyRequest};
 use crate::session::Explorer;
 use orchestrator::spec::Pipeline;
 use orchestrator::status::{show, unit_states};
 use pino_eval::study::output::{headline_table, SUMMARY_MD_FILE};
+use pino_eval::study::{Progress, StudyParams};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
@@ -94,10 +99,12 @@ pub struct StudyView {
     /// `monte_carlo`, `sensitivity` or `optimise`.
     pub kind: String,
     /// The unit's state (`fresh`, `stale`, `never run`, `running`, ...) or a started study's
-    /// (`running`, `finished`, `failed`).
+    /// (`running`, `finished`, `failed`, `cancelled`).
     pub state: String,
     /// Why (stale), the progress, the one-line summary or the error.
     pub detail: String,
+    /// A running started study's designs answered so far.
+    pub progress: Option<StudyProgress>,
     /// The declaration, as YAML.
     pub declaration: String,
     /// The Markdown report, when written.
@@ -111,6 +118,41 @@ pub struct StudyView {
     /// The directory of its files.
     #[serde(skip)]
     pub dir: Option<PathBuf>,
+}
+
+/// How far a running started study is: designs answered by the surrogate and by the solver,
+/// each of those asked for so far, and whether it was asked to stop.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StudyProgress {
+    /// Designs answered, surrogate and solver together.
+    pub done: usize,
+    /// Designs asked for so far.
+    pub total: usize,
+    /// The same in words.
+    pub message: String,
+    /// Whether a cancel was asked for (it stops at its next slice of designs).
+    pub cancelling: bool,
+}
+
+impl StudyProgress {
+    fn of(p: &Progress) -> Self {
+        let (sd, st) = p.surrogate();
+        let (vd, vt) = p.solver();
+        let mut message = if st == 0 {
+            "opening the model".to_owned()
+        } else {
+            format!("{sd} of {st} designs through the surrogate")
+        };
+        if vt > 0 {
+            message.push_str(&format!(", {vd} of {vt} through the solver"));
+        }
+        Self {
+            done: sd + vd,
+            total: st + vt,
+            message,
+            cancelling: p.cancelled(),
+        }
+    }
 }
 
 /// The names of `dir`'s entries that are directories (`dirs`) or plain files, sorted.
@@ -199,6 +241,7 @@ pub fn pipeline_studies(p: &Pipeline) -> Result<Vec<StudyView>, String> {
             kind: field_str(&declaration, "kind"),
             state: u.state.to_owned(),
             detail: u.detail,
+            progress: None,
             declaration: yaml_of(&declaration),
             summary_md: None,
             table: None,
@@ -252,9 +295,19 @@ pub struct Record {
 /// Where a started study stands.
 #[derive(Debug, Clone)]
 enum JobState {
-    Running { started: Instant },
-    Finished { summary: String },
-    Failed { error: String },
+    Running {
+        started: Instant,
+        progress: Arc<Progress>,
+    },
+    Finished {
+        summary: String,
+    },
+    Failed {
+        error: String,
+    },
+    Cancelled {
+        after_s: f64,
+    },
 }
 
 /// A started study.
@@ -265,11 +318,13 @@ struct Job {
     state: JobState,
 }
 
-/// The studies started from the explorer: their directory and their jobs.
+/// The studies started from the explorer: their directory, their jobs and the threads each
+/// runs on.
 pub struct Studies {
     dir: PathBuf,
     jobs: Mutex<Vec<Job>>,
     running: AtomicBool,
+    threads: usize,
 }
 
 /// Clears the running flag when the study's thread ends, however it ends.
@@ -290,10 +345,37 @@ pub struct Started {
     pub declaration: String,
 }
 
+/// How many nice steps below the interactive work a started study runs (at most 19): on a
+/// core both want, the kernel gives the interactive request nine tenths of the time (CFS
+/// weights 1024 to 110) and wakes it first (BENCHMARKS.md, "Explorer": 5 steps left a
+/// slower p99).
+const STUDY_NICENESS: i32 = 10;
+
+/// The threads of a started study: `threads` of them, made by the calling thread (whose
+/// priority they inherit), so the interactive requests, on the default pool and the blocking
+/// pool, never queue behind the study's work.
+fn study_pool(threads: usize) -> Result<rayon::ThreadPool, String> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .thread_name(|k| format!("study-{k}"))
+        .build()
+        .map_err(|e| format!("starting the study's threads: {e}"))
+}
+
+/// Lowers the calling thread's CPU priority by [`STUDY_NICENESS`] (a thread's own on Linux;
+/// the threads it then makes inherit it).
+fn lower_priority() {
+    #[cfg(unix)]
+    // SAFETY: nice only reads its integer argument; a failure leaves the priority as it was.
+    unsafe {
+        libc::nice(STUDY_NICENESS);
+    }
+}
+
 impl Studies {
     /// The started studies kept in `dir` (created on the first start), those of earlier
-    /// sessions listed as finished.
-    pub fn open(dir: PathBuf) -> Self {
+    /// sessions listed as finished; each study runs on `threads` threads.
+    pub fn open(dir: PathBuf, threads: usize) -> Self {
         let mut jobs = Vec::new();
         for name in file_dirs(&dir) {
             let Ok(text) = std::fs::read_to_string(dir.join(&name).join(RECORD_FILE)) else {
@@ -311,6 +393,7 @@ impl Studies {
             dir,
             jobs: Mutex::new(jobs),
             running: AtomicBool::new(false),
+            threads: threads.max(1),
         }
     }
 
@@ -328,25 +411,42 @@ impl Studies {
         self.jobs.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    /// The started studies, the latest first; a finished one with its files.
+    /// The started studies, the latest first; a finished one with its files, a running one
+    /// with its progress.
     pub fn list(&self) -> Vec<StudyView> {
         let jobs = self.jobs().clone();
         jobs.into_iter()
             .rev()
             .map(|j| {
+                let mut progress = None;
                 let (state, detail) = match &j.state {
-                    JobState::Running { started } => (
-                        "running",
-                        format!("running for {:.0} s", started.elapsed().as_secs_f64()),
-                    ),
+                    JobState::Running {
+                        started,
+                        progress: p,
+                    } => {
+                        let shown = StudyProgress::of(p);
+                        let detail = format!(
+                            "running for {:.0} s: {}{}",
+                            started.elapsed().as_secs_f64(),
+                            shown.message,
+                            if shown.cancelling { "; cancelling" } else { "" }
+                        );
+                        progress = Some(shown);
+                        ("running", detail)
+                    }
                     JobState::Finished { summary } => ("finished", summary.clone()),
                     JobState::Failed { error } => ("failed", error.clone()),
+                    JobState::Cancelled { after_s } => (
+                        "cancelled",
+                        format!("cancelled after {after_s:.0} s: nothing was kept"),
+                    ),
                 };
                 let view = StudyView {
                     source: Source::Explorer,
                     kind: field_str(&j.declaration, "kind"),
                     state: state.to_owned(),
                     detail,
+                    progress,
                     declaration: yaml_of(&j.declaration),
                     summary_md: None,
                     table: None,
@@ -364,32 +464,52 @@ impl Studies {
             .collect()
     }
 
+    /// Asks the running started study `name` to stop: 404 for no such study, 409 for one
+    /// that is not running.
+    pub fn cancel(&self, name: &str) -> Result<(), ApiError> {
+        let jobs = self.jobs();
+        let job = jobs
+            .iter()
+            .find(|j| j.name == name)
+            .ok_or_else(|| ApiError {
+                status: 404,
+                error: format!("no study `{name}` was started here"),
+                field: Some("name".into()),
+                allowed: Some("the name of a running study of the Studies page".into()),
+                retry_after_s: None,
+            })?;
+        match &job.state {
+            JobState::Running { progress, .. } => {
+                progress.cancel();
+                Ok(())
+            }
+            _ => Err(ApiError {
+                status: 409,
+                error: format!("the study `{name}` is not running"),
+                field: Some("name".into()),
+                allowed: Some("the name of a running study".into()),
+                retry_after_s: None,
+            }),
+        }
+    }
+
     /// Starts the study of `req` on the model of `ex` in the background; refused (429) while
-    /// another runs, (400) when the declaration it makes is not a valid study of the model.
+    /// another runs, (400) when the declaration it makes is not a valid study of the model or
+    /// a design at a corner of its intervals is one the model refuses (a speed that leaves the
+    /// track: the interval's end named, as a sweep names it).
     pub fn start(
         self: &Arc<Self>,
         ex: Arc<Explorer>,
         req: &StudyRequest,
     ) -> Result<Started, ApiError> {
-        let declaration_of = |name: &str| declaration(&ex, req, name);
         let names = ex.rules().names.clone();
         let stem = std::iter::once(req.kind.as_str().to_owned())
             .chain(req.varied.iter().map(|&(k, _, _)| names[k].clone()))
             .collect::<Vec<_>>()
             .join("-");
-        let parameters = pino_eval::study::model_parameters(ex.predictor());
-        pino_eval::study::spec::Study::parse(
-            &declaration_of(&stem),
-            &parameters,
-            &ex.index_names(),
-        )
-        .map_err(|e| {
-            let field = match e.field.as_str() {
-                "n" | "solver_check" => e.field.clone(),
-                _ => "parameters".to_owned(),
-            };
-            ApiError::bad(field, e.message, "see docs/studies.md")
-        })?;
+        let params = study_params(&ex, &declaration(&ex, req, &stem), req.coverage)
+            .map_err(ApiError::internal)?;
+        validate(&ex, req, &params)?;
         if self.running.swap(true, Ordering::SeqCst) {
             return Err(ApiError {
                 status: 429,
@@ -403,53 +523,41 @@ impl Studies {
         }
         let flag = RunningFlag(self.clone());
         let (name, partial) = self.claim(&stem).map_err(ApiError::internal)?;
-        let decl = declaration_of(&name);
+        let decl = declaration(&ex, req, &name);
         let started = Started {
             name: name.clone(),
             declaration: yaml_of(&decl),
         };
+        let progress = Arc::new(Progress::default());
         self.jobs().push(Job {
             name: name.clone(),
             declaration: decl.clone(),
             state: JobState::Running {
                 started: Instant::now(),
+                progress: progress.clone(),
             },
         });
-        let studies = self.clone();
-        let coverage = req.coverage;
+        let run = Run {
+            flag,
+            studies: self.clone(),
+            ex,
+            name,
+            decl,
+            coverage: req.coverage,
+            partial,
+            progress,
+        };
         std::thread::Builder::new()
-            .name(format!("study {name}"))
-            .spawn(move || {
-                let _flag = flag;
-                let t0 = Instant::now();
-                let outcome = run_study(&ex, &decl, coverage, &partial).and_then(|summary| {
-                    let record = Record {
-                        declaration: decl.clone(),
-                        model: ex.identity().identity.clone(),
-                        summary: summary.clone(),
-                        seconds: t0.elapsed().as_secs_f64(),
-                    };
-                    finish(&studies.dir, &name, &partial, &record)?;
-                    Ok(summary)
-                });
-                let state = match outcome {
-                    Ok(summary) => JobState::Finished { summary },
-                    Err(error) => {
-                        let _ = std::fs::remove_dir_all(&partial);
-                        JobState::Failed { error }
-                    }
-                };
-                if let Some(j) = studies.jobs().iter_mut().find(|j| j.name == name) {
-                    j.state = state;
-                }
-            })
+            .name(format!("study {}", run.name))
+            .spawn(move || run.run())
             .map_err(|e| {
                 let error = format!("starting the study's thread: {e}");
-                if let Some(j) = self.jobs().iter_mut().find(|j| j.name == started.name) {
-                    j.state = JobState::Failed {
+                self.set_state(
+                    &started.name,
+                    JobState::Failed {
                         error: error.clone(),
-                    };
-                }
+                    },
+                );
                 let _ = std::fs::remove_dir_all(
                     self.dir.join(format!("{}{PARTIAL_SUFFIX}", started.name)),
                 );
@@ -458,14 +566,21 @@ impl Studies {
         Ok(started)
     }
 
+    fn set_state(&self, name: &str, state: JobState) {
+        if let Some(j) = self.jobs().iter_mut().rev().find(|j| j.name == name) {
+            j.state = state;
+        }
+    }
+
     /// A free name `<stem>-<k>` and its partial directory, claimed by creating it (so two
-    /// explorers sharing the directory never write into one).
+    /// explorers sharing the directory never write into one). A name this session listed
+    /// (a failed or cancelled study, whose directory is gone) is not given again.
     fn claim(&self, stem: &str) -> Result<(String, PathBuf), String> {
         std::fs::create_dir_all(&self.dir)
             .map_err(|e| format!("creating {}: {e}", self.dir.display()))?;
         for k in 1..100_000 {
             let name = format!("{stem}-{k}");
-            if self.dir.join(&name).exists() {
+            if self.dir.join(&name).exists() || self.jobs().iter().any(|j| j.name == name) {
                 continue;
             }
             let partial = self.dir.join(format!("{name}{PARTIAL_SUFFIX}"));
@@ -518,27 +633,140 @@ fn declaration(ex: &Explorer, req: &StudyRequest, name: &str) -> Value {
     })
 }
 
-/// Runs the study `declaration` on the explorer's model (and its calibration) into `out`.
+/// The study stage's settings of a started study: its declaration on the served model's
+/// algorithm at `coverage`, every other setting the stage's default (its seed, 7, included).
+fn study_params(ex: &Explorer, declaration: &Value, coverage: f64) -> Result<StudyParams, String> {
+    serde_json::from_value(json!({
+        "study": declaration,
+        "algorithm": ex.identity().algorithm,
+        "coverage": coverage,
+    }))
+    .map_err(|e| format!("the study's settings: {e}"))
+}
+
+/// Refuses a start whose declaration is not a valid study of the model (400 naming `n`,
+/// `solver_check` or `parameters`), or one with a design the model refuses at a corner of the
+/// varied intervals (each design runs under its own generated profile of the study's seed,
+/// all of one length): the end of the interval named (`parameters[0].to`), as a sweep names
+/// its `to`.
+fn validate(ex: &Explorer, req: &StudyRequest, params: &StudyParams) -> Result<(), ApiError> {
+    let parameters = pino_eval::study::model_parameters(ex.predictor());
+    pino_eval::study::spec::Study::parse(&params.study, &parameters, &ex.index_names()).map_err(
+        |e| {
+            let field = match e.field.as_str() {
+                "n" | "solver_check" => e.field.clone(),
+                _ => "parameters".to_owned(),
+            };
+            ApiError::bad(field, e.message, "see docs/studies.md")
+        },
+    )?;
+    let names = &ex.rules().names;
+    let excitation = Excitation::Seed {
+        seed: params.seed,
+        id: 0,
+    };
+    for corner in 0..(1usize << req.varied.len()) {
+        let at_to = |i: usize| corner >> i & 1 == 1;
+        let mut design = req.design.clone();
+        for (i, &(k, from, to)) in req.varied.iter().enumerate() {
+            design[k] = if at_to(i) { to } else { from };
+        }
+        if let Err(mut e) = ex.check_design(&design, excitation) {
+            for (i, &(k, _, _)) in req.varied.iter().enumerate() {
+                if e.field.as_deref() == Some(&format!("design.{}", names[k])) {
+                    let end = format!("parameters[{i}].{}", if at_to(i) { "to" } else { "from" });
+                    e.error = format!("study `{end}`: {}", e.error);
+                    e.field = Some(end);
+                }
+            }
+            return Err(e);
+        }
+    }
+    Ok(())
+}
+
+/// A started study on its way: run on its own pool, then finished, failed or cancelled.
+struct Run {
+    /// Cleared as it ends, just before its end is listed (so a study started by whoever saw
+    /// that end is not refused as a second one).
+    flag: RunningFlag,
+    studies: Arc<Studies>,
+    ex: Arc<Explorer>,
+    name: String,
+    decl: Value,
+    coverage: f64,
+    partial: PathBuf,
+    progress: Arc<Progress>,
+}
+
+impl Run {
+    /// Runs the study into its partial directory on the study pool and records how it ended
+    /// (a failed or cancelled study's directory removed).
+    fn run(self) {
+        lower_priority();
+        let t0 = Instant::now();
+        let outcome = study_pool(self.studies.threads).and_then(|pool| {
+            pool.install(|| {
+                run_study(
+                    &self.ex,
+                    &self.decl,
+                    self.coverage,
+                    &self.partial,
+                    &self.progress,
+                )
+            })
+        });
+        let state = match outcome {
+            _ if self.progress.cancelled() => JobState::Cancelled {
+                after_s: t0.elapsed().as_secs_f64(),
+            },
+            Ok(summary) => {
+                let record = Record {
+                    declaration: self.decl.clone(),
+                    model: self.ex.identity().identity.clone(),
+                    summary: summary.clone(),
+                    seconds: t0.elapsed().as_secs_f64(),
+                };
+                match finish(&self.studies.dir, &self.name, &self.partial, &record) {
+                    Ok(()) => JobState::Finished { summary },
+                    Err(error) => JobState::Failed { error },
+                }
+            }
+            Err(error) => JobState::Failed { error },
+        };
+        if !matches!(state, JobState::Finished { .. }) {
+            let _ = std::fs::remove_dir_all(&self.partial);
+        }
+        let Run {
+            flag,
+            studies,
+            name,
+            ..
+        } = self;
+        drop(flag);
+        studies.set_state(&name, state);
+    }
+}
+
+/// Runs the study `declaration` on the explorer's model (and its calibration) into `out`,
+/// counting its designs in `progress`.
 fn run_study(
     ex: &Explorer,
     declaration: &Value,
     coverage: f64,
     out: &Path,
+    progress: &Progress,
 ) -> Result<String, String> {
-    let params: pino_eval::study::StudyParams = serde_json::from_value(json!({
-        "study": declaration,
-        "algorithm": ex.identity().algorithm,
-        "coverage": coverage,
-    }))
-    .map_err(|e| format!("the study's settings: {e}"))?;
-    pino_eval::study::run(
+    let params = study_params(ex, declaration, coverage)?;
+    let surrogate = pino_eval::study::load_surrogate(
+        None,
         &[ex.model_dir().to_owned()],
         ex.calibration_file(),
         &params,
-        out,
         &candle_core::Device::Cpu,
     )
-    .map_err(|e| e.to_string())
+    .map_err(|e| e.to_string())?;
+    pino_eval::study::run_with(&surrogate, &params, out, Some(progress)).map_err(|e| e.to_string())
 }
 
 /// Writes the declaration and the record into `partial`, then renames it to `name`.
@@ -620,6 +848,7 @@ mod tests {
             kind: kind.into(),
             state: "finished".into(),
             detail: String::new(),
+            progress: None,
             declaration: String::new(),
             summary_md: None,
             table: None,
@@ -669,7 +898,7 @@ mod tests {
         std::fs::write(done.join(RECORD_FILE), serde_json::to_vec(&record).unwrap()).unwrap();
         std::fs::create_dir_all(root.join(format!("monte_carlo-k-2{PARTIAL_SUFFIX}"))).unwrap();
         std::fs::create_dir_all(root.join("no-record")).unwrap();
-        let studies = Studies::open(root.clone());
+        let studies = Studies::open(root.clone(), 1);
         let listed = studies.list();
         assert_eq!(listed.len(), 1, "{listed:?}");
         assert_eq!(
@@ -690,6 +919,13 @@ mod tests {
             ("monte_carlo-k-3", "monte_carlo-k-4")
         );
         assert!(pa.is_dir() && pa.ends_with(format!("monte_carlo-k-3{PARTIAL_SUFFIX}")));
+        // A cancelled (or failed) study keeps its name though its directory is gone.
+        studies.jobs().push(Job {
+            name: "monte_carlo-k-5".into(),
+            declaration: Value::Null,
+            state: JobState::Cancelled { after_s: 1.0 },
+        });
+        assert_eq!(studies.claim("monte_carlo-k").unwrap().0, "monte_carlo-k-6");
     }
 
     #[test]

@@ -11,6 +11,9 @@ pub enum Error {
     /// Writing a report file (CSV, Markdown, PNG) failed.
     #[error(transparent)]
     Report(#[from] report::Error),
+    /// A running study was asked to stop ([`crate::study::Progress::cancel`]).
+    #[error("the study was cancelled")]
+    Cancelled,
 }
 
 /// Result alias of this crate.

@@ -42,7 +42,7 @@ use std::path::{Path, PathBuf};
 
 /// Where one index input comes from on the prediction's side.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Source {
+pub enum Source {
     /// An output the model predicts (its channel).
     Output(usize),
     /// Rigid DOF `i`'s velocity (1) or acceleration (2): central differences of the
@@ -133,9 +133,59 @@ impl IndexInputs {
         &self.columns
     }
 
+    /// Every column the indices read, with where a prediction's value comes from (the
+    /// description's index set's input order).
+    pub fn sources(&self) -> &[(String, Source)] {
+        &self.sources
+    }
+
+    /// The description's index set.
+    pub fn set(&self) -> &IndexSet {
+        &self.set
+    }
+
     /// The limit of each index column (`None`: none); a value passes at or below it.
     pub fn limits(&self, system: &System, cfg: &IndexConfig) -> Vec<Option<f64>> {
         self.set.column_limits(system, cfg)
+    }
+
+    /// The limits `values` (in [`IndexInputs::columns`] order) exceed, named as the `indices`
+    /// stage names them ([`pino_indices::IndexSet::failed`]): the railway family's limits by the
+    /// limit's name (the Sperling limit once, judged on the largest of its points), each simple
+    /// index by its own. What a surrogate judges on values assembled from several models.
+    pub fn failed_of(&self, system: &System, values: &[f64], cfg: &IndexConfig) -> Vec<String> {
+        const SPERLING: &str = "sperling_wz";
+        let railway = self.set.railway.is_some();
+        let mut out: Vec<String> = Vec::new();
+        let mut sperling = f64::NEG_INFINITY;
+        let mut sperling_limit = None;
+        for ((c, &v), limit) in self
+            .columns
+            .iter()
+            .zip(values)
+            .zip(self.limits(system, cfg))
+        {
+            let Some(limit) = limit else { continue };
+            if railway
+                && c.name.starts_with(SPERLING)
+                && pino_indices::INDEX_COLUMNS.iter().any(|r| r.name == c.name)
+            {
+                sperling = sperling.max(v);
+                sperling_limit = Some(limit);
+            } else if v > limit || v.is_nan() {
+                out.push(c.name.clone());
+            }
+        }
+        if let Some(limit) = sperling_limit {
+            if sperling > limit || sperling.is_nan() {
+                let at = out
+                    .iter()
+                    .position(|n| !pino_indices::INDEX_COLUMNS.iter().any(|c| c.name == n))
+                    .unwrap_or(out.len());
+                out.insert(at, SPERLING.into());
+            }
+        }
+        out
     }
 
     /// Whether every index can be computed from a prediction (and there is one).

@@ -16,6 +16,9 @@
 //! - [`predict`]: designs by parameter name (sets, grids, random sweeps) through a trained
 //!   model, with the training ranges checked and the excitations regenerated or read; the
 //!   `predict` command's library.
+//! - [`surrogate`]: several trained models behind one answer, each index and channel from the
+//!   model most accurate on it over the validation split, with its calibration (the
+//!   `surrogate` stage's artifact, or one model alone).
 //! - [`solve`]: a design through the exact solver in a prediction's form (the explorer's
 //!   "Solve exactly", the studies' solver checks).
 //!
@@ -30,5 +33,6 @@ pub mod indices_eval;
 pub mod predict;
 pub mod solve;
 pub mod study;
+pub mod surrogate;
 
 pub use error::{Error, Result};

@@ -19,7 +19,7 @@
 use crate::config::{ModelConfig, TrainConfig, WindowConfig};
 use crate::model::Fno;
 use crate::norm::Normalisation;
-use crate::optim::Adam;
+use crate::optim::{Adam, Average};
 use crate::spectral::Transform;
 use crate::{io_err, Error, Result};
 use candle_core::{Device, Tensor};
@@ -318,8 +318,7 @@ pub fn load_model(dir: &Path, transform: Transform, device: &Device) -> Result<(
 /// the checkpoint; a crash between the two writes leaves the previous one intact.
 pub fn save_checkpoint(
     dir: &Path,
-    model: &Fno,
-    adam: &Adam,
+    (model, adam, average): (&Fno, &Adam, Option<&Average>),
     meta: &ModelMeta,
     state: &TrainState,
 ) -> Result<()> {
@@ -328,6 +327,9 @@ pub fn save_checkpoint(
         tensors.insert(format!("param.{name}"), var.as_tensor().clone());
         tensors.insert(format!("adam_m.{name}"), adam.m[i].clone());
         tensors.insert(format!("adam_v.{name}"), adam.v[i].clone());
+        if let Some(a) = average {
+            tensors.insert(format!("average.{name}"), a.values[i].clone());
+        }
     }
     let json = CheckpointJson {
         meta: meta.clone(),
@@ -351,13 +353,13 @@ pub fn has_checkpoint(dir: &Path) -> bool {
     dir.join(CHECKPOINT_TENSORS).is_file()
 }
 
-/// Loads a checkpoint: model, optimizer, metadata and state, all from
+/// A checkpoint read back: the model, the optimiser, the weights' average (when the training
+/// keeps one), the metadata and the state.
+pub type Checkpoint = (Fno, Adam, Option<Average>, ModelMeta, TrainState);
+
+/// Loads a checkpoint: model, optimizer, the weights' average, metadata and state, all from
 /// `checkpoint.safetensors` (a file without the state in its header is refused).
-pub fn load_checkpoint(
-    dir: &Path,
-    transform: Transform,
-    device: &Device,
-) -> Result<(Fno, Adam, ModelMeta, TrainState)> {
+pub fn load_checkpoint(dir: &Path, transform: Transform, device: &Device) -> Result<Checkpoint> {
     let path = dir.join(CHECKPOINT_TENSORS);
     let (all, header) = load_tensors(&path, device)?;
     let text = header.get(CHECKPOINT_STATE_KEY).ok_or_else(|| Error::Format {
@@ -384,12 +386,25 @@ pub fn load_checkpoint(
         device,
     )?;
     let mut adam = Adam::new(model.vars())?;
-    let (m, v) = (pick("adam_m."), pick("adam_v."));
+    let mut average = json
+        .meta
+        .train
+        .average_decay
+        .map(|d| Average::new(model.vars(), d))
+        .transpose()?;
+    let (m, v, a) = (pick("adam_m."), pick("adam_v."), pick("average."));
     for (i, (name, var)) in model.vars().iter().enumerate() {
-        for (store, slot) in [(&m, &mut adam.m[i]), (&v, &mut adam.v[i])] {
+        let mut slots = vec![
+            (&m, &mut adam.m[i], "adam moment"),
+            (&v, &mut adam.v[i], "adam moment"),
+        ];
+        if let Some(avg) = average.as_mut() {
+            slots.push((&a, &mut avg.values[i], "weights' average"));
+        }
+        for (store, slot, what) in slots {
             let t = store.get(name).ok_or_else(|| Error::ModelMismatch {
                 path: path.clone(),
-                tensor: format!("adam moment of {name}"),
+                tensor: format!("{what} of {name}"),
                 found: vec![],
                 expected: var.dims().to_vec(),
                 config: json.meta.model.to_string().into(),
@@ -397,7 +412,7 @@ pub fn load_checkpoint(
             if t.dims() != var.dims() {
                 return Err(Error::ModelMismatch {
                     path: path.clone(),
-                    tensor: format!("adam moment of {name}"),
+                    tensor: format!("{what} of {name}"),
                     found: t.dims().to_vec(),
                     expected: var.dims().to_vec(),
                     config: json.meta.model.to_string().into(),
@@ -407,7 +422,7 @@ pub fn load_checkpoint(
         }
     }
     adam.step = json.state.step;
-    Ok((model, adam, json.meta, json.state))
+    Ok((model, adam, average, json.meta, json.state))
 }
 
 #[cfg(test)]
@@ -504,7 +519,7 @@ mod tests {
             let mixed = fresh(dir.path(), case);
             std::fs::write(mixed.join(CHECKPOINT_META), json).unwrap();
             std::fs::write(mixed.join(CHECKPOINT_TENSORS), tensors).unwrap();
-            let (model, adam, _, state) =
+            let (model, adam, _, _, state) =
                 load_checkpoint(&mixed, Transform::Matmul, &Device::Cpu).unwrap();
             assert_eq!(state.epochs_done, epoch, "{case}");
             assert_eq!(state.history[..], reference.history[..epoch], "{case}");
@@ -517,6 +532,28 @@ mod tests {
             assert_eq!(resumed.history, reference.history, "{case}");
             assert_eq!(params(&resumed.model), params(&reference.model), "{case}");
         }
+    }
+
+    /// With a weights' average, a run stopped after an epoch resumes to the uninterrupted
+    /// run's history and weights bit for bit; the model kept is the average, not the last
+    /// iterate (the same training without it ends elsewhere).
+    #[test]
+    fn a_weights_average_resumes_exactly_and_is_the_model_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let (ds, m, mut t) = setup(dir.path());
+        let plain = run(&ds, m, t, &fresh(dir.path(), "plain"), None);
+        t.average_decay = Some(0.9);
+        let reference = run(&ds, m, t, &fresh(dir.path(), "reference"), None);
+        assert!(reference.finished);
+        assert_ne!(params(&reference.model), params(&plain.model));
+        let ck = fresh(dir.path(), "ck");
+        run(&ds, m, t, &ck, Some(1));
+        let (_, _, average, _, _) = load_checkpoint(&ck, Transform::Matmul, &Device::Cpu).unwrap();
+        assert_eq!(average.map(|a| a.decay), Some(0.9));
+        let resumed = run(&ds, m, t, &ck, None);
+        assert_eq!(resumed.resumed_after, Some(1));
+        assert_eq!(resumed.history, reference.history);
+        assert_eq!(params(&resumed.model), params(&reference.model));
     }
 
     #[test]

@@ -254,6 +254,11 @@ pub struct TrainConfig {
     /// read; absent: 0, the paper's loss).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub force_weight: Option<f64>,
+    /// Decay per step of the weights' moving average ([`crate::optim::Average`]), in
+    /// `[0, 1)`: the model validated every epoch and written at the end is the average
+    /// (absent: the last iterate, the paper's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub average_decay: Option<f64>,
 }
 
 impl TrainConfig {
@@ -304,6 +309,13 @@ impl TrainConfig {
         }
         if !(self.rho > 0.0 && self.rho.is_finite()) {
             return bad("rho", self.rho.to_string(), "> 0");
+        }
+        if let Some(d) = self.average_decay.filter(|d| !(0.0..1.0).contains(d)) {
+            return bad(
+                "average_decay",
+                d.to_string(),
+                "[0, 1) (absent: no average)",
+            );
         }
         Ok(())
     }
@@ -380,6 +392,9 @@ pub struct TrainParams {
     /// Weight of an extra relative-L2 term on the force outputs (absent: 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub force_weight: Option<f64>,
+    /// Decay per step of the weights' moving average, the model kept (absent: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub average_decay: Option<f64>,
 }
 
 impl TrainParams {
@@ -437,6 +452,7 @@ impl TrainParams {
             seed: self.seed,
             rate_weight: self.rate_weight,
             force_weight: self.force_weight,
+            average_decay: self.average_decay,
         };
         train.validate()?;
         let window = WindowConfig {

@@ -5,7 +5,8 @@
 //! m <- b1 m + (1 - b1) g        v <- b2 v + (1 - b2) g^2
 //! p <- p - lr (m / (1 - b1^s)) / (sqrt(v / (1 - b2^s)) + eps)      s = step count (1-based)
 //! ```
-//! with b1 = 0.9, b2 = 0.999, eps = 1e-8 (the usual defaults).
+//! with b1 = 0.9, b2 = 0.999, eps = 1e-8 (the usual defaults). [`Average`]: the variables'
+//! exponential moving average over the steps.
 
 use crate::Result;
 use candle_core::backprop::GradStore;
@@ -110,10 +111,95 @@ impl Adam {
     }
 }
 
+/// An exponential moving average of the variables over the optimiser's steps (Polyak
+/// averaging): after each step `a <- d a + (1 - d) p`, started from the initial values. The
+/// average of the last `~1 / (1 - d)` steps is a model of its own, usually smoother than the
+/// last iterate where the steps at a fixed learning rate wander around a minimum.
+#[derive(Debug, Clone)]
+pub struct Average {
+    /// The averages, one per variable.
+    pub values: Vec<Tensor>,
+    /// The decay `d` per step, in `[0, 1)`.
+    pub decay: f64,
+}
+
+impl Average {
+    /// The average of `vars` started from their current values.
+    pub fn new(vars: &[(String, Var)], decay: f64) -> Result<Self> {
+        Ok(Self {
+            values: vars
+                .iter()
+                .map(|(_, v)| v.as_tensor().copy())
+                .collect::<candle_core::Result<_>>()?,
+            decay,
+        })
+    }
+
+    /// One step: `a <- d a + (1 - d) p` for every variable.
+    pub fn update(&mut self, vars: &[(String, Var)]) -> Result<()> {
+        let d = self.decay;
+        for (a, (_, var)) in self.values.iter_mut().zip(vars) {
+            *a = ((&*a * d)? + (var.as_tensor().detach() * (1.0 - d))?)?.detach();
+        }
+        Ok(())
+    }
+
+    /// Runs `f` with the variables set to the averages, then restores them.
+    pub fn with_average<T>(
+        &self,
+        vars: &[(String, Var)],
+        f: impl FnOnce() -> Result<T>,
+    ) -> Result<T> {
+        let raw: Vec<Tensor> = vars
+            .iter()
+            .map(|(_, v)| v.as_tensor().copy())
+            .collect::<candle_core::Result<_>>()?;
+        self.install(vars)?;
+        let out = f();
+        for ((_, var), r) in vars.iter().zip(&raw) {
+            var.set(r)?;
+        }
+        out
+    }
+
+    /// Sets the variables to the averages.
+    pub fn install(&self, vars: &[(String, Var)]) -> Result<()> {
+        for ((_, var), a) in vars.iter().zip(&self.values) {
+            var.set(a)?;
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use candle_core::Device;
+
+    /// The average is the closed-form weighted sum of the iterates; decay 0 is the last one,
+    /// and `with_average` leaves the variables as they were.
+    #[test]
+    fn the_average_weights_the_iterates_geometrically() {
+        let dev = Device::Cpu;
+        let var = Var::from_tensor(&Tensor::new(&[0.0f32], &dev).unwrap()).unwrap();
+        let vars = vec![("p".to_owned(), var)];
+        let mut avg = Average::new(&vars, 0.5).unwrap();
+        let mut last = Average::new(&vars, 0.0).unwrap();
+        for x in [4.0f32, 8.0] {
+            vars[0].1.set(&Tensor::new(&[x], &dev).unwrap()).unwrap();
+            avg.update(&vars).unwrap();
+            last.update(&vars).unwrap();
+        }
+        // a = 0.5 (0.5 * 0 + 0.5 * 4) + 0.5 * 8 = 5.
+        let a: Vec<f32> = avg.values[0].to_vec1().unwrap();
+        assert_eq!(a, [5.0]);
+        assert_eq!(last.values[0].to_vec1::<f32>().unwrap(), [8.0]);
+        let seen = avg
+            .with_average(&vars, || Ok(vars[0].1.as_tensor().to_vec1::<f32>()?))
+            .unwrap();
+        assert_eq!(seen, [5.0]);
+        assert_eq!(vars[0].1.as_tensor().to_vec1::<f32>().unwrap(), [8.0]);
+    }
 
     #[test]
     fn first_adam_step_moves_each_parameter_by_lr() {

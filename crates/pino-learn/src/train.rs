@@ -13,7 +13,7 @@ use crate::config::{ModelConfig, TrainConfig, WindowConfig};
 use crate::data::{make_batch, prepare, Dataset, Prepared, Split};
 use crate::loss::{LossContext, LossValues};
 use crate::model::Fno;
-use crate::optim::Adam;
+use crate::optim::{Adam, Average};
 use crate::spectral::Transform;
 use crate::{Error, Result};
 use candle_core::Device;
@@ -165,10 +165,10 @@ pub fn train(
         }
     }
     let meta = model_meta(ds, model_cfg, cfg, window)?;
-    let (model, mut adam, mut state, resumed_after) = if checkpoint::has_checkpoint(
+    let (model, mut adam, mut average, mut state, resumed_after) = if checkpoint::has_checkpoint(
         &opts.checkpoint_dir,
     ) {
-        let (model, adam, old, state) =
+        let (model, adam, average, old, state) =
             checkpoint::load_checkpoint(&opts.checkpoint_dir, opts.transform, device)?;
         if old != meta {
             return Err(Error::Format {
@@ -177,16 +177,20 @@ pub fn train(
             });
         }
         let done = state.epochs_done;
-        (model, adam, state, Some(done))
+        (model, adam, average, state, Some(done))
     } else {
         let model = Fno::new(model_cfg, ds.t_points(), cfg.seed, opts.transform, device)?;
         let adam = Adam::new(model.vars())?;
+        let average = cfg
+            .average_decay
+            .map(|d| Average::new(model.vars(), d))
+            .transpose()?;
         let state = TrainState {
             epochs_done: 0,
             step: 0,
             history: Vec::new(),
         };
-        (model, adam, state, None)
+        (model, adam, average, state, None)
     };
     let loss = LossContext::of_model(&meta, ds.system().clone());
     let items = prepare(ds, &meta.norm)?;
@@ -217,6 +221,9 @@ pub fn train(
             }
             let grads = total.backward()?;
             adam.step(model.vars(), &grads, lr)?;
+            if let Some(a) = average.as_mut() {
+                a.update(model.vars())?;
+            }
             sums.total += values.total;
             sums.data += values.data;
             sums.deriv += values.deriv;
@@ -224,15 +231,22 @@ pub fn train(
             batches += 1;
         }
         let n = batches.max(1) as f64;
-        let val = evaluate_split(
-            &model,
-            &loss,
-            &items,
-            &val_idx,
-            t_points,
-            cfg.batch_size,
-            device,
-        )?;
+        // The model kept is the average when there is one: it is the one validated.
+        let validate = || {
+            evaluate_split(
+                &model,
+                &loss,
+                &items,
+                &val_idx,
+                t_points,
+                cfg.batch_size,
+                device,
+            )
+        };
+        let val = match &average {
+            Some(a) => a.with_average(model.vars(), validate)?,
+            None => validate()?,
+        };
         let row = HistoryRow {
             epoch: epoch + 1,
             step: adam.step,
@@ -248,7 +262,12 @@ pub fn train(
         state.history.push(row);
         state.epochs_done = epoch + 1;
         state.step = adam.step;
-        checkpoint::save_checkpoint(&opts.checkpoint_dir, &model, &adam, &meta, &state)?;
+        checkpoint::save_checkpoint(
+            &opts.checkpoint_dir,
+            (&model, &adam, average.as_ref()),
+            &meta,
+            &state,
+        )?;
         let ran = (state.epochs_done - first_epoch) as f64;
         report(&EpochReport {
             row,
@@ -256,8 +275,12 @@ pub fn train(
             seconds_per_epoch: started.elapsed().as_secs_f64() / ran,
         });
     }
+    let finished = state.epochs_done >= cfg.epochs;
+    if let (true, Some(a)) = (finished, &average) {
+        a.install(model.vars())?;
+    }
     Ok(TrainOutcome {
-        finished: state.epochs_done >= cfg.epochs,
+        finished,
         model,
         meta,
         history: state.history,
@@ -483,8 +506,10 @@ mod tests {
             step: 7,
             history: outcome.history.clone(),
         };
-        checkpoint::save_checkpoint(&ck, &outcome.model, &adam, &outcome.meta, &state).unwrap();
-        let (m2, a2, meta2, s2) = checkpoint::load_checkpoint(&ck, Transform::Fused, &dev).unwrap();
+        checkpoint::save_checkpoint(&ck, (&outcome.model, &adam, None), &outcome.meta, &state)
+            .unwrap();
+        let (m2, a2, _, meta2, s2) =
+            checkpoint::load_checkpoint(&ck, Transform::Fused, &dev).unwrap();
         assert_eq!((meta2, s2), (outcome.meta.clone(), state));
         assert_eq!(params_of(&m2), params_of(&outcome.model));
         assert_eq!(a2.step, 7);

@@ -105,7 +105,7 @@ pub fn select(
     // Upstream closure: stages are topologically ordered, so one backward pass suffices.
     for i in (0..n).rev() {
         if whole[i] || !partial[i].is_empty() {
-            for up in p.stages[i].inputs.values() {
+            for up in p.stages[i].inputs.values().flatten() {
                 whole[p.index(up).expect("validated")] = true;
             }
         }
@@ -446,10 +446,10 @@ impl<'a> Ledger<'a> {
                 p.stages[u.stage]
                     .inputs
                     .iter()
-                    .map(|(name, up)| {
-                        let ui = p.index(up).expect("validated");
-                        let ups = units_of(p, ui)
+                    .map(|(name, ups)| {
+                        let ups = ups
                             .iter()
+                            .flat_map(|up| units_of(p, p.index(up).expect("validated")))
                             .map(|x| pos[x.key.as_str()])
                             .collect();
                         (name.clone(), ups)

@@ -89,7 +89,7 @@ struct RawStage {
     #[serde(default)]
     params: Option<UniqueMap<Value>>,
     #[serde(default)]
-    inputs: Option<UniqueMap<String>>,
+    inputs: Option<UniqueMap<Upstreams>>,
     #[serde(default)]
     shards: Option<usize>,
     #[serde(default)]
@@ -98,6 +98,24 @@ struct RawStage {
     resources: Option<Resources>,
     #[serde(default)]
     check: Option<bool>,
+}
+
+/// What one input reads: an upstream stage, or several in order (`models: [train,
+/// train-rates]`: the directories of every unit of each, one stage after the other).
+#[derive(Deserialize, Clone)]
+#[serde(untagged)]
+enum Upstreams {
+    One(String),
+    Many(Vec<String>),
+}
+
+impl Upstreams {
+    fn into_vec(self) -> Vec<String> {
+        match self {
+            Upstreams::One(s) => vec![s],
+            Upstreams::Many(v) => v,
+        }
+    }
 }
 
 /// One matrix expansion of a stage (the stage itself when it has no matrix).
@@ -118,8 +136,9 @@ pub struct Stage {
     pub line: usize,
     /// The argument list; `cmd[0]` is resolved by [`Pipeline::resolve_executable`].
     pub cmd: Vec<String>,
-    /// Input name -> upstream stage name.
-    pub inputs: BTreeMap<String, String>,
+    /// Input name -> the upstream stages it reads, in order (one, or several whose units'
+    /// directories follow each other).
+    pub inputs: BTreeMap<String, Vec<String>>,
     /// Number of shard processes (1 when unsharded).
     pub shards: usize,
     /// The matrix expansions in order (one when there is no matrix).
@@ -493,7 +512,13 @@ fn draft_stage(
             format!("stage `{name}`: {why}"),
         )
     })?;
-    let inputs = rs.inputs.map(|m| m.0).unwrap_or_default();
+    let inputs: BTreeMap<String, Vec<String>> = rs
+        .inputs
+        .map(|m| m.0)
+        .unwrap_or_default()
+        .into_iter()
+        .map(|(k, v)| (k, v.into_vec()))
+        .collect();
     if let Some(input) = inputs.keys().find(|i| !valid_name(i)) {
         return Err(src.err(
             loc.field_line(&name, "inputs"),
@@ -501,6 +526,22 @@ fn draft_stage(
                 "stage `{name}`: input name `{input}` may only use letters, digits, `_` and `-`"
             ),
         ));
+    }
+    for (input, ups) in &inputs {
+        let mut seen = std::collections::BTreeSet::new();
+        let problem = if ups.is_empty() {
+            Some("names no stage: give one stage or a list of stages".to_owned())
+        } else {
+            ups.iter()
+                .find(|u| !seen.insert(u.as_str()))
+                .map(|u| format!("names stage `{u}` twice"))
+        };
+        if let Some(problem) = problem {
+            return Err(src.err(
+                loc.field_line(&name, "inputs"),
+                format!("stage `{name}`: input `{input}` {problem}"),
+            ));
+        }
     }
     let params: Map<String, Value> = rs
         .params
@@ -549,7 +590,12 @@ fn draft_stage(
 /// Every input names a stage of the pipeline.
 fn check_inputs(src: &SourceFile, drafts: &BTreeMap<String, Draft>) -> Result<()> {
     for (name, draft) in drafts {
-        for (input, up) in &draft.stage.inputs {
+        for (input, up) in draft
+            .stage
+            .inputs
+            .iter()
+            .flat_map(|(i, ups)| ups.iter().map(move |u| (i, u)))
+        {
             if !drafts.contains_key(up) {
                 return Err(src.err(
                     src.loc.word_line(name, "inputs", up),
@@ -827,7 +873,12 @@ impl Pipeline {
         let order = topo_order(
             &drafts
                 .iter()
-                .map(|(k, d)| (k.clone(), d.stage.inputs.values().cloned().collect()))
+                .map(|(k, d)| {
+                    (
+                        k.clone(),
+                        d.stage.inputs.values().flatten().cloned().collect(),
+                    )
+                })
                 .collect(),
         )
         .map_err(|cycle| {
@@ -1034,6 +1085,29 @@ pub(crate) mod tests {
             e.contains("the value `mc` twice") && e.contains(":5:"),
             "{e}"
         );
+    }
+
+    /// An input may read several stages: their units' directories follow each other, and
+    /// each of them runs before the reader; an empty list, a stage named twice or an unknown
+    /// one is refused at the input's line.
+    #[test]
+    fn an_input_reads_several_stages_in_order() {
+        let text = "stages:\n  r:\n    cmd: [x]\n    inputs: {models: [b, a]}\n  a:\n    cmd: [x]\n  b:\n    cmd: [x]\n    matrix: {k: [1, 2]}\n";
+        let p = load(text, &[]).unwrap();
+        assert_eq!(p.stage("r").unwrap().inputs["models"], ["b", "a"]);
+        let order: Vec<&str> = p.stages.iter().map(|s| s.name.as_str()).collect();
+        let at = |n: &str| order.iter().position(|x| *x == n).unwrap();
+        assert!(at("r") > at("a") && at("r") > at("b"), "{order:?}");
+        for (bad, why) in [
+            ("[]", "names no stage"),
+            ("[a, a]", "names stage `a` twice"),
+            ("[a, c]", "unknown stage `c`"),
+        ] {
+            let e = load(&text.replace("[b, a]", bad), &[])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(why) && e.contains(":4:"), "{bad}: {e}");
+        }
     }
 
     #[test]

@@ -142,8 +142,11 @@ pub fn unit_states(p: &Pipeline) -> Result<Vec<UnitState>> {
                 Ok(code) => {
                     let mut inputs = BTreeMap::new();
                     let mut missing_up = None;
-                    for (name, up) in &stage.inputs {
-                        let ups = units_of(p, p.index(up).expect("validated"));
+                    for (name, ups) in &stage.inputs {
+                        let ups: Vec<_> = ups
+                            .iter()
+                            .flat_map(|up| units_of(p, p.index(up).expect("validated")))
+                            .collect();
                         let hashes: Vec<Option<&String>> =
                             ups.iter().map(|x| known.get(&x.key)).collect();
                         if let Some(pos) = hashes.iter().position(Option::is_none) {
@@ -295,8 +298,10 @@ pub fn dag(p: &Pipeline, dot: bool) -> String {
             let _ = writeln!(out, "  \"{}\" [label=\"{label}\"];", s.name);
         }
         for s in &p.stages {
-            for (name, up) in &s.inputs {
-                let _ = writeln!(out, "  \"{up}\" -> \"{}\" [label=\"{name}\"];", s.name);
+            for (name, ups) in &s.inputs {
+                for up in ups {
+                    let _ = writeln!(out, "  \"{up}\" -> \"{}\" [label=\"{name}\"];", s.name);
+                }
             }
         }
         out.push_str("}\n");
@@ -314,7 +319,11 @@ pub fn dag(p: &Pipeline, dot: bool) -> String {
         if s.inputs.is_empty() {
             let _ = writeln!(out, "{head}");
         } else {
-            let ins: Vec<String> = s.inputs.iter().map(|(n, u)| format!("{n}: {u}")).collect();
+            let ins: Vec<String> = s
+                .inputs
+                .iter()
+                .map(|(n, u)| format!("{n}: {}", u.join(" + ")))
+                .collect();
             let _ = writeln!(out, "{head} <- {}", ins.join(", "));
         }
     }

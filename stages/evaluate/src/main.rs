@@ -6,7 +6,9 @@
 //! description's record), `models` (one directory per expansion of `train`, each trained on
 //! that description), `calibration` (optional: the `calibrate` stage's output; adds the
 //! coverage of every model's intervals, `coverage.{parquet,csv,md}` and
-//! `coverage_conditional.{parquet,csv}`). Writes `table4.{parquet,csv,md}`, `channel_errors.{parquet,csv}`, the
+//! `coverage_conditional.{parquet,csv}`), `surrogate` (optional: the `surrogate` stage's
+//! output; adds its per-quantity errors, routes and coverage, `surrogate_errors.{parquet,csv}`
+//! and `surrogate.md`). Writes `table4.{parquet,csv,md}`, `channel_errors.{parquet,csv}`, the
 //! engineering indices of the description against the solver (`indices_*`), prediction and
 //! training-curve PNGs and `plots.md`.
 use anyhow::{bail, Context, Result};
@@ -48,6 +50,8 @@ fn run() -> Result<()> {
         // Optional: an uncalibrated pipeline is evaluated without coverage tables.
         calibration: ctx.optional_single_input_dir("calibration")?,
         split: p.split,
+        // Optional: the surrogate's per-quantity errors and coverage beside Table 4.
+        surrogate: ctx.optional_single_input_dir("surrogate")?,
     };
     let progress = ctx.progress(models.len() as u64);
     let data = EvalData {

@@ -7,7 +7,8 @@
 //!         [--calibration calibration.json|DIR]
 //!         [--bind 127.0.0.1:8750] [--token T] [--allow-host NAME]...
 //!         [--solve-workers 1] [--solve-queue 4] [--solve-max-duration 30] [--sweep-max 400]
-//!         [--header-timeout 10] [--max-connections 512] [--study-dir explore-studies]
+//!         [--header-timeout 10] [--body-timeout 10] [--max-connections 512]
+//!         [--study-dir explore-studies] [--study-threads N]
 //! ```
 //! Prints `explore: serving ... on http://ADDR/` (the real port for `--bind HOST:0`) and serves
 //! until interrupted. Without `--model` the calibration is the pipeline's `calibrate` output
@@ -15,6 +16,7 @@
 //! startup, naming the file (exit 2).
 use anyhow::{bail, Context, Result};
 use clap::Parser;
+use pino_explore::access::is_loopback;
 use pino_explore::glance::{locate, DEFAULT_ALGORITHM};
 use pino_explore::serve::{serve, ConnectionLimits};
 use pino_explore::server::{router, Access, App, SolveGate, MIN_TOKEN_CHARS};
@@ -66,8 +68,8 @@ struct Args {
     /// Address to serve on; port 0 takes any free port.
     #[arg(long, default_value = "127.0.0.1:8750")]
     bind: SocketAddr,
-    /// Token required beyond loopback, at least 16 characters (default: a random one of 32,
-    /// printed in the URL).
+    /// Token required on every request, at least 16 characters (default: none on a loopback
+    /// address, beyond it a random one of 32, printed in the URL).
     #[arg(long)]
     token: Option<String>,
     /// More `Host` names to answer to (DNS-rebinding protection answers only the bound
@@ -90,6 +92,10 @@ struct Args {
     /// connection is closed (s).
     #[arg(long, default_value_t = ConnectionLimits::default().header_timeout.as_secs_f64())]
     header_timeout: f64,
+    /// Longest wait for a request's body after its head (s); a body later is answered 408
+    /// and its connection closed.
+    #[arg(long, default_value_t = ConnectionLimits::default().body_timeout.as_secs_f64())]
+    body_timeout: f64,
     /// Most open connections; a new one beyond is closed at once.
     #[arg(long, default_value_t = ConnectionLimits::default().max_connections)]
     max_connections: usize,
@@ -97,6 +103,10 @@ struct Args {
     /// in the workspace); the Studies page lists those of earlier sessions too.
     #[arg(long, value_name = "DIR")]
     study_dir: Option<PathBuf>,
+    /// Threads a started study runs on (default: the machine's cores but one, at least one),
+    /// at a lower CPU priority: predictions and solves never wait for it.
+    #[arg(long, value_name = "N")]
+    study_threads: Option<usize>,
 }
 
 /// A refusal of the command line's inputs (a calibration missing, corrupt or of another
@@ -121,7 +131,9 @@ fn random_token() -> Result<String> {
     Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
-async fn run(args: Args) -> Result<()> {
+/// Refuses flags out of their ranges (a token too short: exit 2) and returns the connection
+/// limits they set.
+fn checked_limits(args: &Args) -> Result<ConnectionLimits> {
     if !(args.solve_max_duration.is_finite() && args.solve_max_duration > 0.0) {
         bail!(
             "--solve-max-duration {}: allowed a positive number of seconds",
@@ -131,10 +143,18 @@ async fn run(args: Args) -> Result<()> {
     if !(2..=100_000).contains(&args.sweep_max) {
         bail!("--sweep-max {}: allowed 2..=100000", args.sweep_max);
     }
-    if !(args.header_timeout.is_finite() && (0.1..=3600.0).contains(&args.header_timeout)) {
+    for (flag, s) in [
+        ("--header-timeout", args.header_timeout),
+        ("--body-timeout", args.body_timeout),
+    ] {
+        if !(s.is_finite() && (0.1..=3600.0).contains(&s)) {
+            bail!("{flag} {s}: allowed 0.1 to 3600 seconds");
+        }
+    }
+    if args.study_threads.is_some_and(|n| !(1..=1024).contains(&n)) {
         bail!(
-            "--header-timeout {}: allowed 0.1 to 3600 seconds",
-            args.header_timeout
+            "--study-threads {}: allowed 1..=1024",
+            args.study_threads.unwrap_or(0)
         );
     }
     if !(1..=1_000_000).contains(&args.max_connections) {
@@ -143,10 +163,6 @@ async fn run(args: Args) -> Result<()> {
             args.max_connections
         );
     }
-    let connections = ConnectionLimits {
-        header_timeout: std::time::Duration::from_secs_f64(args.header_timeout),
-        max_connections: args.max_connections,
-    };
     if let Some(t) = &args.token {
         if t.chars().count() < MIN_TOKEN_CHARS {
             return Err(Refused(format!(
@@ -156,6 +172,61 @@ async fn run(args: Args) -> Result<()> {
             .into());
         }
     }
+    Ok(ConnectionLimits {
+        header_timeout: std::time::Duration::from_secs_f64(args.header_timeout),
+        max_connections: args.max_connections,
+        body_timeout: std::time::Duration::from_secs_f64(args.body_timeout),
+    })
+}
+
+/// The token of a server bound at `addr`: the one given, required on every request whatever
+/// the address; else none on a loopback address and a random one beyond (with a warning).
+fn token_for(args: &Args, addr: SocketAddr) -> Result<Option<String>> {
+    let loopback = is_loopback(addr.ip());
+    if !loopback {
+        eprintln!(
+            "explore: warning: serving on {addr}, beyond this machine's loopback: anyone who can reach it and has the token can use the model and the solver"
+        );
+    }
+    Ok(match (&args.token, loopback) {
+        (Some(t), _) => Some(t.clone()),
+        (None, true) => None,
+        (None, false) => Some(random_token()?),
+    })
+}
+
+/// The studies started from the page: in `--study-dir` (default: `explore-studies` in the
+/// workspace), each on `--study-threads` threads (default: the machine's cores but one, so a
+/// core is always free for the page's requests; BENCHMARKS.md, "Explorer").
+fn studies(args: &Args, workspace: &std::path::Path) -> Studies {
+    Studies::open(
+        args.study_dir
+            .clone()
+            .unwrap_or_else(|| workspace.join(STUDY_DIR)),
+        args.study_threads.unwrap_or_else(|| {
+            std::thread::available_parallelism()
+                .map_or(1, |n| n.get().saturating_sub(1))
+                .max(1)
+        }),
+    )
+}
+
+/// The URL printed for a server bound at `addr` (`localhost` for every interface), with the
+/// token when there is one.
+fn url_of(addr: SocketAddr, token: Option<&str>) -> String {
+    let shown = if addr.ip().is_unspecified() {
+        format!("localhost:{}", addr.port())
+    } else {
+        addr.to_string()
+    };
+    match token {
+        Some(t) => format!("http://{shown}/?token={t}"),
+        None => format!("http://{shown}/"),
+    }
+}
+
+async fn run(args: Args) -> Result<()> {
+    let connections = checked_limits(&args)?;
     let workspace = args.workspace.clone().unwrap_or_else(|| PathBuf::from("."));
     let file = workspace.join(&args.file);
     let opts = orchestrator::spec::LoadOptions {
@@ -227,38 +298,17 @@ async fn run(args: Args) -> Result<()> {
         .await
         .with_context(|| format!("binding {}", args.bind))?;
     let addr = listener.local_addr().context("reading the bound address")?;
-    let token = if addr.ip().is_loopback() {
-        None
-    } else {
-        eprintln!(
-            "explore: warning: serving on {addr}, beyond this machine's loopback: anyone who can reach it and has the token can use the model and the solver"
-        );
-        Some(match &args.token {
-            Some(t) => t.clone(),
-            None => random_token()?,
-        })
-    };
+    let token = token_for(&args, addr)?;
     let access = Access::new(addr, token.clone(), &args.allow_hosts);
     let app = Arc::new(App {
         explorer: Arc::new(explorer),
         pipeline: pipeline.map(Arc::new),
         access,
         solves: Arc::new(SolveGate::new(args.solve_workers, args.solve_queue)),
-        studies: Arc::new(Studies::open(
-            args.study_dir
-                .clone()
-                .unwrap_or_else(|| workspace.join(STUDY_DIR)),
-        )),
+        studies: Arc::new(studies(&args, &workspace)),
+        body_timeout: connections.body_timeout,
     });
-    let shown = if addr.ip().is_unspecified() {
-        format!("localhost:{}", addr.port())
-    } else {
-        addr.to_string()
-    };
-    let url = match &token {
-        Some(t) => format!("http://{shown}/?token={t}"),
-        None => format!("http://{shown}/"),
-    };
+    let url = url_of(addr, token.as_deref());
     println!(
         "explore: serving the {} model ({what}) on {url}",
         app.explorer.identity().system

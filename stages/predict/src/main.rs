@@ -1,12 +1,14 @@
 //! `predict`: what an engineer exploring designs runs (not a pipeline stage).
 //!
 //! ```text
-//! predict --model DIR [--params sets.yaml | --sweep sweep.yaml] [--set NAME=VALUE ...]
+//! predict --surrogate DIR | --model DIR [--calibration DIR|calibration.json]
+//!         [--params sets.yaml | --sweep sweep.yaml] [--set NAME=VALUE ...]
 //!         [--profile profiles.parquet [--profile-id ID] | --seed N [--profile-id ID]]
 //!         [--out predictions.parquet] [--indices indices.parquet [--indices-only]]
-//!         [--calibration DIR|calibration.json [--coverage 0.9]]
-//!         [--strict] [--batch 16] [--x0 X] [--device cpu]
+//!         [--coverage 0.9] [--strict] [--batch 16] [--x0 X] [--device cpu]
 //! ```
+//! `--surrogate` reads the `surrogate` stage's output: every index and channel answered by the
+//! model chosen for it, with that model's calibration; `--model` one trained model alone.
 //! Works for the model of any system description: the design parameters are the sampled
 //! parameters of the description stored in the model (the others keep its values), the outputs
 //! its channels. Writes, for every design, the model's outputs (displacements and forces), the
@@ -28,6 +30,7 @@
 use anyhow::{Context, Result};
 use clap::Parser;
 use pino_eval::predict::{parse_sweep, Predictor, ProfileChoice, OUTSIDE_COLUMN};
+use pino_eval::surrogate::Surrogate;
 use pino_learn::config::DeviceKind;
 use std::path::PathBuf;
 
@@ -37,9 +40,12 @@ use std::path::PathBuf;
     about = "Predict the responses of designs with a trained PINO-MBD model"
 )]
 struct Args {
-    /// Model directory (model.safetensors + model.json from `train`).
+    /// Surrogate directory (the `surrogate` stage's output: surrogate.json and its models).
+    #[arg(long, required_unless_present = "model", conflicts_with_all = ["model", "calibration"])]
+    surrogate: Option<PathBuf>,
+    /// Model directory (model.safetensors + model.json from `train`): one model alone.
     #[arg(long)]
-    model: PathBuf,
+    model: Option<PathBuf>,
     /// YAML designs: a list of maps (or `sets: [...]`) of parameter names to values; missing
     /// names take the nominal values of the model's system description.
     #[arg(long, conflicts_with = "sweep")]
@@ -79,7 +85,7 @@ struct Args {
     #[arg(long)]
     calibration: Option<PathBuf>,
     /// Coverage of the intervals, in (0, 1) and at most n / (n + 1) for n calibration samples.
-    #[arg(long, requires = "calibration")]
+    #[arg(long)]
     coverage: Option<f64>,
     /// Refuse (exit 2) any set outside the model's training ranges.
     #[arg(long)]
@@ -107,17 +113,11 @@ impl std::error::Error for Refused {}
 fn run() -> Result<()> {
     pino_learn::tune_allocator();
     let args = Args::parse();
-    let device = match args.device.as_str() {
-        "cpu" => DeviceKind::Cpu,
-        "cuda" => DeviceKind::Cuda,
-        other => anyhow::bail!("--device {other}: allowed cpu or cuda"),
-    }
-    .device()?;
     let read = |path: &PathBuf| {
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
     };
-    let mut predictor = Predictor::load(&args.model, &device)?;
-    let coverage = calibration_level(&mut predictor, &args)?;
+    let (surrogate, coverage) = load(&args)?;
+    let predictor = surrogate.primary();
     let space = &predictor.space;
     let mut sets = match (&args.params, &args.sweep) {
         (Some(path), _) => space.parse_sets(&read(path)?, path)?,
@@ -179,52 +179,83 @@ fn run() -> Result<()> {
     let mut wrote = Vec::new();
     if let (Some(out), false) = (&args.out, args.indices_only) {
         let table =
-            predictor.histories_flagged(&sets, &profiles, &run_config, args.batch, coverage)?;
+            surrogate.histories_flagged(&sets, &profiles, &run_config, args.batch, coverage)?;
         pino_data::write_parquet(out, &table)?;
         wrote.push(out.display().to_string());
     }
     if let Some(path) = &args.indices {
         let cfg = predictor.index_config()?;
         let level = coverage.unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
-        let answers = predictor.answers(&sets, &profiles, &run_config, &cfg, args.batch, level)?;
-        let table = predictor.indices_table(&sets, &answers, &outside)?;
+        let answers = surrogate.answers(&sets, &profiles, &run_config, &cfg, args.batch, level)?;
+        let table = surrogate.indices_table(&sets, &answers, &outside)?;
         pino_data::write_parquet(path, &table)?;
         wrote.push(path.display().to_string());
     }
     let wall = started.elapsed().as_secs_f64();
     println!(
-        "predicted {} set(s) x {:.3} s with algorithm {} in {wall:.3} s ({} outside the training ranges) -> {}",
+        "predicted {} set(s) x {:.3} s with {} in {wall:.3} s ({} outside the training ranges) -> {}",
         sets.len(),
         meta.grid.t_points as f64 * meta.grid.dt,
-        meta.train.algorithm.id(),
+        surrogate.member_names().join(" + "),
         flagged.len(),
         wrote.join(", ")
     );
     Ok(())
 }
 
-/// Loads `--calibration` and checks `--coverage` against it, before anything is predicted or
-/// written: the level of the intervals (`None`: the answers carry none, and stderr says why).
-/// Every refusal is [`Refused`] (exit 2).
-fn calibration_level(predictor: &mut Predictor, args: &Args) -> Result<Option<f64>> {
-    let Some(path) = &args.calibration else {
-        eprintln!(
-            "predict: note: no --calibration: the answers are point values without an error bar (pass the `calibrate` stage's output, docs/uncertainty.md)"
-        );
-        return Ok(None);
-    };
-    let refused = |e: pino_eval::Error| Refused(format!("--calibration {}: {e}", path.display()));
-    let cal = predictor.load_calibration(path).map_err(refused)?;
-    if let Some(why) = &cal.no_intervals {
-        eprintln!("predict: note: {}: no intervals: {why}", path.display());
-        return Ok(None);
+/// Loads `--surrogate`, or `--model` with its `--calibration`, and checks `--coverage` against
+/// the calibrations, before anything is predicted or written: the surrogate and the level of
+/// its intervals (`None`: the answers carry none, and stderr says why). Every refusal of a
+/// file or level is [`Refused`] (exit 2).
+fn load(args: &Args) -> Result<(Surrogate, Option<f64>)> {
+    let device = &match args.device.as_str() {
+        "cpu" => DeviceKind::Cpu,
+        "cuda" => DeviceKind::Cuda,
+        other => anyhow::bail!("--device {other}: allowed cpu or cuda"),
     }
-    predictor.interval_level(args.coverage).map_err(|e| {
+    .device()?;
+    let surrogate = match (&args.surrogate, &args.model) {
+        (Some(dir), _) => Surrogate::load(dir, device)
+            .map_err(|e| Refused(format!("--surrogate {}: {e}", dir.display())))?,
+        (None, Some(dir)) => {
+            let mut predictor = Predictor::load(dir, device)
+                .map_err(|e| Refused(format!("--model {}: {e}", dir.display())))?;
+            let Some(path) = &args.calibration else {
+                eprintln!(
+                    "predict: note: no --calibration: the answers are point values without an error bar (pass the `calibrate` stage's output, or a --surrogate; docs/uncertainty.md)"
+                );
+                return Ok((Surrogate::of_model(predictor), None));
+            };
+            let cal = predictor
+                .load_calibration(path)
+                .map_err(|e| Refused(format!("--calibration {}: {e}", path.display())))?;
+            if let Some(why) = &cal.no_intervals {
+                eprintln!("predict: note: {}: no intervals: {why}", path.display());
+                return Ok((Surrogate::of_model(predictor), None));
+            }
+            Surrogate::of_model(predictor)
+        }
+        (None, None) => anyhow::bail!("give --surrogate DIR or --model DIR"),
+    };
+    let level = surrogate.interval_level(args.coverage).map_err(|e| {
         let level = args
             .coverage
             .unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
-        Refused(format!("--coverage {level}: {e}")).into()
-    })
+        Refused(format!("--coverage {level}: {e}"))
+    })?;
+    if level.is_none() {
+        eprintln!(
+            "predict: note: {} carries no intervals: the answers are point values without an error bar",
+            surrogate.member_names().join(" + ")
+        );
+        if let Some(c) = args.coverage {
+            return Err(Refused(format!(
+                "--coverage {c}: the model has no calibration with intervals"
+            ))
+            .into());
+        }
+    }
+    Ok((surrogate, level))
 }
 
 fn main() {
@@ -262,7 +293,8 @@ fn origin(
         })
         .collect();
     let params = serde_json::json!({
-        "model": args.model.display().to_string(),
+        "model": args.model.as_ref().map(|p| p.display().to_string()),
+        "surrogate": args.surrogate.as_ref().map(|p| p.display().to_string()),
         "sets": sets,
         "profile": args.profile.as_ref().map(|p| p.display().to_string()),
         "seed": args.seed,

@@ -1,8 +1,9 @@
 //! `study` stage: one design study through a trained model (`docs/studies.md`), the solver
 //! beside it.
 //!
-//! Inputs: `models` (one directory per expansion of `train`), `calibration` (optional: the
-//! `calibrate` stage's output; without it the answers carry no error bar and the files say
+//! Inputs: `surrogate` (the `surrogate` stage's output), or `models` (one directory per
+//! expansion of `train`: the model of `algorithm` answers alone) with `calibration` (optional:
+//! the `calibrate` stage's output; without it the answers carry no error bar and the files say
 //! so). Params: `study` (the matrix value: the study's declaration, with `name` and `kind`),
 //! `algorithm` (which model), `coverage`, `seed`, `batch_size`, `bootstrap`, `confidence`,
 //! `device`, `system_values`. In check mode the declaration is checked against the
@@ -23,14 +24,26 @@ fn run() -> Result<String> {
             .with_context(|| format!("stage `{}`: bad study", ctx.stage))?;
         return Ok(format!("study `{}` valid", study.name));
     }
-    let models = ctx.input_dirs("models")?.to_vec();
-    if models.is_empty() {
-        bail!("input `models` is empty: wire the `train` stage");
+    let surrogate = ctx.optional_single_input_dir("surrogate")?;
+    let models = match surrogate {
+        Some(_) => Vec::new(),
+        None => ctx.input_dirs("models")?.to_vec(),
+    };
+    if surrogate.is_none() && models.is_empty() {
+        bail!("input `models` is empty: wire the `surrogate` stage (or a `train` stage)");
     }
     // Optional: without it the answers carry no error bar and the files say so.
     let calibration = ctx.optional_single_input_dir("calibration")?;
     let device = p.device.device()?;
-    let summary = pino_eval::study::run(&models, calibration.as_deref(), &p, &ctx.output, &device)
+    let surrogate = pino_eval::study::load_surrogate(
+        surrogate.as_deref(),
+        &models,
+        calibration.as_deref(),
+        &p,
+        &device,
+    )
+    .with_context(|| format!("stage `{}`", ctx.stage))?;
+    let summary = pino_eval::study::run(&surrogate, &p, &ctx.output)
         .with_context(|| format!("stage `{}`", ctx.stage))?;
     Ok(summary)
 }

@@ -6,8 +6,9 @@
 import test from 'node:test';
 import assert from 'node:assert/strict';
 import http from 'node:http';
-import { fmt, fmtPercent, fieldValue, percent, limitText } from '../../../crates/explore/assets/format.js';
-import { alignTo, channelColor, runsOf, indexInside } from '../../../crates/explore/assets/series.js';
+import { fmt, fmtBound, fmtPercent, fieldValue, percent, limitText } from '../../../crates/explore/assets/format.js';
+import { decodeAnswer, fromF32Base64 } from '../../../crates/explore/assets/codec.js';
+import { alignTo, channelColor, runsOf, indexInside, channelInside } from '../../../crates/explore/assets/series.js';
 import { headline, intervalVerdict, solvedWithoutPrediction, isLarge } from '../../../crates/explore/assets/verdicts.js';
 import { api, ApiError, postRetryingOnce, isAbort } from '../../../crates/explore/assets/api.js';
 
@@ -41,13 +42,77 @@ test('curves are resampled onto the prediction\'s times; runs of flags found', (
 test('the headline follows the solver once it answered, the surrogate beside it', () => {
   const pred = { pass: true, failed: [], outside: [] };
   const solve = { pass: false, failed: ['peak'] };
-  assert.deepEqual(headline(pred, solve), { text: 'solver: fails peak; surrogate: all limits met', pass: false, source: 'solver' });
+  assert.deepEqual(headline(pred, solve), { text: 'solver: fails peak; surrogate: all limits met', pass: false, source: 'solver', tone: 'fail' });
   assert.equal(headline(pred, null).source, 'surrogate');
   assert.equal(headline(null, solve), null);
   assert.equal(intervalVerdict({ coverage: 0.9, verdict: 'uncertain' }).text, 'at 90 %: uncertain: send to the solver');
   assert.equal(intervalVerdict({ coverage: null, no_intervals: 'no calibration' }).title, 'no calibration');
   assert.equal(isLarge(-0.2), true);
   assert.equal(isLarge(0.05), false);
+});
+
+test('the surrogate\'s headline is never green where the intervals say to solve or it extrapolates', () => {
+  const inside = { pass: true, failed: [], outside: [], coverage: 0.9, extrapolated: false, verdict: 'pass' };
+  assert.equal(headline(inside, null).tone, 'pass');
+  const extrapolated = { ...inside, outside: [{ name: 'm' }], extrapolated: true, verdict: 'uncertain' };
+  const h = headline(extrapolated, null);
+  assert.equal(h.tone, 'uncertain');
+  assert.match(h.text, /extrapolated: no claim/);
+  assert.equal(intervalVerdict(extrapolated).verdict, 'uncertain');
+  assert.equal(headline({ ...inside, verdict: 'uncertain' }, null).tone, 'uncertain');
+  assert.equal(headline({ ...extrapolated, pass: false, failed: ['peak'] }, null).tone, 'fail');
+  // Without a calibration (no verdict) an extrapolated pass is not green either.
+  assert.equal(headline({ pass: true, failed: [], outside: [{ name: 'm' }] }, null).tone, 'uncertain');
+});
+
+test('range labels never show a bound outside the range they name', () => {
+  assert.equal(fmtBound(31104, 'min'), '31104');
+  assert.equal(fmtBound(46656, 'max'), '46656');
+  assert.equal(fmtBound(2e6, 'max'), '2e6');
+  assert.equal(fmtBound(0.5, 'min'), '0.5');
+  for (const [v, side] of [[0.123456789, 'min'], [0.123456789, 'max'], [1234567.891, 'min'], [1234567.891, 'max'],
+    [-0.00123456789, 'min'], [-0.00123456789, 'max']]) {
+    const shown = Number(fmtBound(v, side));
+    assert.ok(side === 'min' ? shown >= v : shown <= v, `${v} (${side}) shown as ${shown}`);
+    assert.ok(Math.abs(shown - v) <= 1e-5 * Math.abs(v), `${v} (${side}) shown as ${shown}`);
+  }
+});
+
+test('compact curves decode to the float32 values and bands to the curve minus and plus the half-width', () => {
+  // The server's encoding (crates/explore/src/encoding.rs): 1, 2, 3, 5 predicted as 0, 1, 3, 4.
+  assert.deepEqual(fromF32Base64('AAAAAAAAAACAgAAgP38AAA=='), [1, 2, 3, 5]);
+  assert.deepEqual(fromF32Base64(''), []);
+  // An encoder written from the docs, for the rest.
+  const dv = new DataView(new ArrayBuffer(4));
+  const bits = (x) => { dv.setFloat32(0, x, true); return dv.getUint32(0, true); };
+  const b64 = (xs) => {
+    const v = xs.map(Math.fround);
+    const n = v.length;
+    const planes = Buffer.alloc(4 * n);
+    v.forEach((x, i) => {
+      const p = i === 0 ? 0 : i === 1 ? v[0] : Math.fround(2 * v[i - 1] - v[i - 2]);
+      const w = (bits(x) ^ (Number.isFinite(p) ? bits(p) : 0)) >>> 0;
+      for (let j = 0; j < 4; j++) planes[j * n + i] = (w >>> (8 * j)) & 255;
+    });
+    return planes.toString('base64');
+  };
+  const xs = [1, -2.5, 0.1, 3.4e38, 3.4e38, -3.4e38, 1e-30, 0];
+  assert.deepEqual(fromF32Base64(b64(xs)), xs.map(Math.fround));
+  const answer = decodeAnswer({
+    encoding: 'f32', t: [0, 1], indices: [],
+    channels: { x: b64([1, 2]), e: b64([0.5, 0.25]) }, bands: { x: { half: b64([0.5, 0.25]) } },
+  });
+  assert.deepEqual(answer.channels, { x: [1, 2], e: [0.5, 0.25] });
+  assert.deepEqual(answer.bands, { x: { lo: [0.5, 1.75], hi: [1.5, 2.25] } });
+  const json = { encoding: 'json', channels: { x: [1] }, bands: {} };
+  assert.equal(decodeAnswer(json), json);
+});
+
+test('a solve says inside or outside for every banded channel, plotted or not', () => {
+  const pred = { coverage: 0.9, bands: {} };
+  const solve = { coverage: 0.9, inside: { x: { inside: false, fraction_inside: 0.75 } } };
+  assert.equal(channelInside(pred, solve, 'x'), 0.75);
+  assert.equal(channelInside(pred, solve, 'y'), null);
 });
 
 test('a solve without a prediction of its design says so, with the solver\'s verdict', () => {

@@ -153,7 +153,7 @@ test('a model without sampled parameters still makes requests', () => {
   assert.deepEqual(st.design, {});
   st.excitation = { kind: 'test', sample_id: 900 };
   const t = S.startPredict(st);
-  assert.deepEqual(t.body, { design: {}, excitation: { kind: 'test', sample_id: 900 } });
+  assert.deepEqual(t.body, { design: {}, excitation: { kind: 'test', sample_id: 900 }, encoding: 'f32' });
   S.predictAnswered(st, t, answerTo(t.body));
   assert.equal(S.requestPin(st), 'pinned');
   assert.deepEqual(S.startSolve(st).body.design, {});
@@ -171,4 +171,29 @@ test('a request asks for the bands of the plotted channels only, at the chosen l
   assert.equal(body.coverage, 0.9);
   assert.deepEqual(body.bands, ['z_c']);
   assert.notEqual(body.design, st.design, 'a copy: later changes do not reach a request sent');
+});
+
+test('a dragged slider has one prediction in flight and the latest position is predicted next', () => {
+  const st = loaded();
+  assert.equal(S.dragWantsPrediction(st), true, 'nothing in flight: predict at once');
+  const first = S.startPredict(st);
+  assert.equal(first.body.encoding, 'f32', 'predictions ask for the compact curves');
+  S.setParam(st, 'k', 1.1e6);
+  assert.equal(S.dragWantsPrediction(st), false, 'one in flight: wait for it');
+  S.setParam(st, 'k', 1.2e6);
+  assert.equal(S.dragWantsPrediction(st), false);
+  assert.equal(first.abort.signal.aborted, false, 'a drag never aborts the prediction in flight');
+  assert.equal(S.takeDragPending(st), false, 'still in flight: nothing to send yet');
+  S.predictAnswered(st, first, answerTo(first.body));
+  assert.equal(S.takeDragPending(st), true, 'answered: the latest position goes next');
+  assert.equal(S.takeDragPending(st), false, 'once');
+  const next = S.startPredict(st);
+  assert.equal(next.body.design.k, 1.2e6, 'the latest position, not the ones passed');
+  // Releasing the slider predicts the final position: a waiting drag position is dropped.
+  S.setParam(st, 'k', 1.3e6);
+  assert.equal(S.dragWantsPrediction(st), false);
+  const released = S.startPredict(st);
+  assert.equal(next.abort.signal.aborted, true);
+  S.predictAnswered(st, released, answerTo(released.body));
+  assert.equal(S.takeDragPending(st), false);
 });

@@ -13,7 +13,7 @@ use super::difficulty::{reference_levels, relative_residual};
 use super::scored::{band_channels, Named, Run, ScoredSample, Scorer};
 use super::{
     Calibration, ChannelBand, DesignIdentity, HeadInput, ModelIdentity, Normaliser, QuantityScores,
-    CALIBRATION_FORMAT, REPORTED_LEVELS, RESIDUAL_FEATURE,
+    ValidationError, CALIBRATION_FORMAT, REPORTED_LEVELS, RESIDUAL_FEATURE,
 };
 use crate::eval::{EvalData, ScoredData};
 use crate::indices_eval::{IndexInputs, StoredColumns};
@@ -88,13 +88,23 @@ pub const SMOOTHING_FRACTION: f64 = 0.01;
 /// time point gets a band narrower than this for having been lucky on the validation split.
 pub const SCALE_FLOOR_OF_MEDIAN: f64 = 0.1;
 
-/// The directory of one model's calibration in the stage's output.
-pub fn model_subdir(algorithm: i64) -> String {
-    format!("algorithm-{algorithm}")
+/// The directory of one model's calibration in the stage's output: its label
+/// ([`ModelIdentity::label`]), with the first 8 digits of its hash when an earlier model of
+/// the same run has that label (`taken`).
+pub fn model_subdir(identity: &ModelIdentity, taken: &[String]) -> String {
+    let label = identity.label();
+    if taken.contains(&label) {
+        format!(
+            "{label}-{}",
+            &identity.blake3[..identity.blake3.len().min(8)]
+        )
+    } else {
+        label
+    }
 }
 
 /// Calibrates every model of `model_dirs` on `data`'s validation and calibration splits and
-/// writes `<out>/algorithm-<A>/calibration.json` for each (and returns them).
+/// writes `<out>/<label>/calibration.json` for each ([`model_subdir`]; and returns them).
 pub fn calibrate(
     data: &EvalData<'_>,
     model_dirs: &[PathBuf],
@@ -109,21 +119,19 @@ pub fn calibrate(
     let inputs = IndexInputs::of(system, &layout)?;
     let transform = Transform::for_device(device);
     let mut done = Vec::new();
-    let mut seen = BTreeMap::new();
+    let mut seen: BTreeMap<String, PathBuf> = BTreeMap::new();
+    let mut subdirs: Vec<String> = Vec::new();
     for (m, dir) in model_dirs.iter().enumerate() {
         let (model, meta) = load_model(dir, transform, device)?;
         check_model(dir, &meta, data)?;
         // The model's own channels (a model that outputs rates is calibrated on them).
         let model_inputs = IndexInputs::of(system, &meta.layout)?;
         let identity = ModelIdentity::of(dir)?;
-        if let Some(other) = seen.insert(identity.algorithm, dir.clone()) {
+        if let Some(other) = seen.insert(identity.blake3.clone(), dir.clone()) {
             return Err(LearnError::OutOfRange {
                 field: "models".into(),
                 value: format!("{} and {}", other.display(), dir.display()),
-                allowed: format!(
-                    "one model per algorithm (both are algorithm {})",
-                    identity.algorithm
-                ),
+                allowed: "each model once (the two hold the same model)".into(),
             }
             .into());
         }
@@ -160,7 +168,9 @@ pub fn calibrate(
         };
         let calibration =
             ctx.calibration(identity, design, &meta.layout, &model_inputs, &fit, &cal)?;
-        let sub = out.join(model_subdir(calibration.model.algorithm));
+        let name = model_subdir(&calibration.model, &subdirs);
+        let sub = out.join(&name);
+        subdirs.push(name);
         std::fs::create_dir_all(&sub).map_err(|e| LearnError::Io {
             path: sub.clone(),
             source: e,
@@ -169,8 +179,8 @@ pub fn calibrate(
         progress(
             m + 1,
             &format!(
-                "algorithm {}: {} calibration samples, normaliser {}",
-                calibration.model.algorithm,
+                "{}: {} calibration samples, normaliser {}",
+                calibration.model.label(),
                 calibration.n,
                 calibration.normaliser.as_str()
             ),
@@ -211,14 +221,23 @@ struct Fitting<'a> {
     params: &'a CalibrateParams,
 }
 
+/// Column `j` of per-sample rows.
+fn column(rows: &[Vec<f64>], j: usize) -> Vec<f64> {
+    rows.iter().map(|r| r[j]).collect()
+}
+
 /// Per-sample numbers of a split: index errors, channel band errors, difficulty.
 #[derive(Default)]
 struct SplitErrors {
     params: Vec<Vec<f64>>,
     /// `|y - f|` per sample and index.
     index: Vec<Vec<f64>>,
+    /// `|y - f| / |y|` per sample and index (NaN where `y = 0`).
+    index_rel: Vec<Vec<f64>>,
     /// `max_t |y - f| / scale(t)` per sample and channel.
     channel: Vec<Vec<f64>>,
+    /// Per sample and channel: `||y - f|| / ||y||` and the mean of `|y - f|` over the points.
+    channel_rel: Vec<Vec<[f64; 2]>>,
     /// `rms_q` per sample, when the model has equations.
     rms: Vec<Vec<f64>>,
 }
@@ -226,21 +245,42 @@ struct SplitErrors {
 impl SplitErrors {
     fn add(&mut self, s: &ScoredSample, scales: &[Vec<f64>]) -> Result<()> {
         self.params.push(s.params.clone());
-        self.index.push(
-            s.predicted_indices
-                .iter()
-                .zip(&s.exact_indices)
-                .map(|(f, y)| (y - f).abs())
+        let pairs = || s.predicted_indices.iter().zip(&s.exact_indices);
+        self.index
+            .push(pairs().map(|(f, y)| (y - f).abs()).collect());
+        self.index_rel.push(
+            pairs()
+                .map(|(f, y)| {
+                    if *y == 0.0 {
+                        f64::NAN
+                    } else {
+                        ((y - f) / y).abs()
+                    }
+                })
                 .collect(),
         );
         let mut channel = Vec::with_capacity(scales.len());
+        let mut channel_rel = Vec::with_capacity(scales.len());
         for ((p, x), sc) in s.predicted.iter().zip(&s.exact).zip(scales) {
             channel.push(sup_score(p, x, sc).map_err(|e| LearnError::Dataset {
                 path: PathBuf::from("calibrate"),
                 message: format!("sample {}: {e}", s.id),
             })?);
+            let (mut err2, mut norm2, mut abs) = (0.0, 0.0, 0.0);
+            for (p, x) in p.iter().zip(x) {
+                err2 += (x - p) * (x - p);
+                norm2 += x * x;
+                abs += (x - p).abs();
+            }
+            let rel = if norm2 > 0.0 {
+                (err2 / norm2).sqrt()
+            } else {
+                f64::NAN
+            };
+            channel_rel.push([rel, abs / p.len().max(1) as f64]);
         }
         self.channel.push(channel);
+        self.channel_rel.push(channel_rel);
         if let Some(r) = &s.residual_rms {
             self.rms.push(r.clone());
         }
@@ -249,6 +289,32 @@ impl SplitErrors {
 
     fn len(&self) -> usize {
         self.params.len()
+    }
+
+    /// Index `j`'s error over the split.
+    fn index_validation(&self, j: usize) -> ValidationError {
+        validation_error(
+            self.len(),
+            &column(&self.index_rel, j),
+            &column(&self.index, j),
+        )
+    }
+
+    /// Channel `c`'s error over the split.
+    fn channel_validation(&self, c: usize) -> ValidationError {
+        let of = |k: usize| -> Vec<f64> { self.channel_rel.iter().map(|r| r[c][k]).collect() };
+        validation_error(self.len(), &of(0), &of(1))
+    }
+}
+
+/// The summary of per-sample relative (NaN: undefined, left out) and absolute errors.
+fn validation_error(n: usize, relative: &[f64], abs: &[f64]) -> ValidationError {
+    let defined: Vec<f64> = relative.iter().copied().filter(|v| v.is_finite()).collect();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    ValidationError {
+        n,
+        mean_relative_pct: (!defined.is_empty()).then(|| 100.0 * mean(&defined)),
+        mean_abs: mean(abs),
     }
 }
 
@@ -300,12 +366,6 @@ impl Fitting<'_> {
             indices: Vec::new(),
             channels: Vec::new(),
         };
-        if cal.0.is_empty() {
-            calibration.no_intervals = Some(
-                "the dataset has no calibration split (sample-params.n_calibration = 0): answers carry no interval and no coverage is claimed".into(),
-            );
-            return Ok(calibration);
-        }
         if fit.0.is_empty() {
             return Err(LearnError::Dataset {
                 path: PathBuf::from("calibrate"),
@@ -324,6 +384,29 @@ impl Fitting<'_> {
         // Pass 2: the validation errors against the fixed scales.
         let mut val = SplitErrors::default();
         self.each(fit, &mut |s| val.add(s, &scales))?;
+        if cal.0.is_empty() {
+            calibration.no_intervals = Some(
+                "the dataset has no calibration split (sample-params.n_calibration = 0): answers carry no interval and no coverage is claimed".into(),
+            );
+            let unscored = |name: &Named, validation| QuantityScores {
+                name: name.name.clone(),
+                unit: name.unit.clone(),
+                scores: BTreeMap::new(),
+                head: None,
+                quantiles: BTreeMap::new(),
+                validation: Some(validation),
+            };
+            calibration.indices = (index_names.iter().enumerate())
+                .map(|(j, name)| unscored(name, val.index_validation(j)))
+                .collect();
+            calibration.channels = (channels.iter().enumerate())
+                .map(|(c, name)| ChannelBand {
+                    quantity: unscored(name, val.channel_validation(c)),
+                    scale: scales[c].iter().map(|&v| v as f32).collect(),
+                })
+                .collect();
+            return Ok(calibration);
+        }
         let reference = (!val.rms.is_empty()).then(|| reference_levels(&val.rms));
         calibration.residual_reference = reference.clone();
         let g_of = |rms: &[Vec<f64>], k: usize| -> Option<f64> {
@@ -339,27 +422,34 @@ impl Fitting<'_> {
             .map(|k| calibration.difficulty_of(&calib.params[k], g_of(&calib.rms, k)))
             .collect();
         let feats: Vec<Vec<f64>> = val_difficulty.iter().map(|d| d.features.clone()).collect();
-        let quantity = |name: &Named, val_err: Vec<f64>, errors: Vec<f64>| {
+        let quantity = |name: &Named, val_err: Vec<f64>, errors: Vec<f64>, summary| {
             let errors = QuantityErrors {
                 validation: val_err,
                 calibration: errors,
             };
-            self.quantity_scores(&calibration, name, &feats, &cal_difficulty, errors)
+            let mut q =
+                self.quantity_scores(&calibration, name, &feats, &cal_difficulty, errors)?;
+            q.validation = Some(summary);
+            Ok::<_, crate::Error>(q)
         };
         let mut indices = Vec::with_capacity(index_names.len());
-        let column =
-            |rows: &[Vec<f64>], j: usize| -> Vec<f64> { rows.iter().map(|r| r[j]).collect() };
         for (j, name) in index_names.iter().enumerate() {
             indices.push(quantity(
                 name,
                 column(&val.index, j),
                 column(&calib.index, j),
+                val.index_validation(j),
             )?);
         }
         let mut bands = Vec::with_capacity(channels.len());
         for (c, name) in channels.iter().enumerate() {
             bands.push(ChannelBand {
-                quantity: quantity(name, column(&val.channel, c), column(&calib.channel, c))?,
+                quantity: quantity(
+                    name,
+                    column(&val.channel, c),
+                    column(&calib.channel, c),
+                    val.channel_validation(c),
+                )?,
                 scale: scales[c].iter().map(|&v| v as f32).collect(),
             });
         }
@@ -438,6 +528,7 @@ impl Fitting<'_> {
             scores: BTreeMap::new(),
             head,
             quantiles: BTreeMap::new(),
+            validation: None,
         };
         for normaliser in Normaliser::ALL {
             let sigmas: Result<Vec<f64>> = cal_difficulty

@@ -101,9 +101,53 @@ pub struct ModelIdentity {
     pub algorithm: i64,
     /// The system's name.
     pub system: String,
+    /// What the model is, in a word ([`model_label`]): `algorithm-5`, `algorithm-5-rates`, ...
+    /// (absent in files written before labels: the algorithm's).
+    #[serde(default)]
+    pub label: String,
+}
+
+/// A model's label: `algorithm-<A>`, then `-rates` when it outputs rates directly, `-forces`
+/// when trained with a force term, `-beams` with a beam term (what tells the variants of one
+/// algorithm apart in file names, tables and a surrogate's routes; not unique by itself).
+pub fn model_label(meta: &pino_learn::checkpoint::ModelMeta) -> String {
+    let mut label = format!("algorithm-{}", meta.train.algorithm.id());
+    if !meta.layout.rate_outputs().is_empty() {
+        label.push_str("-rates");
+    }
+    if meta.train.force_weight() > 0.0 {
+        label.push_str("-forces");
+    }
+    if meta.train.beam_weight > 0.0 {
+        label.push_str("-beams");
+    }
+    label
+}
+
+/// How wrong a model was on one quantity over the validation split: what a surrogate chooses
+/// the model of each quantity by ([`crate::surrogate`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ValidationError {
+    /// Validation samples.
+    pub n: usize,
+    /// Mean relative error (%): an index's `|y - f| / |y|` over the samples with `y != 0`; a
+    /// channel's relative L2 error `||y - f|| / ||y||` over its interior points (`None` when no
+    /// sample defines it: every exact value zero).
+    pub mean_relative_pct: Option<f64>,
+    /// Mean absolute error, in the quantity's unit (a channel: over its points too).
+    pub mean_abs: f64,
 }
 
 impl ModelIdentity {
+    /// Its label, the algorithm's for a file written before labels.
+    pub fn label(&self) -> String {
+        if self.label.is_empty() {
+            format!("algorithm-{}", self.algorithm)
+        } else {
+            self.label.clone()
+        }
+    }
+
     /// The identity of the model in `dir` (its `model.json` read for the algorithm and system).
     pub fn of(dir: &Path) -> Result<Self> {
         let mut h = blake3::Hasher::new();
@@ -132,6 +176,7 @@ impl ModelIdentity {
             system: meta
                 .compile_system(&dir.join(pino_learn::checkpoint::MODEL_META))?
                 .name,
+            label: model_label(&meta),
         })
     }
 }
@@ -165,6 +210,10 @@ pub struct QuantityScores {
     /// For readers of the file: the quantile of the chosen normaliser's scores at each
     /// reported level (`"0.9": q`), where the calibration supports it.
     pub quantiles: BTreeMap<String, f64>,
+    /// The model's error on the validation split (absent in files written before it was
+    /// recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub validation: Option<ValidationError>,
 }
 
 /// One channel's band: its scores and its time scale.
@@ -257,7 +306,7 @@ impl Calibration {
 
     /// The calibration file for `model` under `path` (a file, or a directory searched one level
     /// deep for the `calibration.json` of that model).
-    fn find(path: &Path, model: &ModelIdentity) -> Result<std::path::PathBuf> {
+    pub fn find(path: &Path, model: &ModelIdentity) -> Result<std::path::PathBuf> {
         if !path.is_dir() {
             if !path.exists() {
                 return Err(format_err(
@@ -383,6 +432,7 @@ struct IdentityOnly {
     model: ModelIdentity,
 }
 
-fn short(hash: &str) -> &str {
+/// The first 12 digits of a hash, for messages.
+pub(crate) fn short(hash: &str) -> &str {
     &hash[..hash.len().min(12)]
 }

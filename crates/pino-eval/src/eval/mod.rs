@@ -123,6 +123,9 @@ pub struct EvalOptions {
     pub calibration: Option<PathBuf>,
     /// The split asked for (absent: [`scored_split`]'s choice).
     pub split: Option<ScoredSplit>,
+    /// The `surrogate` stage's output, when there is one: its per-quantity errors and coverage
+    /// on the scored split are reported ([`crate::surrogate::report`]).
+    pub surrogate: Option<PathBuf>,
 }
 
 /// The dataset an evaluation scores: its records, `params.parquet` and the simulation shards.
@@ -482,6 +485,11 @@ pub fn evaluate(
     write_indices(out, split, &index_inputs, &layout, &index_sets)?;
     if opts.calibration.is_some() {
         coverage.write(out)?;
+    }
+    if let Some(dir) = &opts.surrogate {
+        let rows =
+            crate::surrogate::report::surrogate_rows(data, dir, split, opts.batch_size, device)?;
+        crate::surrogate::report::write_surrogate(out, split, &rows)?;
     }
     let evaluation = Evaluation {
         scored_on,

@@ -590,6 +590,14 @@ impl Predictor {
         coverage: Option<f64>,
     ) -> Result<Table> {
         let mut table = self.histories_with(sets, profiles, run, batch, coverage)?;
+        self.flag_rows(&mut table, sets)?;
+        Ok(table)
+    }
+
+    /// Appends the column [`OUTSIDE_COLUMN`] to the histories `table` of `sets` (the same
+    /// number of rows per design): on each row, the [`outside_flag`] of its design, null inside
+    /// the training ranges.
+    pub fn flag_rows(&self, table: &mut Table, sets: &[Vec<f64>]) -> Result<()> {
         let per_row = (table.num_rows() / sets.len().max(1)).max(1);
         let rows = self
             .outside_training(sets)?
@@ -597,7 +605,7 @@ impl Predictor {
             .flat_map(|o| std::iter::repeat_n(outside_flag(o), per_row))
             .collect::<Vec<_>>();
         table.push(OUTSIDE_COLUMN, Column::null_if_empty(rows))?;
-        Ok(table)
+        Ok(())
     }
 
     /// The settings of the indices of a prediction: the `indices` stage's defaults with no

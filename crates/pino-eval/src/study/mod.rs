@@ -19,6 +19,7 @@ pub mod output;
 pub mod sensitivity;
 pub mod spec;
 
+pub use evaluate::Progress;
 pub use spec::{Study, StudyKind, StudyParams};
 
 /// The `source` values of a study's tables: which side answered.
@@ -35,6 +36,7 @@ pub mod source {
 
 use crate::indices_eval::IndexInputs;
 use crate::predict::Predictor;
+use crate::surrogate::Surrogate;
 use crate::Result;
 use candle_core::Device;
 use mbd_system::System;
@@ -93,17 +95,19 @@ pub fn check(system: &System, params: &StudyParams) -> Result<Study> {
     .map_err(spec_error)
 }
 
-/// Runs the study of `params` with the model of `params.algorithm` among `models` (with its
-/// calibration from `calibration` when given) and writes its files into `out`; returns the
-/// one-line summary.
-pub fn run(
+/// The surrogate a study reads: the `surrogate` stage's output (`surrogate`), or else the model
+/// of `params.algorithm` among `models` (with its calibration from `calibration` when given)
+/// alone.
+pub fn load_surrogate(
+    surrogate: Option<&Path>,
     models: &[PathBuf],
     calibration: Option<&Path>,
     params: &StudyParams,
-    out: &Path,
     device: &Device,
-) -> Result<String> {
-    params.validate()?;
+) -> Result<Surrogate> {
+    if let Some(dir) = surrogate {
+        return Surrogate::load(dir, device);
+    }
     let mut predictor = None;
     for dir in models {
         let p = Predictor::load(dir, device)?;
@@ -120,7 +124,26 @@ pub fn run(
     if let Some(c) = calibration {
         predictor.load_calibration(c)?;
     }
-    let parameters = model_parameters(&predictor);
+    Ok(Surrogate::of_model(predictor))
+}
+
+/// Runs the study of `params` through `surrogate` and writes its files into `out`; returns the
+/// one-line summary.
+pub fn run(surrogate: &Surrogate, params: &StudyParams, out: &Path) -> Result<String> {
+    run_with(surrogate, params, out, None)
+}
+
+/// [`run`] counting its designs in `progress`; once that is cancelled it stops at its next
+/// slice of designs or solve with [`crate::Error::Cancelled`].
+pub fn run_with(
+    surrogate: &Surrogate,
+    params: &StudyParams,
+    out: &Path,
+    progress: Option<&Progress>,
+) -> Result<String> {
+    params.validate()?;
+    let predictor = surrogate.primary();
+    let parameters = model_parameters(predictor);
     let names: Vec<String> = predictor
         .index_inputs()
         .columns()
@@ -128,11 +151,15 @@ pub fn run(
         .map(|c| c.name.clone())
         .collect();
     let study = Study::parse(&params.study, &parameters, &names).map_err(spec_error)?;
-    let ev = evaluate::Evaluator::new(&predictor, params)?;
+    let ev = evaluate::Evaluator::new(surrogate, params)?;
+    let ev = match progress {
+        Some(p) => ev.with_progress(p),
+        None => ev,
+    };
     match &study.kind {
         StudyKind::MonteCarlo { n, limits } => {
             let mc = monte_carlo::run(&ev, &study, *n, limits, &parameters)?;
-            output::write_monte_carlo(out, &predictor, &study, &mc)?;
+            output::write_monte_carlo(out, predictor, &study, &mc)?;
             let firsts: Vec<String> = mc
                 .summaries
                 .iter()
@@ -154,7 +181,7 @@ pub fn run(
         }
         StudyKind::Sensitivity { n } => {
             let s = sensitivity::run(&ev, &study, *n, &parameters)?;
-            output::write_sensitivity(out, &predictor, &study, &s)?;
+            output::write_sensitivity(out, predictor, &study, &s)?;
             let ranked = sensitivity::rankings(&s);
             let differ: Vec<&str> = ranked
                 .iter()
@@ -180,7 +207,7 @@ pub fn run(
         }
         StudyKind::Optimise(o) => {
             let r = optimise::run(&ev, &study, o, &parameters)?;
-            output::write_optimise(out, &predictor, &study, o, &r)?;
+            output::write_optimise(out, predictor, &study, o, &r)?;
             let best = &r.history[r.best];
             let solver = r.checked.iter().find(|c| c.role == optimise::Role::Optimum);
             Ok(format!(

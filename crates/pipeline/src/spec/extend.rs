@@ -11,7 +11,7 @@
 //! The extending stage is an ordinary stage from then on: its identity is its resolved
 //! command and parameters, so two stages that resolve alike differ only in name.
 
-use super::{draft_stage, Draft, RawStage, SourceFile, UniqueMap};
+use super::{draft_stage, Draft, RawStage, SourceFile, UniqueMap, Upstreams};
 use crate::Result;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -68,7 +68,12 @@ pub(super) fn draft_extending(
         }
     };
     params.extend(own_params);
-    let mut inputs = base.stage.inputs.clone();
+    let mut inputs: BTreeMap<String, Upstreams> = base
+        .stage
+        .inputs
+        .iter()
+        .map(|(k, v)| (k.clone(), Upstreams::Many(v.clone())))
+        .collect();
     inputs.extend(rs.inputs.map(|m| m.0).unwrap_or_default());
     let merged = RawStage {
         extends: None,
@@ -128,7 +133,7 @@ stages:
         assert_eq!(t.cmd, ["t", "sys.yaml"]);
         assert!(t.check);
         assert_eq!(t.shards, 2);
-        assert_eq!(t.inputs["dataset"], "data");
+        assert_eq!(t.inputs["dataset"], ["data"]);
         assert_eq!(t.extends.as_deref(), Some("train"));
         // The parameter it sets takes the key out of the inherited matrix: one unit.
         let units: Vec<&str> = t.expansions.iter().map(|e| e.name.as_str()).collect();
