@@ -1,8 +1,9 @@
 """pino_mbd: pino-mbd in Python, in-process.
 
 Describe a multi-body system (``System.load``), run the exact solver on a table of designs
-(``System.simulate``), predict with a trained neural-operator surrogate and its calibrated
-intervals (``Model.load``, ``Model.predict``, ``Model.indices``), drive the whole pipeline
+(``System.simulate``), predict with a trained neural-operator model and its calibrated
+intervals (``Model.load``, ``Model.predict``, ``Model.indices``) or with the system's surrogate,
+each index from its most accurate model (``Surrogate.load``, the same calls), drive the whole pipeline
 (``Pipeline``) and run a design study (``study``). The work is done by the Rust libraries of
 pino-mbd (the same code as the command-line stages, so the same numbers, bit for bit) with the
 GIL released; tables go in as polars or pandas DataFrames, pyarrow tables or dicts of arrays,
@@ -17,8 +18,8 @@ non-finite value, a wrong shape, a model of another system) raises ``PinoError``
 ``ValueError`` naming the argument and field at fault (``designs.k_s[1]``, ``values.k_q``,
 ``excitation``).
 
-An excitation (the ``excitation`` argument of ``System.simulate``, ``Model.predict`` and
-``Model.indices``) is one of: a seed (an ``int`` >= 0, short for ``{"seed": N}``);
+An excitation (the ``excitation`` argument of ``System.simulate`` and of ``predict`` and
+``indices`` of ``Model`` and ``Surrogate``) is one of: a seed (an ``int`` >= 0, short for ``{"seed": N}``);
 ``{"seed": N, "dx": m, "length": m}``, profiles generated as the ``irregularity`` stage
 generates them (``dx`` and ``length`` optional: a model's default to its dataset's, the
 solver's to 0.1 m and a length that covers the run); or a profile table (``sample_id``, ``x``
@@ -41,7 +42,7 @@ import polars as pl
 from . import _pino_mbd as _native
 from ._pino_mbd import PinoError, __version__
 
-__all__ = ["PinoError", "System", "Model", "Pipeline", "study", "__version__"]
+__all__ = ["PinoError", "System", "Model", "Surrogate", "Pipeline", "study", "__version__"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 # A seed, {"seed": N, "dx": m, "length": m}, a profile table or its Parquet file (module doc).
@@ -221,50 +222,21 @@ class System:
         return repr(self._native)
 
 
-class Model:
-    """A trained model (a ``train`` output) with its calibration when given."""
+class _Answers:
+    """What a ``Model`` and a ``Surrogate`` answer alike: predictions and indices of designs."""
 
     def __init__(self, native: Any) -> None:
         self._native = native
 
-    @classmethod
-    def load(cls, dir: PathLike, calibration: PathLike | None = None) -> Model:
-        """Loads ``model.safetensors`` and ``model.json`` from ``dir``; ``calibration``: the
-        ``calibrate`` stage's output directory (the model's own file is found in it) or a
-        ``calibration.json``. A calibration of another model is refused (``PinoError``)."""
-        return cls(_native.Model.load(os.fspath(dir), None if calibration is None else os.fspath(calibration)))
-
-    @property
-    def dir(self) -> str:
-        """The model's directory."""
-        return os.fspath(self._native.dir)
-
     @property
     def system_name(self) -> str:
-        """The name of the model's system description."""
+        """The name of the system description it was trained on."""
         return self._native.system_name
 
     @property
     def design_parameters(self) -> list[str]:
-        """The design parameters the model reads, in value order."""
+        """The design parameters it reads, in value order."""
         return self._native.design_parameters
-
-    @property
-    def algorithm(self) -> int:
-        """The training algorithm (1-5, docs/learning.md)."""
-        return self._native.algorithm
-
-    @property
-    def calibrated(self) -> bool:
-        """Whether a calibration was loaded."""
-        return self._native.calibration is not None
-
-    def export_onnx(self, path: PathLike, spectral: str | None = None, levels: list[float] | None = None) -> str:
-        """Writes the model, its calibrated intervals and its training-range flag as one ONNX
-        file (docs/export.md), atomically; ``spectral``: ``"matmul"`` (opset 13, default) or
-        ``"dft"`` (opset 17); ``levels``: the interval levels (default: those the calibration
-        supports). Returns what was written. A refusal raises ``PinoError``."""
-        return self._native._export_onnx(os.fspath(path), spectral, levels)
 
     def predict(
         self,
@@ -278,14 +250,15 @@ class Model:
         strict: bool = False,
     ) -> pl.DataFrame:
         """Time histories of every design (the table of ``predict --out``): ``set`` (the
-        design's row), ``t`` (s), the model's outputs (displacements in m or rad, forces in N),
+        design's row), ``t`` (s), the predicted outputs (displacements in m or rad, forces in N),
         the rigid DOFs' velocities and accelerations, the excitations (m), with a calibration
         a band ``<channel>_lo``/``_hi`` at ``coverage`` (default 0.9), and
         ``outside_training_range`` (``name=value`` of each parameter outside the training
-        ranges, null inside; a warning, or ``PinoError`` with ``strict=True``).
+        ranges, null inside; a warning, or ``PinoError`` with ``strict=True``). A surrogate
+        answers each channel and its band from the member routed to it.
 
         ``excitation``: a seed (``int``: the profiles generated as ``irregularity`` does with
-        the model's dataset's ``dx`` and ``length``), ``{"seed": N, "dx": m, "length": m}``
+        the training dataset's ``dx`` and ``length``), ``{"seed": N, "dx": m, "length": m}``
         (``dx`` and ``length`` default to the dataset's) or a profile table (``sample_id``,
         ``x``, ``eta`` in m; a DataFrame or a Parquet file's path). Each row runs on the
         stream (generated) or sample (table) of its ``sample_id`` when ``designs`` has that
@@ -315,8 +288,9 @@ class Model:
         ``outside_training_range`` (null inside); with a calibration also ``coverage``,
         ``extrapolated`` (Boolean), ``<index>_lo``/``_hi`` and the three-valued verdicts
         ``<index>_verdict``, ``verdict`` (pass / uncertain / fail). The numbers are those of
-        ``predict`` for the same designs and excitation, bit for bit. Arguments as
-        ``predict``."""
+        ``predict`` for the same designs and excitation, bit for bit (a surrogate: each index,
+        its interval and verdict those of the member routed to it; ``pass``, ``failed`` and
+        ``verdict`` judged on the assembled indices). Arguments as ``predict``."""
         df = _frame(
             self._native._indices(_designs(designs), _excitation(excitation), _id(excitation_id), x0, coverage, int(batch), bool(strict))
         )
@@ -325,6 +299,78 @@ class Model:
 
     def __repr__(self) -> str:
         return repr(self._native)
+
+
+class Model(_Answers):
+    """A trained model (a ``train`` output) with its calibration when given."""
+
+    @classmethod
+    def load(cls, dir: PathLike, calibration: PathLike | None = None) -> Model:
+        """Loads ``model.safetensors`` and ``model.json`` from ``dir``; ``calibration``: the
+        ``calibrate`` stage's output directory (the model's own file is found in it) or a
+        ``calibration.json``. A calibration of another model is refused (``PinoError``)."""
+        return cls(_native.Model.load(os.fspath(dir), None if calibration is None else os.fspath(calibration)))
+
+    @property
+    def dir(self) -> str:
+        """The model's directory."""
+        return os.fspath(self._native.dir)
+
+    @property
+    def algorithm(self) -> int:
+        """The training algorithm (1-5, docs/learning.md)."""
+        return self._native.algorithm
+
+    @property
+    def calibrated(self) -> bool:
+        """Whether a calibration was loaded."""
+        return self._native.calibration is not None
+
+    def export_onnx(self, path: PathLike, spectral: str | None = None, levels: list[float] | None = None) -> str:
+        """Writes the model, its calibrated intervals and its training-range flag as one ONNX
+        file (docs/export.md), atomically; ``spectral``: ``"matmul"`` (opset 13, default) or
+        ``"dft"`` (opset 17); ``levels``: the interval levels (default: those the calibration
+        supports). Returns what was written. A refusal raises ``PinoError``."""
+        return self._native._export_onnx(os.fspath(path), spectral, levels)
+
+
+class Surrogate(_Answers):
+    """The ``surrogate`` stage's output: several trained models, each index and channel
+    answered by the one most accurate on it over the validation split, with its calibrated
+    interval or band (docs/uncertainty.md); ``predict`` and ``indices`` as ``Model``'s."""
+
+    @classmethod
+    def load(cls, dir: PathLike) -> Surrogate:
+        """Loads the surrogate in ``dir`` (``surrogate.json`` and ``members/``: ``pipeline
+        show surrogate``). A member whose files changed since the surrogate was built, or a
+        manifest of another system, raises ``PinoError`` naming the file and the member model,
+        as ``predict --surrogate`` does."""
+        return cls(_native.Surrogate.load(os.fspath(dir)))
+
+    @property
+    def dir(self) -> str:
+        """The surrogate's directory."""
+        return os.fspath(self._native.dir)
+
+    @property
+    def members(self) -> list[str]:
+        """The member models' names (``algorithm-5``, ``algorithm-5-rates``, ...)."""
+        return self._native.members
+
+    @property
+    def index_routes(self) -> dict[str, str]:
+        """Each index (the description's order) and the member answering it."""
+        return dict(self._native.index_routes)
+
+    @property
+    def channel_routes(self) -> dict[str, str]:
+        """Each predicted channel (column order) and the member answering it."""
+        return dict(self._native.channel_routes)
+
+    @property
+    def calibrated(self) -> bool:
+        """Whether every member answering a quantity has calibrated intervals."""
+        return self._native.has_intervals
 
 
 def _id(i: Any) -> int | None:

@@ -69,27 +69,15 @@ class System:
         path); ``duration`` and ``dt`` in s, ``x0`` in m, the fractions of the duration.
         Returns (simulation, failures)."""
 
-class Model:
-    """A trained model with its optional calibration."""
+class _Answers:
+    """What a model and a surrogate answer alike."""
 
-    @staticmethod
-    def load(dir: str | PathLike[str], calibration: Optional[str | PathLike[str]] = None) -> Model:
-        """Loads a ``train`` output and, when given, its calibration."""
-    @property
-    def dir(self) -> str:
-        """The model's directory."""
-    @property
-    def calibration(self) -> Optional[str]:
-        """The calibration given at load."""
     @property
     def system_name(self) -> str:
-        """The name of the model's system."""
+        """The name of the system."""
     @property
     def design_parameters(self) -> list[str]:
         """The design parameters, in value order."""
-    @property
-    def algorithm(self) -> int:
-        """The training algorithm (1-5)."""
     def _predict(
         self,
         designs: object,
@@ -114,8 +102,46 @@ class Model:
     ) -> ArrowTable:
         """Indices with intervals and verdicts (``predict --indices``), rows as
         ``_predict``; ``x0`` in m."""
+
+class Model(_Answers):
+    """A trained model with its optional calibration."""
+
+    @staticmethod
+    def load(dir: str | PathLike[str], calibration: Optional[str | PathLike[str]] = None) -> Model:
+        """Loads a ``train`` output and, when given, its calibration."""
+    @property
+    def dir(self) -> str:
+        """The model's directory."""
+    @property
+    def calibration(self) -> Optional[str]:
+        """The calibration given at load."""
+    @property
+    def algorithm(self) -> int:
+        """The training algorithm (1-5)."""
     def _export_onnx(self, path: str, spectral: Optional[str], levels: Optional[list[float]]) -> str:
         """The model with its intervals as one ONNX file (``export``)."""
+
+class Surrogate(_Answers):
+    """The ``surrogate`` stage's output: each index and channel from its routed member."""
+
+    @staticmethod
+    def load(dir: str | PathLike[str]) -> Surrogate:
+        """Loads ``surrogate.json`` and its members, verified against the manifest."""
+    @property
+    def dir(self) -> str:
+        """The surrogate's directory."""
+    @property
+    def members(self) -> list[str]:
+        """The member models' names."""
+    @property
+    def index_routes(self) -> list[tuple[str, str]]:
+        """(index, member answering it), the description's order."""
+    @property
+    def channel_routes(self) -> list[tuple[str, str]]:
+        """(channel, member answering it), column order."""
+    @property
+    def has_intervals(self) -> bool:
+        """Whether every member answering a quantity has calibrated intervals."""
 
 class Pipeline:
     """A pipeline file in its workspace."""
