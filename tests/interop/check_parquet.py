@@ -102,7 +102,7 @@ TYPES = {  # pyarrow name -> (polars dtype, DuckDB type)
 # The columns whose absent values are nulls (every other column has a value in every row):
 # by name in every file, and `factor` of a sensitivity study's evaluations and solver runs (null
 # in the A and B blocks).
-NULLABLE = {"outside_training_range", "failed", "solver_failure", "verdict"}
+NULLABLE = {"outside_training_range", "failed", "solver_failure", "verdict", "worst_cell"}
 
 
 def nullable(kind, name):
@@ -196,11 +196,11 @@ EXPECTED = {
     # The surrogate against the solver, per routed quantity (docs/uncertainty.md).
     "surrogate_errors.parquet": (
         "evaluate",
-        [("kind", STR, "-"), ("quantity", STR, "-"), ("unit", STR, "-"), ("member", STR, "-"),
-         ("n", I64, "-"), ("mean_rel_error_pct", F64, "%"), ("worst_rel_error_pct", F64, "%"),
-         ("worst_rel_sample_id", I64, "-"), ("level", F64, "-"), ("coverage", F64, "-"),
-         ("mean_width", F64, "{unit}"), ("width_over_std", F64, "-"),
-         ("worst_cell_coverage", F64, "-"), ("worst_cell", STR, "-")],
+        [("kind", STR, "1"), ("quantity", STR, "1"), ("unit", STR, "1"), ("member", STR, "1"),
+         ("n", I64, "1"), ("mean_rel_error_pct", F64, "%"), ("worst_rel_error_pct", F64, "%"),
+         ("worst_rel_sample_id", I64, "1"), ("level", F64, "1"), ("coverage", F64, "1"),
+         ("mean_width", F64, "{unit}"), ("width_over_std", F64, "1"),
+         ("worst_cell_coverage", F64, "1"), ("worst_cell", STR, "1")],
     ),
     # The indices (docs/indices.md) own their columns: checked by PARTIAL below.
     "indices.parquet": ("indices", None),

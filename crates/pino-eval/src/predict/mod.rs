@@ -1139,8 +1139,11 @@ mod tests {
         assert!(it.f64("peak_wheel_rail_force_kn_lo").is_err());
         assert_eq!(it.f64("m_c").unwrap()[0], design[0]);
         assert!(it.f64("peak_wheel_rail_force_kn").unwrap()[0].is_finite());
-        // A profile too short for the run is refused.
-        let short = vec![Some(Profile::new(vec![0.0, 1.0], vec![0.0, 0.0]).unwrap())];
+        // A profile too short for the run is refused (4 points: the vehicle track reads its
+        // profile cubic, which needs them).
+        let short = vec![Some(
+            Profile::new(vec![0.0, 1.0, 2.0, 3.0], vec![0.0; 4]).unwrap(),
+        )];
         let err = predictor
             .forward(0, std::slice::from_ref(&design), &short, &run)
             .unwrap_err();
