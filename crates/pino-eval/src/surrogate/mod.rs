@@ -294,9 +294,9 @@ impl Surrogate {
         batch: usize,
     ) -> Result<Vec<SampleIndices>> {
         let per = self.per_index_member(|p| p.indices(sets, profiles, run, cfg, batch))?;
-        Ok((0..sets.len())
+        (0..sets.len())
             .map(|k| self.assemble_indices(&per, k, cfg))
-            .collect::<Result<_>>()?)
+            .collect()
     }
 
     /// Every design's indices with their intervals and verdicts at `coverage` (with a
