@@ -97,7 +97,7 @@ def study(
     for stage in stages:
         model = pm.Model.load(pipe.dir(stage, "model.json"))
         predictions[stage] = {
-            i: model.predict(params.filter(pl.col("sample_id") == i), excitation=profiles, excitation_id=i).select(
+            i: model.predict(params.filter(pl.col("sample_id") == i), excitation=profiles).select(
                 ["t", *forces]
             )
             for i in ids
@@ -159,7 +159,7 @@ def study(
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("stages", nargs="+")
-    ap.add_argument("-C", "--workspace", default=".")
+    ap.add_argument("-C", "--workspace", default=None, help="default: the pipeline file's own, as `pipeline`")
     ap.add_argument("-f", "--file", default="pipeline.yaml")
     ap.add_argument("--bin-dir", default=None)
     ap.add_argument("--set", action="append", default=[], metavar="STAGE.KEY=VALUE")

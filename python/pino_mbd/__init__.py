@@ -1,8 +1,9 @@
 """pino_mbd: pino-mbd in Python, in-process.
 
 Describe a multi-body system (``System.load``), run the exact solver on a table of designs
-(``System.simulate``), predict with a trained neural-operator surrogate and its calibrated
-intervals (``Model.load``, ``Model.predict``, ``Model.indices``), drive the whole pipeline
+(``System.simulate``), predict with a trained neural-operator model and its calibrated
+intervals (``Model.load``, ``Model.predict``, ``Model.indices``) or with the system's surrogate,
+each index from its most accurate model (``Surrogate.load``, the same calls), drive the whole pipeline
 (``Pipeline``) and run a design study (``study``). The work is done by the Rust libraries of
 pino-mbd (the same code as the command-line stages, so the same numbers, bit for bit) with the
 GIL released; tables go in as polars or pandas DataFrames, pyarrow tables or dicts of arrays,
@@ -14,7 +15,17 @@ every column is in ``System.columns`` and in the ``units`` of the native result.
 
 Every refusal (a description's problem with its ``file:line``, an unknown parameter, a
 non-finite value, a wrong shape, a model of another system) raises ``PinoError``, a
-``ValueError`` naming the field at fault.
+``ValueError`` naming the argument and field at fault (``designs.k_s[1]``, ``values.k_q``,
+``excitation``).
+
+An excitation (the ``excitation`` argument of ``System.simulate`` and of ``predict`` and
+``indices`` of ``Model`` and ``Surrogate``) is one of: a seed (an ``int`` >= 0, short for ``{"seed": N}``);
+``{"seed": N, "dx": m, "length": m}``, profiles generated as the ``irregularity`` stage
+generates them (``dx`` and ``length`` optional: a model's default to its dataset's, the
+solver's to 0.1 m and a length that covers the run); or a profile table (``sample_id``, ``x``
+and ``eta`` in m, ``profile`` with several generated profiles: the ``irregularity`` artifact)
+as a DataFrame, a pyarrow table or a Parquet file's path. A design row's ``sample_id`` names
+its stream (generated) or sample (table).
 """
 
 from __future__ import annotations
@@ -31,9 +42,11 @@ import polars as pl
 from . import _pino_mbd as _native
 from ._pino_mbd import PinoError, __version__
 
-__all__ = ["PinoError", "System", "Model", "Pipeline", "study", "__version__"]
+__all__ = ["PinoError", "System", "Model", "Surrogate", "Pipeline", "study", "__version__"]
 
 PathLike = Union[str, "os.PathLike[str]"]
+# A seed, {"seed": N, "dx": m, "length": m}, a profile table or its Parquet file (module doc).
+Excitation = Union[int, Mapping[str, float], PathLike, Any, None]
 
 
 def _designs(obj: Any, what: str = "designs") -> Any:
@@ -71,8 +84,20 @@ def _frame(table: Any) -> pl.DataFrame:
     return pl.DataFrame(table)
 
 
+def _excitation(e: Any) -> Any:
+    """The ``excitation`` argument as the native module reads it (a path as ``str``, a mapping
+    as ``dict``, a NumPy integer as ``int``); the native module checks it."""
+    if isinstance(e, os.PathLike):
+        return os.fspath(e)
+    if isinstance(e, Mapping):
+        return dict(e)
+    if isinstance(e, np.integer):
+        return int(e)
+    return e
+
+
 def _warn_outside(df: pl.DataFrame) -> None:
-    flagged = df.filter(pl.col("outside_training_range") != "")
+    flagged = df.filter(pl.col("outside_training_range").is_not_null())
     if flagged.height:
         warnings.warn(
             f"{flagged.height} of {df.height} design row(s) outside the model's training ranges, where its "
@@ -146,7 +171,7 @@ class System:
         duration: float,
         dt: float,
         output_every: int,
-        excitation: Any = None,
+        excitation: Excitation = None,
         start: str = "equilibrium",
         x0: float = 0.0,
         startup_zero_fraction: float = 0.0,
@@ -158,11 +183,16 @@ class System:
         parallel on all cores with the GIL released.
 
         ``designs``: one row per design, a column per design parameter (missing ones take
-        their nominal values), optionally ``sample_id`` (names the design's rows and its
-        excitation) and ``split`` (ignored). ``excitation``: for a system with generated
-        profiles, a profile file or table (``sample_id``, ``x`` in m, ``eta`` in m, positive
-        downward; the ``irregularity`` artifact) or ``{"seed": N, "dx": m, "length": m}`` to
-        generate them as ``irregularity`` does. ``duration`` (s), ``dt`` (s, below the
+        their nominal values), optionally ``sample_id`` (the key of the design's rows in the
+        result and the stream or sample of the excitation it runs on; default: its row
+        number) and ``split`` (ignored). ``excitation`` (needed for a system with generated
+        profiles): a seed (``int``), ``{"seed": N, "dx": m, "length": m}`` (generated as
+        ``irregularity`` does; ``dx`` defaults to 0.1 m, ``length`` to the farthest point
+        read over the description's sampling ranges in this run plus ``dx``, rounded up to
+        whole 10 m and at least the longest generated wavelength: give ``length`` to keep
+        one road across runs of other durations) or a profile table (``sample_id``, ``x``
+        in m, ``eta`` in m, positive downward: the ``irregularity`` artifact, or its file's
+        path). ``duration`` (s), ``dt`` (s, below the
         stability bound), ``output_every`` (steps per stored row), ``start``
         (``"equilibrium"`` or ``"rest"``), ``x0`` (m, the moving frame at t = 0), the two
         start-up fractions (of the duration) are the run controls of ``pipeline.yaml``.
@@ -173,7 +203,7 @@ class System:
         (``sample_id``, ``reason``)."""
         sim, failed = self._native._simulate(
             _designs(designs),
-            os.fspath(excitation) if isinstance(excitation, os.PathLike) else excitation,
+            _excitation(excitation),
             float(duration),
             float(dt),
             int(output_every),
@@ -192,11 +222,87 @@ class System:
         return repr(self._native)
 
 
-class Model:
-    """A trained model (a ``train`` output) with its calibration when given."""
+class _Answers:
+    """What a ``Model`` and a ``Surrogate`` answer alike: predictions and indices of designs."""
 
     def __init__(self, native: Any) -> None:
         self._native = native
+
+    @property
+    def system_name(self) -> str:
+        """The name of the system description it was trained on."""
+        return self._native.system_name
+
+    @property
+    def design_parameters(self) -> list[str]:
+        """The design parameters it reads, in value order."""
+        return self._native.design_parameters
+
+    def predict(
+        self,
+        designs: Any,
+        *,
+        excitation: Excitation = None,
+        excitation_id: int | None = None,
+        x0: float | None = None,
+        coverage: float | None = None,
+        batch: int = 16,
+        strict: bool = False,
+    ) -> pl.DataFrame:
+        """Time histories of every design (the table of ``predict --out``): ``set`` (the
+        design's row), ``t`` (s), the predicted outputs (displacements in m or rad, forces in N),
+        the rigid DOFs' velocities and accelerations, the excitations (m), with a calibration
+        a band ``<channel>_lo``/``_hi`` at ``coverage`` (default 0.9), and
+        ``outside_training_range`` (``name=value`` of each parameter outside the training
+        ranges, null inside; a warning, or ``PinoError`` with ``strict=True``). A surrogate
+        answers each channel and its band from the member routed to it.
+
+        ``excitation``: a seed (``int``: the profiles generated as ``irregularity`` does with
+        the training dataset's ``dx`` and ``length``), ``{"seed": N, "dx": m, "length": m}``
+        (``dx`` and ``length`` default to the dataset's) or a profile table (``sample_id``,
+        ``x``, ``eta`` in m; a DataFrame or a Parquet file's path). Each row runs on the
+        stream (generated) or sample (table) of its ``sample_id`` when ``designs`` has that
+        column (the answer of ``predict --profile-id SAMPLE_ID``, row by row), else every row
+        on ``excitation_id`` (default: stream 0, or the table's first sample). ``x0`` (m)
+        overrides the run's start."""
+        df = _frame(
+            self._native._predict(_designs(designs), _excitation(excitation), _id(excitation_id), x0, coverage, int(batch), bool(strict))
+        )
+        _warn_outside(df)
+        return df
+
+    def indices(
+        self,
+        designs: Any,
+        *,
+        excitation: Excitation = None,
+        excitation_id: int | None = None,
+        x0: float | None = None,
+        coverage: float | None = None,
+        batch: int = 16,
+        strict: bool = False,
+    ) -> pl.DataFrame:
+        """The engineering indices of every design, one row each (the table of ``predict
+        --indices``): ``set``, the design parameters, each index in its unit, ``window_s``
+        (s), ``pass`` (Boolean), ``failed`` (the limits exceeded; null when none),
+        ``outside_training_range`` (null inside); with a calibration also ``coverage``,
+        ``extrapolated`` (Boolean), ``<index>_lo``/``_hi`` and the three-valued verdicts
+        ``<index>_verdict``, ``verdict`` (pass / uncertain / fail). The numbers are those of
+        ``predict`` for the same designs and excitation, bit for bit (a surrogate: each index,
+        its interval and verdict those of the member routed to it; ``pass``, ``failed`` and
+        ``verdict`` judged on the assembled indices). Arguments as ``predict``."""
+        df = _frame(
+            self._native._indices(_designs(designs), _excitation(excitation), _id(excitation_id), x0, coverage, int(batch), bool(strict))
+        )
+        _warn_outside(df)
+        return df
+
+    def __repr__(self) -> str:
+        return repr(self._native)
+
+
+class Model(_Answers):
+    """A trained model (a ``train`` output) with its calibration when given."""
 
     @classmethod
     def load(cls, dir: PathLike, calibration: PathLike | None = None) -> Model:
@@ -209,16 +315,6 @@ class Model:
     def dir(self) -> str:
         """The model's directory."""
         return os.fspath(self._native.dir)
-
-    @property
-    def system_name(self) -> str:
-        """The name of the model's system description."""
-        return self._native.system_name
-
-    @property
-    def design_parameters(self) -> list[str]:
-        """The design parameters the model reads, in value order."""
-        return self._native.design_parameters
 
     @property
     def algorithm(self) -> int:
@@ -237,69 +333,52 @@ class Model:
         supports). Returns what was written. A refusal raises ``PinoError``."""
         return self._native._export_onnx(os.fspath(path), spectral, levels)
 
-    def predict(
-        self,
-        designs: Any,
-        *,
-        excitation: int | PathLike | None = None,
-        excitation_id: int | None = None,
-        x0: float | None = None,
-        coverage: float | None = None,
-        batch: int = 16,
-        strict: bool = False,
-    ) -> pl.DataFrame:
-        """Time histories of every design (the table of ``predict --out``): ``set`` (the
-        design's row), ``t`` (s), the model's outputs (displacements in m or rad, forces in N),
-        the rigid DOFs' velocities and accelerations, the excitations (m), with a calibration
-        a band ``<channel>_lo``/``_hi`` at ``coverage`` (default 0.9), and
-        ``outside_training_range`` (``name=value`` of each parameter outside the training
-        ranges; a warning, or ``PinoError`` with ``strict=True``).
 
-        ``excitation``: a seed (the profiles generated with the model's dataset's settings,
-        stream ``excitation_id``, default 0) or a profile file (rows of ``sample_id`` =
-        ``excitation_id``, default the first); ``x0`` (m) overrides the run's start."""
-        df = _frame(
-            self._native._predict(_designs(designs), _excitation(excitation), excitation_id, x0, coverage, int(batch), bool(strict))
-        )
-        _warn_outside(df)
-        return df
+class Surrogate(_Answers):
+    """The ``surrogate`` stage's output: several trained models, each index and channel
+    answered by the one most accurate on it over the validation split, with its calibrated
+    interval or band (docs/uncertainty.md); ``predict`` and ``indices`` as ``Model``'s."""
 
-    def indices(
-        self,
-        designs: Any,
-        *,
-        excitation: int | PathLike | None = None,
-        excitation_id: int | None = None,
-        x0: float | None = None,
-        coverage: float | None = None,
-        batch: int = 16,
-        strict: bool = False,
-    ) -> pl.DataFrame:
-        """The engineering indices of every design, one row each (the table of ``predict
-        --indices``): ``set``, the design parameters, each index in its unit, ``window_s``
-        (s), ``pass``, ``failed``, ``outside_training_range``; with a calibration also
-        ``coverage``, ``extrapolated``, ``<index>_lo``/``_hi`` and the three-valued verdicts
-        ``<index>_verdict``, ``verdict`` (pass / uncertain / fail). The numbers are those of
-        ``predict`` for the same designs and excitation, bit for bit. Arguments as
-        ``predict``."""
-        df = _frame(
-            self._native._indices(_designs(designs), _excitation(excitation), excitation_id, x0, coverage, int(batch), bool(strict))
-        )
-        _warn_outside(df)
-        return df
+    @classmethod
+    def load(cls, dir: PathLike) -> Surrogate:
+        """Loads the surrogate in ``dir`` (``surrogate.json`` and ``members/``: ``pipeline
+        show surrogate``). A member whose files changed since the surrogate was built, or a
+        manifest of another system, raises ``PinoError`` naming the file and the member model,
+        as ``predict --surrogate`` does."""
+        return cls(_native.Surrogate.load(os.fspath(dir)))
 
-    def __repr__(self) -> str:
-        return repr(self._native)
+    @property
+    def dir(self) -> str:
+        """The surrogate's directory."""
+        return os.fspath(self._native.dir)
+
+    @property
+    def members(self) -> list[str]:
+        """The member models' names (``algorithm-5``, ``algorithm-5-rates``, ...)."""
+        return self._native.members
+
+    @property
+    def index_routes(self) -> dict[str, str]:
+        """Each index (the description's order) and the member answering it."""
+        return dict(self._native.index_routes)
+
+    @property
+    def channel_routes(self) -> dict[str, str]:
+        """Each predicted channel (column order) and the member answering it."""
+        return dict(self._native.channel_routes)
+
+    @property
+    def calibrated(self) -> bool:
+        """Whether every member answering a quantity has calibrated intervals."""
+        return self._native.has_intervals
 
 
-def _excitation(e: Any) -> Any:
-    if e is None or isinstance(e, (str, os.PathLike)):
-        return None if e is None else os.fspath(e)
-    if isinstance(e, (bool, float)) or not isinstance(e, (int, np.integer)):
-        raise PinoError(f"excitation: allowed a seed (an integer >= 0) or the path of a profile file, got {e!r}")
-    if e < 0:
-        raise PinoError(f"excitation = {e}: a seed is an integer >= 0")
-    return int(e)
+def _id(i: Any) -> int | None:
+    if i is None:
+        return None
+    if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+        raise PinoError(f"excitation_id = {i!r}: allowed an integer >= 0")
+    return int(i)
 
 
 def _sets(values: Mapping[str, Any] | None) -> list[str]:
@@ -319,16 +398,24 @@ class Pipeline:
         bin_dir: PathLike | None = None,
         set: Mapping[str, Any] | None = None,
     ) -> None:
-        """``path``: the pipeline file, relative to ``workspace`` (default: the current
-        directory, as the CLI); ``bin_dir``: where the stage binaries are (default: the file's
-        ``bin_dir``, or ``PINO_BIN_DIR``); ``set``: ``{"stage.key": value}`` overrides applied
-        to every call (``--set``)."""
+        """``path``: the pipeline file, relative to ``workspace`` when one is given, else to
+        the current directory; ``workspace``: where ``artifacts/`` lives (default: the file's
+        ``workspace:`` key, relative to the file, else the file's directory: as the
+        ``pipeline`` command, a file opened from anywhere runs in its own workspace);
+        ``bin_dir``: where the stage binaries are (default: the file's ``bin_dir``, or
+        ``PINO_BIN_DIR``); ``set``: ``{"stage.key": value}`` overrides applied to every call
+        (``--set``)."""
         self._native = _native.Pipeline(
             os.fspath(path),
             None if workspace is None else os.fspath(workspace),
             None if bin_dir is None else os.fspath(bin_dir),
             _sets(set),
         )
+
+    @property
+    def workspace(self) -> str:
+        """The workspace the pipeline runs in (absolute when derived from the file)."""
+        return os.fspath(self._native.workspace)
 
     def status(self) -> pl.DataFrame:
         """Every unit: ``unit``, ``state`` (fresh, stale, never run, running, submitted) and

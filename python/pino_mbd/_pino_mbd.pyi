@@ -64,10 +64,46 @@ class System:
         startup_ramp_fraction: float,
         progress: bool,
     ) -> tuple[ArrowTable, ArrowTable]:
-        """The solver on every design (an Arrow table); ``duration`` and ``dt`` in s, ``x0``
-        in m, the fractions of the duration. Returns (simulation, failures)."""
+        """The solver on every design (an Arrow table), each on the excitation of its
+        ``sample_id`` (a seed, ``{"seed", "dx", "length"}`` in m, a profile table or its
+        path); ``duration`` and ``dt`` in s, ``x0`` in m, the fractions of the duration.
+        Returns (simulation, failures)."""
 
-class Model:
+class _Answers:
+    """What a model and a surrogate answer alike."""
+
+    @property
+    def system_name(self) -> str:
+        """The name of the system."""
+    @property
+    def design_parameters(self) -> list[str]:
+        """The design parameters, in value order."""
+    def _predict(
+        self,
+        designs: object,
+        excitation: object,
+        excitation_id: Optional[int],
+        x0: Optional[float],
+        coverage: Optional[float],
+        batch: int,
+        strict: bool,
+    ) -> ArrowTable:
+        """Time histories (``predict --out``): each row on the excitation of its
+        ``sample_id``, else of ``excitation_id``; ``x0`` in m."""
+    def _indices(
+        self,
+        designs: object,
+        excitation: object,
+        excitation_id: Optional[int],
+        x0: Optional[float],
+        coverage: Optional[float],
+        batch: int,
+        strict: bool,
+    ) -> ArrowTable:
+        """Indices with intervals and verdicts (``predict --indices``), rows as
+        ``_predict``; ``x0`` in m."""
+
+class Model(_Answers):
     """A trained model with its optional calibration."""
 
     @staticmethod
@@ -80,38 +116,32 @@ class Model:
     def calibration(self) -> Optional[str]:
         """The calibration given at load."""
     @property
-    def system_name(self) -> str:
-        """The name of the model's system."""
-    @property
-    def design_parameters(self) -> list[str]:
-        """The design parameters, in value order."""
-    @property
     def algorithm(self) -> int:
         """The training algorithm (1-5)."""
-    def _predict(
-        self,
-        designs: object,
-        excitation: Optional[int | str],
-        excitation_id: Optional[int],
-        x0: Optional[float],
-        coverage: Optional[float],
-        batch: int,
-        strict: bool,
-    ) -> ArrowTable:
-        """Time histories (``predict --out``); ``x0`` in m."""
-    def _indices(
-        self,
-        designs: object,
-        excitation: Optional[int | str],
-        excitation_id: Optional[int],
-        x0: Optional[float],
-        coverage: Optional[float],
-        batch: int,
-        strict: bool,
-    ) -> ArrowTable:
-        """Indices with intervals and verdicts (``predict --indices``); ``x0`` in m."""
     def _export_onnx(self, path: str, spectral: Optional[str], levels: Optional[list[float]]) -> str:
         """The model with its intervals as one ONNX file (``export``)."""
+
+class Surrogate(_Answers):
+    """The ``surrogate`` stage's output: each index and channel from its routed member."""
+
+    @staticmethod
+    def load(dir: str | PathLike[str]) -> Surrogate:
+        """Loads ``surrogate.json`` and its members, verified against the manifest."""
+    @property
+    def dir(self) -> str:
+        """The surrogate's directory."""
+    @property
+    def members(self) -> list[str]:
+        """The member models' names."""
+    @property
+    def index_routes(self) -> list[tuple[str, str]]:
+        """(index, member answering it), the description's order."""
+    @property
+    def channel_routes(self) -> list[tuple[str, str]]:
+        """(channel, member answering it), column order."""
+    @property
+    def has_intervals(self) -> bool:
+        """Whether every member answering a quantity has calibrated intervals."""
 
 class Pipeline:
     """A pipeline file in its workspace."""
@@ -123,10 +153,14 @@ class Pipeline:
         bin_dir: Optional[str],
         sets: list[str],
     ) -> None:
-        """``sets``: ``STAGE.KEY=VALUE`` overrides (YAML values) for every call."""
+        """``file`` relative to ``workspace`` when given, else to the current directory;
+        ``sets``: ``STAGE.KEY=VALUE`` overrides (YAML values) for every call."""
     @property
     def file(self) -> str:
         """The pipeline file."""
+    @property
+    def workspace(self) -> str:
+        """The workspace: the one given, else the file's ``workspace:`` or directory."""
     def _status(self) -> dict[str, list[str]]:
         """Columns unit, state, detail."""
     def _run(self, targets: list[str], sets: list[str], force: bool, jobs: int) -> None:

@@ -69,8 +69,8 @@ impl ArrowTable {
     }
 }
 
-/// The table `obj` exports through `__arrow_c_stream__` (floats and integers, strings;
-/// nulls refused), `what` naming it in errors.
+/// The table `obj` exports through `__arrow_c_stream__` (floats, integers and Booleans
+/// without nulls, strings with or without), `what` naming it in errors.
 pub fn import(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Table> {
     if !obj.hasattr("__arrow_c_stream__")? {
         return Err(value_error(format!(

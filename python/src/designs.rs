@@ -1,7 +1,8 @@
 //! Designs from a caller's table: one row per design, a column per design parameter (by name;
-//! a missing parameter takes its nominal value), plus an optional `sample_id` (which names the
-//! design's excitation and its rows in the output) and a `split` (ignored: `params.parquet`'s
-//! rows are designs as they are). Unknown names, non-numeric columns and non-finite values are
+//! a missing parameter takes its nominal value), plus an optional `sample_id` (the stream or
+//! sample of the excitation the design runs on, [`crate::excitation`]; in `System.simulate`
+//! also its rows' key in the output) and a `split` (ignored: `params.parquet`'s rows are
+//! designs as they are). Unknown names, non-numeric columns and non-finite values are
 //! refused naming the column and row; then every design is checked against the description's
 //! domains ([`DesignSpace::check`]), which names the field and its allowed range.
 
@@ -15,8 +16,17 @@ use std::path::Path;
 pub struct Designs {
     /// Each design's parameters in [`DesignSpace::names`] order.
     pub sets: Vec<Vec<f64>>,
-    /// Each design's `sample_id` (its row number when the table has none).
-    pub ids: Vec<i64>,
+    /// Each design's `sample_id`, when the table has the column.
+    pub ids: Option<Vec<i64>>,
+}
+
+impl Designs {
+    /// Each design's `sample_id`, else its row number.
+    pub fn ids_or_rows(&self) -> Vec<i64> {
+        self.ids
+            .clone()
+            .unwrap_or_else(|| (0..self.sets.len() as i64).collect())
+    }
 }
 
 /// Reads `table` (named `what` in errors) as designs of `space`.
@@ -26,38 +36,13 @@ pub fn designs(space: &DesignSpace, table: &Table, what: &str) -> PyResult<Desig
         return Err(value_error(format!("{what}: no rows (one row per design)")));
     }
     let mut sets = vec![space.nominal(); n];
-    let mut ids: Vec<i64> = (0..n as i64).collect();
+    let mut ids = None;
     for (name, col) in table.columns() {
         if name == schema::SPLIT {
             continue;
         }
         if name == schema::SAMPLE_ID {
-            ids = match col {
-                Column::I64(v) => v.clone(),
-                Column::F64(v) => v
-                    .iter()
-                    .enumerate()
-                    .map(|(r, &x)| {
-                        if x.fract() == 0.0 && x.abs() < 9.0e15 {
-                            Ok(x as i64)
-                        } else {
-                            Err(value_error(format!(
-                                "{what}.{name}[{r}] = {x}: allowed an integer >= 0"
-                            )))
-                        }
-                    })
-                    .collect::<PyResult<_>>()?,
-                Column::Str(_) => {
-                    return Err(value_error(format!(
-                        "{what}.{name}: strings; allowed integers >= 0"
-                    )))
-                }
-            };
-            if let Some((r, id)) = ids.iter().enumerate().find(|(_, &id)| id < 0) {
-                return Err(value_error(format!(
-                    "{what}.{name}[{r}] = {id}: allowed an integer >= 0"
-                )));
-            }
+            ids = Some(sample_ids(col, what, name)?);
             continue;
         }
         let j = space
@@ -69,6 +54,12 @@ pub fn designs(space: &DesignSpace, table: &Table, what: &str) -> PyResult<Desig
             Column::Str(_) => {
                 return Err(value_error(format!(
                     "{what}.{name}: strings; allowed numbers"
+                )))
+            }
+            other => {
+                return Err(value_error(format!(
+                    "{what}.{name}: {}; allowed numbers",
+                    other.type_name()
                 )))
             }
         };
@@ -87,4 +78,35 @@ pub fn designs(space: &DesignSpace, table: &Table, what: &str) -> PyResult<Desig
             .map_err(|e| value_error(e.to_string()))?;
     }
     Ok(Designs { sets, ids })
+}
+
+/// The `sample_id` column `col` of a designs table: integers >= 0 (whole floats accepted).
+fn sample_ids(col: &Column, what: &str, name: &str) -> PyResult<Vec<i64>> {
+    let bad = |r: usize, x: &dyn std::fmt::Display| {
+        value_error(format!("{what}.{name}[{r}] = {x}: allowed an integer >= 0"))
+    };
+    let ids: Vec<i64> = match col {
+        Column::I64(v) => v.clone(),
+        Column::F64(v) => v
+            .iter()
+            .enumerate()
+            .map(|(r, &x)| {
+                if x.fract() == 0.0 && x.abs() < 9.0e15 {
+                    Ok(x as i64)
+                } else {
+                    Err(bad(r, &x))
+                }
+            })
+            .collect::<PyResult<_>>()?,
+        other => {
+            return Err(value_error(format!(
+                "{what}.{name}: {}; allowed integers >= 0",
+                other.type_name()
+            )))
+        }
+    };
+    match ids.iter().enumerate().find(|(_, &id)| id < 0) {
+        Some((r, id)) => Err(bad(r, id)),
+        None => Ok(ids),
+    }
 }

@@ -1,90 +1,20 @@
 //! `pino_mbd.Model`: a trained model (`train`'s output) with its calibration when given,
-//! through the `predict` command's library (`pino_eval::predict::Predictor`): time histories
-//! of designs, and their engineering indices with calibrated intervals and three-valued
-//! verdicts; the same tables, numbers and `outside_training_range` flags as `predict --out`
-//! and `predict --indices`, computed with the GIL released.
+//! answering designs as `predict --model DIR --calibration DIR` does ([`crate::answers`]), and
+//! written as one ONNX file as `export` does.
 
-use crate::arrow::{import, ArrowTable};
-use crate::designs::designs;
+use crate::answers::PyAnswers;
 use crate::error::{to_py, value_error};
-use pino_eval::predict::{outside_flag, Predictor, ProfileChoice};
+use pino_eval::predict::Predictor;
+use pino_eval::surrogate::Surrogate;
 use pino_learn::config::DeviceKind;
 use pyo3::prelude::*;
-use pyo3::types::PyString;
 use std::path::PathBuf;
 
 /// A trained model loaded for prediction.
-#[pyclass(module = "pino_mbd._pino_mbd", name = "Model", frozen)]
+#[pyclass(module = "pino_mbd._pino_mbd", name = "Model", extends = PyAnswers, frozen)]
 pub struct PyModel {
-    predictor: Predictor,
     dir: PathBuf,
     calibration: Option<PathBuf>,
-}
-
-/// The designs of a call and their run: sets, profiles, run controls, outside flags.
-struct Call {
-    sets: Vec<Vec<f64>>,
-    profiles: Vec<Option<mbd_engine::Profile>>,
-    run: mbd_engine::RunConfig,
-    outside: Vec<Vec<pino_learn::checkpoint::OutOfRange>>,
-}
-
-impl PyModel {
-    fn call(
-        &self,
-        designs_obj: &Bound<'_, PyAny>,
-        excitation: Option<&Bound<'_, PyAny>>,
-        excitation_id: Option<i64>,
-        x0: Option<f64>,
-        strict: bool,
-    ) -> PyResult<Call> {
-        let p = &self.predictor;
-        let table = import(designs_obj, "designs")?;
-        let sets = designs(&p.space, &table, "designs")?.sets;
-        if let Some(id) = excitation_id.filter(|id| *id < 0) {
-            return Err(value_error(format!(
-                "excitation_id = {id}: allowed an integer >= 0"
-            )));
-        }
-        let choice = match excitation.filter(|e| !e.is_none()) {
-            None => None,
-            Some(e) if e.is_instance_of::<PyString>() || e.hasattr("__fspath__")? => {
-                Some(ProfileChoice::File {
-                    path: e.extract()?,
-                    sample_id: excitation_id,
-                })
-            }
-            Some(e) => {
-                let seed: u64 = e.extract().map_err(|_| {
-                    value_error(
-                        "excitation: allowed a seed (an integer >= 0: the profiles generated with the model's dataset's settings) or the path of a profile file",
-                    )
-                })?;
-                Some(ProfileChoice::Generated {
-                    seed,
-                    id: excitation_id.unwrap_or(0) as u64,
-                })
-            }
-        };
-        let profiles = p.profiles(choice.as_ref()).map_err(to_py)?;
-        let run = p.run_config(x0).map_err(to_py)?;
-        let outside = p.outside_training(&sets).map_err(to_py)?;
-        if strict {
-            if let Some(k) = outside.iter().position(|o| !o.is_empty()) {
-                return Err(value_error(format!(
-                    "strict: designs[{k}] is outside the model's training ranges (from {}): {}",
-                    p.meta.training_ranges.source,
-                    outside_flag(&outside[k])
-                )));
-            }
-        }
-        Ok(Call {
-            sets,
-            profiles,
-            run,
-            outside,
-        })
-    }
 }
 
 #[pymethods]
@@ -93,8 +23,8 @@ impl PyModel {
     /// given, its calibration (the `calibrate` stage's output or a `calibration.json`).
     #[staticmethod]
     #[pyo3(signature = (dir, calibration=None))]
-    fn load(py: Python<'_>, dir: PathBuf, calibration: Option<PathBuf>) -> PyResult<Self> {
-        py.detach(|| {
+    fn load(py: Python<'_>, dir: PathBuf, calibration: Option<PathBuf>) -> PyResult<Py<Self>> {
+        let model = py.detach(|| {
             pino_learn::candle_single_threaded_by_default();
             let device = DeviceKind::Cpu.device().map_err(to_py)?;
             let mut predictor = Predictor::load(&dir, &device).map_err(to_py)?;
@@ -103,12 +33,11 @@ impl PyModel {
                     .load_calibration(path)
                     .map_err(|e| value_error(format!("calibration {}: {e}", path.display())))?;
             }
-            Ok(Self {
-                predictor,
-                dir,
-                calibration,
-            })
-        })
+            PyResult::Ok(Surrogate::of_model(predictor))
+        })?;
+        let init =
+            PyClassInitializer::from(PyAnswers::new(model)).add_subclass(Self { dir, calibration });
+        Py::new(py, init)
     }
 
     /// Writes the model with its calibration as one ONNX file (`export`, docs/export.md);
@@ -150,86 +79,26 @@ impl PyModel {
         self.calibration.clone()
     }
 
-    /// The name of the model's system.
-    #[getter]
-    fn system_name(&self) -> String {
-        self.predictor.system().name.clone()
-    }
-
-    /// The design parameters (sampled), in value order.
-    #[getter]
-    fn design_parameters(&self) -> Vec<String> {
-        self.predictor.space.names().to_vec()
-    }
-
     /// Training algorithm (1-5).
     #[getter]
-    fn algorithm(&self) -> i64 {
-        self.predictor.meta.train.algorithm.id()
+    fn algorithm(slf: PyRef<'_, Self>) -> i64 {
+        slf.as_super()
+            .surrogate()
+            .primary()
+            .meta
+            .train
+            .algorithm
+            .id()
     }
 
-    /// Time histories of every design (the table of `predict --out`).
-    #[pyo3(signature = (designs, excitation, excitation_id, x0, coverage, batch, strict))]
-    #[allow(clippy::too_many_arguments)]
-    fn _predict(
-        &self,
-        py: Python<'_>,
-        designs: &Bound<'_, PyAny>,
-        excitation: Option<&Bound<'_, PyAny>>,
-        excitation_id: Option<i64>,
-        x0: Option<f64>,
-        coverage: Option<f64>,
-        batch: usize,
-        strict: bool,
-    ) -> PyResult<ArrowTable> {
-        let c = self.call(designs, excitation, excitation_id, x0, strict)?;
-        let p = &self.predictor;
-        let level = p.interval_level(coverage).map_err(to_py)?;
-        let table = py.detach(|| {
-            p.histories_flagged(&c.sets, &c.profiles, &c.run, batch, level)
-                .map_err(to_py)
-        })?;
-        ArrowTable::new(table, "predict")
-    }
-
-    /// The engineering indices of every design (the table of `predict --indices`).
-    #[pyo3(signature = (designs, excitation, excitation_id, x0, coverage, batch, strict))]
-    #[allow(clippy::too_many_arguments)]
-    fn _indices(
-        &self,
-        py: Python<'_>,
-        designs: &Bound<'_, PyAny>,
-        excitation: Option<&Bound<'_, PyAny>>,
-        excitation_id: Option<i64>,
-        x0: Option<f64>,
-        coverage: Option<f64>,
-        batch: usize,
-        strict: bool,
-    ) -> PyResult<ArrowTable> {
-        let c = self.call(designs, excitation, excitation_id, x0, strict)?;
-        let p = &self.predictor;
-        let level = p
-            .interval_level(coverage)
-            .map_err(to_py)?
-            .unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
-        let table = py.detach(|| -> PyResult<_> {
-            let cfg = p.index_config().map_err(to_py)?;
-            let answers = p
-                .answers(&c.sets, &c.profiles, &c.run, &cfg, batch, level)
-                .map_err(to_py)?;
-            p.indices_table(&c.sets, &answers, &c.outside)
-                .map_err(to_py)
-        })?;
-        ArrowTable::new(table, "indices")
-    }
-
-    fn __repr__(&self) -> String {
+    fn __repr__(slf: PyRef<'_, Self>) -> String {
+        let p = slf.as_super().surrogate().primary();
         format!(
             "Model({}: system {:?}, algorithm {}, {})",
-            self.dir.display(),
-            self.predictor.system().name,
-            self.predictor.meta.train.algorithm.id(),
-            match &self.calibration {
+            slf.dir.display(),
+            p.system().name,
+            p.meta.train.algorithm.id(),
+            match &slf.calibration {
                 Some(c) => format!("calibrated by {}", c.display()),
                 None => "no calibration".to_owned(),
             }

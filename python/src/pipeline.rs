@@ -5,7 +5,7 @@
 
 use crate::error::to_py;
 use pipeline::run::RunOptions;
-use pipeline::spec::{LoadOptions, Pipeline};
+use pipeline::spec::{locate, LoadOptions, Pipeline};
 use pipeline::ui::Ui;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -14,8 +14,8 @@ use std::path::{Path, PathBuf};
 /// A pipeline file in its workspace.
 #[pyclass(module = "pino_mbd._pino_mbd", name = "Pipeline", frozen)]
 pub struct PyPipeline {
-    workspace: PathBuf,
     file: PathBuf,
+    workspace: Option<PathBuf>,
     bin_dir: Option<PathBuf>,
     sets: Vec<String>,
 }
@@ -30,14 +30,16 @@ impl PyPipeline {
             }),
             sets: self.sets.iter().chain(extra).cloned().collect(),
         };
-        Pipeline::load(&self.workspace, &self.file, &opts).map_err(to_py)
+        let (workspace, file) = locate(&self.file, self.workspace.as_deref()).map_err(to_py)?;
+        Pipeline::load(&workspace, &file, &opts).map_err(to_py)
     }
 }
 
 #[pymethods]
 impl PyPipeline {
-    /// The pipeline file `file` (relative to `workspace`, default the current directory),
-    /// with `sets` (`STAGE.KEY=VALUE`, YAML values) applied to every call.
+    /// The pipeline file `file` in `workspace` (the `pipeline` command's `-f` and `-C`:
+    /// without a workspace, the file's `workspace:` or its directory, `file` relative to the
+    /// current directory), with `sets` (`STAGE.KEY=VALUE`, YAML values) applied to every call.
     #[new]
     #[pyo3(signature = (file, workspace, bin_dir, sets))]
     fn new(
@@ -46,15 +48,9 @@ impl PyPipeline {
         bin_dir: Option<PathBuf>,
         sets: Vec<String>,
     ) -> Self {
-        let workspace = workspace.unwrap_or_else(|| PathBuf::from("."));
-        let file = if file.is_absolute() {
-            file
-        } else {
-            workspace.join(file)
-        };
         Self {
-            workspace,
             file,
+            workspace,
             bin_dir,
             sets,
         }
@@ -113,10 +109,20 @@ impl PyPipeline {
         Ok(text.lines().map(str::to_owned).collect())
     }
 
-    /// The pipeline file.
+    /// The pipeline file (relative to the current directory, or absolute).
     #[getter]
-    fn file(&self) -> PathBuf {
-        self.file.clone()
+    fn file(&self) -> PyResult<PathBuf> {
+        Ok(locate(&self.file, self.workspace.as_deref())
+            .map_err(to_py)?
+            .1)
+    }
+
+    /// The workspace: the one given, else the file's (`workspace:` or its directory).
+    #[getter]
+    fn workspace(&self) -> PyResult<PathBuf> {
+        Ok(locate(&self.file, self.workspace.as_deref())
+            .map_err(to_py)?
+            .0)
     }
 }
 

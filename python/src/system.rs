@@ -5,14 +5,15 @@
 
 use crate::arrow::{import, ArrowTable};
 use crate::error::{to_py, value_error};
+use crate::excitation::{Excitation, RowProfiles};
 use crate::progress::Progress;
-use mbd_engine::{Profile, RunConfig, SampleInput, StartMode};
+use mbd_engine::{RunConfig, SampleInput, StartMode};
 use mbd_system::system::{ParamSource, Role};
 use mbd_system::{Override, System, SystemSource};
 use pino_data::{schema, Column, Table};
-use pino_eval::predict::{profiles_of_table, DesignSpace, GeneratedProfiles};
+use pino_eval::predict::DesignSpace;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyString};
+use pyo3::types::PyDict;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -29,91 +30,27 @@ pub struct PySystem {
     space: DesignSpace,
 }
 
-/// Where the profile points under each design come from.
-pub enum Excitation {
-    /// None given (fine when every profile is analytic).
-    None,
-    /// A profile table (`sample_id`, `x`, `eta`, optional `profile`) and its name.
-    Table(Table, PathBuf),
-    /// Generated as `irregularity` generates them.
-    Generated(GeneratedProfiles),
-}
+/// Profile spacing (m) of a generated excitation of `System.simulate` that gives none: the
+/// shipped pipelines' `irregularity.dx`.
+pub const DEFAULT_DX: f64 = 0.1;
 
-impl Excitation {
-    /// `obj`: `None`, a path to a Parquet profile file, a table with `sample_id`, `x`, `eta`
-    /// (and `profile`), or `{"seed": N, "dx": m, "length": m}` (generated); the dict is only
-    /// accepted when `generated` is allowed (without a model's settings).
-    pub fn parse(system: &System, obj: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
-        let Some(obj) = obj.filter(|o| !o.is_none()) else {
-            return Ok(Self::None);
-        };
-        if let Ok(d) = obj.cast::<PyDict>() {
-            let get = |k: &str| -> PyResult<Bound<'_, PyAny>> {
-                d.get_item(k)?.ok_or_else(|| {
-                    value_error(format!(
-                        "excitation: missing `{k}` (a generated excitation is {{\"seed\": N, \"dx\": m, \"length\": m}})"
-                    ))
-                })
-            };
-            for key in d.keys() {
-                let key: String = key.extract()?;
-                if !["seed", "dx", "length"].contains(&key.as_str()) {
-                    return Err(value_error(format!(
-                        "excitation: unknown key `{key}`; allowed: seed, dx (m), length (m)"
-                    )));
-                }
-            }
-            let settings = mbd_dataset::ProfileParams {
-                seed: get("seed")?.extract()?,
-                dx: get("dx")?.extract()?,
-                length: get("length")?.extract()?,
-            };
-            let g = GeneratedProfiles::new(system, &settings, settings.seed).map_err(to_py)?;
-            return Ok(Self::Generated(g));
-        }
-        if obj.is_instance_of::<PyString>() || obj.hasattr("__fspath__")? {
-            let path: PathBuf = obj.extract()?;
-            let t = pino_data::read_parquet(&path, None).map_err(to_py)?;
-            return Ok(Self::Table(t, path));
-        }
-        let t = import(obj, "excitation")?;
-        Ok(Self::Table(t, PathBuf::from("excitation")))
-    }
-
-    /// The profiles under each design, by the designs' sample ids.
-    pub fn profiles(&self, system: &System, ids: &[i64]) -> PyResult<Vec<Vec<Option<Profile>>>> {
-        match self {
-            Self::Generated(g) => {
-                use rayon::prelude::*;
-                ids.par_iter()
-                    .map(|&id| g.of(id as u64).map_err(to_py))
-                    .collect()
-            }
-            Self::Table(t, path) => {
-                let mut by_id = profiles_of_table(system, t, path, ids).map_err(to_py)?;
-                Ok(ids
-                    .iter()
-                    .map(|id| by_id.get_mut(id).map(std::mem::take).unwrap_or_default())
-                    .collect())
-            }
-            Self::None => {
-                let generated: Vec<&str> = system
-                    .profiles
-                    .iter()
-                    .filter(|p| matches!(p, mbd_system::system::Profile::Generated { .. }))
-                    .map(|p| p.name())
-                    .collect();
-                if !generated.is_empty() {
-                    return Err(value_error(format!(
-                        "excitation: the system `{}` has generated profile(s) {}: give a profile file or table (sample_id, x, eta) or {{\"seed\": N, \"dx\": m, \"length\": m}}",
-                        system.name,
-                        generated.join(", ")
-                    )));
-                }
-                Ok(vec![vec![None; system.profiles.len()]; ids.len()])
-            }
-        }
-    }
+/// Profile length (m) of a generated excitation of `System.simulate` that gives none: the
+/// farthest point an element reads a generated profile over the description's sampling box
+/// in this run, plus one spacing, rounded up to whole 10 m, and at least the longest
+/// wavelength the description generates.
+fn default_length(system: &System, config: &RunConfig, dx: f64) -> PyResult<f64> {
+    let reach = mbd_engine::coverage::generated_profile_reach(system, config)
+        .map_err(|e| value_error(format!("excitation: {e}")))?
+        .unwrap_or(0.0);
+    let longest = system
+        .profiles
+        .iter()
+        .filter_map(|p| match p {
+            mbd_system::system::Profile::Generated { wavelengths, .. } => Some(wavelengths[1]),
+            _ => None,
+        })
+        .fold(0.0, f64::max);
+    Ok((10.0 * ((reach.max(0.0) + dx) / 10.0).ceil()).max(longest))
 }
 
 impl PySystem {
@@ -144,7 +81,13 @@ impl PySystem {
             overrides.insert(name, o);
         }
         let source = SystemSource::read(&path, overrides).map_err(to_py)?;
-        let system = Arc::new(source.compile().map_err(to_py)?);
+        let system = Arc::new(source.compile().map_err(|e| match e {
+            // The argument's name, not the stages' `system_values` or a line of the file.
+            mbd_system::SourceError::Override { error, .. } => {
+                value_error(format!("values.{}: {}", error.name, error.message))
+            }
+            e => to_py(e),
+        })?);
         Ok(Self {
             space: DesignSpace::of(system.clone()),
             source,
@@ -224,7 +167,12 @@ impl PySystem {
     /// The columns of `simulate` (and `simulation.parquet`) as columns: name, unit, kind.
     fn _columns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let mut name = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
-        let mut unit = vec!["-".to_owned(), "s".to_owned()];
+        let fixed = |n| {
+            pino_data::units::fixed_unit(n)
+                .unwrap_or_default()
+                .to_owned()
+        };
+        let mut unit = vec![fixed(schema::SAMPLE_ID), fixed(schema::TIME)];
         let mut kind = vec!["id", "time"];
         for c in &self.system.channels {
             name.push(c.name.clone());
@@ -300,16 +248,22 @@ impl PySystem {
         config.validate().map_err(to_py)?;
         let table = import(designs, "designs")?;
         let d = crate::designs::designs(&self.space, &table, "designs")?;
+        let ids = d.ids_or_rows();
         let mut seen = std::collections::BTreeSet::new();
-        if let Some(id) = d.ids.iter().find(|&&id| !seen.insert(id)) {
+        if let Some(id) = ids.iter().find(|&&id| !seen.insert(id)) {
             return Err(value_error(format!(
                 "designs.sample_id: {id} appears twice; allowed: one row per sample"
             )));
         }
-        let excitation = Excitation::parse(&self.system, excitation)?;
+        let excitation = Excitation::parse(excitation)?;
         let system = self.system.clone();
-        let (sim, failed) =
-            py.detach(move || simulate(&system, &config, d, &excitation, progress))?;
+        let (sim, failed) = py.detach(move || {
+            let generation = || -> PyResult<(f64, f64)> {
+                Ok((DEFAULT_DX, default_length(&system, &config, DEFAULT_DX)?))
+            };
+            let profiles = excitation.rows(&system, &generation, ids.clone())?;
+            simulate(&system, &config, d.sets, &ids, profiles, progress)
+        })?;
         Ok((
             ArrowTable::new(sim, "simulation")?,
             ArrowTable::new(failed, "failures")?,
@@ -327,21 +281,21 @@ impl PySystem {
     }
 }
 
-/// The solver on designs `d` (sorted by sample id, as the stage writes them): the simulation
-/// table and the failures (`sample_id`, `reason`).
+/// The solver on designs `sets` with sample ids `sample_ids` on `profiles` (sorted by sample
+/// id, as the stage writes them): the simulation table and the failures (`sample_id`,
+/// `reason`).
 fn simulate(
     system: &Arc<System>,
     config: &RunConfig,
-    d: crate::designs::Designs,
-    excitation: &Excitation,
+    sets: Vec<Vec<f64>>,
+    sample_ids: &[i64],
+    profiles: RowProfiles,
     progress: bool,
 ) -> PyResult<(Table, Table)> {
-    let profiles = excitation.profiles(system, &d.ids)?;
-    let mut inputs: Vec<SampleInput> = d
-        .sets
+    let mut inputs: Vec<SampleInput> = sets
         .into_iter()
-        .zip(profiles)
-        .zip(&d.ids)
+        .zip(profiles.into_rows())
+        .zip(sample_ids)
         .map(|((params, profiles), &id)| {
             let params = system
                 .sampled_values(params)

@@ -1,15 +1,17 @@
 """A tiny real pipeline run of the quarter car (configs/quarter-car.yaml with small sizes),
 made once per session through ``pino_mbd.Pipeline`` with the workspace's stage binaries
 (``PINO_BIN_DIR``, else ``target/debug``: ``scripts/test`` builds them first). The tests compare
-the package's answers with the files those stages and the ``predict`` command write."""
+the package's answers with the files those stages and the ``predict`` command write.
+
+The run's workspace is ``PINO_TEST_WORKSPACE`` when set (``scripts/test`` sets it, so that the
+research scripts' tests, tests/scripts, find the same run done and run nothing again), else a
+temporary directory of the session."""
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import re
 import shutil
-import types
 from pathlib import Path
 
 import pytest
@@ -63,15 +65,23 @@ class Run:
 @pytest.fixture(scope="session")
 def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
     bins = bin_dir()
-    ws = tmp_path_factory.mktemp("ws")
-    # The pipeline file's bin_dir must lie inside the workspace: links to the binaries there.
-    text = (ROOT / "configs" / "quarter-car.yaml").read_text()
-    (ws / "pipeline.yaml").write_text(re.sub(r"(?m)^bin_dir: .*$", "bin_dir: bin", text))
-    shutil.copytree(ROOT / "systems", ws / "systems")
-    (ws / "bin").mkdir()
-    for exe in bins.iterdir():
-        if exe.is_file() and os.access(exe, os.X_OK) and not exe.suffix:
-            (ws / "bin" / exe.name).symlink_to(exe)
+    shared = os.environ.get("PINO_TEST_WORKSPACE")
+    ws = Path(shared) if shared else tmp_path_factory.mktemp("ws")
+    if not (ws / "pipeline.yaml").is_file():
+        # The pipeline file's bin_dir must lie inside the workspace: links to the binaries
+        # there; the file is the workspace's own (its `workspace: ..` dropped). It is written
+        # last: a workspace with the file is a finished setup.
+        ws.mkdir(parents=True, exist_ok=True)
+        shutil.rmtree(ws / "systems", ignore_errors=True)
+        shutil.copytree(ROOT / "systems", ws / "systems")
+        shutil.rmtree(ws / "bin", ignore_errors=True)
+        (ws / "bin").mkdir()
+        for exe in bins.iterdir():
+            if exe.is_file() and os.access(exe, os.X_OK) and not exe.suffix:
+                (ws / "bin" / exe.name).symlink_to(exe)
+        text = (ROOT / "configs" / "quarter-car.yaml").read_text()
+        text = re.sub(r"(?m)^workspace: .*\n", "", re.sub(r"(?m)^bin_dir: .*$", "bin_dir: bin", text))
+        (ws / "pipeline.yaml").write_text(text)
     r = Run(ws, bins)
     r.pipeline.run(["calibrate", "indices"], jobs=2)
     return r
@@ -80,11 +90,3 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
 @pytest.fixture(scope="session")
 def quarter_car() -> pino_mbd.System:
     return pino_mbd.System.load(ROOT / "systems" / "quarter-car.yaml")
-
-
-def script(file: str) -> types.ModuleType:
-    """The research script `scripts/<file>` loaded as a module (its name has dashes)."""
-    spec = importlib.util.spec_from_file_location(file.removesuffix(".py").replace("-", "_"), ROOT / "scripts" / file)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module

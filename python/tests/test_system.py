@@ -56,6 +56,14 @@ def test_values_override_the_description(quarter_car) -> None:
     assert s.hash != quarter_car.hash
     with pytest.raises(ValueError, match="no_such"):
         pino_mbd.System.load(quarter_car.path, values={"no_such": 1.0})
+    # In the argument's words: not the stages' `system_values`, not a line of the file.
+    for values, pattern in [
+        ({"k_q": 1}, r"^values\.k_q: `k_q` is not a parameter of the description; parameters: "),
+        ({"g": [1.0, 2.0]}, r"^values\.g: a fixed parameter takes a finite number"),
+    ]:
+        with pytest.raises(pino_mbd.PinoError, match=pattern) as e:
+            pino_mbd.System.load(quarter_car.path, values=values)
+        assert "system_values" not in str(e.value) and ":1:1" not in str(e.value), e.value
 
 
 def stage_inputs(run):
@@ -152,7 +160,29 @@ def test_bad_run_controls_and_excitations_are_named(quarter_car) -> None:
         quarter_car.simulate(d, **{**RUN, "dt": -1.0})
     with pytest.raises(ValueError, match="start"):
         quarter_car.simulate(d, **{**RUN, "start": "sideways"})
-    with pytest.raises(ValueError, match="generated profile"):
+    with pytest.raises(ValueError, match=r"^excitation: missing; the system `quarter-car` has generated profile\(s\) road"):
         quarter_car.simulate(d, **{**RUN, "excitation": None})
     with pytest.raises(ValueError, match="unknown key `sed`"):
         quarter_car.simulate(d, **{**RUN, "excitation": {"sed": 1, "dx": 0.1, "length": 200.0}})
+
+
+def test_one_excitation_vocabulary_with_documented_defaults(run, quarter_car) -> None:
+    """A seed is `{"seed": N}`; the solver's default spacing is 0.1 m and its default length
+    covers the run over the sampling ranges (here the 90 m longest wavelength of the road);
+    a profile table given as a DataFrame or a file is the same excitation, row by row."""
+    d = {"k_s": [2.0e4, 2.4e4], "sample_id": [3, 5]}
+    kw = dict(duration=0.2, dt=2.0e-4, output_every=10, x0=5.0, progress=False)
+    seed = quarter_car.simulate(d, excitation=4, **kw)
+    assert_bit_identical(seed, quarter_car.simulate(d, excitation={"seed": 4}, **kw))
+    assert_bit_identical(seed, quarter_car.simulate(d, excitation={"seed": 4, "dx": 0.1, "length": 90.0}, **kw))
+    assert not seed.filter(pl.col("sample_id") == 3)["eta_tyre"].equals(seed.filter(pl.col("sample_id") == 5)["eta_tyre"])
+    # A run that reaches farther gets a longer road: 5 m + 30 m/s x 4 s, + dx, to 130 m.
+    long = dict(kw, duration=4.0)
+    assert_bit_identical(
+        quarter_car.simulate({"k_s": [2.0e4]}, excitation=4, **long),
+        quarter_car.simulate({"k_s": [2.0e4]}, excitation={"seed": 4, "dx": 0.1, "length": 130.0}, **long),
+    )
+    irregularity = run.files("irregularity", "irregularity.parquet")[0]
+    params = pl.read_parquet(run.files("sample-params", "params.parquet")).head(2)
+    from_file = quarter_car.simulate(params, excitation=irregularity, **kw)
+    assert_bit_identical(from_file, quarter_car.simulate(params, excitation=pl.read_parquet(irregularity), **kw))

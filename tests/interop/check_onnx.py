@@ -149,7 +149,7 @@ def main():
         if [bool(v) for v in got["extrapolated"]] != flagged:
             failures.append(f"extrapolated {got['extrapolated']} against predict's {ix['outside_training_range']}")
         for k in range(b):
-            named = {p.split("=")[0] for p in ix["outside_training_range"][k].split(",") if p}
+            named = {p.split("=")[0] for p in (ix["outside_training_range"][k] or "").split(",") if p}  # null inside
             mine = {params["names"][j] for j in np.flatnonzero(got["outside_training_range"][k])}
             if named != mine:
                 failures.append(f"design {k}: outside {mine} against predict's {named}")

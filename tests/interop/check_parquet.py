@@ -91,15 +91,24 @@ PARAM_UNITS = {
     "v_kmh": "km/h", "k_f": "N/m", "c_f": "N s/m",
 }
 CONSTANT_UNITS = {  # provenance.parquet: the run controls of simulate
-    "dt": "s", "duration": "s", "output_every": "-", "x0": "m",
-    "startup_zero_fraction": "-", "startup_ramp_fraction": "-",
+    "dt": "s", "duration": "s", "output_every": "1", "x0": "m",
+    "startup_zero_fraction": "1", "startup_ramp_fraction": "1",
 }
-I64, F64, STR = "int64", "double", "string"
+I64, F64, STR, BOOL = "int64", "double", "string", "bool"
 TYPES = {  # pyarrow name -> (polars dtype, DuckDB type)
     I64: (pl.Int64, "BIGINT"),
     F64: (pl.Float64, "DOUBLE"),
     STR: (pl.String, "VARCHAR"),
+    BOOL: (pl.Boolean, "BOOLEAN"),
 }
+# The columns whose absent values are nulls (every other column has a value in every row):
+# by name in every file, and `factor` of a sensitivity study's evaluations and solver runs (null
+# in the A and B blocks).
+NULLABLE = {"outside_training_range", "failed", "solver_failure", "verdict", "worst_cell"}
+
+
+def nullable(kind, name):
+    return name in NULLABLE or name.endswith("_verdict") or (name == "factor" and kind in ("sensitivity/evaluations.parquet", "sensitivity/solver.parquet"))
 
 
 def dof_unit(dof, order):
@@ -127,73 +136,73 @@ PCT = [
 EXPECTED = {
     "params.parquet": (
         "sample-params",
-        [("sample_id", I64, "-"), ("split", STR, "-")]
+        [("sample_id", I64, "1"), ("split", STR, "1")]
         + [(p, F64, u) for p, u in PARAM_UNITS.items()],
     ),
     "irregularity.parquet": (
         "irregularity",
-        [("sample_id", I64, "-"), ("x", F64, "m"), ("eta", F64, "m")],
+        [("sample_id", I64, "1"), ("x", F64, "m"), ("eta", F64, "m")],
     ),
     "simulation.parquet": (
         "simulate",
-        [("sample_id", I64, "-"), ("t", F64, "s")]
+        [("sample_id", I64, "1"), ("t", F64, "s")]
         + signals(SOLUTIONS)
         + [(p, F64, "N") for p in FORCES],
     ),
     "ranges.parquet": (
         "sample-params",
-        [("name", STR, "-"), ("unit", STR, "-"), ("min", F64, "{unit}"), ("max", F64, "{unit}")],
+        [("name", STR, "1"), ("unit", STR, "1"), ("min", F64, "{unit}"), ("max", F64, "{unit}")],
     ),
-    "failures.parquet": ("simulate", [("sample_id", I64, "-"), ("reason", STR, "-")]),
+    "failures.parquet": ("simulate", [("sample_id", I64, "1"), ("reason", STR, "1")]),
     "provenance.parquet": (
         "simulate",
-        [("name", STR, "-"), ("value", F64, "{unit}"), ("unit", STR, "-")],
+        [("name", STR, "1"), ("value", F64, "{unit}"), ("unit", STR, "1")],
     ),
     "weights.parquet": (
         "weights",
-        [("sample_id", I64, "-")]
+        [("sample_id", I64, "1")]
         + [(f"phi_{d}", F64, "N m" if d.startswith("beta") else "N") for d in DOFS],
     ),
     "history.parquet": (
         "train",
-        [("epoch", I64, "-"), ("step", I64, "-")]
-        + [(c, F64, "-") for c in ["lr", "loss_total", "loss_data", "loss_deriv", "loss_ode",
+        [("epoch", I64, "1"), ("step", I64, "1")]
+        + [(c, F64, "1") for c in ["lr", "loss_total", "loss_data", "loss_deriv", "loss_ode",
                                     "val_solution", "val_first", "val_second"]],
     ),
     "table4.parquet": (
         "evaluate",
-        [("algorithm", I64, "-"), ("name", STR, "-"), ("depth", I64, "-"), ("split", STR, "-")]
+        [("algorithm", I64, "1"), ("name", STR, "1"), ("depth", I64, "1"), ("split", STR, "1")]
         + [(c, F64, "%") for c in PCT]
-        + [("samples", I64, "-")],
+        + [("samples", I64, "1")],
     ),
     "channel_errors.parquet": (
         "evaluate",
-        [("algorithm", I64, "-"), ("channel", STR, "-"), ("unit", STR, "-"),
+        [("algorithm", I64, "1"), ("channel", STR, "1"), ("unit", STR, "1"),
          ("rel_l2_pct", F64, "%"), ("rms_error", F64, "{unit}"), ("rms_exact", F64, "{unit}"),
-         ("worst_sample_id", I64, "-"), ("worst_rel_l2_pct", F64, "%"),
+         ("worst_sample_id", I64, "1"), ("worst_rel_l2_pct", F64, "%"),
          ("peak_error_pct_w", F64, "%")],
     ),
     # The calibrated intervals on the test split (docs/uncertainty.md).
     "coverage.parquet": (
         "evaluate",
-        [("algorithm", I64, "-"), ("kind", STR, "-"), ("quantity", STR, "-"), ("unit", STR, "-"),
-         ("normaliser", STR, "-"), ("chosen", I64, "-"), ("level", F64, "-"),
-         ("n_calibration", I64, "-"), ("n_test", I64, "-"), ("coverage", F64, "-"),
-         ("mean_width", F64, "{unit}"), ("width_over_std", F64, "-")],
+        [("algorithm", I64, "1"), ("kind", STR, "1"), ("quantity", STR, "1"), ("unit", STR, "1"),
+         ("normaliser", STR, "1"), ("chosen", BOOL, "1"), ("level", F64, "1"),
+         ("n_calibration", I64, "1"), ("n_test", I64, "1"), ("coverage", F64, "1"),
+         ("mean_width", F64, "{unit}"), ("width_over_std", F64, "1")],
     ),
     "coverage_conditional.parquet": (
         "evaluate",
-        [("algorithm", I64, "-"), ("kind", STR, "-"), ("quantity", STR, "-"), ("level", F64, "-"),
-         ("group", STR, "-"), ("bin", STR, "-"), ("n", I64, "-"), ("coverage", F64, "-")],
+        [("algorithm", I64, "1"), ("kind", STR, "1"), ("quantity", STR, "1"), ("level", F64, "1"),
+         ("group", STR, "1"), ("bin", STR, "1"), ("n", I64, "1"), ("coverage", F64, "1")],
     ),
     # The surrogate against the solver, per routed quantity (docs/uncertainty.md).
     "surrogate_errors.parquet": (
         "evaluate",
-        [("kind", STR, "-"), ("quantity", STR, "-"), ("unit", STR, "-"), ("member", STR, "-"),
-         ("n", I64, "-"), ("mean_rel_error_pct", F64, "%"), ("worst_rel_error_pct", F64, "%"),
-         ("worst_rel_sample_id", I64, "-"), ("level", F64, "-"), ("coverage", F64, "-"),
-         ("mean_width", F64, "{unit}"), ("width_over_std", F64, "-"),
-         ("worst_cell_coverage", F64, "-"), ("worst_cell", STR, "-")],
+        [("kind", STR, "1"), ("quantity", STR, "1"), ("unit", STR, "1"), ("member", STR, "1"),
+         ("n", I64, "1"), ("mean_rel_error_pct", F64, "%"), ("worst_rel_error_pct", F64, "%"),
+         ("worst_rel_sample_id", I64, "1"), ("level", F64, "1"), ("coverage", F64, "1"),
+         ("mean_width", F64, "{unit}"), ("width_over_std", F64, "1"),
+         ("worst_cell_coverage", F64, "1"), ("worst_cell", STR, "1")],
     ),
     # The indices (docs/indices.md) own their columns: checked by PARTIAL below.
     "indices.parquet": ("indices", None),
@@ -205,22 +214,22 @@ EXPECTED = {
     "monte_carlo/solver.parquet": ("study", None),
     "monte_carlo/summary.parquet": (
         "study",
-        [("index", STR, "-"), ("unit", STR, "-"), ("source", STR, "-"), ("n", I64, "-")]
+        [("index", STR, "1"), ("unit", STR, "1"), ("source", STR, "1"), ("n", I64, "1")]
         + [(f"{stat}{side}", F64, "{unit}") for stat in ["mean", "std", "q05", "q50", "q95", "q99"]
            for side in ["", "_lo", "_hi"]]
-        + [("limit", F64, "{unit}"), ("p_exceed", F64, "-"), ("p_exceed_lo", F64, "-"),
-           ("p_exceed_hi", F64, "-"), ("p_surrogate_lo", F64, "-"), ("p_surrogate_hi", F64, "-")],
+        + [("limit", F64, "{unit}"), ("p_exceed", F64, "1"), ("p_exceed_lo", F64, "1"),
+           ("p_exceed_hi", F64, "1"), ("p_surrogate_lo", F64, "1"), ("p_surrogate_hi", F64, "1")],
     ),
     "sensitivity/evaluations.parquet": ("study", None),
     "sensitivity/solver.parquet": ("study", None),
     "sensitivity/sobol.parquet": (
         "study",
-        [("index", STR, "-"), ("source", STR, "-"), ("n", I64, "-"), ("factor", STR, "-")]
-        + [(c, F64, "-") for c in ["S1", "S1_lo", "S1_hi", "ST", "ST_lo", "ST_hi", "rank"]],
+        [("index", STR, "1"), ("source", STR, "1"), ("n", I64, "1"), ("factor", STR, "1")]
+        + [(c, F64, "1") for c in ["S1", "S1_lo", "S1_hi", "ST", "ST_lo", "ST_hi", "rank"]],
     ),
     "sensitivity/convergence.parquet": (
         "study",
-        [("index", STR, "-"), ("n", I64, "-"), ("factor", STR, "-"), ("S1", F64, "-"), ("ST", F64, "-")],
+        [("index", STR, "1"), ("n", I64, "1"), ("factor", STR, "1"), ("S1", F64, "1"), ("ST", F64, "1")],
     ),
     "optimise/history.parquet": ("study", None),
     "optimise/evaluations.parquet": ("study", None),
@@ -228,52 +237,52 @@ EXPECTED = {
     "optimise/optimum.parquet": ("study", None),
     "predict": (
         "predict",
-        [("set", I64, "-"), ("t", F64, "s")] + signals(SOLUTIONS + [(p, F64, "N") for p in FORCES])
-        + [("outside_training_range", STR, "-")],
+        [("set", I64, "1"), ("t", F64, "s")] + signals(SOLUTIONS + [(p, F64, "N") for p in FORCES])
+        + [("outside_training_range", STR, "1")],
     ),
 }
 # Files whose columns their stage defines: each column must have a unit, and these must be there
 # (the contract the checks below and the README use).
 PARTIAL = {
-    "indices.parquet": [("sample_id", I64, "-"), ("peak_wheel_rail_force_kn", F64, "kN")],
-    "indices_errors.parquet": [("algorithm", I64, "-"), ("index", STR, "-"), ("unit", STR, "-")],
+    "indices.parquet": [("sample_id", I64, "1"), ("peak_wheel_rail_force_kn", F64, "kN")],
+    "indices_errors.parquet": [("algorithm", I64, "1"), ("index", STR, "1"), ("unit", STR, "1")],
     "monte_carlo/evaluations.parquet": [
-        ("design", I64, "-"), ("excitation", I64, "-"), ("wheel_load_reduction_rate", F64, "-"),
-        ("wheel_load_reduction_rate_lo", F64, "-"), ("wheel_load_reduction_rate_hi", F64, "-"),
-        ("extrapolated", I64, "-"), ("solver_checked", I64, "-"),
+        ("design", I64, "1"), ("excitation", I64, "1"), ("wheel_load_reduction_rate", F64, "1"),
+        ("wheel_load_reduction_rate_lo", F64, "1"), ("wheel_load_reduction_rate_hi", F64, "1"),
+        ("extrapolated", BOOL, "1"), ("solver_checked", BOOL, "1"),
     ],
     "monte_carlo/solver.parquet": [
-        ("design", I64, "-"), ("excitation", I64, "-"), ("peak_wheel_rail_force_kn", F64, "kN"),
-        ("peak_wheel_rail_force_kn_surrogate", F64, "kN"), ("solver_failure", STR, "-"),
+        ("design", I64, "1"), ("excitation", I64, "1"), ("peak_wheel_rail_force_kn", F64, "kN"),
+        ("peak_wheel_rail_force_kn_surrogate", F64, "kN"), ("solver_failure", STR, "1"),
     ],
     "sensitivity/evaluations.parquet": [
-        ("row", I64, "-"), ("position", I64, "-"), ("block", STR, "-"), ("factor", STR, "-"),
-        ("excitation", I64, "-"), ("sperling_wz_centre", F64, "-"), ("extrapolated", I64, "-"),
-        ("solver_checked", I64, "-"),
+        ("row", I64, "1"), ("position", I64, "1"), ("block", STR, "1"), ("factor", STR, "1"),
+        ("excitation", I64, "1"), ("sperling_wz_centre", F64, "1"), ("extrapolated", BOOL, "1"),
+        ("solver_checked", BOOL, "1"),
     ],
     "sensitivity/solver.parquet": [
-        ("row", I64, "-"), ("position", I64, "-"), ("block", STR, "-"), ("factor", STR, "-"),
-        ("excitation", I64, "-"), ("sperling_wz_centre", F64, "-"),
-        ("sperling_wz_centre_surrogate", F64, "-"), ("solver_failure", STR, "-"),
+        ("row", I64, "1"), ("position", I64, "1"), ("block", STR, "1"), ("factor", STR, "1"),
+        ("excitation", I64, "1"), ("sperling_wz_centre", F64, "1"),
+        ("sperling_wz_centre_surrogate", F64, "1"), ("solver_failure", STR, "1"),
     ],
     "optimise/history.parquet": [
-        ("candidate", I64, "-"), ("start", I64, "-"), ("evaluation", I64, "-"),
-        ("objective", F64, "m/s^2"), ("feasible", I64, "-"), ("penalised", F64, "-"),
+        ("candidate", I64, "1"), ("start", I64, "1"), ("evaluation", I64, "1"),
+        ("objective", F64, "m/s^2"), ("feasible", BOOL, "1"), ("penalised", F64, "1"),
     ],
     "optimise/evaluations.parquet": [
-        ("candidate", I64, "-"), ("excitation", I64, "-"), ("car_body_acc_rms_centre_ms2", F64, "m/s^2"),
-        ("extrapolated", I64, "-"), ("solver_checked", I64, "-"),
+        ("candidate", I64, "1"), ("excitation", I64, "1"), ("car_body_acc_rms_centre_ms2", F64, "m/s^2"),
+        ("extrapolated", BOOL, "1"), ("solver_checked", BOOL, "1"),
     ],
     "optimise/solver.parquet": [
-        ("candidate", I64, "-"), ("role", STR, "-"), ("excitation", I64, "-"),
-        ("car_body_acc_rms_centre_ms2_surrogate", F64, "m/s^2"), ("solver_failure", STR, "-"),
+        ("candidate", I64, "1"), ("role", STR, "1"), ("excitation", I64, "1"),
+        ("car_body_acc_rms_centre_ms2_surrogate", F64, "m/s^2"), ("solver_failure", STR, "1"),
     ],
     "optimise/optimum.parquet": [
-        ("candidate", I64, "-"), ("role", STR, "-"), ("source", STR, "-"), ("objective", F64, "m/s^2"),
-        ("feasible", I64, "-"),
+        ("candidate", I64, "1"), ("role", STR, "1"), ("source", STR, "1"), ("objective", F64, "m/s^2"),
+        ("feasible", BOOL, "1"),
     ],
     "indices_samples.parquet": [
-        ("algorithm", I64, "-"), ("sample_id", I64, "-"),
+        ("algorithm", I64, "1"), ("sample_id", I64, "1"),
         ("peak_wheel_rail_force_kn", F64, "kN"), ("peak_wheel_rail_force_kn_exact", F64, "kN"),
     ],
 }
@@ -306,6 +315,9 @@ def check_file(path, kind, context, version, commands):
     fields = [(f.name, str(f.type), (f.metadata or {}).get(b"unit", b"").decode()) for f in schema]
     for name, _, unit in fields:
         check(unit != "", f"{where}: column `{name}` has no `unit` field metadata")
+    for f in schema:
+        want = nullable(kind, f.name)
+        check(f.nullable == want, f"{where}: column `{f.name}` nullable = {f.nullable}, the spec says {want}")
     if columns is None:
         names = [f[0] for f in fields]
         for col in PARTIAL[kind]:
@@ -614,7 +626,7 @@ def recompute(arts, say):
         "surrogate": pl.read_parquet(ev.path).sort(["row", "position"]),
         "solver": pl.read_parquet(sv.path).sort(["row", "position"]),
     }
-    outputs["surrogate_reduced"] = outputs["surrogate"].filter(pl.col("solver_checked") == 1)
+    outputs["surrogate_reduced"] = outputs["surrogate"].filter(pl.col("solver_checked"))
     compared = 0
     for (index, source), est in sb.group_by(["index", "source"], maintain_order=True):
         factors = est["factor"].to_list()
@@ -644,7 +656,7 @@ def recompute(arts, say):
         f"WHERE o.role = 'optimum' AND o.source = 'surrogate'"
     ).fetchall()[0]
     check(abs(got - stored) <= 1e-12 * abs(stored), f"{op.path}: optimum objective {stored}, DuckDB {got}")
-    lowest = duckdb.sql(f"SELECT min(objective) FROM read_parquet({lit(hist.path)}) WHERE feasible = 1").fetchall()[0][0]
+    lowest = duckdb.sql(f"SELECT min(objective) FROM read_parquet({lit(hist.path)}) WHERE feasible").fetchall()[0][0]
     check(lowest == stored, f"{hist.path}: best feasible objective {lowest}, the optimum's {stored}")
     say(f"optimise: the optimum's objective {stored:.6g} recomputed from its evaluations, the history's best feasible")
 

@@ -260,10 +260,10 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     );
     let ix = pino_data::read_parquet(&ixp, None).unwrap();
     assert!(ix
-        .str("outside_training_range")
+        .opt_str("outside_training_range")
         .unwrap()
         .iter()
-        .all(|s| s.contains("k_f=1000000000")));
+        .all(|s| s.is_some_and(|s| s.contains("k_f=1000000000"))));
     let o = run(
         "predict",
         &strs(&sweep_args(&["--set", "k_f=1e9", "--strict"])),

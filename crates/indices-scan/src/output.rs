@@ -4,13 +4,14 @@
 
 use crate::{Computed, Error, Result};
 use mbd_system::System;
+use pino_data::units::DIMENSIONLESS;
 use pino_data::{schema, Column, Table};
 use pino_indices::{IndexConfig, IndexSet, Indices};
 use std::path::Path;
 
 /// The output table: `sample_id`, `split`, the sampled parameters of `system`, the index
-/// columns ([`Computed::columns`]), `window_s`, `pass` (1/0), `failed` (comma-separated limit
-/// names).
+/// columns ([`Computed::columns`]), `window_s`, `pass` (Boolean), `failed` (comma-separated
+/// limit names, null when none).
 pub fn to_table(system: &System, out: &Computed) -> pino_data::Result<Table> {
     let rows = &out.rows;
     let mut t = Table::default().with_units(pino_data::system::units_of(system)?);
@@ -40,11 +41,11 @@ pub fn to_table(system: &System, out: &Computed) -> pino_data::Result<Table> {
     )?;
     t.push(
         pino_indices::PASS_COLUMN,
-        Column::I64(rows.iter().map(|r| r.failed.is_empty() as i64).collect()),
+        Column::Bool(rows.iter().map(|r| r.failed.is_empty()).collect()),
     )?;
     t.push(
         pino_indices::FAILED_COLUMN,
-        Column::Str(rows.iter().map(|r| r.failed.join(",")).collect()),
+        Column::null_if_empty(rows.iter().map(|r| r.failed.join(","))),
     )?;
     Ok(t)
 }
@@ -85,13 +86,13 @@ pub fn describe_json(system: &System, cfg: &IndexConfig) -> String {
         ),
         (
             pino_indices::PASS_COLUMN,
-            "-",
-            "1 when no limit is exceeded, else 0",
+            DIMENSIONLESS,
+            "true when no limit is exceeded (Boolean)",
         ),
         (
             pino_indices::FAILED_COLUMN,
-            "-",
-            "the limits exceeded, comma-separated",
+            DIMENSIONLESS,
+            "the limits exceeded, comma-separated (null when none)",
         ),
     ] {
         columns.push(serde_json::json!({"name": name, "unit": unit, "definition": definition}));
@@ -166,7 +167,7 @@ pub fn summary(out: &Computed) -> String {
         .map(|(k, c)| {
             let v = sig(worst_of(&|r| Some(r.values[k])));
             match c.unit.as_str() {
-                "-" | "1" | "" => format!("{} {v}", c.name),
+                DIMENSIONLESS | "" => format!("{} {v}", c.name),
                 u => format!("{} {v} {u}", c.name),
             }
         })

@@ -484,8 +484,11 @@ fn a_description_without_railway_binding_gets_its_simple_indices() {
             "failed"
         ]
     );
-    assert_eq!(t.i64("pass").unwrap(), [1, 1, 0, 1, 1]);
-    assert_eq!(t.str("failed").unwrap()[2], "suspension_travel");
+    assert_eq!(t.bool("pass").unwrap(), [true, true, false, true, true]);
+    assert_eq!(
+        t.opt_str("failed").unwrap(),
+        [None, None, Some("suspension_travel"), None, None]
+    );
     // Units from the description: the stated ones, a ratio's `1`.
     let units = pino_data::metadata::read_metadata(&path)
         .unwrap()

@@ -255,6 +255,29 @@ pub fn check_profile_starts(system: &System, c: &RunConfig) -> Result<()> {
     })))
 }
 
+/// The farthest position (m) an element reads a generated profile at in run `c`, over the box
+/// of sampling ranges (every corner, [`box_corners`], as [`check_profile_starts`] takes them):
+/// what a generated profile must reach to cover the run of every design inside the ranges;
+/// `None` when no element reads a generated profile (or the profiles never come on).
+pub fn generated_profile_reach(system: &System, c: &RunConfig) -> Result<Option<f64>> {
+    c.validate()?;
+    let generated = |p: usize| matches!(system.profiles[p], DescribedProfile::Generated { .. });
+    let ranges = system.ranges();
+    use rayon::prelude::*;
+    let reach: Vec<Option<f64>> = box_corners(ranges.len())
+        .into_par_iter()
+        .map(|mask| {
+            let model = system.instantiate(&corner_values(system, &ranges, mask))?;
+            Ok(profile_reads(&model, c)
+                .iter()
+                .filter(|r| generated(r.profile))
+                .map(|r| r.x[1])
+                .reduce(f64::max))
+        })
+        .collect::<Result<_>>()?;
+    Ok(reach.into_iter().flatten().reduce(f64::max))
+}
+
 /// [`check_profile_starts`] as a pipeline's check mode reports it: its refusal placed at the
 /// profile's line in the description `source` (which `system` compiles),
 /// `file:line:col: profiles.NAME: x0 = ...` ([`Error::Described`]); other errors unchanged.
@@ -331,6 +354,32 @@ mod tests {
             check_profile_starts(&system, &run(x0, 0.0)).unwrap();
         }
         assert!(check_profile_starts(&system, &run(-1e-3, 0.0)).is_err());
+    }
+
+    /// A generated profile must reach the farthest point read over the sampling box: the
+    /// quarter car's tyre at the fastest speed (108 km/h = 30 m/s) at the run's last stored
+    /// time, from x0 = 5 m.
+    #[test]
+    fn the_reach_of_a_generated_profile_is_the_fastest_corners_last_read() {
+        let system = compile(QUARTER_CAR);
+        let c = run(5.0, 0.25);
+        let reach = generated_profile_reach(&system, &c).unwrap();
+        let want = 5.0 + 30.0 * c.t_end();
+        assert!(reach.is_some_and(|r| (r - want).abs() < 1e-9), "{reach:?}");
+        // A description whose profiles are harmonic (or absent) needs none.
+        let harmonic: String = QUARTER_CAR
+            .lines()
+            .filter(|l| !l.starts_with("    psd:") && !l.starts_with("    wavelengths:"))
+            .map(|l| {
+                let l = l.replace(
+                    "kind: generated",
+                    "kind: harmonic\n    amplitude: 0.01\n    wavelength: 10.0",
+                );
+                l + "\n"
+            })
+            .collect();
+        let none = generated_profile_reach(&compile(&harmonic), &run(5.0, 0.0));
+        assert_eq!(none.unwrap(), None);
     }
 
     /// With the profiles switched on late, the point has travelled `v t_on` by then, least at

@@ -38,7 +38,7 @@ pub mod source;
 pub mod system;
 pub mod yaml;
 
-pub use compile::{load_str, Override};
+pub use compile::{load_str, load_with_overrides, LoadError, Override, OverrideError};
 pub use diag::Diagnostics;
 pub use sampled::{Sampled, SampledError};
 pub use source::{SourceError, SystemSource, SYSTEM_FILE};

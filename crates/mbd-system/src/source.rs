@@ -5,7 +5,7 @@
 //! Its [`SystemSource::hash`] identifies it: two sources with the same text and overrides
 //! compile to the same [`System`].
 
-use crate::compile::{load_str, Override};
+use crate::compile::{load_with_overrides, LoadError, Override, OverrideError};
 use crate::diag::Diagnostics;
 use crate::System;
 use serde::{Deserialize, Serialize};
@@ -42,6 +42,14 @@ pub enum SourceError {
     /// The description has problems (each with its line).
     #[error("{0}")]
     Invalid(Diagnostics),
+    /// An override of the run (`values`) that the description does not take.
+    #[error("{file}: system_values.{error}")]
+    Override {
+        /// The description's file.
+        file: String,
+        /// The override refused and why.
+        error: OverrideError,
+    },
     /// A record is not valid JSON.
     #[error("{file}: malformed system record: {message}")]
     Record {
@@ -65,7 +73,13 @@ impl SystemSource {
 
     /// Parses, validates and compiles it.
     pub fn compile(&self) -> Result<System, SourceError> {
-        load_str(&self.text, &self.file, &self.values).map_err(SourceError::Invalid)
+        load_with_overrides(&self.text, &self.file, &self.values).map_err(|e| match e {
+            LoadError::Invalid(d) => SourceError::Invalid(d),
+            LoadError::Override(error) => SourceError::Override {
+                file: self.file.clone(),
+                error,
+            },
+        })
     }
 
     /// A problem found outside the description's own checks (a run control that does not fit
@@ -153,11 +167,27 @@ mod tests {
             900.0
         );
         b.values.insert("nope".into(), Override::Value(1.0));
-        assert!(b
-            .compile()
+        match b.compile().unwrap_err() {
+            SourceError::Override { file, error } => {
+                assert_eq!((file.as_str(), error.name.as_str()), ("t.yaml", "nope"));
+                assert!(
+                    error.message.starts_with(
+                        "`nope` is not a parameter of the description; parameters: m, k"
+                    ),
+                    "{}",
+                    error.message
+                );
+            }
+            other => panic!("{other}"),
+        }
+        // The stages' reading: the run's `system_values`, not a line of the file.
+        let e = crate::load_str(TEXT, "t.yaml", &b.values)
             .unwrap_err()
-            .to_string()
-            .contains("`nope` is not a parameter"));
+            .to_string();
+        assert!(
+            e.contains("system_values.nope: `nope` is not a parameter"),
+            "{e}"
+        );
     }
 
     /// A problem is placed at its field's line, else its entry's, else the top.

@@ -2,7 +2,8 @@
 //! Python package `pino_mbd` passes them through the Arrow C stream interface): a table becomes
 //! one batch whose fields carry their unit (`unit` field metadata and the `pino.column_units`
 //! schema metadata, as in the Parquet files) and whose buffers are the table's own vectors
-//! (moved, not copied); any batch of numeric or string columns reads back as a [`Table`].
+//! (moved, not copied); any batch of numeric, Boolean or string columns reads back as a
+//! [`Table`].
 
 use crate::parquet_io::{append_array, arrow_array, arrow_schema, empty_column, pq};
 use crate::{Result, Table};
@@ -26,7 +27,8 @@ pub fn into_record_batch(table: Table, origin: &Path) -> Result<RecordBatch> {
 }
 
 /// The batches of one Arrow stream with `schema` as a table (floats as `f64`, integers as
-/// `i64`, strings; nulls refused), `origin` naming it in errors.
+/// `i64`, Booleans, strings with or without nulls; a null elsewhere refused), `origin` naming
+/// it in errors.
 pub fn from_record_batches(
     schema: &arrow_schema::Schema,
     batches: &[RecordBatch],

@@ -2,7 +2,8 @@
 //!
 //! - [`schema`]: the column names every artifact uses (from `docs/model.md`); users read them
 //!   from pandas, polars or DuckDB, so they are a contract.
-//! - [`Table`]: a small columnar table of named `f64`, `i64` or string columns, carrying the
+//! - [`Table`]: a small columnar table of named `f64`, `i64`, Boolean or string columns (a
+//!   string column may hold nulls: an absent value, [`Column::null_if_empty`]), carrying the
 //!   units of the columns its system defines ([`units::Units`]).
 //! - [`write_parquet`]: writes a table atomically (temporary file, fsync, rename) with fixed
 //!   writer settings, so the same table always gives the same bytes.

@@ -7,7 +7,9 @@
 
 use crate::units::UNIT_KEY;
 use crate::{metadata, Column, Error, Result, Table};
-use arrow_array::{Array, ArrayRef, Float64Array, Int64Array, RecordBatch, StringArray};
+use arrow_array::{
+    Array, ArrayRef, BooleanArray, Float64Array, Int64Array, RecordBatch, StringArray,
+};
 use arrow_schema::{DataType, Field, Metadata, Schema, SchemaRef};
 use parquet::arrow::arrow_reader::{ParquetRecordBatchReader, ParquetRecordBatchReaderBuilder};
 use parquet::arrow::{ArrowWriter, ProjectionMask};
@@ -81,11 +83,13 @@ pub(crate) fn data_type(col: &Column) -> DataType {
     match col {
         Column::F64(_) => DataType::Float64,
         Column::I64(_) => DataType::Int64,
-        Column::Str(_) => DataType::Utf8,
+        Column::Str(_) | Column::OptStr(_) => DataType::Utf8,
+        Column::Bool(_) => DataType::Boolean,
     }
 }
 
-/// The Arrow schema of a table written to `path` (every column non-nullable): each field
+/// The Arrow schema of a table written to `path` (every column non-nullable but a
+/// [`Column::OptStr`], whose nulls are its absent values): each field
 /// with its `unit`, the schema with the file's key-value metadata ([`crate::metadata`]).
 pub(crate) fn arrow_schema(
     path: &Path,
@@ -98,7 +102,7 @@ pub(crate) fn arrow_schema(
         .iter()
         .zip(&units)
         .map(|((name, col), (_, unit))| {
-            Field::new(name, data_type(col), false)
+            Field::new(name, data_type(col), matches!(col, Column::OptStr(_)))
                 .with_metadata(Metadata::new().with(UNIT_KEY, *unit))
         })
         .collect();
@@ -121,6 +125,8 @@ pub(crate) fn arrow_array(col: Column) -> ArrayRef {
         Column::F64(v) => Arc::new(Float64Array::from(v)),
         Column::I64(v) => Arc::new(Int64Array::from(v)),
         Column::Str(v) => Arc::new(StringArray::from(v)),
+        Column::Bool(v) => Arc::new(BooleanArray::from(v)),
+        Column::OptStr(v) => Arc::new(StringArray::from(v)),
     }
 }
 
@@ -280,15 +286,18 @@ pub(crate) fn empty_column(path: &Path, name: &str, dt: &DataType) -> Result<Col
             Ok(Column::I64(Vec::new()))
         }
         DataType::Utf8 | DataType::LargeUtf8 | DataType::Utf8View => Ok(Column::Str(Vec::new())),
+        DataType::Boolean => Ok(Column::Bool(Vec::new())),
         other => Err(Error::ColumnType {
             path: path.to_owned(),
             column: name.to_owned(),
             found: other.to_string(),
-            expected: "f64, i64 or string".to_owned(),
+            expected: "f64, i64, bool or string".to_owned(),
         }),
     }
 }
 
+/// Appends `array` to `col`: numbers and Booleans without nulls, strings with or without
+/// (a string column becomes a [`Column::OptStr`] at its first null).
 pub(crate) fn append_array(
     path: &Path,
     name: &str,
@@ -299,19 +308,23 @@ pub(crate) fn append_array(
     use arrow_array::types::{
         Float32Type, Float64Type, Int32Type, Int64Type, UInt32Type, UInt64Type,
     };
-    let nulls = |n: usize| -> Result<()> {
-        if n > 0 {
-            Err(Error::ColumnType {
-                path: path.to_owned(),
-                column: name.to_owned(),
-                found: format!("{} with {n} nulls", array.data_type()),
-                expected: "no nulls".to_owned(),
-            })
-        } else {
-            Ok(())
-        }
+    let strings: Option<Vec<Option<&str>>> = match array.data_type() {
+        DataType::Utf8 => Some(array.as_string::<i32>().iter().collect()),
+        DataType::LargeUtf8 => Some(array.as_string::<i64>().iter().collect()),
+        DataType::Utf8View => Some(array.as_string_view().iter().collect()),
+        _ => None,
     };
-    nulls(array.null_count())?;
+    if let Some(strings) = strings {
+        return append_strings(path, name, col, strings, array.data_type());
+    }
+    if array.null_count() > 0 {
+        return Err(Error::ColumnType {
+            path: path.to_owned(),
+            column: name.to_owned(),
+            found: format!("{} with {} nulls", array.data_type(), array.null_count()),
+            expected: "no nulls".to_owned(),
+        });
+    }
     match (col, array.data_type()) {
         (Column::F64(v), DataType::Float64) => {
             v.extend_from_slice(array.as_primitive::<Float64Type>().values())
@@ -347,34 +360,45 @@ pub(crate) fn append_array(
                 .iter()
                 .map(|&x| x as i64),
         ),
-        (Column::Str(v), DataType::Utf8) => v.extend(
-            array
-                .as_string::<i32>()
-                .iter()
-                .map(|s| s.unwrap_or_default().to_owned()),
-        ),
-        (Column::Str(v), DataType::LargeUtf8) => v.extend(
-            array
-                .as_string::<i64>()
-                .iter()
-                .map(|s| s.unwrap_or_default().to_owned()),
-        ),
-        (Column::Str(v), DataType::Utf8View) => v.extend(
-            array
-                .as_string_view()
-                .iter()
-                .map(|s| s.unwrap_or_default().to_owned()),
-        ),
-        (col, dt) => {
-            return Err(Error::ColumnType {
-                path: path.to_owned(),
-                column: name.to_owned(),
-                found: dt.to_string(),
-                expected: col.type_name().to_owned(),
-            })
-        }
+        (Column::Bool(v), DataType::Boolean) => v.extend(array.as_boolean().values().iter()),
+        (col, dt) => return Err(mismatch(path, name, dt, col)),
     }
     Ok(())
+}
+
+/// Appends the rows of a string array to `col` (a string column, with or without nulls).
+fn append_strings(
+    path: &Path,
+    name: &str,
+    col: &mut Column,
+    strings: Vec<Option<&str>>,
+    dt: &DataType,
+) -> Result<()> {
+    if let Column::Str(v) = col {
+        if strings.iter().any(Option::is_none) {
+            let upgraded = std::mem::take(v).into_iter().map(Some).collect();
+            *col = Column::OptStr(upgraded);
+        }
+    }
+    match col {
+        Column::Str(v) => v.extend(
+            strings
+                .into_iter()
+                .map(|s| s.unwrap_or_default().to_owned()),
+        ),
+        Column::OptStr(v) => v.extend(strings.into_iter().map(|s| s.map(str::to_owned))),
+        col => return Err(mismatch(path, name, dt, col)),
+    }
+    Ok(())
+}
+
+fn mismatch(path: &Path, name: &str, found: &DataType, col: &Column) -> Error {
+    Error::ColumnType {
+        path: path.to_owned(),
+        column: name.to_owned(),
+        found: found.to_string(),
+        expected: col.type_name().to_owned(),
+    }
 }
 
 #[cfg(test)]
@@ -412,6 +436,49 @@ mod tests {
         assert_eq!(names.len(), 2, "{names:?}");
     }
 
+    /// Booleans and strings with nulls round-trip as Parquet BOOLEAN and a nullable STRING
+    /// (the reader sees the null, not an empty string); a column without a null reads back
+    /// as a plain string column, and the accessors take either.
+    #[test]
+    fn booleans_and_nulls_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.parquet");
+        let mut t = sample();
+        t.push("pass", Column::Bool(vec![true, false, true]))
+            .unwrap();
+        t.push(
+            "verdict",
+            Column::OptStr(vec![None, Some("fail".into()), Some(String::new())]),
+        )
+        .unwrap();
+        t.push("failed", Column::OptStr(vec![Some("x".into()); 3]))
+            .unwrap();
+        write_parquet(&a, &t).unwrap();
+        let back = read_parquet(&a, None).unwrap();
+        assert_eq!(back.bool("pass").unwrap(), [true, false, true]);
+        assert_eq!(
+            back.column("verdict").unwrap(),
+            &Column::OptStr(vec![None, Some("fail".into()), Some(String::new())])
+        );
+        assert_eq!(back.opt_str("failed").unwrap(), [Some("x"); 3]);
+        assert_eq!(back.str("failed").unwrap()[0], "x");
+        let (_, _, schema) = projected_reader(&a, None).unwrap();
+        let nullable: Vec<bool> = schema.fields().iter().map(|f| f.is_nullable()).collect();
+        assert_eq!(nullable, [false, false, false, false, true, true]);
+        assert_eq!(schema.field(3).data_type(), &DataType::Boolean);
+        // Appending a file with nulls to one without keeps every row.
+        let mut both = read_parquet(&a, Some(&["failed"])).unwrap();
+        let mut nulls = Table::default();
+        nulls
+            .push("failed", Column::OptStr(vec![None, Some("y".into())]))
+            .unwrap();
+        both.append(nulls).unwrap();
+        assert_eq!(
+            both.opt_str("failed").unwrap(),
+            [Some("x"), Some("x"), Some("x"), None, Some("y")]
+        );
+    }
+
     /// Each column carries its unit (field metadata), the file its version and the units as
     /// JSON (key-value metadata), in the same bytes on a rerun; a column without a unit is
     /// refused and leaves no file.
@@ -430,15 +497,15 @@ mod tests {
         assert_eq!(
             units,
             [
-                ("sample_id", Some("-")),
+                ("sample_id", Some("1")),
                 ("t", Some("s")),
-                ("split", Some("-"))
+                ("split", Some("1"))
             ]
         );
         assert_eq!(m.key_value[VERSION_KEY], VERSION);
         assert_eq!(
             m.key_value[COLUMN_UNITS_KEY],
-            r#"{"sample_id":"-","split":"-","t":"s"}"#
+            r#"{"sample_id":"1","split":"1","t":"s"}"#
         );
         // No origin declared in this process: no stage.
         assert!(!m.key_value.contains_key(STAGE_KEY));

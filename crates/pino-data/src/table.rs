@@ -1,5 +1,6 @@
-//! An in-memory columnar table: named, equally long `f64`, `i64` or string columns, with the
-//! units of the columns that the fixed table of [`crate::units`] does not know.
+//! An in-memory columnar table: named, equally long `f64`, `i64`, Boolean or string columns
+//! (strings with or without nulls), with the units of the columns that the fixed table of
+//! [`crate::units`] does not know.
 
 use crate::units::Units;
 use crate::{Error, Result};
@@ -14,15 +15,33 @@ pub enum Column {
     I64(Vec<i64>),
     /// UTF-8 strings (Parquet BYTE_ARRAY / STRING).
     Str(Vec<String>),
+    /// Booleans (Parquet BOOLEAN).
+    Bool(Vec<bool>),
+    /// UTF-8 strings where `None` is absent (a null: a nullable Parquet STRING), for a column
+    /// whose rows may have no value (a flag that names what is wrong, empty when nothing is).
+    OptStr(Vec<Option<String>>),
 }
 
 impl Column {
+    /// A [`Column::OptStr`] of `values` where an empty string (no flag, nothing named) is a
+    /// null: the one rule by which every artifact writes an absent text.
+    pub fn null_if_empty(values: impl IntoIterator<Item = String>) -> Column {
+        Column::OptStr(
+            values
+                .into_iter()
+                .map(|s| (!s.is_empty()).then_some(s))
+                .collect(),
+        )
+    }
+
     /// Number of values.
     pub fn len(&self) -> usize {
         match self {
             Column::F64(v) => v.len(),
             Column::I64(v) => v.len(),
             Column::Str(v) => v.len(),
+            Column::Bool(v) => v.len(),
+            Column::OptStr(v) => v.len(),
         }
     }
 
@@ -37,6 +56,8 @@ impl Column {
             Column::F64(_) => "f64",
             Column::I64(_) => "i64",
             Column::Str(_) => "string",
+            Column::Bool(_) => "bool",
+            Column::OptStr(_) => "nullable string",
         }
     }
 
@@ -45,6 +66,15 @@ impl Column {
             (Column::F64(a), Column::F64(b)) => a.extend(b),
             (Column::I64(a), Column::I64(b)) => a.extend(b),
             (Column::Str(a), Column::Str(b)) => a.extend(b),
+            (Column::Bool(a), Column::Bool(b)) => a.extend(b),
+            (Column::OptStr(a), Column::OptStr(b)) => a.extend(b),
+            (Column::OptStr(a), Column::Str(b)) => a.extend(b.into_iter().map(Some)),
+            (this @ Column::Str(_), Column::OptStr(b)) => {
+                let Column::Str(a) = std::mem::replace(this, Column::OptStr(Vec::new())) else {
+                    unreachable!("matched above")
+                };
+                *this = Column::OptStr(a.into_iter().map(Some).chain(b).collect());
+            }
             (_, other) => return Err(other.type_name()),
         }
         Ok(())
@@ -176,6 +206,24 @@ impl Table {
     pub fn str(&self, name: &str) -> Result<&[String]> {
         match self.column(name)? {
             Column::Str(v) => Ok(v),
+            other => Err(self.type_error(name, other, "string")),
+        }
+    }
+
+    /// A Boolean column by name.
+    pub fn bool(&self, name: &str) -> Result<&[bool]> {
+        match self.column(name)? {
+            Column::Bool(v) => Ok(v),
+            other => Err(self.type_error(name, other, "bool")),
+        }
+    }
+
+    /// A string column by name, each row `None` where it is null (a column read without
+    /// nulls is a plain string column: both are accepted).
+    pub fn opt_str(&self, name: &str) -> Result<Vec<Option<&str>>> {
+        match self.column(name)? {
+            Column::OptStr(v) => Ok(v.iter().map(Option::as_deref).collect()),
+            Column::Str(v) => Ok(v.iter().map(|s| Some(s.as_str())).collect()),
             other => Err(self.type_error(name, other, "string")),
         }
     }

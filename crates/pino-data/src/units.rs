@@ -12,7 +12,8 @@
 //! process-wide registry: two systems' tables written by one process each carry their own.
 //!
 //! Notation: SI symbols as in `docs/model.md`, products with a space (`N m`, `N s/m`,
-//! `kg m^2`), powers with `^`; `-` for a dimensionless number, an identifier or a label;
+//! `kg m^2`), powers with `^`; `1` for a dimensionless number, a count, a flag, an identifier
+//! or a label (the one spelling: the descriptions' dimensionless parameters say `"1"` too);
 //! `%` for a percentage. [`PER_ROW`] (`{unit}`) says that the unit differs from row to row
 //! and is the value of the row's `unit` column (`channel_errors.parquet`,
 //! `provenance.parquet`).
@@ -25,8 +26,8 @@ use crate::schema;
 /// Arrow field-metadata key of a column's unit.
 pub const UNIT_KEY: &str = "unit";
 
-/// The unit of a dimensionless number, an identifier or a label.
-pub const DIMENSIONLESS: &str = "-";
+/// The unit of a dimensionless number, a count, a flag, an identifier or a label.
+pub const DIMENSIONLESS: &str = "1";
 
 /// The unit of a column whose rows have different units: each row's unit is the value of its
 /// `unit` column.
@@ -131,7 +132,7 @@ const NAMED: &[(&str, &str)] = &[
 ///
 /// ```
 /// use pino_data::units::fixed_unit;
-/// assert_eq!(fixed_unit("sample_id"), Some("-"));
+/// assert_eq!(fixed_unit("sample_id"), Some("1"));
 /// assert_eq!(fixed_unit("t"), Some("s"));
 /// assert_eq!(fixed_unit("z_s"), None);
 /// ```
@@ -154,7 +155,7 @@ impl Units {
     /// use pino_data::units::Units;
     /// let units = Units::default().with([("z_s", "m"), ("phi_z_s", "N")]).unwrap();
     /// assert_eq!(units.unit("z_s"), Some("m"));
-    /// assert_eq!(units.unit("sample_id"), Some("-"));
+    /// assert_eq!(units.unit("sample_id"), Some("1"));
     /// assert_eq!(units.unit("no_such_column"), None);
     /// assert!(units.with([("z_s", "rad")]).is_err());
     /// ```
@@ -217,7 +218,7 @@ mod tests {
         let units = Units::default();
         for (c, u) in [
             ("t", "s"),
-            ("sample_id", "-"),
+            ("sample_id", "1"),
             ("rms_error", PER_ROW),
             ("dt", "s"),
         ] {

@@ -54,7 +54,7 @@ fn declared_origin_is_in_every_file() {
         assert_eq!(back, params);
         assert_eq!(
             kv[COLUMN_UNITS_KEY],
-            r#"{"p_1":"N","sample_id":"-","t":"s"}"#
+            r#"{"p_1":"N","sample_id":"1","t":"s"}"#
         );
         assert_eq!(m.column_units[2], ("p_1".to_owned(), Some("N".to_owned())));
     }

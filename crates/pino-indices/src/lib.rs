@@ -306,7 +306,7 @@ pub const INDEX_COLUMNS: [IndexColumn; 14] = [
     },
     IndexColumn {
         name: "wheel_load_reduction_rate",
-        unit: "-",
+        unit: "1",
         definition: "max over wheels of (W - min_t p_i) / W, W the static wheel load",
     },
     IndexColumn {
@@ -341,17 +341,17 @@ pub const INDEX_COLUMNS: [IndexColumn; 14] = [
     },
     IndexColumn {
         name: "sperling_wz_centre",
-        unit: "-",
+        unit: "1",
         definition: "Sperling ride index W_z (vertical) of z_c''",
     },
     IndexColumn {
         name: "sperling_wz_front",
-        unit: "-",
+        unit: "1",
         definition: "Sperling ride index W_z of z_c'' - l_c beta_c''",
     },
     IndexColumn {
         name: "sperling_wz_rear",
-        unit: "-",
+        unit: "1",
         definition: "Sperling ride index W_z of z_c'' + l_c beta_c''",
     },
     IndexColumn {
@@ -373,9 +373,9 @@ pub const INDEX_COLUMNS: [IndexColumn; 14] = [
 
 /// Column of the evaluation window's length (s) written beside the indices.
 pub const WINDOW_COLUMN: &str = "window_s";
-/// Column that is 1 when every configured limit holds, else 0.
+/// Boolean column: true when every configured limit holds.
 pub const PASS_COLUMN: &str = "pass";
-/// Column naming the failed limits, comma-separated (empty when all pass).
+/// Column naming the failed limits, comma-separated (null when all pass).
 pub const FAILED_COLUMN: &str = "failed";
 
 /// The indices of one sample (units in the field names).

@@ -16,10 +16,12 @@ use std::process::ExitCode;
 #[derive(Debug, Parser)]
 #[command(name = "pipeline", version)]
 pub struct Cli {
-    /// Workspace root (default: the current directory).
+    /// Workspace root (default: the pipeline file's `workspace:`, relative to the file, else
+    /// the file's directory).
     #[arg(short = 'C', long = "workspace", global = true, value_name = "DIR")]
     pub workspace: Option<PathBuf>,
-    /// Pipeline file, relative to the workspace.
+    /// Pipeline file, relative to the workspace when -C is given, else to the current
+    /// directory.
     #[arg(
         short = 'f',
         long = "file",
@@ -90,10 +92,10 @@ pub enum Command {
 }
 
 fn execute(cli: Cli) -> Result<()> {
-    let workspace = cli.workspace.clone().unwrap_or_else(|| PathBuf::from("."));
-    let file = match &cli.workspace {
-        Some(w) if !cli.file.is_absolute() => w.join(&cli.file),
-        _ => cli.file.clone(),
+    // `gc` reads no pipeline file: its workspace is -C's, else the current directory.
+    let (workspace, file) = match (&cli.command, &cli.workspace) {
+        (Command::Gc { .. }, None) => (PathBuf::from("."), cli.file.clone()),
+        _ => crate::spec::locate(&cli.file, cli.workspace.as_deref())?,
     };
     let opts = LoadOptions {
         bin_dir: cli.bin_dir.clone().or_else(|| {

@@ -60,9 +60,18 @@ pub enum Error {
         /// Their names.
         names: String,
     },
-    /// `pipeline show` on a stage that has no recorded outputs yet.
-    #[error("stage `{0}` has no outputs yet: run `pipeline run {0}`")]
-    NoOutputs(String),
+    /// `pipeline show` on a stage that has no recorded outputs yet in the workspace.
+    #[error("stage `{unit}` has no outputs yet in the workspace {}: `pipeline -C {} -f {file} run {stage}` makes them", .workspace.display(), .workspace.display())]
+    NoOutputs {
+        /// The unit shown.
+        unit: String,
+        /// Its stage, as `pipeline run` takes it.
+        stage: String,
+        /// The workspace looked in (absolute).
+        workspace: PathBuf,
+        /// The pipeline file, relative to the workspace (absolute when outside it).
+        file: String,
+    },
     /// An I/O error on a named path.
     #[error("{path}: {source}")]
     Io {
@@ -98,7 +107,7 @@ impl Error {
             | Error::Busy { .. }
             | Error::Check { .. } => 2,
             Error::StageFailed { .. }
-            | Error::NoOutputs(_)
+            | Error::NoOutputs { .. }
             | Error::Io { .. }
             | Error::Store { .. } => 1,
         }

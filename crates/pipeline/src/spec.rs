@@ -63,6 +63,10 @@ impl<V> Default for UniqueMap<V> {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawPipeline {
+    /// The workspace root, relative to the file's directory (default: that directory); read
+    /// by [`locate`] when no workspace is given.
+    #[serde(default)]
+    workspace: Option<String>,
     #[serde(default)]
     bin_dir: Option<String>,
     #[serde(default)]
@@ -421,6 +425,44 @@ fn parse_yaml(text: &str, display: &str) -> Result<RawPipeline> {
             message: msg,
         }
     })
+}
+
+/// The workspace and the pipeline file a command names: with a `workspace`, that one and
+/// `file` relative to it (unless absolute); without, `file` relative to the current
+/// directory and the workspace its `workspace:` (relative to the file's directory: `.` or a
+/// directory above) or else the file's own directory. The `pipeline` command's `-C`/`-f` and
+/// the Python package's `Pipeline(path, workspace=)` resolve through it, so a pipeline file
+/// opened from anywhere runs in the same workspace.
+pub fn locate(file: &Path, workspace: Option<&Path>) -> Result<(PathBuf, PathBuf)> {
+    if let Some(ws) = workspace {
+        let file = if file.is_absolute() {
+            file.to_owned()
+        } else {
+            ws.join(file)
+        };
+        return Ok((ws.to_owned(), file));
+    }
+    let display = file.display().to_string();
+    let text = std::fs::read_to_string(file)
+        .map_err(|e| Error::Usage(format!("cannot read pipeline file {display}: {e}")))?;
+    let raw = parse_yaml(&text, &display)?;
+    let abs = normalize(&std::path::absolute(file).map_err(|e| Error::io(file, e))?);
+    let dir = abs.parent().unwrap_or(Path::new("/")).to_path_buf();
+    let Some(rel) = raw.workspace else {
+        return Ok((dir, file.to_owned()));
+    };
+    let ws = normalize(&dir.join(&rel));
+    if Path::new(&rel).is_absolute() || !dir.starts_with(&ws) {
+        let src = SourceFile {
+            display: &display,
+            loc: Locator::new(&text),
+        };
+        return Err(src.err(
+            src.loc.top_line("workspace"),
+            format!("workspace `{rel}`: allowed the file's directory (`.`) or one above it (`..`, `../..`), relative to the file"),
+        ));
+    }
+    Ok((ws, file.to_owned()))
 }
 
 /// Checks one stage's own fields (its name, command, shards, resources, input names and

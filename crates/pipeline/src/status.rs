@@ -241,12 +241,22 @@ pub fn show(p: &Pipeline, target: &str) -> Result<String> {
             p.file
         )));
     }
+    let no_outputs = |unit: &str| Error::NoOutputs {
+        unit: unit.to_owned(),
+        stage: if target.contains('[') {
+            format!("'{target}'")
+        } else {
+            target.to_owned()
+        },
+        workspace: p.workspace.clone(),
+        file: p.key.clone(),
+    };
     for u in units {
         let entry = rec
             .pipelines
             .get(&p.key)
             .and_then(|m| m.get(&u.key))
-            .ok_or_else(|| Error::NoOutputs(u.key.clone()))?;
+            .ok_or_else(|| no_outputs(&u.key))?;
         match store.verify(&entry.identity) {
             Cached::Valid(m) => {
                 for f in &m.files {
@@ -257,7 +267,7 @@ pub fn show(p: &Pipeline, target: &str) -> Result<String> {
                     );
                 }
             }
-            Cached::Missing => return Err(Error::NoOutputs(u.key.clone())),
+            Cached::Missing => return Err(no_outputs(&u.key)),
             Cached::Corrupt(why) => {
                 return Err(Error::Store {
                     path: store.object_dir(&entry.identity),

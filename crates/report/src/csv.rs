@@ -1,7 +1,8 @@
 //! A [`Table`] as CSV: a header of column names, then one record per row, `\n` after each.
 //!
 //! Cells: `f64` as Rust's `Display` writes it (the shortest text that reads back to the same
-//! value: `0.1`, `1`, `1e-7`; `NaN`, `inf`), `i64` in decimal, strings as they are. The `csv`
+//! value: `0.1`, `1`, `1e-7`; `NaN`, `inf`), `i64` in decimal, Booleans as `true`/`false`,
+//! strings as they are and a null as an empty field. The `csv`
 //! crate quotes a field only when it must (RFC 4180): when it holds a comma, a double quote
 //! (written doubled) or a line break, so any standard reader gets every string back.
 //!
@@ -18,12 +19,14 @@ use crate::{Error, Result};
 use pino_data::{Column, Table};
 use std::path::Path;
 
-/// The text of row `r` of a column.
+/// The text of row `r` of a column (a null is an empty field).
 fn cell(c: &Column, r: usize) -> String {
     match c {
         Column::F64(v) => v[r].to_string(),
         Column::I64(v) => v[r].to_string(),
         Column::Str(v) => v[r].clone(),
+        Column::Bool(v) => v[r].to_string(),
+        Column::OptStr(v) => v[r].clone().unwrap_or_default(),
     }
 }
 

@@ -115,19 +115,35 @@ impl<'a> Scope<'a> {
     }
 }
 
+/// An override of a run that the description's parameter table does not take: the
+/// parameter's name and why (the caller says which argument the overrides came from: the
+/// stages' `system_values`, the Python package's `values`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{name}: {message}")]
+pub struct OverrideError {
+    /// The overridden name.
+    pub name: String,
+    /// Why the override is refused, with what is allowed.
+    pub message: String,
+}
+
 /// Applies `overrides` to the parameter table (unknown names and derived parameters are
 /// refused; the message names the allowed parameters).
 pub fn apply_overrides(
     raw: &mut RawDescription,
     overrides: &BTreeMap<String, Override>,
-) -> Result<(), String> {
+) -> Result<(), OverrideError> {
     for (name, o) in overrides {
+        let refuse = |message: String| OverrideError {
+            name: name.clone(),
+            message,
+        };
         let Some(p) = raw.parameters.iter_mut().find(|p| &p.name == name) else {
             let known: Vec<&str> = raw.parameters.iter().map(|p| p.name.as_str()).collect();
-            return Err(format!(
-                "system_values: `{name}` is not a parameter of the description; parameters: {}",
+            return Err(refuse(format!(
+                "`{name}` is not a parameter of the description; parameters: {}",
                 known.join(", ")
-            ));
+            )));
         };
         match (&mut p.kind, o) {
             (ParamKind::Fixed { value }, Override::Value(v)) if v.is_finite() => *value = *v,
@@ -142,17 +158,17 @@ pub fn apply_overrides(
                 *range = [*lo, *hi]
             }
             (ParamKind::Derived { .. }, _) => {
-                return Err(format!(
-                    "system_values.{name}: `{name}` is derived from other parameters; override those"
-                ))
+                return Err(refuse(format!(
+                    "`{name}` is derived from other parameters; override those"
+                )))
             }
             (ParamKind::Fixed { .. }, _) => {
-                return Err(format!("system_values.{name}: a fixed parameter takes a finite number"))
+                return Err(refuse("a fixed parameter takes a finite number".into()))
             }
             (ParamKind::Sampled { nominal, range }, _) => {
-                return Err(format!(
-                    "system_values.{name}: a sampled parameter takes a nominal value inside its range {range:?} or a range `[min, max]` containing the nominal {nominal}"
-                ))
+                return Err(refuse(format!(
+                    "a sampled parameter takes a nominal value inside its range {range:?} or a range `[min, max]` containing the nominal {nominal}"
+                )))
             }
         }
     }
@@ -375,12 +391,42 @@ pub(crate) fn collect_ids(e: &Expr, out: &mut Vec<usize>) {
 }
 
 /// Parses, validates and compiles a description text (`file` names it in messages), with
-/// `overrides` applied to its parameter table.
+/// `overrides` applied to its parameter table (a refused override is reported as the
+/// stages' `system_values.NAME`, at the top of the file).
 pub fn load_str(
     text: &str,
     file: &str,
     overrides: &BTreeMap<String, Override>,
 ) -> Result<System, Diagnostics> {
+    load_with_overrides(text, file, overrides).map_err(|e| match e {
+        LoadError::Invalid(diag) => diag,
+        LoadError::Override(o) => {
+            let mut diag = Diagnostics {
+                file: file.to_owned(),
+                items: Vec::new(),
+            };
+            diag.push(Pos { line: 1, col: 1 }, format!("system_values.{o}"));
+            diag
+        }
+    })
+}
+
+/// Why [`load_with_overrides`] refused: the description's problems, or an override the
+/// description does not take (the text itself is fine).
+#[derive(Debug)]
+pub enum LoadError {
+    /// The description's problems, each at its line.
+    Invalid(Diagnostics),
+    /// An override the parameter table refuses.
+    Override(OverrideError),
+}
+
+/// [`load_str`], telling the description's own problems from a refused override.
+pub fn load_with_overrides(
+    text: &str,
+    file: &str,
+    overrides: &BTreeMap<String, Override>,
+) -> Result<System, LoadError> {
     let mut diag = Diagnostics {
         file: file.to_owned(),
         items: Vec::new(),
@@ -389,19 +435,16 @@ pub fn load_str(
         Ok(r) => r,
         Err(e) => {
             diag.push(e.pos, format!("not valid YAML: {}", e.message));
-            return Err(diag);
+            return Err(LoadError::Invalid(diag));
         }
     };
     let mut raw = schema::read(&root, &mut diag);
     if !diag.is_empty() {
-        return Err(diag);
+        return Err(LoadError::Invalid(diag));
     }
-    if let Err(message) = apply_overrides(&mut raw, overrides) {
-        diag.push(Pos { line: 1, col: 1 }, message);
-        return Err(diag);
-    }
+    apply_overrides(&mut raw, overrides).map_err(LoadError::Override)?;
     match compile(&raw, &mut diag) {
         Some(s) if diag.is_empty() => Ok(s),
-        _ => Err(diag),
+        _ => Err(LoadError::Invalid(diag)),
     }
 }

@@ -25,7 +25,10 @@ pub fn write_coverage(
     t.push("quantity", col_s(&|r| r.quantity.clone()))?;
     t.push("unit", col_s(&|r| r.unit.clone()))?;
     t.push("normaliser", col_s(&|r| r.normaliser.as_str().to_owned()))?;
-    t.push("chosen", col_i(&|r| r.chosen as i64))?;
+    t.push(
+        "chosen",
+        Column::Bool(rows.iter().map(|r| r.chosen).collect()),
+    )?;
     t.push("level", col_f(&|r| r.level))?;
     t.push("n_calibration", col_i(&|r| r.n_calibration as i64))?;
     t.push("n_test", col_i(&|r| r.n_test as i64))?;

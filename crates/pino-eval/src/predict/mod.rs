@@ -79,6 +79,8 @@ pub struct Predictor {
     identity: ModelIdentity,
     calibration: Option<Calibration>,
     probe: Option<ResidualProbe>,
+    /// What a refusal calls the designs (`sets[k]`, `predict`'s; [`Predictor::name_designs`]).
+    designs: String,
 }
 
 /// One design's answer: its indices, and what a calibration adds to them.
@@ -138,7 +140,14 @@ impl Predictor {
             device: device.clone(),
             identity: ModelIdentity::of(model_dir)?,
             calibration: None,
+            designs: "sets".to_owned(),
         })
+    }
+
+    /// Names the designs `label` in refusals (`label[k].NAME`; default `sets`, the name of
+    /// `predict`'s YAML list): the Python package's are `designs`.
+    pub fn name_designs(&mut self, label: &str) {
+        label.clone_into(&mut self.designs);
     }
 
     /// The model's identity (the hashes of its files).
@@ -286,6 +295,7 @@ impl Predictor {
         if generated_names(&self.system).is_empty() {
             return Ok(GeneratedProfiles {
                 generators: vec![None; self.system.profiles.len()],
+                what: String::new(),
             });
         }
         let settings = self.meta.data.as_ref().and_then(|d| d.profiles.as_ref());
@@ -342,7 +352,7 @@ impl Predictor {
         profiles: &[Option<Profile>],
         run: &RunConfig,
     ) -> Result<Vec<f64>> {
-        let ex = self.excitations_of(design, profiles, run, &format!("sets[{k}]"))?;
+        let ex = self.excitations_of(design, profiles, run, &format!("{}[{k}]", self.designs))?;
         let times = self.meta.grid.times();
         let mut out = Vec::with_capacity(times.len() * self.excitation_columns.len());
         for &t in &times {
@@ -412,7 +422,7 @@ impl Predictor {
                     self.excitations(first + k, p, &of(first + k)?, run)?
                 }
             };
-            self.readable(p, &format!("sets[{}]", first + k))?;
+            self.readable(p, &format!("{}[{}]", self.designs, first + k))?;
             x.extend(meta.norm.inputs.normalise(&input_block(&times, &eta, p)));
             etas.push(eta);
         }
@@ -477,23 +487,31 @@ impl Predictor {
         batch: usize,
         coverage: Option<f64>,
     ) -> Result<Table> {
+        let profiles = ProfileSource::Shared(profiles);
+        self.histories_with(sets, &profiles, run, batch, coverage)
+    }
+
+    /// [`Predictor::histories`] with the profiles of each design from `profiles` (each design
+    /// under its own excitation).
+    pub fn histories_with(
+        &self,
+        sets: &[Vec<f64>],
+        profiles: &ProfileSource<'_>,
+        run: &RunConfig,
+        batch: usize,
+        coverage: Option<f64>,
+    ) -> Result<Table> {
         let layout = &self.meta.layout;
         let (o, d, e) = (layout.n_outputs(), layout.n_dofs(), layout.n_excitations());
         let times = self.meta.grid.times();
         let tp = self.meta.grid.t_points;
-        let preds = self.batched(
-            sets,
-            &ProfileSource::Shared(profiles),
-            run,
-            batch,
-            &|k, p| {
-                let bands = match coverage {
-                    Some(c) => self.calibrated(&sets[k], p, &[], c, true)?,
-                    None => None,
-                };
-                Ok((p.clone(), bands))
-            },
-        )?;
+        let preds = self.batched(sets, profiles, run, batch, &|k, p| {
+            let bands = match coverage {
+                Some(c) => self.calibrated(&sets[k], p, &[], c, true)?,
+                None => None,
+            };
+            Ok((p.clone(), bands))
+        })?;
         let columns = prediction_channels(layout);
         let names: Vec<&str> = columns.iter().map(|(n, _)| n.as_str()).collect();
         let mut cols: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
@@ -548,8 +566,8 @@ impl Predictor {
     }
 
     /// [`Predictor::histories`] with the column [`OUTSIDE_COLUMN`] last: on each row, the
-    /// [`outside_flag`] of its design ([`Predictor::outside_training`]). The table of
-    /// `predict --out` and of the Python package's `Model.predict`.
+    /// [`outside_flag`] of its design ([`Predictor::outside_training`]; null inside). The
+    /// table of `predict --out` and of the Python package's `Model.predict`.
     pub fn histories_flagged(
         &self,
         sets: &[Vec<f64>],
@@ -558,21 +576,35 @@ impl Predictor {
         batch: usize,
         coverage: Option<f64>,
     ) -> Result<Table> {
-        let mut table = self.histories(sets, profiles, run, batch, coverage)?;
+        let profiles = ProfileSource::Shared(profiles);
+        self.histories_flagged_with(sets, &profiles, run, batch, coverage)
+    }
+
+    /// [`Predictor::histories_flagged`] with the profiles of each design from `profiles`.
+    pub fn histories_flagged_with(
+        &self,
+        sets: &[Vec<f64>],
+        profiles: &ProfileSource<'_>,
+        run: &RunConfig,
+        batch: usize,
+        coverage: Option<f64>,
+    ) -> Result<Table> {
+        let mut table = self.histories_with(sets, profiles, run, batch, coverage)?;
         self.flag_rows(&mut table, sets)?;
         Ok(table)
     }
 
     /// Appends the column [`OUTSIDE_COLUMN`] to the histories `table` of `sets` (the same
-    /// number of rows per design): on each row, the [`outside_flag`] of its design.
+    /// number of rows per design): on each row, the [`outside_flag`] of its design, null inside
+    /// the training ranges.
     pub fn flag_rows(&self, table: &mut Table, sets: &[Vec<f64>]) -> Result<()> {
         let per_row = (table.num_rows() / sets.len().max(1)).max(1);
-        let rows: Vec<String> = self
+        let rows = self
             .outside_training(sets)?
             .iter()
             .flat_map(|o| std::iter::repeat_n(outside_flag(o), per_row))
-            .collect();
-        table.push(OUTSIDE_COLUMN, Column::Str(rows))?;
+            .collect::<Vec<_>>();
+        table.push(OUTSIDE_COLUMN, Column::null_if_empty(rows))?;
         Ok(())
     }
 
@@ -684,10 +716,11 @@ impl Predictor {
     }
 
     /// The indices table of `predict`: `set`, the design's parameters, the indices of the
-    /// description, `window_s`, `pass`, `failed`, and [`OUTSIDE_COLUMN`]; with calibrated
-    /// answers also `coverage`, `extrapolated`, `relative_residual` (when the model has
-    /// equations), `<index>_lo` and `<index>_hi` of every index, `<index>_verdict` of every
-    /// index with a limit and the combined `verdict` (`pass`, `uncertain`, `fail`).
+    /// description, `window_s`, `pass` (Boolean), `failed` and [`OUTSIDE_COLUMN`] (null when
+    /// none); with calibrated answers also `coverage`, `extrapolated` (Boolean),
+    /// `relative_residual` (when the model has equations), `<index>_lo` and `<index>_hi` of
+    /// every index, `<index>_verdict` of every index with a limit and the combined `verdict`
+    /// (`pass`, `uncertain`, `fail`; null where a design has none).
     pub fn indices_table(
         &self,
         sets: &[Vec<f64>],
@@ -710,20 +743,20 @@ impl Predictor {
         )?;
         t.push(
             pino_indices::PASS_COLUMN,
-            Column::I64(
+            Column::Bool(
                 answers
                     .iter()
-                    .map(|a| a.indices.failed.is_empty() as i64)
+                    .map(|a| a.indices.failed.is_empty())
                     .collect(),
             ),
         )?;
         t.push(
             pino_indices::FAILED_COLUMN,
-            Column::Str(answers.iter().map(|a| a.indices.failed.join(",")).collect()),
+            Column::null_if_empty(answers.iter().map(|a| a.indices.failed.join(","))),
         )?;
         t.push(
             OUTSIDE_COLUMN,
-            Column::Str(outside.iter().map(|o| outside_flag(o)).collect()),
+            Column::null_if_empty(outside.iter().map(|o| outside_flag(o))),
         )?;
         let calibrated: Option<Vec<&CalibratedAnswer>> =
             answers.iter().map(|a| a.calibrated.as_ref()).collect();
@@ -736,7 +769,7 @@ impl Predictor {
         )?;
         t.push(
             "extrapolated",
-            Column::I64(cal.iter().map(|c| c.extrapolated as i64).collect()),
+            Column::Bool(cal.iter().map(|c| c.extrapolated).collect()),
         )?;
         if cal[0].relative_residual.is_some() {
             t.push(
@@ -772,9 +805,9 @@ impl Predictor {
             if cal[0].verdicts[k].is_some() {
                 t.push(
                     &format!("{}_verdict", c.name),
-                    Column::Str(
+                    Column::OptStr(
                         cal.iter()
-                            .map(|a| a.verdicts[k].map_or("", |v| v.as_str()).to_owned())
+                            .map(|a| a.verdicts[k].map(|v| v.as_str().to_owned()))
                             .collect(),
                     ),
                 )?;
@@ -783,9 +816,9 @@ impl Predictor {
         if cal[0].verdict.is_some() {
             t.push(
                 "verdict",
-                Column::Str(
+                Column::OptStr(
                     cal.iter()
-                        .map(|a| a.verdict.map_or("", |v| v.as_str()).to_owned())
+                        .map(|a| a.verdict.map(|v| v.as_str().to_owned()))
                         .collect(),
                 ),
             )?;
@@ -798,7 +831,7 @@ impl Predictor {
 pub const OUTSIDE_COLUMN: &str = "outside_training_range";
 
 /// The [`OUTSIDE_COLUMN`] value of one design: its parameters outside the training ranges as
-/// `name=value`, comma-separated (empty inside).
+/// `name=value`, comma-separated (empty inside, written as a null).
 pub fn outside_flag(outside: &[OutOfRange]) -> String {
     outside
         .iter()
@@ -1106,9 +1139,10 @@ mod tests {
         assert!(it.f64("peak_wheel_rail_force_kn_lo").is_err());
         assert_eq!(it.f64("m_c").unwrap()[0], design[0]);
         assert!(it.f64("peak_wheel_rail_force_kn").unwrap()[0].is_finite());
-        // A profile too short for the run is refused.
+        // A profile too short for the run is refused (4 points: the vehicle track reads its
+        // profile cubic, which needs them).
         let short = vec![Some(
-            Profile::new(vec![0.0, 0.5, 1.0, 1.5], vec![0.0; 4]).unwrap(),
+            Profile::new(vec![0.0, 1.0, 2.0, 3.0], vec![0.0; 4]).unwrap(),
         )];
         let err = predictor
             .forward(0, std::slice::from_ref(&design), &short, &run)

@@ -73,15 +73,33 @@ const PROFILE_FLAGS: &str = "--profile / --seed";
 /// sample id (a study draws thousands), as `irregularity` generates them.
 pub struct GeneratedProfiles {
     pub(super) generators: Vec<Option<mbd_dataset::ProfileGenerator>>,
+    /// What the caller calls the excitation (`predict`'s flags, the Python package's
+    /// `excitation`), which its refusals blame.
+    pub(super) what: String,
 }
 
 impl GeneratedProfiles {
-    /// The generators of `system`'s profiles with the dataset's `settings` and `seed`.
+    /// The generators of `system`'s profiles with the dataset's `settings` and `seed`, their
+    /// refusals blamed on `predict`'s flags.
     pub fn new(system: &System, settings: &mbd_dataset::ProfileParams, seed: u64) -> Result<Self> {
+        Self::named(system, settings, seed, PROFILE_FLAGS)
+    }
+
+    /// [`GeneratedProfiles::new`], its refusals blamed on `what` (the caller's name for the
+    /// excitation).
+    pub fn named(
+        system: &System,
+        settings: &mbd_dataset::ProfileParams,
+        seed: u64,
+        what: &str,
+    ) -> Result<Self> {
         let params = mbd_dataset::ProfileParams { seed, ..*settings };
         let generators = mbd_dataset::profile_generators(system, &params)
-            .map_err(|e| fmt_err(Path::new(PROFILE_FLAGS), e.to_string()))?;
-        Ok(Self { generators })
+            .map_err(|e| fmt_err(Path::new(what), e.to_string()))?;
+        Ok(Self {
+            generators,
+            what: what.to_owned(),
+        })
     }
 
     /// The points of each profile (`None` for analytic ones) of sample `id`.
@@ -92,7 +110,7 @@ impl GeneratedProfiles {
                 g.as_ref()
                     .map(|g| Profile::new(g.positions(), g.profile(id)))
                     .transpose()
-                    .map_err(|e| fmt_err(Path::new(PROFILE_FLAGS), e.to_string()))
+                    .map_err(|e| fmt_err(Path::new(&self.what), e.to_string()))
             })
             .collect()
     }
@@ -210,9 +228,12 @@ fn profiles_of_rows(
                 .filter(|&r| names.is_none_or(|n| n[r] == p.name()))
                 .collect();
             if rows.is_empty() {
+                let which = id.map_or("in the table".to_owned(), |id| {
+                    format!("for sample_id {id}")
+                });
                 return Err(fmt_err(
                     path,
-                    format!("no rows of profile `{}` for sample_id {id:?}", p.name()),
+                    format!("no rows of profile `{}` {which}", p.name()),
                 ));
             }
             Profile::new(

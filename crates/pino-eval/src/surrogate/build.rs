@@ -370,7 +370,7 @@ fn write_routes(out: &Path, m: &Manifest) -> Result<()> {
                         col.push(value.to_owned());
                     }
                     errors.push(v);
-                    chosen.push(i64::from(r.member == *n));
+                    chosen.push(r.member == *n);
                 }
                 let cell = match v {
                     Some(v) if r.metric == "mean_abs" => format!("{v:.4} (abs)"),
@@ -399,7 +399,7 @@ fn write_routes(out: &Path, m: &Manifest) -> Result<()> {
         table.push(name, Column::Str(col))?;
     }
     table.push("validation_error", Column::F64(errors))?;
-    table.push("chosen", Column::I64(chosen))?;
+    table.push("chosen", Column::Bool(chosen))?;
     write_csv(&out.join("routes.csv"), &table)?;
     atomic_file::write_atomic(&out.join("routes.md"), md.as_bytes())?;
     Ok(())

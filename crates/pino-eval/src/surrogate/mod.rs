@@ -67,6 +67,7 @@ impl Surrogate {
             let at = Manifest::member_dir(dir, &m.name);
             let mut p = Predictor::load(&at, device)?;
             p.load_calibration(&at.join(crate::calibration::CALIBRATION_FILE))?;
+            of_manifest(&manifest, dir, &m.name, &p)?;
             members.push(p);
         }
         let names: Vec<String> = manifest.members.iter().map(|m| m.name.clone()).collect();
@@ -182,6 +183,13 @@ impl Surrogate {
             manifest: None,
             dir: None,
         })
+    }
+
+    /// How every member's refusals of designs name them ([`Predictor::name_designs`]).
+    pub fn name_designs(&mut self, label: &str) {
+        for m in &mut self.members {
+            m.name_designs(label);
+        }
     }
 
     /// The member that answers the most indices: the system, design space, time grid, run
@@ -505,11 +513,25 @@ impl Surrogate {
         batch: usize,
         coverage: Option<f64>,
     ) -> Result<Table> {
+        let profiles = ProfileSource::Shared(profiles);
+        self.histories_with(sets, &profiles, run, batch, coverage)
+    }
+
+    /// [`Surrogate::histories`] with the profiles of each design from `profiles` (each design
+    /// under its own excitation, [`Predictor::histories_with`]).
+    pub fn histories_with(
+        &self,
+        sets: &[Vec<f64>],
+        profiles: &ProfileSource<'_>,
+        run: &RunConfig,
+        batch: usize,
+        coverage: Option<f64>,
+    ) -> Result<Table> {
         let tables: Vec<Option<Table>> = (0..self.members.len())
             .map(|m| {
                 let answers = m == self.primary || self.channels.iter().any(|(_, x, _)| *x == m);
                 answers
-                    .then(|| self.members[m].histories(sets, profiles, run, batch, coverage))
+                    .then(|| self.members[m].histories_with(sets, profiles, run, batch, coverage))
                     .transpose()
             })
             .collect::<Result<_>>()?;
@@ -566,7 +588,20 @@ impl Surrogate {
         batch: usize,
         coverage: Option<f64>,
     ) -> Result<Table> {
-        let mut table = self.histories(sets, profiles, run, batch, coverage)?;
+        let profiles = ProfileSource::Shared(profiles);
+        self.histories_flagged_with(sets, &profiles, run, batch, coverage)
+    }
+
+    /// [`Surrogate::histories_flagged`] with the profiles of each design from `profiles`.
+    pub fn histories_flagged_with(
+        &self,
+        sets: &[Vec<f64>],
+        profiles: &ProfileSource<'_>,
+        run: &RunConfig,
+        batch: usize,
+        coverage: Option<f64>,
+    ) -> Result<Table> {
+        let mut table = self.histories_with(sets, profiles, run, batch, coverage)?;
         self.primary().flag_rows(&mut table, sets)?;
         Ok(table)
     }
@@ -593,6 +628,26 @@ pub(crate) fn primary_of(index_member: &[usize], n: usize) -> usize {
             )
         })
         .unwrap_or(0)
+}
+
+/// A member `name` loaded as `p` is of the manifest's system and dataset design: a manifest
+/// of another system (or edited) beside these members is refused, naming both.
+fn of_manifest(manifest: &Manifest, dir: &Path, name: &str, p: &Predictor) -> Result<()> {
+    let rebuild = "rebuild the surrogate (`pipeline run surrogate`)";
+    let system = &p.identity().system;
+    let why = if *system != manifest.system {
+        format!(
+            "the manifest is of system `{}`, but member model `{name}` is of system `{system}`: {rebuild}",
+            manifest.system
+        )
+    } else if p.calibration().is_some_and(|c| c.design != manifest.design) {
+        format!(
+            "member model `{name}` was calibrated on another dataset design (description or sampling ranges) than the manifest records: {rebuild}"
+        )
+    } else {
+        return Ok(());
+    };
+    Err(fmt_err(&dir.join(manifest::SURROGATE_FILE), why))
 }
 
 /// A member's own channels, all answered by it (`m`).

@@ -270,7 +270,11 @@ pub fn write_surrogate(out: &Path, split: Split, rows: &[SurrogateRow]) -> Resul
     )?;
     t.push(
         "worst_cell",
-        s(&|r| r.worst_cell.as_ref().map_or(String::new(), |c| c.1.clone())),
+        Column::OptStr(
+            rows.iter()
+                .map(|r| r.worst_cell.as_ref().map(|c| c.1.clone()))
+                .collect(),
+        ),
     )?;
     write_parquet(&out.join("surrogate_errors.parquet"), &t)?;
     write_csv(&out.join("surrogate_errors.csv"), &t)?;

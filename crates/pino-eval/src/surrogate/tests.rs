@@ -258,6 +258,24 @@ fn changed_members_foreign_candidates_and_no_candidate_are_refused() {
     let f = fixture();
     let out = f.dir.path().join("surrogate");
     let m = build(&f.models, &f.calibrations, &out).unwrap();
+    // A manifest of another system beside these members: refused naming it and the member.
+    let file = out.join(super::manifest::SURROGATE_FILE);
+    let text = std::fs::read_to_string(&file).unwrap();
+    let mut other: Manifest = serde_json::from_str(&text).unwrap();
+    other.system = "another-system".into();
+    other.write(&out).unwrap();
+    let err = Surrogate::load(&out, &Device::Cpu)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        err.contains(&file.display().to_string())
+            && err.contains("`another-system`")
+            && err.contains(&format!("member model `{}`", m.members[0].name)),
+        "{err}"
+    );
+    std::fs::write(&file, text).unwrap();
+    assert!(Surrogate::load(&out, &Device::Cpu).is_ok());
     // No candidate.
     let err = build(&[], &f.calibrations, &f.dir.path().join("none"))
         .unwrap_err()

@@ -507,6 +507,8 @@ mod tests {
                 Column::F64(v) => Column::F64(rows.iter().map(|&r| v[r]).collect()),
                 Column::I64(v) => Column::I64(rows.iter().map(|&r| v[r]).collect()),
                 Column::Str(v) => Column::Str(rows.iter().map(|&r| v[r].clone()).collect()),
+                Column::Bool(v) => Column::Bool(rows.iter().map(|&r| v[r]).collect()),
+                Column::OptStr(v) => Column::OptStr(rows.iter().map(|&r| v[r].clone()).collect()),
             };
             out.push(name, c).unwrap();
         }

@@ -56,7 +56,7 @@ pub const SCATTER_FILE: &str = "surrogate_vs_solver.png";
 pub const SOLVER_CHECKED: &str = "solver_checked";
 /// Column flagging designs outside the model's training ranges.
 pub const EXTRAPOLATED: &str = "extrapolated";
-/// Column of why the solver gave no answer (empty when it did).
+/// Column of why the solver gave no answer (null when it did).
 pub const SOLVER_FAILURE: &str = "solver_failure";
 /// Suffix of the surrogate's value beside the solver's.
 pub const SURROGATE_SUFFIX: &str = "_surrogate";
@@ -156,7 +156,7 @@ fn push_answers(
     let outside = predictor.outside_training(designs)?;
     t.push(
         EXTRAPOLATED,
-        Column::I64(outside.iter().map(|o| (!o.is_empty()) as i64).collect()),
+        Column::Bool(outside.iter().map(|o| !o.is_empty()).collect()),
     )?;
     Ok(calibrated)
 }
@@ -183,12 +183,7 @@ fn push_solver(
     }
     t.push(
         SOLVER_FAILURE,
-        Column::Str(
-            solved
-                .iter()
-                .map(|x| x.failure.clone().unwrap_or_default())
-                .collect(),
-        ),
+        Column::OptStr(solved.iter().map(|x| x.failure.clone()).collect()),
     )?;
     Ok(())
 }

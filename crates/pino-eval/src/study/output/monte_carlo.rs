@@ -74,11 +74,11 @@ fn write_evaluations(
         Column::I64(mc.excitation.iter().map(|&e| e as i64).collect()),
     )?;
     let calibrated = push_answers(&mut t, predictor, &mc.designs, &mc.answers)?;
-    let mut checked = vec![0i64; n];
+    let mut checked = vec![false; n];
     for &k in &mc.checked {
-        checked[k] = 1;
+        checked[k] = true;
     }
-    t.push(SOLVER_CHECKED, Column::I64(checked))?;
+    t.push(SOLVER_CHECKED, Column::Bool(checked))?;
     pino_data::write_parquet(&out.join("evaluations.parquet"), &t)?;
     Ok(calibrated)
 }

@@ -75,7 +75,7 @@ fn push_judged(
     }
     t.push(
         FEASIBLE,
-        Column::I64(judged.iter().map(|j| j.feasible as i64).collect()),
+        Column::Bool(judged.iter().map(|j| j.feasible).collect()),
     )
 }
 
@@ -199,10 +199,10 @@ fn write_evaluations(
     let calibrated = push_answers(&mut e, predictor, &every, &answers)?;
     e.push(
         SOLVER_CHECKED,
-        Column::I64(
+        Column::Bool(
             checked
                 .iter()
-                .flat_map(|&c| std::iter::repeat_n(c as i64, m))
+                .flat_map(|&c| std::iter::repeat_n(c, m))
                 .collect(),
         ),
     )?;

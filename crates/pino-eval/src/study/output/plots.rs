@@ -36,7 +36,7 @@ pub struct Quantity<'a> {
 
 impl Quantity<'_> {
     fn label(&self) -> String {
-        if self.unit.is_empty() || self.unit == "1" || self.unit == "-" {
+        if self.unit.is_empty() || self.unit == pino_data::units::DIMENSIONLESS {
             self.name.to_owned()
         } else {
             format!("{} ({})", self.name, self.unit)
@@ -458,7 +458,7 @@ mod tests {
         let q = [
             Quantity {
                 name: "q",
-                unit: "-",
+                unit: "1",
             },
             Quantity {
                 name: "r",

@@ -65,12 +65,12 @@ fn push_design(
     )?;
     t.push(
         FACTOR,
-        Column::Str(
+        Column::OptStr(
             evaluations
                 .iter()
                 .map(|e| match e.block {
-                    Block::AB(i) => s.factors[i].clone(),
-                    Block::A | Block::B => String::new(),
+                    Block::AB(i) => Some(s.factors[i].clone()),
+                    Block::A | Block::B => None,
                 })
                 .collect(),
         ),
@@ -105,11 +105,7 @@ pub fn write_sensitivity(
     let calibrated = push_answers(&mut t, predictor, &designs, &s.answers)?;
     t.push(
         SOLVER_CHECKED,
-        Column::I64(
-            (0..s.evaluations.len())
-                .map(|k| (k < checked) as i64)
-                .collect(),
-        ),
+        Column::Bool((0..s.evaluations.len()).map(|k| k < checked).collect()),
     )?;
     pino_data::write_parquet(&out.join("evaluations.parquet"), &t)?;
 
