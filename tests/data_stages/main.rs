@@ -966,7 +966,7 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
     // passes them, constants substituted) into the stages' checked types, against the
     // description the file names, and hold the intended values.
     for (file, system_file, n_train, n_validation, n_test, n_calibration) in [
-        ("pipeline.yaml", "systems/vtcd.yaml", 1600, 100, 100, 200),
+        ("pipeline.yaml", "systems/vtcd.yaml", 1600, 100, 100, 1000),
         (
             "configs/paper.yaml",
             "systems/vtcd.yaml",
