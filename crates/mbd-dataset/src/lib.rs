@@ -122,7 +122,8 @@ pub fn profile_generators(
                     .generator(psd, *wavelengths, rng::profile_code(i))
                     .map(Some)
             }
-            mbd_system::system::Profile::Harmonic { .. } => Ok(None),
+            mbd_system::system::Profile::Harmonic { .. }
+            | mbd_system::system::Profile::Combination { .. } => Ok(None),
         })
         .collect()
 }

@@ -35,6 +35,7 @@ use crate::coverage::check_coverage;
 use crate::dst::SineTransform;
 use crate::integrator;
 use crate::profile::{Profile, ProfileSource};
+use crate::wheel::{Wheel, WheelForces};
 use crate::{Error, Result};
 use mbd_system::model::{Model, ModelEnd, ModelProfile, ModelSupports};
 use mbd_system::system::{Quantity, Source};
@@ -131,6 +132,8 @@ pub struct Quantities {
     pub force: Vec<f64>,
     /// Net downward force at each moving point (N).
     pub point_force: Vec<f64>,
+    /// Each wheel's tangential forces (zero for other elements; empty without wheels).
+    pub wheel: Vec<WheelForces>,
 }
 
 impl Quantities {
@@ -145,7 +148,17 @@ impl Quantities {
             deflection: vec![0.0; elements],
             force: vec![0.0; elements],
             point_force: vec![0.0; points],
+            wheel: Vec::new(),
         }
+    }
+
+    /// As [`Quantities::zeros`], with room for the wheels' tangential forces when `wheels`.
+    pub fn with_wheels(elements: usize, points: usize, wheels: bool) -> Self {
+        let mut q = Self::zeros(elements, points);
+        if wheels {
+            q.wheel = vec![WheelForces::default(); elements];
+        }
+        q
     }
 }
 
@@ -200,6 +213,8 @@ pub struct Engine {
     /// Sensor shapes.
     sensor_shapes: Vec<Vec<f64>>,
     pub(crate) route: Route,
+    /// Per element, the wheel of a wheelset at run time (empty without wheels).
+    pub(crate) wheels: Vec<Option<Wheel>>,
 }
 
 fn fast_structure(beam: &mbd_system::model::ModelBeam, s: &ModelSupports) -> bool {
@@ -330,6 +345,7 @@ impl Engine {
                 }
             }
         }
+        let wheels = run_wheels(&system, &model)?;
         let sensor_shapes = model
             .sensors
             .iter()
@@ -351,6 +367,7 @@ impl Engine {
             profile_rate,
             sensor_shapes,
             route,
+            wheels,
         };
         check_coverage(
             &engine.system,
@@ -414,7 +431,7 @@ impl Engine {
             .unwrap_or(0);
         let max_modes = m.beams.iter().map(|b| b.modes).max().unwrap_or(0);
         Workspace {
-            q: Quantities::zeros(n_e, n_p),
+            q: Quantities::with_wheels(n_e, n_p, !self.wheels.is_empty()),
             shapes: self
                 .beams
                 .iter()
@@ -493,8 +510,9 @@ impl Engine {
                 q.eta_rate[e] = src.ramped_rate(ramp, ramp_rate, m.speed, xp);
             }
         }
-        element_forces(m, &self.needs_rate, x, v, q);
+        element_forces(m, &self.needs_rate, &self.wheels, x, v, q);
         rigid_forces(m, &q.force, a);
+        wheel_forces(&self.wheels, q, a);
         for (ai, mass) in a[..m.dof_mass.len()].iter_mut().zip(&m.dof_mass) {
             *ai /= mass;
         }
@@ -648,15 +666,33 @@ impl Engine {
         &self,
         steps: usize,
         cancel: Option<&AtomicBool>,
-        mut observe: impl FnMut(&StepView),
+        observe: impl FnMut(&StepView),
     ) -> std::result::Result<(), Failure> {
-        let n = self.layout.len;
-        let mut ws = self.workspace();
-        let mut x = self.initial_state().map_err(|e| Failure {
+        let x = self.initial_state().map_err(|e| Failure {
             t: 0.0,
             reason: format!("initial state: {e}"),
         })?;
-        let mut v = vec![0.0; n];
+        let v = vec![0.0; self.layout.len];
+        self.run_observed_from(x, v, steps, cancel, observe)
+    }
+
+    /// As [`Engine::run_observed`] from the state `(x, v)` at `t = 0` (each [`Layout::len`]
+    /// long) instead of the start of the run controls: a perturbed equilibrium, a state
+    /// carried over from another run.
+    pub fn run_observed_from(
+        &self,
+        mut x: Vec<f64>,
+        mut v: Vec<f64>,
+        steps: usize,
+        cancel: Option<&AtomicBool>,
+        mut observe: impl FnMut(&StepView),
+    ) -> std::result::Result<(), Failure> {
+        let n = self.layout.len;
+        assert!(
+            x.len() == n && v.len() == n,
+            "a state of the layout's length"
+        );
+        let mut ws = self.workspace();
         let (mut a, mut a_prev) = (vec![0.0; n], vec![0.0; n]);
         let dt = self.config.dt;
         let every = self.config.output_every;
@@ -764,6 +800,10 @@ impl Engine {
             Quantity::ExcitationRate(e) => s.q.eta_rate[e],
             Quantity::Force(e) => s.q.force[e],
             Quantity::Deflection(e) => s.q.deflection[e],
+            Quantity::WheelLateral(e) => s.q.wheel[e].y,
+            Quantity::Flange(e) => s.q.wheel[e].flange,
+            Quantity::Creep(e) => s.q.wheel[e].longitudinal,
+            Quantity::Shift(e) => s.q.wheel[e].shift,
         }
     }
 
@@ -793,11 +833,12 @@ pub(crate) fn profile_sources(
     mut profiles: Vec<Option<Profile>>,
 ) -> Result<Vec<ProfileSource>> {
     profiles.resize(model.profiles.len(), None);
-    model
+    let mut sources: Vec<ProfileSource> = model
         .profiles
         .iter()
         .zip(profiles)
         .map(|(m, p)| match (m, p) {
+            (ModelProfile::Combination(_), _) => Ok(ProfileSource::Level),
             (
                 ModelProfile::Harmonic {
                     amplitude,
@@ -815,6 +856,37 @@ pub(crate) fn profile_sources(
             }
             (ModelProfile::Generated { .. }, None) => Ok(ProfileSource::Level),
         })
+        .collect::<Result<_>>()?;
+    // Combinations of the others, once those are built.
+    for (i, m) in model.profiles.iter().enumerate() {
+        if let ModelProfile::Combination(terms) = m {
+            sources[i] = ProfileSource::Sum(
+                terms
+                    .iter()
+                    .map(|&(p, w)| (w, sources[p].clone()))
+                    .collect(),
+            );
+        }
+    }
+    Ok(sources)
+}
+
+/// Per element, its run-time wheel (creep coefficients from the contact ellipse), or an empty
+/// list when the system has no wheels.
+pub(crate) fn run_wheels(system: &System, model: &Model) -> Result<Vec<Option<Wheel>>> {
+    if !model.elements.iter().any(|e| e.law.wheel().is_some()) {
+        return Ok(Vec::new());
+    }
+    model
+        .elements
+        .iter()
+        .zip(&system.elements)
+        .map(
+            |(e, described)| match (e.law.wheel(), described.law.wheel()) {
+                (Some(w), Some(d)) => Wheel::of(w, &d.wheelset).map(Some),
+                _ => Ok(None),
+            },
+        )
         .collect()
 }
 
@@ -844,6 +916,7 @@ fn end_rate(end: &ModelEnd, v: &[f64], q: &Quantities) -> f64 {
 pub(crate) fn element_forces(
     m: &Model,
     needs_rate: &[bool],
+    wheels: &[Option<Wheel>],
     x: &[f64],
     v: &[f64],
     q: &mut Quantities,
@@ -852,6 +925,17 @@ pub(crate) fn element_forces(
         let mut d = end_u(&el.from, x, q) - end_u(&el.to, x, q);
         if el.profile.is_some() {
             d -= q.eta[e];
+        }
+        if let Some(Some(wheel)) = wheels.get(e) {
+            // A wheel: its rolling radius at the wheelset's shift enters the vertical contact,
+            // its tangential forces follow from the normal load.
+            let motion = wheel.motion(x, v);
+            d += wheel.radius_change(motion.shift);
+            let load = el.law.force(d, 0.0);
+            q.deflection[e] = d;
+            q.force[e] = load;
+            q.wheel[e] = wheel.forces(load, &motion, m.speed);
+            continue;
         }
         let rate = if needs_rate[e] {
             let mut r = end_rate(&el.from, v, q) - end_rate(&el.to, v, q);
@@ -864,6 +948,16 @@ pub(crate) fn element_forces(
         };
         q.deflection[e] = d;
         q.force[e] = el.law.force(d, rate);
+    }
+}
+
+/// Adds every wheel's tangential generalised forces (from `q.wheel`) to the rigid DOFs' `out`
+/// ([`Wheel::apply`]), after the coefficient groups of [`rigid_forces`].
+pub(crate) fn wheel_forces(wheels: &[Option<Wheel>], q: &Quantities, out: &mut [f64]) {
+    for (e, wheel) in wheels.iter().enumerate() {
+        if let Some(w) = wheel {
+            w.apply(&q.wheel[e], out);
+        }
     }
 }
 

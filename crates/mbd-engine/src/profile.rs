@@ -211,6 +211,8 @@ pub enum ProfileSource {
     },
     /// A perfectly level track or road.
     Level,
+    /// A weighted sum of profiles, `sum_k w_k eta_k(x)` (a description's `combination`).
+    Sum(Vec<(f64, ProfileSource)>),
 }
 
 impl ProfileSource {
@@ -225,6 +227,7 @@ impl ProfileSource {
                 phase,
             } => amplitude * (std::f64::consts::TAU * x / wavelength + phase).sin(),
             ProfileSource::Level => 0.0,
+            ProfileSource::Sum(terms) => terms.iter().map(|(w, p)| w * p.at(x)).sum(),
         }
     }
 
@@ -247,6 +250,19 @@ impl ProfileSource {
         ramp * speed * self.slope(x) + ramp_rate * self.at(x)
     }
 
+    /// The positions (m) the profile covers, `None` for every `x` (an analytic or level
+    /// profile); a sum covers where all its sampled parts do.
+    pub fn covered(&self) -> Option<[f64; 2]> {
+        match self {
+            ProfileSource::Points(p) => Some(p.range()),
+            ProfileSource::Sum(terms) => terms
+                .iter()
+                .filter_map(|(_, p)| p.covered())
+                .reduce(|a, b| [a[0].max(b[0]), a[1].min(b[1])]),
+            _ => None,
+        }
+    }
+
     /// `d eta / dx` (1).
     #[inline]
     pub fn slope(&self, x: f64) -> f64 {
@@ -261,6 +277,7 @@ impl ProfileSource {
                 amplitude * k * (k * x + phase).cos()
             }
             ProfileSource::Level => 0.0,
+            ProfileSource::Sum(terms) => terms.iter().map(|(w, p)| w * p.slope(x)).sum(),
         }
     }
 }

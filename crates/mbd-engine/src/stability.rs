@@ -138,6 +138,85 @@ fn rigid_gershgorin(engine: &Engine, elements: &[(usize, f64)]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Gershgorin bounds (1/s^2, 1/s) of the wheels' tangential stiffness and damping in
+/// mass-normalised coordinates, each wheel at the load `load(e)` (N): the flange spring and the
+/// normal force's lateral part on the lateral incidence, the creep forces' couplings (lateral
+/// creep to yaw `f22`, rolling radius to yaw `e0 f11 |rho'| / r0`), the creep damping
+/// `f22 / V` (lateral), `f11 / V` (longitudinal) and the spin coupling `f23 / V`. The entries
+/// are summed in absolute value, so the bound holds for the non-symmetric creep terms too.
+fn wheel_bounds(engine: &Engine, load: &dyn Fn(usize) -> f64) -> (f64, f64) {
+    let m = &engine.model;
+    let n = m.dof_mass.len();
+    if engine.wheels.is_empty() || n == 0 {
+        return (0.0, 0.0);
+    }
+    let mut k = vec![vec![0.0; n]; n];
+    let mut c = vec![vec![0.0; n]; n];
+    let add = |a: &mut [Vec<f64>], w: f64, u: &[f64], v: &[f64]| {
+        for i in 0..n {
+            for j in 0..n {
+                a[i][j] += (w * u[i] * v[j]).abs();
+            }
+        }
+    };
+    let speed = m.speed.max(1e-9);
+    for (e, wheel) in engine.wheels.iter().enumerate() {
+        let (Some(w), Some(mw)) = (wheel, m.elements[e].law.wheel()) else {
+            continue;
+        };
+        let q = load(e);
+        let (f11, f22, f23) = w.creep.at(q);
+        let [lateral, longitudinal] = mw.tangential_incidence(n);
+        let mut roll = vec![0.0; n];
+        roll[w.roll] = 1.0;
+        let mut yaw = vec![0.0; n];
+        yaw[w.yaw] = 1.0;
+        let (slope, tan_max, angle_slope) = geometry_slopes(&w.geometry);
+        let normal = q * (1.0 + tan_max * tan_max);
+        let flange = w.flange.map_or(0.0, |f| f.1);
+        add(&mut k, flange + normal * angle_slope, &lateral, &lateral);
+        add(&mut k, normal, &lateral, &roll);
+        add(&mut k, f22, &lateral, &yaw);
+        add(&mut k, f11 * slope / w.radius, &longitudinal, &lateral);
+        add(&mut c, f22 / speed, &lateral, &lateral);
+        add(&mut c, f11 / speed, &longitudinal, &longitudinal);
+        add(&mut c, f23 / speed, &lateral, &yaw);
+        add(&mut c, f23 / speed, &yaw, &lateral);
+    }
+    let gershgorin = |a: &[Vec<f64>]| {
+        (0..n)
+            .map(|i| {
+                (0..n)
+                    .map(|j| a[i][j] / (m.dof_mass[i] * m.dof_mass[j]).sqrt())
+                    .sum::<f64>()
+            })
+            .fold(0.0, f64::max)
+    };
+    (gershgorin(&k), gershgorin(&c))
+}
+
+/// The largest `|d rho / du|`, `|tan delta|` and `|d delta / du|` of a wheel's geometry.
+fn geometry_slopes(g: &crate::wheel::Geometry) -> (f64, f64, f64) {
+    match g {
+        crate::wheel::Geometry::Cone { gamma, .. } => (gamma.abs(), gamma.abs(), 0.0),
+        crate::wheel::Geometry::Table {
+            shift,
+            radius,
+            angle,
+        } => {
+            let slope = |v: &[f64]| {
+                shift
+                    .windows(2)
+                    .zip(v.windows(2))
+                    .map(|(s, v)| ((v[1] - v[0]) / (s[1] - s[0])).abs())
+                    .fold(0.0, f64::max)
+            };
+            let tan = angle.iter().map(|a| a.tan().abs()).fold(0.0, f64::max);
+            (slope(radius), tan, slope(angle))
+        }
+    }
+}
+
 /// Largest eigenvalue of `Y^T Y` (`y[j * nm + k] = Y_k(x_j)`) by power iteration, times
 /// [`POWER_MARGIN`].
 fn support_gram(y: &[f64], nm: usize) -> f64 {
@@ -201,17 +280,21 @@ impl Bound {
             damping += (s.ground.1 + 4.0 * cw) / last.mass;
         }
         // Elements: to points moving on a beam (per beam), or among bodies and the ground.
+        // A contact's static force: its own when the rigid part is determinate, else every
+        // load at once (an upper bound).
+        let static_load = |e: usize| -> f64 {
+            statics
+                .as_ref()
+                .map_or(total_load, |s| s.force[e])
+                .abs()
+                .max(1e-9)
+        };
         let tangent = |e: usize| -> f64 {
             let law = &m.elements[e].law;
             match law {
-                ModelLaw::Hertz { .. } => {
-                    let f = statics
-                        .as_ref()
-                        .map_or(total_load, |s| s.force[e])
-                        .abs()
-                        .max(1e-9);
+                ModelLaw::Hertz { .. } | ModelLaw::Wheel(_) => {
                     let d = law
-                        .static_deflection(CONTACT_LOAD_FACTOR * f)
+                        .static_deflection(CONTACT_LOAD_FACTOR * static_load(e))
                         .unwrap_or(0.0);
                     law.stiffness(d)
                 }
@@ -243,6 +326,9 @@ impl Bound {
                 .map(|&e| (e, m.elements[e].law.damping()))
                 .collect::<Vec<_>>(),
         );
+        let (k_wheels, c_wheels) = wheel_bounds(engine, &|e| CONTACT_LOAD_FACTOR * static_load(e));
+        omega2 += k_wheels;
+        damping += c_wheels;
         let t_end = c.t_end();
         for (b, beam) in engine.beams.iter().enumerate() {
             let elements: Vec<usize> = (0..m.elements.len())

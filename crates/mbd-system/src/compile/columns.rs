@@ -145,13 +145,18 @@ pub(super) fn channel_table(
             Quantity::Excitation(i)
             | Quantity::ExcitationRate(i)
             | Quantity::Force(i)
-            | Quantity::Deflection(i) => ("element", elements[i].name.as_str()),
+            | Quantity::Deflection(i)
+            | Quantity::WheelLateral(i)
+            | Quantity::Flange(i)
+            | Quantity::Creep(i)
+            | Quantity::Shift(i) => ("element", elements[i].name.as_str()),
         });
     };
     for (i, d) in dofs.iter().enumerate() {
-        let (u, v, a) = match d.kind {
-            DofKind::Z => ("m", "m/s", "m/s^2"),
-            DofKind::Pitch => ("rad", "rad/s", "rad/s^2"),
+        let (u, v, a) = if d.kind.is_rotation() {
+            ("rad", "rad/s", "rad/s^2")
+        } else {
+            ("m", "m/s", "m/s^2")
         };
         push(d.name.clone(), u, Quantity::Dof(i, 0), Role::Solution);
         push(
@@ -227,6 +232,32 @@ pub(super) fn channel_table(
             Quantity::Deflection(i),
             Role::Other,
         );
+        if e.law.wheel().is_some() {
+            push(
+                format!("fy_{}", e.name),
+                "N",
+                Quantity::WheelLateral(i),
+                Role::Force,
+            );
+            push(
+                format!("ff_{}", e.name),
+                "N",
+                Quantity::Flange(i),
+                Role::Other,
+            );
+            push(
+                format!("fx_{}", e.name),
+                "N",
+                Quantity::Creep(i),
+                Role::Other,
+            );
+            push(
+                format!("dy_{}", e.name),
+                "m",
+                Quantity::Shift(i),
+                Role::Other,
+            );
+        }
     }
     report_column_clashes(&out, &owners, raw, diag);
     out

@@ -37,8 +37,8 @@ use crate::diag::Diagnostics;
 use crate::expr::Expr;
 use crate::reader::Field;
 use crate::schema::{
-    self, DofKind, Named, ParamKind, RawBeam, RawBody, RawDescription, RawLaw, RawLink,
-    RawProfileKind, RawSupports,
+    self, Axis, DofKind, Named, ParamKind, RawBeam, RawBody, RawDescription, RawElement,
+    RawGeometry, RawLaw, RawLink, RawProfileKind, RawSupports, RawWheelset,
 };
 use crate::system::*;
 use crate::yaml::Pos;
