@@ -93,6 +93,9 @@ pub(crate) struct BeamRuntime {
     pub(crate) coupling: Coupling,
     /// Whether some element needs the rate of the deflection under a point.
     pub(crate) rates: bool,
+    /// An earlier beam with the same modes and its points at the same offsets (two rails
+    /// under one vehicle): the mode shapes under the points are that beam's, computed once.
+    pub(crate) shares: Option<usize>,
 }
 
 /// Why a sample failed.
@@ -215,6 +218,9 @@ pub struct Engine {
     pub(crate) route: Route,
     /// Per element, the wheel of a wheelset at run time (empty without wheels).
     pub(crate) wheels: Vec<Option<Wheel>>,
+    /// Per element, an earlier element reading the same profile at the same point, whose
+    /// reading (and rate, where this one's is evaluated) it takes.
+    same_read: Vec<Option<usize>>,
 }
 
 fn fast_structure(beam: &mbd_system::model::ModelBeam, s: &ModelSupports) -> bool {
@@ -314,11 +320,23 @@ impl Engine {
             let rates = model.elements.iter().zip(&needs_rate).any(|(e, &r)| {
                 r && matches!(e.to, ModelEnd::Moving(p) if model.points[p].0 == Some(b))
             });
+            let offsets =
+                |pts: &[usize]| -> Vec<f64> { pts.iter().map(|&p| model.points[p].1).collect() };
+            let shares = beams.iter().position(|other: &BeamRuntime| {
+                !rates
+                    && !other.rates
+                    && other.shares.is_none()
+                    && other.modal.length == modal.length
+                    && other.modal.modes() == modal.modes()
+                    && other.modal.shape_scale == modal.shape_scale
+                    && offsets(&other.points) == offsets(&points)
+            });
             beams.push(BeamRuntime {
                 modal,
                 points,
                 coupling,
                 rates,
+                shares,
             });
         }
         let layout = Layout {
@@ -346,6 +364,21 @@ impl Engine {
             }
         }
         let wheels = run_wheels(&system, &model)?;
+        let same_read = (0..model.elements.len())
+            .map(|e| {
+                let el = &model.elements[e];
+                let ModelEnd::Moving(pt) = el.to else {
+                    return None;
+                };
+                el.profile?;
+                (0..e).find(|&f| {
+                    let other = &model.elements[f];
+                    other.profile == el.profile
+                        && other.to == ModelEnd::Moving(pt)
+                        && (profile_rate[f] || !profile_rate[e])
+                })
+            })
+            .collect();
         let sensor_shapes = model
             .sensors
             .iter()
@@ -368,6 +401,7 @@ impl Engine {
             sensor_shapes,
             route,
             wheels,
+            same_read,
         };
         check_coverage(
             &engine.system,
@@ -457,45 +491,19 @@ impl Engine {
         }
     }
 
-    /// `A = M^-1 F(X, V, t)`; the point and element quantities go to `ws.q`.
-    pub(crate) fn accelerations(
+    /// The part of [`Engine::accelerations`] above the beams, given the points' positions,
+    /// deflections and rates in `q`: the profiles under the elements, every element's force,
+    /// the rigid DOFs' accelerations (into `a[..rigid]`) and each moving point's net force.
+    #[inline]
+    pub(crate) fn rigid_part(
         &self,
-        ws: &mut Workspace,
+        q: &mut Quantities,
         t: f64,
         x: &[f64],
         v: &[f64],
         a: &mut [f64],
     ) {
         let m = &self.model;
-        let q = &mut ws.q;
-        let origin = self.config.x0 + m.speed * t;
-        for (px, (_, offset)) in q.point_x.iter_mut().zip(&m.points) {
-            *px = origin + offset;
-        }
-        // Deflection under the moving points.
-        for (b, beam) in self.beams.iter().enumerate() {
-            let modes = self.layout.beams[b].modes.clone();
-            let (qs, qd) = (&x[modes.clone()], &v[modes]);
-            for (c, chunk) in beam.points.chunks(LANES).enumerate() {
-                let xs: [f64; LANES] =
-                    std::array::from_fn(|i| chunk.get(i).map_or(0.0, |&p| q.point_x[p]));
-                let shapes = &mut ws.shapes[b][c];
-                if beam.rates {
-                    let (w, rate) =
-                        beam.modal
-                            .lane_shapes_moving(&xs, chunk.len(), m.speed, qs, qd, shapes);
-                    for (i, &p) in chunk.iter().enumerate() {
-                        q.point_w[p] = w[i];
-                        q.point_rate[p] = rate[i];
-                    }
-                } else {
-                    let w = beam.modal.lane_shapes(&xs, chunk.len(), qs, shapes);
-                    for (i, &p) in chunk.iter().enumerate() {
-                        q.point_w[p] = w[i];
-                    }
-                }
-            }
-        }
         // Profiles under the elements.
         let ramp = self.config.ramp(t);
         let ramp_rate = self.config.ramp_rate(t);
@@ -503,6 +511,13 @@ impl Engine {
             let (Some(p), ModelEnd::Moving(pt)) = (el.profile, el.to) else {
                 continue;
             };
+            // Elements reading one profile at one point (a rail's two lateral fastenings at a
+            // wheel, say) read it once.
+            if let Some(first) = self.same_read[e] {
+                q.eta[e] = q.eta[first];
+                q.eta_rate[e] = q.eta_rate[first];
+                continue;
+            }
             let src = &self.profiles[p];
             let xp = q.point_x[pt];
             q.eta[e] = src.ramped(ramp, xp);
@@ -528,6 +543,55 @@ impl Engine {
                 Some((s0, _)) => it.fold(value(s0, q), |acc, (s, _)| acc + value(s, q)),
             };
         }
+    }
+
+    /// `A = M^-1 F(X, V, t)`; the point and element quantities go to `ws.q`.
+    pub(crate) fn accelerations(
+        &self,
+        ws: &mut Workspace,
+        t: f64,
+        x: &[f64],
+        v: &[f64],
+        a: &mut [f64],
+    ) {
+        let m = &self.model;
+        let q = &mut ws.q;
+        let origin = self.config.x0 + m.speed * t;
+        for (px, (_, offset)) in q.point_x.iter_mut().zip(&m.points) {
+            *px = origin + offset;
+        }
+        // Deflection under the moving points.
+        for (b, beam) in self.beams.iter().enumerate() {
+            let modes = self.layout.beams[b].modes.clone();
+            let (qs, qd) = (&x[modes.clone()], &v[modes]);
+            for (c, chunk) in beam.points.chunks(LANES).enumerate() {
+                if let Some(other) = beam.shares {
+                    let w = ModalBeam::lane_deflection(&ws.shapes[other][c], qs);
+                    for (i, &p) in chunk.iter().enumerate() {
+                        q.point_w[p] = w[i];
+                    }
+                    continue;
+                }
+                let xs: [f64; LANES] =
+                    std::array::from_fn(|i| chunk.get(i).map_or(0.0, |&p| q.point_x[p]));
+                let shapes = &mut ws.shapes[b][c];
+                if beam.rates {
+                    let (w, rate) =
+                        beam.modal
+                            .lane_shapes_moving(&xs, chunk.len(), m.speed, qs, qd, shapes);
+                    for (i, &p) in chunk.iter().enumerate() {
+                        q.point_w[p] = w[i];
+                        q.point_rate[p] = rate[i];
+                    }
+                } else {
+                    let w = beam.modal.lane_shapes(&xs, chunk.len(), qs, shapes);
+                    for (i, &p) in chunk.iter().enumerate() {
+                        q.point_w[p] = w[i];
+                    }
+                }
+            }
+        }
+        self.rigid_part(q, t, x, v, a);
         // Beams.
         for (b, beam) in self.beams.iter().enumerate() {
             let lay = &self.layout.beams[b];
@@ -609,7 +673,7 @@ impl Engine {
             for (l, chunk) in lanes.iter_mut().zip(beam.points.chunks(LANES)) {
                 *l = std::array::from_fn(|i| chunk.get(i).map_or(0.0, |&p| q.point_force[p]));
             }
-            let shapes = &ws.shapes[b];
+            let shapes = &ws.shapes[beam.shares.unwrap_or(b)];
             let qs = &x[modes.clone()];
             let qd = &v[modes.clone()];
             let aq = &mut a[modes];
@@ -727,6 +791,12 @@ impl Engine {
     }
 
     fn check_step(&self, t: f64, q: &Quantities, a: &[f64]) -> std::result::Result<(), Failure> {
+        // One sum is finite exactly when every term is (an overflow of finite terms, at these
+        // magnitudes, is as much a blow-up); only then is the culprit searched.
+        let total = q.force.iter().sum::<f64>() + a[..self.layout.rigid].iter().sum::<f64>();
+        if total.is_finite() {
+            return Ok(());
+        }
         if let Some(e) = q.force.iter().position(|f| !f.is_finite()) {
             let el = &self.system.elements[e];
             let sym = if el.law.is_contact() { "p" } else { "f" };
@@ -930,11 +1000,10 @@ pub(crate) fn element_forces(
             // A wheel: its rolling radius at the wheelset's shift enters the vertical contact,
             // its tangential forces follow from the normal load.
             let motion = wheel.motion(x, v);
-            d += wheel.radius_change(motion.shift);
-            let load = el.law.force(d, 0.0);
+            let (d, load, forces) = wheel.contact(d, &motion, m.speed);
             q.deflection[e] = d;
             q.force[e] = load;
-            q.wheel[e] = wheel.forces(load, &motion, m.speed);
+            q.wheel[e] = forces;
             continue;
         }
         let rate = if needs_rate[e] {

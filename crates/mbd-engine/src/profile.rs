@@ -33,6 +33,9 @@ pub struct Profile {
     /// Per cell `n` (from `x_n` to `x_{n+1}`) of a cubic profile: `[s_n, c2_n, c3_n]` of
     /// `eta_n + s_n t + c2_n t^2 + c3_n t^3` (m/m, m/m^2, m/m^3); empty for a linear one.
     cubic: Vec<[f64; 3]>,
+    /// `1 / dx` when the points are evenly spaced (to 1e-9 of the spacing), as a generated
+    /// profile's are: [`Profile::cell`] then guesses the cell from `x` and only checks it.
+    inverse_spacing: Option<f64>,
 }
 
 impl Profile {
@@ -63,10 +66,17 @@ impl Profile {
                 allowed: "finite".to_owned(),
             });
         }
+        let n = x.len();
+        let dx = (x[n - 1] - x[0]) / (n - 1) as f64;
+        let even = x
+            .iter()
+            .enumerate()
+            .all(|(i, &xi)| (xi - (x[0] + i as f64 * dx)).abs() <= 1e-9 * dx);
         Ok(Self {
             x,
             eta,
             cubic: Vec::new(),
+            inverse_spacing: even.then_some(1.0 / dx),
         })
     }
 
@@ -103,10 +113,29 @@ impl Profile {
         [self.x[0], self.x[self.x.len() - 1]]
     }
 
+    /// The cell `i` (from `x_(i-1)` to `x_i`, `1 <= i < len`) holding `x`: the first point
+    /// above `x`, clamped to the ends. On evenly spaced points the cell guessed from `x` and
+    /// its neighbours are checked first (the result is the binary search's either way).
+    #[inline]
     fn cell(&self, x: f64) -> usize {
-        self.x
-            .partition_point(|&p| p <= x)
-            .clamp(1, self.x.len() - 1)
+        let n = self.x.len();
+        if let Some(inverse) = self.inverse_spacing {
+            let guess = (x - self.x[0]) * inverse;
+            if guess >= 0.0 && guess < n as f64 {
+                // Truncation is the floor of a non-negative number.
+                let g = guess as usize + 1;
+                for i in [g, g - 1, g + 1] {
+                    // `i` is the first point above `x`, or the end cell that holds it.
+                    if (1..n).contains(&i)
+                        && (i == 1 || self.x[i - 1] <= x)
+                        && (i == n - 1 || self.x[i] > x)
+                    {
+                        return i;
+                    }
+                }
+            }
+        }
+        self.x.partition_point(|&p| p <= x).clamp(1, n - 1)
     }
 
     /// `eta` at `x` (m) by the profile's interpolation (clamped to the ends).
@@ -285,6 +314,26 @@ impl ProfileSource {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cell found from an evenly spaced grid's guess is the binary search's, at points,
+    /// between them, beyond both ends, on grids that are even and on one that is not.
+    #[test]
+    fn cell_guess_equals_the_search() {
+        let even: Vec<f64> = (0..200).map(|i| i as f64 * 0.1 - 3.0).collect();
+        for x in [even.clone(), uneven()] {
+            let p = Profile::new(x.clone(), vec![0.0; x.len()]).unwrap();
+            let n = x.len();
+            let search = |v: f64| x.partition_point(|&q| q <= v).clamp(1, n - 1);
+            let mut probes: Vec<f64> = x.clone();
+            probes.extend(x.windows(2).map(|w| 0.5 * (w[0] + w[1])));
+            probes.extend(x.iter().map(|v| v - 1e-12));
+            probes.extend([x[0] - 5.0, x[n - 1] + 5.0, x[n - 1], x[0]]);
+            for v in probes {
+                assert_eq!(p.cell(v), search(v), "x = {v}");
+            }
+        }
+        assert!(Profile::new(even, vec![0.0; 200]).unwrap().inverse_spacing.is_some());
+    }
 
     /// Unevenly spaced points (the spline's system is not the uniform one).
     fn uneven() -> Vec<f64> {

@@ -593,17 +593,45 @@ fn condensed(engine: &Engine) -> Result<Vec<f64>> {
     let mut units: Vec<Vec<f64>> = Vec::with_capacity(loaded.len());
     for &p in &loaded {
         let b = m.points[p].0.expect("a point on a beam");
+        let lay = &engine.layout.beams[b];
+        // A beam with the same modes and points as an earlier one (the other rail) has the
+        // same response to its k-th point: moved into this beam's part of the state.
+        let k = engine.beams[b]
+            .points
+            .iter()
+            .position(|&o| o == p)
+            .expect("its point");
+        let earlier = engine.beams[b].shares.and_then(|b0| {
+            let p0 = engine.beams[b0].points[k];
+            let j = loaded.iter().position(|&l| l == p0)?;
+            let l0 = &engine.layout.beams[b0];
+            let mut u = vec![0.0; len];
+            u[lay.modes.clone()].copy_from_slice(&units[j][l0.modes.clone()]);
+            u[lay.supports.clone()].copy_from_slice(&units[j][l0.supports.clone()]);
+            Some(u)
+        });
+        if let Some(u) = earlier {
+            units.push(u);
+            continue;
+        }
         let mut unit_force = vec![0.0; m.points.len()];
         unit_force[p] = 1.0;
         let (q, levels) = beam_static(engine, b, &px, &unit_force)?;
-        let lay = &engine.layout.beams[b];
         let mut u = vec![0.0; len];
         u[lay.modes.clone()].copy_from_slice(&q);
         u[lay.supports.clone()].copy_from_slice(&levels);
         units.push(u);
     }
-    let masses = state_masses(engine);
-    let zero = vec![0.0; len];
+    // Compliance: the deflection under loaded point i of unit response j.
+    let compliance: Vec<Vec<f64>> = loaded
+        .iter()
+        .map(|&p| {
+            units
+                .iter()
+                .map(|u| point_deflection(engine, u, p, px[p]))
+                .collect()
+        })
+        .collect();
     let n = n_r + loaded.len();
     let state = |z: &[f64]| -> Vec<f64> {
         let mut x = vec![0.0; len];
@@ -615,9 +643,31 @@ fn condensed(engine: &Engine) -> Result<Vec<f64>> {
         }
         x
     };
+    // The rigid part alone: the beams enter through their deflections under the points.
+    let scratch = std::cell::RefCell::new((
+        crate::engine::Quantities::with_wheels(
+            m.elements.len(),
+            m.points.len(),
+            !engine.wheels.is_empty(),
+        ),
+        vec![0.0; n_r],
+    ));
+    let zero = vec![0.0; n_r];
     let residual = |z: &[f64]| -> Vec<f64> {
-        let (a, q) = engine.evaluate(0.0, &state(z), &zero);
-        let mut r: Vec<f64> = (0..n_r).map(|i| a[i] * masses[i]).collect();
+        let mut guard = scratch.borrow_mut();
+        let (q, a) = &mut *guard;
+        q.point_x.copy_from_slice(&px);
+        q.point_w.fill(0.0);
+        q.point_rate.fill(0.0);
+        for (i, &p) in loaded.iter().enumerate() {
+            q.point_w[p] = compliance[i]
+                .iter()
+                .zip(&z[n_r..])
+                .map(|(c, f)| c * f)
+                .sum();
+        }
+        engine.rigid_part(q, 0.0, &z[..n_r], &zero, a);
+        let mut r: Vec<f64> = (0..n_r).map(|i| a[i] * m.dof_mass[i]).collect();
         r.extend(
             loaded
                 .iter()

@@ -19,7 +19,8 @@
 //!                                                   own term is left out)
 //! eps    = SHE(|(F_x, F_y)| / (mu Q))              Shen-Hedrick-Elkins saturation, scales
 //!                                                   F_x, F_y, M_z
-//! N_y    = -s Q tan(delta - s phi)                 lateral part of the normal force
+//! N_y    = -s Q tan(delta - s phi)                 lateral part of the normal force (with
+//!                                                   tan phi = phi: small rotations)
 //! F_fl   = k_fl max(u - c, 0)                      flange contact
 //! F_Y    = eps F_y + N_y - s F_fl                  lateral force on the wheel (track frame)
 //! ```
@@ -410,6 +411,8 @@ pub struct Wheel {
     pub half_gauge: f64,
     /// `r0` (m).
     pub radius: f64,
+    /// Hertz constant `G` (m/N^(2/3)).
+    pub hertz: f64,
     /// Geometry.
     pub geometry: Geometry,
     /// Creep coefficients.
@@ -430,6 +433,7 @@ impl Wheel {
             rail: w.rail,
             half_gauge: w.half_gauge,
             radius: w.radius,
+            hertz: w.hertz,
             geometry: Geometry::of(&w.geometry),
             creep: Creep::of(w, name)?,
             flange: w.flange,
@@ -454,23 +458,53 @@ impl Wheel {
         }
     }
 
-    /// The rolling-radius change (m) at the wheelset's shift `y - y_rail` (m): added to the
-    /// vertical contact's compression.
+    /// The wheel's contact from the vertical compression `d0` (m) before the rolling-radius
+    /// change and its motion: the compression `d = d0 + rho`, the vertical load
+    /// `Q = (d / G)^(3/2)` (computed as `x sqrt(x)`, `x = d / G`, as the Hertz law of the
+    /// element; 0 when `d <= 0`) and the tangential forces, the creep coefficients at
+    /// `Q^(2/3) = x`.
     #[inline]
-    pub fn radius_change(&self, shift: f64) -> f64 {
-        self.geometry.at(self.side * shift).0
+    pub fn contact(&self, d0: f64, m: &WheelMotion, speed: f64) -> (f64, f64, WheelForces) {
+        let u = self.side * m.shift;
+        let geometry = self.geometry.at(u);
+        let d = d0 + geometry.0;
+        let (load, load_23) = if d > 0.0 {
+            let x = d / self.hertz;
+            (x * x.sqrt(), x)
+        } else {
+            (0.0, 0.0)
+        };
+        (d, load, self.tangential(load, load_23, geometry, m, speed))
     }
 
     /// The tangential forces at the normal load `q` (N) and speed `speed` (m/s, > 0).
-    #[inline]
     pub fn forces(&self, q: f64, m: &WheelMotion, speed: f64) -> WheelForces {
+        let geometry = self.geometry.at(self.side * m.shift);
+        let q13 = q.cbrt();
+        self.tangential(q, q13 * q13, geometry, m, speed)
+    }
+
+    /// The tangential forces at the normal load `q` (N), `q23 = q^(2/3)`, with the geometry
+    /// `(rho, tan delta, sin delta)` at the wheel's shift.
+    #[inline]
+    fn tangential(
+        &self,
+        q: f64,
+        q23: f64,
+        (rho, tan_delta, sin_delta): (f64, f64, f64),
+        m: &WheelMotion,
+        speed: f64,
+    ) -> WheelForces {
         let s = self.side;
         let u = s * m.shift;
-        let (rho, tan_delta, sin_delta) = self.geometry.at(u);
         let (mut fx, mut fy, mut mz) = (0.0, 0.0, 0.0);
         let mut normal = 0.0;
         if q > 0.0 {
-            let (f11, f22, f23) = self.creep.at(q);
+            let (f11, f22, f23) = (
+                self.creep.k11 * q23,
+                self.creep.k22 * q23,
+                self.creep.k23 * q,
+            );
             let r0 = self.radius;
             let xi_x = -rho / r0 - s * self.half_gauge * m.yaw_rate / speed;
             let xi_y = (m.shift_rate - r0 * m.roll_rate) / speed - m.yaw;
@@ -486,8 +520,9 @@ impl Wheel {
                 fy *= eps;
                 mz *= eps;
             }
-            // tan(delta - s phi), delta = atan(tan_delta).
-            let t_phi = (s * m.roll).tan();
+            // tan(delta - s phi) = (tan delta - tan s phi) / (1 + tan delta tan s phi), the
+            // roll's tangent its angle (small rotations).
+            let t_phi = s * m.roll;
             normal = -s * q * (tan_delta - t_phi) / (1.0 + tan_delta * t_phi);
         }
         let flange = match self.flange {
