@@ -96,6 +96,7 @@ pub fn profile_generators(
                 segments,
                 wavelengths,
                 interpolation,
+                ..
             } => {
                 let min = interpolation.min_points();
                 if let Some(points) = params.points().filter(|&n| n < min) {

@@ -927,6 +927,17 @@ pub(crate) fn profile_sources(
             (ModelProfile::Generated { .. }, None) => Ok(ProfileSource::Level),
         })
         .collect::<Result<_>>()?;
+    // Profiles that end.
+    for (i, ends) in model.profile_ends.iter().enumerate() {
+        if let Some([end, taper]) = *ends {
+            let inner = std::mem::replace(&mut sources[i], ProfileSource::Level);
+            sources[i] = ProfileSource::Until {
+                inner: Box::new(inner),
+                end,
+                taper,
+            };
+        }
+    }
     // Combinations of the others, once those are built.
     for (i, m) in model.profiles.iter().enumerate() {
         if let ModelProfile::Combination(terms) = m {

@@ -242,6 +242,17 @@ pub enum ProfileSource {
     Level,
     /// A weighted sum of profiles, `sum_k w_k eta_k(x)` (a description's `combination`).
     Sum(Vec<(f64, ProfileSource)>),
+    /// A profile that ends at `end` (m): `w(x) eta(x)`, `w` 1 up to `end - taper`, then
+    /// `(1 + cos(pi (x - end + taper) / taper)) / 2` down to 0 at `end` (level and slope
+    /// continuous), 0 beyond (a description's `until`).
+    Until {
+        /// The profile.
+        inner: Box<ProfileSource>,
+        /// Where it ends (m).
+        end: f64,
+        /// Length of the fade (m).
+        taper: f64,
+    },
 }
 
 impl ProfileSource {
@@ -257,6 +268,14 @@ impl ProfileSource {
             } => amplitude * (std::f64::consts::TAU * x / wavelength + phase).sin(),
             ProfileSource::Level => 0.0,
             ProfileSource::Sum(terms) => terms.iter().map(|(w, p)| w * p.at(x)).sum(),
+            ProfileSource::Until { inner, end, taper } => {
+                let (w, _) = fade(x, *end, *taper);
+                if w == 0.0 {
+                    0.0
+                } else {
+                    w * inner.at(x)
+                }
+            }
         }
     }
 
@@ -288,6 +307,14 @@ impl ProfileSource {
                 .iter()
                 .filter_map(|(_, p)| p.covered())
                 .reduce(|a, b| [a[0].max(b[0]), a[1].min(b[1])]),
+            // Beyond its end it is level everywhere.
+            ProfileSource::Until { inner, end, .. } => inner.covered().map(|[lo, hi]| {
+                if *end <= hi {
+                    [lo, f64::INFINITY]
+                } else {
+                    [lo, hi]
+                }
+            }),
             _ => None,
         }
     }
@@ -307,7 +334,32 @@ impl ProfileSource {
             }
             ProfileSource::Level => 0.0,
             ProfileSource::Sum(terms) => terms.iter().map(|(w, p)| w * p.slope(x)).sum(),
+            ProfileSource::Until { inner, end, taper } => {
+                let (w, dw) = fade(x, *end, *taper);
+                if w == 0.0 {
+                    0.0
+                } else {
+                    w * inner.slope(x) + dw * inner.at(x)
+                }
+            }
         }
+    }
+}
+
+/// The fade of an ending profile at `x` and its slope: 1 up to `end - taper`, a half cosine
+/// to 0 at `end`, 0 beyond.
+#[inline]
+fn fade(x: f64, end: f64, taper: f64) -> (f64, f64) {
+    if x >= end {
+        (0.0, 0.0)
+    } else if x <= end - taper {
+        (1.0, 0.0)
+    } else {
+        let phase = std::f64::consts::PI * (x - end + taper) / taper;
+        (
+            0.5 * (1.0 + phase.cos()),
+            -0.5 * std::f64::consts::PI / taper * phase.sin(),
+        )
     }
 }
 
@@ -332,7 +384,10 @@ mod tests {
                 assert_eq!(p.cell(v), search(v), "x = {v}");
             }
         }
-        assert!(Profile::new(even, vec![0.0; 200]).unwrap().inverse_spacing.is_some());
+        assert!(Profile::new(even, vec![0.0; 200])
+            .unwrap()
+            .inverse_spacing
+            .is_some());
     }
 
     /// Unevenly spaced points (the spline's system is not the uniform one).
@@ -435,5 +490,56 @@ mod tests {
             linear.at(0.75),
             1e-3 * (x[1].sin() + (0.75 - x[1]) / (x[2] - x[1]) * (x[2].sin() - x[1].sin()))
         );
+    }
+
+    /// An ending profile: the profile itself before the taper, 0 from its end on, level and
+    /// slope continuous across the taper (its slope the derivative of its level), and covered
+    /// everywhere beyond its end.
+    #[test]
+    fn until_fades_out_continuously() {
+        let inner = ProfileSource::Harmonic {
+            amplitude: 2e-3,
+            wavelength: 7.0,
+            phase: 0.3,
+        };
+        let (end, taper) = (30.0, 4.0);
+        let p = ProfileSource::Until {
+            inner: Box::new(inner.clone()),
+            end,
+            taper,
+        };
+        for x in [0.0, 12.5, end - taper] {
+            assert_eq!(p.at(x), inner.at(x));
+            assert_eq!(p.slope(x), inner.slope(x));
+        }
+        for x in [end, end + 0.1, 1e3] {
+            assert_eq!((p.at(x), p.slope(x)), (0.0, 0.0));
+        }
+        // Half-way the fade is 1/2, its slope -pi / (2 taper).
+        let mid = end - taper / 2.0;
+        assert!((p.at(mid) - 0.5 * inner.at(mid)).abs() < 1e-18);
+        let want = 0.5 * inner.slope(mid) - std::f64::consts::PI / (2.0 * taper) * inner.at(mid);
+        assert!((p.slope(mid) - want).abs() < 1e-15);
+        // The slope is the level's derivative (central differences) over the whole taper and
+        // at both of its ends.
+        let h = 1e-5;
+        let mut x = end - taper - 0.5;
+        while x <= end + 0.5 {
+            let fd = (p.at(x + h) - p.at(x - h)) / (2.0 * h);
+            assert!(
+                (fd - p.slope(x)).abs() < 1e-8,
+                "x {x}: {fd} vs {}",
+                p.slope(x)
+            );
+            x += 0.0625;
+        }
+        let points = Profile::new(vec![0.0, 10.0, 20.0, 40.0], vec![0.0; 4]).unwrap();
+        let ending = |end: f64| ProfileSource::Until {
+            inner: Box::new(ProfileSource::Points(points.clone())),
+            end,
+            taper: 1.0,
+        };
+        assert_eq!(ending(35.0).covered(), Some([0.0, f64::INFINITY]));
+        assert_eq!(ending(50.0).covered(), Some([0.0, 40.0]));
     }
 }

@@ -130,6 +130,20 @@ pub(crate) fn position(raw: &RawDescription, path: &str) -> Pos {
                 (RawProfileKind::Generated { interpolation, .. }, ["interpolation"]) => {
                     Some(interpolation.1)
                 }
+                (
+                    RawProfileKind::Generated {
+                        until: Some((x, _)),
+                        ..
+                    },
+                    ["until", "x"],
+                ) => Some(x.pos),
+                (
+                    RawProfileKind::Generated {
+                        until: Some((_, taper)),
+                        ..
+                    },
+                    ["until", "taper"],
+                ) => Some(taper.pos),
                 _ => None,
             }
             .unwrap_or(p.pos)

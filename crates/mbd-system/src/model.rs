@@ -466,6 +466,9 @@ pub struct Model {
     pub sensors: Vec<(usize, f64)>,
     /// Profiles.
     pub profiles: Vec<ModelProfile>,
+    /// Per profile, where a generated one's irregularity ends and the taper before it
+    /// (`[x, taper]`, m), when it does.
+    pub profile_ends: Vec<Option<[f64; 2]>>,
 }
 
 impl System {
@@ -571,6 +574,7 @@ impl System {
         let points = c.points();
         let sensors = c.sensors(&beams, &length_valid);
         let profiles = c.profiles();
+        let profile_ends = c.profile_ends();
         if !c.errors.is_empty() {
             // A wheelset's two wheels share its fields: one report per field.
             let mut errors: Vec<FieldError> = Vec::with_capacity(c.errors.len());
@@ -595,6 +599,7 @@ impl System {
             points,
             sensors,
             profiles,
+            profile_ends,
         })
     }
 }
@@ -1052,6 +1057,35 @@ impl Checker<'_> {
             sensors.push((s.beam, x));
         }
         sensors
+    }
+
+    /// Where each generated profile's irregularity ends: `x` >= 0 and a taper > 0 no longer
+    /// than `x`.
+    fn profile_ends(&mut self) -> Vec<Option<[f64; 2]>> {
+        let system = self.system;
+        system
+            .profiles
+            .iter()
+            .map(|p| match p {
+                Profile::Generated {
+                    name,
+                    until: Some((x, taper)),
+                    ..
+                } => {
+                    let x = self.non_negative(|| format!("profiles.{name}.until.x"), x);
+                    let t = self.eval(taper);
+                    let t = self.check(
+                        || format!("profiles.{name}.until.taper"),
+                        t,
+                        t > 0.0 && t <= x,
+                        || format!("> 0 and at most until.x = {x} m"),
+                        &[taper],
+                    );
+                    Some([x, t])
+                }
+                _ => None,
+            })
+            .collect()
     }
 
     /// The profiles: a harmonic one's amplitude and phase finite, its wavelength > 0.

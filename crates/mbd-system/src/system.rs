@@ -326,6 +326,8 @@ pub enum Profile {
         wavelengths: [f64; 2],
         /// How the points are read between them.
         interpolation: Interpolation,
+        /// Where the irregularity ends (m) and the taper before it (m), when it does.
+        until: Option<(Expr, Expr)>,
     },
     /// A weighted sum of other profiles (each generated or harmonic).
     Combination {
@@ -653,6 +655,42 @@ pub struct Railway {
     pub static_wheel_load: Expr,
 }
 
+/// Limits of the lateral indices (`None`: no limit); a value passes at or below its limit.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LateralLimits {
+    /// Of the derailment quotient's 2 m sliding mean.
+    pub derailment_quotient: Option<f64>,
+    /// Of the wheelset lateral force over the Prud'homme limit.
+    pub lateral_force: Option<f64>,
+    /// Of the lateral Sperling index at each car-body point.
+    pub sperling: Option<f64>,
+    /// Of the lateral oscillation's growth rate (1/s).
+    pub stability: Option<f64>,
+}
+
+/// The lateral indices' binding (indices into [`System::channels`]) and constants.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lateral {
+    /// Per wheel, front to rear and left before right: its `Y` and `Q` columns.
+    pub wheels: Vec<[usize; 2]>,
+    /// The car body's lateral, yaw and roll accelerations.
+    pub car_body: [usize; 3],
+    /// Half the distance between the bogie centres (m).
+    pub half_length: Expr,
+    /// Height of the measuring points, `z` below the car body's centre (m).
+    pub floor: Expr,
+    /// The static axle load `P0` (N).
+    pub axle_load: Expr,
+    /// `alpha` of the Prud'homme limit.
+    pub prudhomme: Expr,
+    /// The column whose oscillation after the irregularity gives the stability index.
+    pub stability: usize,
+    /// The stored excitation columns (the irregularity has ended where all are zero).
+    pub excitations: Vec<usize>,
+    /// Limits.
+    pub limits: LateralLimits,
+}
+
 /// A validated, compiled description.
 #[derive(Debug, Clone, PartialEq)]
 pub struct System {
@@ -690,6 +728,8 @@ pub struct System {
     pub indices: Vec<Index>,
     /// The railway indices' binding, when declared.
     pub railway: Option<Railway>,
+    /// The lateral indices' binding, when declared.
+    pub lateral: Option<Lateral>,
     /// Time (s) from which the indices read a record (`indices_from`, default 0): what comes
     /// before is the simulation's start-up, which the indices leave out.
     pub indices_from: f64,

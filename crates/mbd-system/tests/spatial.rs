@@ -404,3 +404,96 @@ fn profile_combinations() {
         &["`a` is itself a combination"],
     );
 }
+
+/// The lateral binding a valid [`BASE`] takes (the frame stands in for a car body).
+const LATERAL: &str = "lateral:
+  wheelsets: [ws]
+  car_body: {lateral: y_f_a, yaw: psi_f_a, roll: phi_f_a}
+  half_length: 1.2
+  floor: h
+  axle_load: load
+  stability: y_w
+  limits: {derailment_quotient: 0.8, lateral_force: 1.0, sperling: 2.5}
+";
+
+/// The lateral binding resolves its wheelset's wheels to their `Y` and `Q` columns, left before
+/// right, its constants to expressions and its limits to literals; a name that is not a
+/// wheelset and a wheel column that is not stored are refused at their lines.
+#[test]
+fn the_lateral_binding_names_wheelsets_and_stored_columns() {
+    let text = format!("{BASE}{LATERAL}");
+    let s = load(&text);
+    let l = s.lateral.as_ref().expect("a lateral binding");
+    let col = |c: usize| s.channels[c].name.as_str();
+    let wheels: Vec<[&str; 2]> = l.wheels.iter().map(|w| w.map(col)).collect();
+    assert_eq!(wheels, [["fy_ws_l", "p_ws_l"], ["fy_ws_r", "p_ws_r"]]);
+    assert_eq!(l.car_body.map(col), ["y_f_a", "psi_f_a", "phi_f_a"]);
+    assert_eq!(col(l.stability), "y_w");
+    let values = s.values(&s.nominal()).unwrap();
+    assert_eq!(l.floor.eval(&values), 0.4);
+    assert_eq!(l.axle_load.eval(&values), 1.4e5);
+    assert_eq!(l.prudhomme.eval(&values), 1.0);
+    assert_eq!(l.limits.derailment_quotient, Some(0.8));
+    assert_eq!(l.limits.stability, None);
+    refused(
+        &edit(&text, "wheelsets: [ws]", "wheelsets: [x_l]"),
+        "wheelsets: [x_l]",
+        &["`x_l` is not a wheelset", "wheelsets: ws"],
+    );
+    refused(
+        &edit(&text, "fy_ws_l, ", ""),
+        "wheelsets: [ws]",
+        &["`fy_ws_l` is not a stored column"],
+    );
+}
+
+/// A generated profile that ends: `until` compiles to its end and taper; a taper longer than
+/// the distance to the end is refused at its line.
+#[test]
+fn a_profile_ends_where_until_says() {
+    let text = edit(
+        BASE,
+        "elements:\n",
+        "profiles:
+  track:
+    kind: generated
+    psd: {iso8608: C}
+    wavelengths: [1, 50]
+    until: {x: 120, taper: 10}
+elements:\n",
+    );
+    let text = edit(
+        &text,
+        "    rails: [rail, rail]\n",
+        "    rails: [rail, rail]\n    profiles: [track, track]\n",
+    );
+    let s = load(&text);
+    let model = s.instantiate(&s.nominal()).unwrap();
+    assert_eq!(model.profile_ends, [Some([120.0, 10.0])]);
+    refused(
+        &edit(&text, "taper: 10}", "taper: 130}"),
+        "taper: 130}",
+        &["until.taper", "at most until.x = 120 m"],
+    );
+}
+
+/// The shipped spatial vehicle compiles with both index families bound: four wheelsets' eight
+/// wheels, the car body's three accelerations, the leading wheelset's lateral shift.
+#[test]
+fn the_shipped_spatial_vehicle_binds_both_families() {
+    let path = format!("{}/../../systems/vtcd-3d.yaml", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap();
+    let s =
+        load_str(&text, "systems/vtcd-3d.yaml", &BTreeMap::new()).unwrap_or_else(|d| panic!("{d}"));
+    let l = s.lateral.as_ref().expect("a lateral binding");
+    assert_eq!(l.wheels.len(), 8);
+    assert_eq!(s.channels[l.stability].name, "y_w1");
+    assert!(s.railway.is_some());
+    let model = s.instantiate(&s.nominal()).unwrap();
+    assert!(model
+        .profile_ends
+        .iter()
+        .flatten()
+        .all(|e| *e == [230.0, 10.0]));
+    assert_eq!(model.profile_ends.iter().flatten().count(), 3);
+}

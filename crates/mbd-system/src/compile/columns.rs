@@ -98,6 +98,104 @@ impl Compiler<'_, '_> {
     }
 }
 
+impl Compiler<'_, '_> {
+    /// The `lateral` section: each wheelset's wheels' `Y` and `Q` columns (which must be
+    /// stored), the car body's columns, the constants and limits (none where a part fails).
+    pub(super) fn lateral(
+        &mut self,
+        channels: &[Channel],
+        elements: &[Element],
+    ) -> Option<Lateral> {
+        let r = self.raw.lateral.as_ref()?;
+        let mut wheels = Vec::new();
+        for (name, pos) in &r.wheelsets {
+            let is_wheelset = elements
+                .iter()
+                .any(|e| e.law.wheel().is_some_and(|w| &w.wheelset == name));
+            if !is_wheelset {
+                let known: Vec<&str> = self
+                    .raw
+                    .elements
+                    .iter()
+                    .filter(|e| matches!(e.law, RawLaw::Wheelset(_)))
+                    .map(|e| e.name.as_str())
+                    .collect();
+                self.diag.push(
+                    *pos,
+                    format!(
+                        "lateral.wheelsets: `{name}` is not a wheelset (`kind: wheelset`); wheelsets: {}",
+                        names(known.iter())
+                    ),
+                );
+                continue;
+            }
+            for side in Side::BOTH {
+                let wheel = format!("{name}_{}", side.suffix());
+                let y = stored_column(
+                    channels,
+                    &(format!("fy_{wheel}"), *pos),
+                    "lateral.wheelsets",
+                    self.diag,
+                );
+                let q = stored_column(
+                    channels,
+                    &(format!("p_{wheel}"), *pos),
+                    "lateral.wheelsets",
+                    self.diag,
+                );
+                if let (Some(y), Some(q)) = (y, q) {
+                    wheels.push([y, q]);
+                }
+            }
+        }
+        let car_body = r.car_body.as_ref().map(|c| {
+            c.iter()
+                .map(|n| stored_column(channels, n, "lateral.car_body", self.diag))
+                .collect::<Option<Vec<usize>>>()
+        });
+        let stability = r
+            .stability
+            .as_ref()
+            .and_then(|n| stored_column(channels, n, "lateral.stability", self.diag));
+        if r.stability.is_none() {
+            self.diag.push(r.pos, "lateral.stability: name the column whose oscillation after the irregularity gives the stability index (a leading wheelset's `y`)".to_owned());
+        }
+        let half_length = self
+            .scope
+            .req(&r.half_length, "lateral.half_length", self.diag);
+        let floor = self.scope.req(&r.floor, "lateral.floor", self.diag);
+        let axle_load = self.scope.req(&r.axle_load, "lateral.axle_load", self.diag);
+        let prudhomme = self
+            .scope
+            .opt(&r.prudhomme, 1.0, "lateral.prudhomme", self.diag);
+        let l = &r.limits;
+        let limits = LateralLimits {
+            derailment_quotient: l.derailment_quotient.map(|v| v.0),
+            lateral_force: l.lateral_force.map(|v| v.0),
+            sperling: l.sperling.map(|v| v.0),
+            stability: l.stability.map(|v| v.0),
+        };
+        let excitations = channels
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| matches!(c.quantity, Quantity::Excitation(_)))
+            .map(|(i, _)| i)
+            .collect();
+        let car_body: Vec<usize> = car_body??;
+        Some(Lateral {
+            wheels,
+            car_body: [car_body[0], car_body[1], car_body[2]],
+            half_length: half_length?,
+            floor: floor?,
+            axle_load: axle_load?,
+            prudhomme: prudhomme?,
+            stability: stability?,
+            excitations,
+            limits,
+        })
+    }
+}
+
 /// The index of the stored column `name` (`what` in the message when there is none).
 fn stored_column(
     channels: &[Channel],

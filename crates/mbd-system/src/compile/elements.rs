@@ -22,11 +22,22 @@ impl Compiler<'_, '_> {
                     segments,
                     wavelengths,
                     interpolation,
+                    until,
                 } => Profile::Generated {
                     name: p.name.clone(),
                     segments: segments.clone(),
                     wavelengths: *wavelengths,
                     interpolation: interpolation.0,
+                    until: until.as_ref().map(|(x, taper)| {
+                        (
+                            self.req_or(&Some(x.clone()), &format!("{what}.until.x"), f64::NAN),
+                            self.req_or(
+                                &Some(taper.clone()),
+                                &format!("{what}.until.taper"),
+                                f64::NAN,
+                            ),
+                        )
+                    }),
                 },
                 RawProfileKind::Harmonic {
                     amplitude,

@@ -185,6 +185,7 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
     let channels = stored_channels(&dofs, &table, raw, cx.diag);
     let indices = cx.indices(&channels);
     let railway = cx.railway(&channels);
+    let lateral = cx.lateral(&channels, &elements);
     let indices_from = cx.indices_from();
     cx.report_unused();
     let assembly = assemble(&bodies, &dofs, &elements, &loads);
@@ -211,6 +212,7 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
         channels,
         indices,
         railway,
+        lateral,
         indices_from,
         sampled_list,
     };

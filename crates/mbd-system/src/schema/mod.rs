@@ -4,7 +4,7 @@
 //!
 //! Sections (`docs/systems.md` documents each field with its unit):
 //! `format` (1), `name`, `doc`, `parameters`, `bodies`, `beams`, `moving`, `sensors`,
-//! `profiles`, `elements`, `loads`, `outputs`, `indices`, `railway`, `indices_from`.
+//! `profiles`, `elements`, `loads`, `outputs`, `indices`, `railway`, `lateral`, `indices_from`.
 //!
 //! This module holds the records; `sections` the readers, one per section, and [`read`] the
 //! whole description.
@@ -376,6 +376,9 @@ pub enum RawProfileKind {
         /// `interpolation:` (default linear) and where it is given (the profile's entry when
         /// not).
         interpolation: (Interpolation, Pos),
+        /// `until: {x, taper}`: the irregularity ends at `x` (m), faded out over the `taper`
+        /// (m) before it; zero beyond.
+        until: Option<(Field, Field)>,
     },
     /// A weighted sum of other (generated or harmonic) profiles, `sum_k w_k eta_k(x)`: a rail's
     /// vertical profile from the track's vertical profile and its cross-level.
@@ -642,6 +645,44 @@ pub struct RawRailway {
     pub static_wheel_load: Option<Field>,
 }
 
+/// Limits of the lateral indices (`lateral.limits`), each a literal and where it was written.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RawLateralLimits {
+    /// Upper limit of the derailment quotient's 2 m sliding mean.
+    pub derailment_quotient: Option<(f64, Pos)>,
+    /// Upper limit of the wheelset lateral force over the Prud'homme limit.
+    pub lateral_force: Option<(f64, Pos)>,
+    /// Upper limit of the lateral Sperling index.
+    pub sperling: Option<(f64, Pos)>,
+    /// Upper limit of the lateral oscillation's growth rate after the irregularity (1/s).
+    pub stability: Option<(f64, Pos)>,
+}
+
+/// The `lateral` section: the lateral indices of a railway vehicle in space (`docs/indices.md`,
+/// "Lateral indices") bound to its wheelsets and columns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawLateral {
+    /// Where.
+    pub pos: Pos,
+    /// The wheelsets (`kind: wheelset` elements), front to rear.
+    pub wheelsets: Vec<Named>,
+    /// The car body's lateral, yaw and roll accelerations (stored columns).
+    pub car_body: Option<[Named; 3]>,
+    /// Half the distance between the bogie centres (m).
+    pub half_length: Option<Field>,
+    /// Height of the measuring points: `z` below the car body's centre (m).
+    pub floor: Option<Field>,
+    /// The static axle load `P0` (N) of the Prud'homme limit.
+    pub axle_load: Option<Field>,
+    /// The factor `alpha` of the Prud'homme limit `alpha (10 + P0 / 3)` kN (1 for passenger
+    /// vehicles), default 1.
+    pub prudhomme: Option<Field>,
+    /// The column whose oscillation after the irregularity gives the stability index.
+    pub stability: Option<Named>,
+    /// Limits.
+    pub limits: RawLateralLimits,
+}
+
 /// A description as written.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RawDescription {
@@ -671,6 +712,8 @@ pub struct RawDescription {
     pub indices: Vec<RawIndex>,
     /// `railway`.
     pub railway: Option<RawRailway>,
+    /// `lateral`.
+    pub lateral: Option<RawLateral>,
     /// `indices_from` (s) and where it was written.
     pub indices_from: Option<(f64, Pos)>,
 }

@@ -7,7 +7,7 @@ use crate::diag::Diagnostics;
 use crate::reader::{read_expr, read_names, read_pair, valid_name, MapReader};
 use crate::yaml::Node;
 
-const TOP: [&str; 15] = [
+const TOP: [&str; 16] = [
     "format",
     "name",
     "doc",
@@ -22,6 +22,7 @@ const TOP: [&str; 15] = [
     "outputs",
     "indices",
     "railway",
+    "lateral",
     "indices_from",
 ];
 
@@ -140,6 +141,9 @@ pub fn read(root: &Node, diag: &mut Diagnostics) -> RawDescription {
     }
     if let Some(node) = top.get("railway") {
         out.railway = railway(node, diag);
+    }
+    if let Some(node) = top.get("lateral") {
+        out.lateral = lateral(node, diag);
     }
     out.indices_from = top.number("indices_from", diag);
     top.finish(&TOP, diag);
@@ -562,7 +566,17 @@ fn profile(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
                         }
                     },
                 };
-                m.finish(&["kind", "psd", "wavelengths", "interpolation"], diag);
+                let until = m.get("until").and_then(|n| {
+                    let mut u = MapReader::new(n, &format!("{what}.until"), diag)?;
+                    let x = u.required_expr("x", diag);
+                    let taper = u.required_expr("taper", diag);
+                    u.finish(&["x", "taper"], diag);
+                    Some((x?, taper?))
+                });
+                m.finish(
+                    &["kind", "psd", "wavelengths", "interpolation", "until"],
+                    diag,
+                );
                 let wavelengths = wavelengths?;
                 if !(wavelengths[0] > 0.0 && wavelengths[0] < wavelengths[1]) {
                     diag.push(
@@ -577,6 +591,7 @@ fn profile(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
                     segments: psd?,
                     wavelengths,
                     interpolation,
+                    until,
                 }
             }
             "harmonic" => {
@@ -1045,6 +1060,73 @@ fn railway(node: &Node, diag: &mut Diagnostics) -> Option<RawRailway> {
             "bogies",
             "rails",
             "static_wheel_load",
+        ],
+        diag,
+    );
+    Some(r)
+}
+
+/// The `lateral` section.
+fn lateral(node: &Node, diag: &mut Diagnostics) -> Option<RawLateral> {
+    let mut m = MapReader::new(node, "lateral", diag)?;
+    let wheelsets = m
+        .required("wheelsets", diag)
+        .map(|n| read_names(n, "lateral.wheelsets", diag))
+        .unwrap_or_default();
+    let car_body = m.required("car_body", diag).and_then(|n| {
+        let mut c = MapReader::new(n, "lateral.car_body", diag)?;
+        let l = c.required_string("lateral", diag);
+        let y = c.required_string("yaw", diag);
+        let r = c.required_string("roll", diag);
+        c.finish(&["lateral", "yaw", "roll"], diag);
+        Some([l?, y?, r?])
+    });
+    let limits = match m.get("limits") {
+        None => RawLateralLimits::default(),
+        Some(n) => {
+            let mut l = match MapReader::new(n, "lateral.limits", diag) {
+                Some(l) => l,
+                None => return None,
+            };
+            let r = RawLateralLimits {
+                derailment_quotient: l.number("derailment_quotient", diag),
+                lateral_force: l.number("lateral_force", diag),
+                sperling: l.number("sperling", diag),
+                stability: l.number("stability", diag),
+            };
+            l.finish(
+                &[
+                    "derailment_quotient",
+                    "lateral_force",
+                    "sperling",
+                    "stability",
+                ],
+                diag,
+            );
+            r
+        }
+    };
+    let r = RawLateral {
+        pos: node.pos,
+        wheelsets,
+        car_body,
+        half_length: m.required_expr("half_length", diag),
+        floor: m.required_expr("floor", diag),
+        axle_load: m.required_expr("axle_load", diag),
+        prudhomme: m.expr("prudhomme", diag),
+        stability: m.string("stability", diag),
+        limits,
+    };
+    m.finish(
+        &[
+            "wheelsets",
+            "car_body",
+            "half_length",
+            "floor",
+            "axle_load",
+            "prudhomme",
+            "stability",
+            "limits",
         ],
         diag,
     );
