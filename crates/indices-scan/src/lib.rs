@@ -294,6 +294,9 @@ pub fn compute_all(
             values.extend(ix.values());
             railway = Some(ix);
         }
+        if let Some(l) = &s.lateral {
+            values.extend_from_slice(l);
+        }
         values.extend_from_slice(&s.simple);
         let failed = set.failed(system, &values, railway.as_ref(), cfg);
         rows.push(Row {

@@ -47,8 +47,18 @@ pub struct RecordIndices {
     pub t_start: f64,
     /// The car body's indices, when the railway family is bound.
     pub car_body: Option<CarBody>,
+    /// The lateral family's indices, when it is bound (`pino_indices::LATERAL_COLUMNS`).
+    pub lateral: Option<[f64; 14]>,
     /// The simple indices, in `System::indices` order.
     pub simple: Vec<f64>,
+}
+
+/// Where the lateral binding's signals sit among the columns read.
+struct LateralLayout {
+    wheels: Vec<(usize, usize)>,
+    car_body: [usize; 3],
+    stability: usize,
+    excitations: Vec<usize>,
 }
 
 /// Where each signal of the pass sits among the columns read.
@@ -57,6 +67,9 @@ struct Layout {
     columns: Vec<String>,
     /// Car-body vertical and pitch accelerations (railway binding).
     car_body: Option<(usize, usize)>,
+    /// The lateral binding's columns: per wheel `(Y, Q)`, the car body's three, the
+    /// stability column, the excitations.
+    lateral: Option<LateralLayout>,
     /// Per simple index, its channel's column.
     simple: Vec<usize>,
 }
@@ -75,6 +88,12 @@ impl Layout {
             .railway
             .as_ref()
             .map(|r| (at(&r.z_c_a), at(&r.beta_c_a)));
+        let lateral = set.lateral.as_ref().map(|l| LateralLayout {
+            wheels: l.wheels.iter().map(|[y, q]| (at(y), at(q))).collect(),
+            car_body: [at(&l.car_body[0]), at(&l.car_body[1]), at(&l.car_body[2])],
+            stability: at(&l.stability),
+            excitations: l.excitations.iter().map(|e| at(e)).collect(),
+        });
         let simple = system
             .indices
             .iter()
@@ -83,6 +102,7 @@ impl Layout {
         Self {
             columns,
             car_body,
+            lateral,
             simple,
         }
     }
@@ -152,6 +172,21 @@ fn indices_of(
         }
         None => None,
     };
+    let lateral = match (&layout.lateral, &system.lateral) {
+        (Some(l), Some(binding)) => {
+            let col = |k: usize| &r.columns[k][first..];
+            let rec = pino_indices::LateralRecord {
+                dt,
+                wheels: l.wheels.iter().map(|&(y, q)| (col(y), col(q))).collect(),
+                car_body: l.car_body.map(col),
+                stability: col(l.stability),
+                excitations: l.excitations.iter().map(|&k| col(k)).collect(),
+            };
+            let p = pino_indices::system::lateral_params(system, binding, &info.values);
+            Some(pino_indices::lateral_indices(&rec, &p, &cfg.sperling).map_err(wrap)?)
+        }
+        _ => None,
+    };
     let mut simple = Vec::with_capacity(layout.simple.len());
     for (ix, &k) in system.indices.iter().zip(&layout.simple) {
         let x = &r.columns[k][first..];
@@ -169,6 +204,7 @@ fn indices_of(
         dt,
         t_start: t[first],
         car_body,
+        lateral,
         simple,
     })
 }

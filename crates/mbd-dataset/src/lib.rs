@@ -96,6 +96,7 @@ pub fn profile_generators(
                 segments,
                 wavelengths,
                 interpolation,
+                ..
             } => {
                 let min = interpolation.min_points();
                 if let Some(points) = params.points().filter(|&n| n < min) {
@@ -122,7 +123,8 @@ pub fn profile_generators(
                     .generator(psd, *wavelengths, rng::profile_code(i))
                     .map(Some)
             }
-            mbd_system::system::Profile::Harmonic { .. } => Ok(None),
+            mbd_system::system::Profile::Harmonic { .. }
+            | mbd_system::system::Profile::Combination { .. } => Ok(None),
         })
         .collect()
 }

@@ -123,6 +123,19 @@ impl ModalBeam {
         z
     }
 
+    /// The deflection under each of [`LANES`] points from their shapes already computed
+    /// (`shapes[k - 1][i] = Y_k(x_i)`, by [`ModalBeam::lane_shapes`] for another beam with the
+    /// same modes and points), summed in mode order as `lane_shapes` sums it.
+    pub fn lane_deflection(shapes: &[[f64; LANES]], q: &[f64]) -> [f64; LANES] {
+        let mut z = [0.0; LANES];
+        for (y, &qk) in shapes.iter().zip(q) {
+            for i in 0..LANES {
+                z[i] += y[i] * qk;
+            }
+        }
+        z
+    }
+
     /// As [`ModalBeam::lane_shapes`], with the velocity of each point along its path: the
     /// beam's `w_t = sum_k Y_k q_k'` plus `speed w_x`, `w_x = sum_k Y_k' q_k` (the total
     /// derivative of the deflection under a point moving at `speed`).

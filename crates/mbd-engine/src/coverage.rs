@@ -122,10 +122,7 @@ fn check_profile_coverage(
     sources: &[ProfileSource],
 ) -> Result<()> {
     let reads = profile_reads(model, c);
-    let Some((k, have)) = uncovered(&reads, |p| match &sources[p] {
-        ProfileSource::Points(prof) => Some(prof.range()),
-        _ => None,
-    }) else {
+    let Some((k, have)) = uncovered(&reads, |p| sources[p].covered()) else {
         return Ok(());
     };
     let r = reads[k];
@@ -185,9 +182,15 @@ impl std::fmt::Display for EarlyRead {
 /// least. A corner out of the description's domains is refused as a sample would be.
 pub fn check_profile_starts(system: &System, c: &RunConfig) -> Result<()> {
     c.validate()?;
+    // A combination reads its generated parts.
     let generated = |p: usize| {
-        matches!(system.profiles[p], DescribedProfile::Generated { .. })
-            .then_some([GENERATED_PROFILE_START, f64::INFINITY])
+        let is_generated =
+            |p: usize| matches!(system.profiles[p], DescribedProfile::Generated { .. });
+        let any = match &system.profiles[p] {
+            DescribedProfile::Combination { terms, .. } => terms.iter().any(|t| is_generated(t.0)),
+            _ => is_generated(p),
+        };
+        any.then_some([GENERATED_PROFILE_START, f64::INFINITY])
     };
     if !system
         .elements

@@ -35,6 +35,7 @@ use crate::coverage::check_coverage;
 use crate::dst::SineTransform;
 use crate::integrator;
 use crate::profile::{Profile, ProfileSource};
+use crate::wheel::{Wheel, WheelForces};
 use crate::{Error, Result};
 use mbd_system::model::{Model, ModelEnd, ModelProfile, ModelSupports};
 use mbd_system::system::{Quantity, Source};
@@ -92,6 +93,9 @@ pub(crate) struct BeamRuntime {
     pub(crate) coupling: Coupling,
     /// Whether some element needs the rate of the deflection under a point.
     pub(crate) rates: bool,
+    /// An earlier beam with the same modes and its points at the same offsets (two rails
+    /// under one vehicle): the mode shapes under the points are that beam's, computed once.
+    pub(crate) shares: Option<usize>,
 }
 
 /// Why a sample failed.
@@ -131,6 +135,8 @@ pub struct Quantities {
     pub force: Vec<f64>,
     /// Net downward force at each moving point (N).
     pub point_force: Vec<f64>,
+    /// Each wheel's tangential forces (zero for other elements; empty without wheels).
+    pub wheel: Vec<WheelForces>,
 }
 
 impl Quantities {
@@ -145,7 +151,17 @@ impl Quantities {
             deflection: vec![0.0; elements],
             force: vec![0.0; elements],
             point_force: vec![0.0; points],
+            wheel: Vec::new(),
         }
+    }
+
+    /// As [`Quantities::zeros`], with room for the wheels' tangential forces when `wheels`.
+    pub fn with_wheels(elements: usize, points: usize, wheels: bool) -> Self {
+        let mut q = Self::zeros(elements, points);
+        if wheels {
+            q.wheel = vec![WheelForces::default(); elements];
+        }
+        q
     }
 }
 
@@ -200,6 +216,11 @@ pub struct Engine {
     /// Sensor shapes.
     sensor_shapes: Vec<Vec<f64>>,
     pub(crate) route: Route,
+    /// Per element, the wheel of a wheelset at run time (empty without wheels).
+    pub(crate) wheels: Vec<Option<Wheel>>,
+    /// Per element, an earlier element reading the same profile at the same point, whose
+    /// reading (and rate, where this one's is evaluated) it takes.
+    same_read: Vec<Option<usize>>,
 }
 
 fn fast_structure(beam: &mbd_system::model::ModelBeam, s: &ModelSupports) -> bool {
@@ -299,11 +320,23 @@ impl Engine {
             let rates = model.elements.iter().zip(&needs_rate).any(|(e, &r)| {
                 r && matches!(e.to, ModelEnd::Moving(p) if model.points[p].0 == Some(b))
             });
+            let offsets =
+                |pts: &[usize]| -> Vec<f64> { pts.iter().map(|&p| model.points[p].1).collect() };
+            let shares = beams.iter().position(|other: &BeamRuntime| {
+                !rates
+                    && !other.rates
+                    && other.shares.is_none()
+                    && other.modal.length == modal.length
+                    && other.modal.modes() == modal.modes()
+                    && other.modal.shape_scale == modal.shape_scale
+                    && offsets(&other.points) == offsets(&points)
+            });
             beams.push(BeamRuntime {
                 modal,
                 points,
                 coupling,
                 rates,
+                shares,
             });
         }
         let layout = Layout {
@@ -330,6 +363,22 @@ impl Engine {
                 }
             }
         }
+        let wheels = run_wheels(&system, &model)?;
+        let same_read = (0..model.elements.len())
+            .map(|e| {
+                let el = &model.elements[e];
+                let ModelEnd::Moving(pt) = el.to else {
+                    return None;
+                };
+                el.profile?;
+                (0..e).find(|&f| {
+                    let other = &model.elements[f];
+                    other.profile == el.profile
+                        && other.to == ModelEnd::Moving(pt)
+                        && (profile_rate[f] || !profile_rate[e])
+                })
+            })
+            .collect();
         let sensor_shapes = model
             .sensors
             .iter()
@@ -351,6 +400,8 @@ impl Engine {
             profile_rate,
             sensor_shapes,
             route,
+            wheels,
+            same_read,
         };
         check_coverage(
             &engine.system,
@@ -414,7 +465,7 @@ impl Engine {
             .unwrap_or(0);
         let max_modes = m.beams.iter().map(|b| b.modes).max().unwrap_or(0);
         Workspace {
-            q: Quantities::zeros(n_e, n_p),
+            q: Quantities::with_wheels(n_e, n_p, !self.wheels.is_empty()),
             shapes: self
                 .beams
                 .iter()
@@ -440,6 +491,60 @@ impl Engine {
         }
     }
 
+    /// The part of [`Engine::accelerations`] above the beams, given the points' positions,
+    /// deflections and rates in `q`: the profiles under the elements, every element's force,
+    /// the rigid DOFs' accelerations (into `a[..rigid]`) and each moving point's net force.
+    #[inline]
+    pub(crate) fn rigid_part(
+        &self,
+        q: &mut Quantities,
+        t: f64,
+        x: &[f64],
+        v: &[f64],
+        a: &mut [f64],
+    ) {
+        let m = &self.model;
+        // Profiles under the elements.
+        let ramp = self.config.ramp(t);
+        let ramp_rate = self.config.ramp_rate(t);
+        for (e, el) in m.elements.iter().enumerate() {
+            let (Some(p), ModelEnd::Moving(pt)) = (el.profile, el.to) else {
+                continue;
+            };
+            // Elements reading one profile at one point (a rail's two lateral fastenings at a
+            // wheel, say) read it once.
+            if let Some(first) = self.same_read[e] {
+                q.eta[e] = q.eta[first];
+                q.eta_rate[e] = q.eta_rate[first];
+                continue;
+            }
+            let src = &self.profiles[p];
+            let xp = q.point_x[pt];
+            q.eta[e] = src.ramped(ramp, xp);
+            if self.profile_rate[e] {
+                q.eta_rate[e] = src.ramped_rate(ramp, ramp_rate, m.speed, xp);
+            }
+        }
+        element_forces(m, &self.needs_rate, &self.wheels, x, v, q);
+        rigid_forces(m, &q.force, a);
+        wheel_forces(&self.wheels, q, a);
+        for (ai, mass) in a[..m.dof_mass.len()].iter_mut().zip(&m.dof_mass) {
+            *ai /= mass;
+        }
+        let value = |s: &Source, q: &Quantities| match *s {
+            Source::Element(i) => q.force[i],
+            Source::Load(i) => m.loads[i].force,
+        };
+        // Net point forces.
+        for (p, terms) in self.point_terms.iter().enumerate() {
+            let mut it = terms.iter();
+            q.point_force[p] = match it.next() {
+                None => 0.0,
+                Some((s0, _)) => it.fold(value(s0, q), |acc, (s, _)| acc + value(s, q)),
+            };
+        }
+    }
+
     /// `A = M^-1 F(X, V, t)`; the point and element quantities go to `ws.q`.
     pub(crate) fn accelerations(
         &self,
@@ -460,6 +565,13 @@ impl Engine {
             let modes = self.layout.beams[b].modes.clone();
             let (qs, qd) = (&x[modes.clone()], &v[modes]);
             for (c, chunk) in beam.points.chunks(LANES).enumerate() {
+                if let Some(other) = beam.shares {
+                    let w = ModalBeam::lane_deflection(&ws.shapes[other][c], qs);
+                    for (i, &p) in chunk.iter().enumerate() {
+                        q.point_w[p] = w[i];
+                    }
+                    continue;
+                }
                 let xs: [f64; LANES] =
                     std::array::from_fn(|i| chunk.get(i).map_or(0.0, |&p| q.point_x[p]));
                 let shapes = &mut ws.shapes[b][c];
@@ -479,37 +591,7 @@ impl Engine {
                 }
             }
         }
-        // Profiles under the elements.
-        let ramp = self.config.ramp(t);
-        let ramp_rate = self.config.ramp_rate(t);
-        for (e, el) in m.elements.iter().enumerate() {
-            let (Some(p), ModelEnd::Moving(pt)) = (el.profile, el.to) else {
-                continue;
-            };
-            let src = &self.profiles[p];
-            let xp = q.point_x[pt];
-            q.eta[e] = src.ramped(ramp, xp);
-            if self.profile_rate[e] {
-                q.eta_rate[e] = src.ramped_rate(ramp, ramp_rate, m.speed, xp);
-            }
-        }
-        element_forces(m, &self.needs_rate, x, v, q);
-        rigid_forces(m, &q.force, a);
-        for (ai, mass) in a[..m.dof_mass.len()].iter_mut().zip(&m.dof_mass) {
-            *ai /= mass;
-        }
-        let value = |s: &Source, q: &Quantities| match *s {
-            Source::Element(i) => q.force[i],
-            Source::Load(i) => m.loads[i].force,
-        };
-        // Net point forces.
-        for (p, terms) in self.point_terms.iter().enumerate() {
-            let mut it = terms.iter();
-            q.point_force[p] = match it.next() {
-                None => 0.0,
-                Some((s0, _)) => it.fold(value(s0, q), |acc, (s, _)| acc + value(s, q)),
-            };
-        }
+        self.rigid_part(q, t, x, v, a);
         // Beams.
         for (b, beam) in self.beams.iter().enumerate() {
             let lay = &self.layout.beams[b];
@@ -591,7 +673,7 @@ impl Engine {
             for (l, chunk) in lanes.iter_mut().zip(beam.points.chunks(LANES)) {
                 *l = std::array::from_fn(|i| chunk.get(i).map_or(0.0, |&p| q.point_force[p]));
             }
-            let shapes = &ws.shapes[b];
+            let shapes = &ws.shapes[beam.shares.unwrap_or(b)];
             let qs = &x[modes.clone()];
             let qd = &v[modes.clone()];
             let aq = &mut a[modes];
@@ -648,15 +730,33 @@ impl Engine {
         &self,
         steps: usize,
         cancel: Option<&AtomicBool>,
-        mut observe: impl FnMut(&StepView),
+        observe: impl FnMut(&StepView),
     ) -> std::result::Result<(), Failure> {
-        let n = self.layout.len;
-        let mut ws = self.workspace();
-        let mut x = self.initial_state().map_err(|e| Failure {
+        let x = self.initial_state().map_err(|e| Failure {
             t: 0.0,
             reason: format!("initial state: {e}"),
         })?;
-        let mut v = vec![0.0; n];
+        let v = vec![0.0; self.layout.len];
+        self.run_observed_from(x, v, steps, cancel, observe)
+    }
+
+    /// As [`Engine::run_observed`] from the state `(x, v)` at `t = 0` (each [`Layout::len`]
+    /// long) instead of the start of the run controls: a perturbed equilibrium, a state
+    /// carried over from another run.
+    pub fn run_observed_from(
+        &self,
+        mut x: Vec<f64>,
+        mut v: Vec<f64>,
+        steps: usize,
+        cancel: Option<&AtomicBool>,
+        mut observe: impl FnMut(&StepView),
+    ) -> std::result::Result<(), Failure> {
+        let n = self.layout.len;
+        assert!(
+            x.len() == n && v.len() == n,
+            "a state of the layout's length"
+        );
+        let mut ws = self.workspace();
         let (mut a, mut a_prev) = (vec![0.0; n], vec![0.0; n]);
         let dt = self.config.dt;
         let every = self.config.output_every;
@@ -691,6 +791,12 @@ impl Engine {
     }
 
     fn check_step(&self, t: f64, q: &Quantities, a: &[f64]) -> std::result::Result<(), Failure> {
+        // One sum is finite exactly when every term is (an overflow of finite terms, at these
+        // magnitudes, is as much a blow-up); only then is the culprit searched.
+        let total = q.force.iter().sum::<f64>() + a[..self.layout.rigid].iter().sum::<f64>();
+        if total.is_finite() {
+            return Ok(());
+        }
         if let Some(e) = q.force.iter().position(|f| !f.is_finite()) {
             let el = &self.system.elements[e];
             let sym = if el.law.is_contact() { "p" } else { "f" };
@@ -764,6 +870,10 @@ impl Engine {
             Quantity::ExcitationRate(e) => s.q.eta_rate[e],
             Quantity::Force(e) => s.q.force[e],
             Quantity::Deflection(e) => s.q.deflection[e],
+            Quantity::WheelLateral(e) => s.q.wheel[e].y,
+            Quantity::Flange(e) => s.q.wheel[e].flange,
+            Quantity::Creep(e) => s.q.wheel[e].longitudinal,
+            Quantity::Shift(e) => s.q.wheel[e].shift,
         }
     }
 
@@ -793,11 +903,12 @@ pub(crate) fn profile_sources(
     mut profiles: Vec<Option<Profile>>,
 ) -> Result<Vec<ProfileSource>> {
     profiles.resize(model.profiles.len(), None);
-    model
+    let mut sources: Vec<ProfileSource> = model
         .profiles
         .iter()
         .zip(profiles)
         .map(|(m, p)| match (m, p) {
+            (ModelProfile::Combination(_), _) => Ok(ProfileSource::Level),
             (
                 ModelProfile::Harmonic {
                     amplitude,
@@ -815,6 +926,48 @@ pub(crate) fn profile_sources(
             }
             (ModelProfile::Generated { .. }, None) => Ok(ProfileSource::Level),
         })
+        .collect::<Result<_>>()?;
+    // Profiles that end.
+    for (i, ends) in model.profile_ends.iter().enumerate() {
+        if let Some([end, taper]) = *ends {
+            let inner = std::mem::replace(&mut sources[i], ProfileSource::Level);
+            sources[i] = ProfileSource::Until {
+                inner: Box::new(inner),
+                end,
+                taper,
+            };
+        }
+    }
+    // Combinations of the others, once those are built.
+    for (i, m) in model.profiles.iter().enumerate() {
+        if let ModelProfile::Combination(terms) = m {
+            sources[i] = ProfileSource::Sum(
+                terms
+                    .iter()
+                    .map(|&(p, w)| (w, sources[p].clone()))
+                    .collect(),
+            );
+        }
+    }
+    Ok(sources)
+}
+
+/// Per element, its run-time wheel (creep coefficients from the contact ellipse), or an empty
+/// list when the system has no wheels.
+pub(crate) fn run_wheels(system: &System, model: &Model) -> Result<Vec<Option<Wheel>>> {
+    if !model.elements.iter().any(|e| e.law.wheel().is_some()) {
+        return Ok(Vec::new());
+    }
+    model
+        .elements
+        .iter()
+        .zip(&system.elements)
+        .map(
+            |(e, described)| match (e.law.wheel(), described.law.wheel()) {
+                (Some(w), Some(d)) => Wheel::of(w, &d.wheelset).map(Some),
+                _ => Ok(None),
+            },
+        )
         .collect()
 }
 
@@ -844,6 +997,7 @@ fn end_rate(end: &ModelEnd, v: &[f64], q: &Quantities) -> f64 {
 pub(crate) fn element_forces(
     m: &Model,
     needs_rate: &[bool],
+    wheels: &[Option<Wheel>],
     x: &[f64],
     v: &[f64],
     q: &mut Quantities,
@@ -852,6 +1006,16 @@ pub(crate) fn element_forces(
         let mut d = end_u(&el.from, x, q) - end_u(&el.to, x, q);
         if el.profile.is_some() {
             d -= q.eta[e];
+        }
+        if let Some(Some(wheel)) = wheels.get(e) {
+            // A wheel: its rolling radius at the wheelset's shift enters the vertical contact,
+            // its tangential forces follow from the normal load.
+            let motion = wheel.motion(x, v);
+            let (d, load, forces) = wheel.contact(d, &motion, m.speed);
+            q.deflection[e] = d;
+            q.force[e] = load;
+            q.wheel[e] = forces;
+            continue;
         }
         let rate = if needs_rate[e] {
             let mut r = end_rate(&el.from, v, q) - end_rate(&el.to, v, q);
@@ -864,6 +1028,16 @@ pub(crate) fn element_forces(
         };
         q.deflection[e] = d;
         q.force[e] = el.law.force(d, rate);
+    }
+}
+
+/// Adds every wheel's tangential generalised forces (from `q.wheel`) to the rigid DOFs' `out`
+/// ([`Wheel::apply`]), after the coefficient groups of [`rigid_forces`].
+pub(crate) fn wheel_forces(wheels: &[Option<Wheel>], q: &Quantities, out: &mut [f64]) {
+    for (e, wheel) in wheels.iter().enumerate() {
+        if let Some(w) = wheel {
+            w.apply(&q.wheel[e], out);
+        }
     }
 }
 

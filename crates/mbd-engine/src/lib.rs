@@ -15,7 +15,8 @@
 //! - [`residual`]: the ODE residuals of the rigid DOFs for learning, by the same element code;
 //! - [`integrator`]: Zhai's two-step method; [`profile`]: profiles under moving points;
 //!   [`excitation`]: those profiles over a run without running it (inputs of a surrogate);
-//!   [`config`]: run controls.
+//!   [`config`]: run controls; [`wheel`]: the wheel-rail creep, normal and flange forces of a
+//!   wheelset on two rails.
 //!
 //! The engine recognises structure and takes a fast path where it exists (uniform supports:
 //! sine transforms; a statically determinate vehicle: the equilibrium in closed form), with a
@@ -34,6 +35,7 @@ pub mod residual;
 pub mod stability;
 pub mod statics;
 pub mod supports;
+pub mod wheel;
 
 pub use config::{RunConfig, StartMode};
 pub use engine::{prepare, run_all, Engine, Failure, Route, SampleInput, StepView, Trajectory};

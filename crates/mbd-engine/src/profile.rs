@@ -33,6 +33,9 @@ pub struct Profile {
     /// Per cell `n` (from `x_n` to `x_{n+1}`) of a cubic profile: `[s_n, c2_n, c3_n]` of
     /// `eta_n + s_n t + c2_n t^2 + c3_n t^3` (m/m, m/m^2, m/m^3); empty for a linear one.
     cubic: Vec<[f64; 3]>,
+    /// `1 / dx` when the points are evenly spaced (to 1e-9 of the spacing), as a generated
+    /// profile's are: [`Profile::cell`] then guesses the cell from `x` and only checks it.
+    inverse_spacing: Option<f64>,
 }
 
 impl Profile {
@@ -63,10 +66,17 @@ impl Profile {
                 allowed: "finite".to_owned(),
             });
         }
+        let n = x.len();
+        let dx = (x[n - 1] - x[0]) / (n - 1) as f64;
+        let even = x
+            .iter()
+            .enumerate()
+            .all(|(i, &xi)| (xi - (x[0] + i as f64 * dx)).abs() <= 1e-9 * dx);
         Ok(Self {
             x,
             eta,
             cubic: Vec::new(),
+            inverse_spacing: even.then_some(1.0 / dx),
         })
     }
 
@@ -103,10 +113,29 @@ impl Profile {
         [self.x[0], self.x[self.x.len() - 1]]
     }
 
+    /// The cell `i` (from `x_(i-1)` to `x_i`, `1 <= i < len`) holding `x`: the first point
+    /// above `x`, clamped to the ends. On evenly spaced points the cell guessed from `x` and
+    /// its neighbours are checked first (the result is the binary search's either way).
+    #[inline]
     fn cell(&self, x: f64) -> usize {
-        self.x
-            .partition_point(|&p| p <= x)
-            .clamp(1, self.x.len() - 1)
+        let n = self.x.len();
+        if let Some(inverse) = self.inverse_spacing {
+            let guess = (x - self.x[0]) * inverse;
+            if guess >= 0.0 && guess < n as f64 {
+                // Truncation is the floor of a non-negative number.
+                let g = guess as usize + 1;
+                for i in [g, g - 1, g + 1] {
+                    // `i` is the first point above `x`, or the end cell that holds it.
+                    if (1..n).contains(&i)
+                        && (i == 1 || self.x[i - 1] <= x)
+                        && (i == n - 1 || self.x[i] > x)
+                    {
+                        return i;
+                    }
+                }
+            }
+        }
+        self.x.partition_point(|&p| p <= x).clamp(1, n - 1)
     }
 
     /// `eta` at `x` (m) by the profile's interpolation (clamped to the ends).
@@ -211,6 +240,19 @@ pub enum ProfileSource {
     },
     /// A perfectly level track or road.
     Level,
+    /// A weighted sum of profiles, `sum_k w_k eta_k(x)` (a description's `combination`).
+    Sum(Vec<(f64, ProfileSource)>),
+    /// A profile that ends at `end` (m): `w(x) eta(x)`, `w` 1 up to `end - taper`, then
+    /// `(1 + cos(pi (x - end + taper) / taper)) / 2` down to 0 at `end` (level and slope
+    /// continuous), 0 beyond (a description's `until`).
+    Until {
+        /// The profile.
+        inner: Box<ProfileSource>,
+        /// Where it ends (m).
+        end: f64,
+        /// Length of the fade (m).
+        taper: f64,
+    },
 }
 
 impl ProfileSource {
@@ -225,6 +267,15 @@ impl ProfileSource {
                 phase,
             } => amplitude * (std::f64::consts::TAU * x / wavelength + phase).sin(),
             ProfileSource::Level => 0.0,
+            ProfileSource::Sum(terms) => terms.iter().map(|(w, p)| w * p.at(x)).sum(),
+            ProfileSource::Until { inner, end, taper } => {
+                let (w, _) = fade(x, *end, *taper);
+                if w == 0.0 {
+                    0.0
+                } else {
+                    w * inner.at(x)
+                }
+            }
         }
     }
 
@@ -247,6 +298,27 @@ impl ProfileSource {
         ramp * speed * self.slope(x) + ramp_rate * self.at(x)
     }
 
+    /// The positions (m) the profile covers, `None` for every `x` (an analytic or level
+    /// profile); a sum covers where all its sampled parts do.
+    pub fn covered(&self) -> Option<[f64; 2]> {
+        match self {
+            ProfileSource::Points(p) => Some(p.range()),
+            ProfileSource::Sum(terms) => terms
+                .iter()
+                .filter_map(|(_, p)| p.covered())
+                .reduce(|a, b| [a[0].max(b[0]), a[1].min(b[1])]),
+            // Beyond its end it is level everywhere.
+            ProfileSource::Until { inner, end, .. } => inner.covered().map(|[lo, hi]| {
+                if *end <= hi {
+                    [lo, f64::INFINITY]
+                } else {
+                    [lo, hi]
+                }
+            }),
+            _ => None,
+        }
+    }
+
     /// `d eta / dx` (1).
     #[inline]
     pub fn slope(&self, x: f64) -> f64 {
@@ -261,13 +333,62 @@ impl ProfileSource {
                 amplitude * k * (k * x + phase).cos()
             }
             ProfileSource::Level => 0.0,
+            ProfileSource::Sum(terms) => terms.iter().map(|(w, p)| w * p.slope(x)).sum(),
+            ProfileSource::Until { inner, end, taper } => {
+                let (w, dw) = fade(x, *end, *taper);
+                if w == 0.0 {
+                    0.0
+                } else {
+                    w * inner.slope(x) + dw * inner.at(x)
+                }
+            }
         }
+    }
+}
+
+/// The fade of an ending profile at `x` and its slope: 1 up to `end - taper`, a half cosine
+/// to 0 at `end`, 0 beyond.
+#[inline]
+fn fade(x: f64, end: f64, taper: f64) -> (f64, f64) {
+    if x >= end {
+        (0.0, 0.0)
+    } else if x <= end - taper {
+        (1.0, 0.0)
+    } else {
+        let phase = std::f64::consts::PI * (x - end + taper) / taper;
+        (
+            0.5 * (1.0 + phase.cos()),
+            -0.5 * std::f64::consts::PI / taper * phase.sin(),
+        )
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cell found from an evenly spaced grid's guess is the binary search's, at points,
+    /// between them, beyond both ends, on grids that are even and on one that is not.
+    #[test]
+    fn cell_guess_equals_the_search() {
+        let even: Vec<f64> = (0..200).map(|i| i as f64 * 0.1 - 3.0).collect();
+        for x in [even.clone(), uneven()] {
+            let p = Profile::new(x.clone(), vec![0.0; x.len()]).unwrap();
+            let n = x.len();
+            let search = |v: f64| x.partition_point(|&q| q <= v).clamp(1, n - 1);
+            let mut probes: Vec<f64> = x.clone();
+            probes.extend(x.windows(2).map(|w| 0.5 * (w[0] + w[1])));
+            probes.extend(x.iter().map(|v| v - 1e-12));
+            probes.extend([x[0] - 5.0, x[n - 1] + 5.0, x[n - 1], x[0]]);
+            for v in probes {
+                assert_eq!(p.cell(v), search(v), "x = {v}");
+            }
+        }
+        assert!(Profile::new(even, vec![0.0; 200])
+            .unwrap()
+            .inverse_spacing
+            .is_some());
+    }
 
     /// Unevenly spaced points (the spline's system is not the uniform one).
     fn uneven() -> Vec<f64> {
@@ -369,5 +490,56 @@ mod tests {
             linear.at(0.75),
             1e-3 * (x[1].sin() + (0.75 - x[1]) / (x[2] - x[1]) * (x[2].sin() - x[1].sin()))
         );
+    }
+
+    /// An ending profile: the profile itself before the taper, 0 from its end on, level and
+    /// slope continuous across the taper (its slope the derivative of its level), and covered
+    /// everywhere beyond its end.
+    #[test]
+    fn until_fades_out_continuously() {
+        let inner = ProfileSource::Harmonic {
+            amplitude: 2e-3,
+            wavelength: 7.0,
+            phase: 0.3,
+        };
+        let (end, taper) = (30.0, 4.0);
+        let p = ProfileSource::Until {
+            inner: Box::new(inner.clone()),
+            end,
+            taper,
+        };
+        for x in [0.0, 12.5, end - taper] {
+            assert_eq!(p.at(x), inner.at(x));
+            assert_eq!(p.slope(x), inner.slope(x));
+        }
+        for x in [end, end + 0.1, 1e3] {
+            assert_eq!((p.at(x), p.slope(x)), (0.0, 0.0));
+        }
+        // Half-way the fade is 1/2, its slope -pi / (2 taper).
+        let mid = end - taper / 2.0;
+        assert!((p.at(mid) - 0.5 * inner.at(mid)).abs() < 1e-18);
+        let want = 0.5 * inner.slope(mid) - std::f64::consts::PI / (2.0 * taper) * inner.at(mid);
+        assert!((p.slope(mid) - want).abs() < 1e-15);
+        // The slope is the level's derivative (central differences) over the whole taper and
+        // at both of its ends.
+        let h = 1e-5;
+        let mut x = end - taper - 0.5;
+        while x <= end + 0.5 {
+            let fd = (p.at(x + h) - p.at(x - h)) / (2.0 * h);
+            assert!(
+                (fd - p.slope(x)).abs() < 1e-8,
+                "x {x}: {fd} vs {}",
+                p.slope(x)
+            );
+            x += 0.0625;
+        }
+        let points = Profile::new(vec![0.0, 10.0, 20.0, 40.0], vec![0.0; 4]).unwrap();
+        let ending = |end: f64| ProfileSource::Until {
+            inner: Box::new(ProfileSource::Points(points.clone())),
+            end,
+            taper: 1.0,
+        };
+        assert_eq!(ending(35.0).covered(), Some([0.0, f64::INFINITY]));
+        assert_eq!(ending(50.0).covered(), Some([0.0, 40.0]));
     }
 }

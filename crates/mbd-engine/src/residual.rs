@@ -118,7 +118,9 @@ impl Equations {
         q.point_rate.copy_from_slice(s.point_rate);
         q.eta.copy_from_slice(s.eta);
         q.eta_rate.copy_from_slice(s.eta_rate);
-        element_forces(&self.model, &self.needs_rate, s.z, s.v, q);
+        // A wheel's tangential forces are left out: the DOFs a wheel acts on have no equation
+        // (`System::equation_dofs`), and its vertical load reaches only those.
+        element_forces(&self.model, &self.needs_rate, &[], s.z, s.v, q);
     }
 
     fn finish(&self, s: &EquationState, scratch: &mut Scratch, out: &mut [f64]) {
@@ -168,11 +170,8 @@ impl Equations {
             match end {
                 ModelEnd::Ground => {}
                 ModelEnd::Body(t) => {
-                    if let Some(z) = t.z {
-                        out.push((StateEntry::Dof(z), sign));
-                    }
-                    if let Some((p, c)) = t.pitch {
-                        out.push((StateEntry::Dof(p), sign * c));
+                    for (i, c) in t.terms() {
+                        out.push((StateEntry::Dof(i), sign * c));
                     }
                 }
                 ModelEnd::Moving(p) => {

@@ -138,6 +138,191 @@ fn rigid_gershgorin(engine: &Engine, elements: &[(usize, f64)]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The contacts' static forces of a rigid part that is not statically determinate, estimated
+/// by one linear solve: the beams and the ground held, every spring-damper and table at its
+/// stiffness, every contact at one common stiffness (a wheel's tangential motions held by a
+/// unit stiffness beside it), `K q = F` under the loads, each contact's force `k_c b . q`
+/// (0 where it would pull). The contacts share the loads as the rigid part's geometry and
+/// springs distribute them; with contacts much stiffer than the suspension, as on a vehicle,
+/// this is the static distribution to within the contacts' compliance. `None` when there is
+/// no contact or `K` is singular.
+fn linear_contact_loads(engine: &Engine) -> Option<Vec<f64>> {
+    let m = &engine.model;
+    let n = m.dof_mass.len();
+    let contacts: Vec<usize> = (0..m.elements.len())
+        .filter(|&e| m.elements[e].law.is_contact())
+        .collect();
+    if n == 0 || contacts.is_empty() {
+        return None;
+    }
+    let total: f64 = m.loads.iter().map(|l| l.force.abs()).sum();
+    let mean = (total / contacts.len() as f64).max(1e-9);
+    let k_contact = |e: usize| {
+        let law = &m.elements[e].law;
+        law.stiffness(law.static_deflection(mean).unwrap_or(0.0))
+    };
+    let mut k = nalgebra::DMatrix::<f64>::zeros(n, n);
+    let mut add = |w: f64, b: &[f64]| {
+        for i in 0..n {
+            for j in 0..n {
+                k[(i, j)] += w * b[i] * b[j];
+            }
+        }
+    };
+    for (e, el) in m.elements.iter().enumerate() {
+        let w = match &el.law {
+            ModelLaw::SpringDamper { k, .. } => *k,
+            ModelLaw::Table { .. } => 1.0,
+            _ => k_contact(e),
+        };
+        add(w, &el.incidence(n));
+        if let Some(wheel) = el.law.wheel() {
+            for b in wheel.tangential_incidence(n) {
+                add(1.0, &b);
+            }
+        }
+    }
+    let mut f = nalgebra::DVector::<f64>::zeros(n);
+    for l in &m.loads {
+        if let ModelEnd::Body(t) = l.at {
+            for (i, c) in t.terms() {
+                f[i] += c * l.force;
+            }
+        }
+    }
+    let q = k.lu().solve(&f)?;
+    let mut out = vec![0.0; m.elements.len()];
+    for &e in &contacts {
+        let b = m.elements[e].incidence(n);
+        let d: f64 = b.iter().zip(q.iter()).map(|(b, q)| b * q).sum();
+        out[e] = (k_contact(e) * d).max(0.0);
+    }
+    out.iter().all(|f| f.is_finite()).then_some(out)
+}
+
+/// The rigid part's bounds (1/s^2, 1/s) in a system with wheels, in mass-normalised
+/// coordinates: the largest eigenvalue of the symmetric, positive semi-definite stiffness of
+/// the elements among bodies and the ground (`stiffnesses`: element and tangent stiffness) and
+/// of the wheels' flange springs, and of the dampers' and the wheels' creep damping (`f22 / V`
+/// laterally, `f11 / V` longitudinally, each wheel at the load `load(e)`, N), exactly
+/// (nalgebra); plus a norm bound `sqrt(|N|_1 |N|_inf)` of the wheels' non-symmetric terms
+/// (the normal force's lateral part against roll and shift, the creep couplings of lateral
+/// creep to yaw `f22` and of rolling radius to yaw `e0 f11 |rho'| / r0`, the spin coupling
+/// `f23 / V`). The spectral radius of the sum is at most the sum of these.
+fn spatial_rigid(
+    engine: &Engine,
+    stiffnesses: &[(usize, f64)],
+    dampings: &[(usize, f64)],
+    load: &dyn Fn(usize) -> f64,
+) -> (f64, f64) {
+    let m = &engine.model;
+    let n = m.dof_mass.len();
+    let zero = || nalgebra::DMatrix::<f64>::zeros(n, n);
+    let (mut k, mut c, mut kn, mut cn) = (zero(), zero(), zero(), zero());
+    let add = |a: &mut nalgebra::DMatrix<f64>, w: f64, u: &[f64], v: &[f64], abs: bool| {
+        for i in 0..n {
+            for j in 0..n {
+                let x = w * u[i] * v[j];
+                a[(i, j)] += if abs { x.abs() } else { x };
+            }
+        }
+    };
+    for &(e, w) in stiffnesses {
+        let b = m.elements[e].incidence(n);
+        add(&mut k, w, &b, &b, false);
+    }
+    for &(e, w) in dampings {
+        let b = m.elements[e].incidence(n);
+        add(&mut c, w, &b, &b, false);
+    }
+    let speed = m.speed.max(1e-9);
+    for (e, wheel) in engine.wheels.iter().enumerate() {
+        let (Some(w), Some(mw)) = (wheel, m.elements[e].law.wheel()) else {
+            continue;
+        };
+        let q = load(e);
+        let q13 = q.cbrt();
+        let (f11, f22, f23) = (
+            w.creep.k11 * q13 * q13,
+            w.creep.k22 * q13 * q13,
+            w.creep.k23 * q,
+        );
+        let [lateral, longitudinal] = mw.tangential_incidence(n);
+        let unit = |i: usize| {
+            let mut u = vec![0.0; n];
+            u[i] = 1.0;
+            u
+        };
+        let (roll, yaw) = (unit(w.roll), unit(w.yaw));
+        let (slope, tan_max, angle_slope) = geometry_slopes(&w.geometry);
+        let normal = q * (1.0 + tan_max * tan_max);
+        add(
+            &mut k,
+            w.flange.map_or(0.0, |f| f.1),
+            &lateral,
+            &lateral,
+            false,
+        );
+        add(&mut c, f22 / speed, &lateral, &lateral, false);
+        add(&mut c, f11 / speed, &longitudinal, &longitudinal, false);
+        add(&mut kn, normal * angle_slope, &lateral, &lateral, true);
+        add(&mut kn, normal, &lateral, &roll, true);
+        add(&mut kn, f22, &lateral, &yaw, true);
+        add(
+            &mut kn,
+            f11 * slope / w.radius,
+            &longitudinal,
+            &lateral,
+            true,
+        );
+        add(&mut cn, f23 / speed, &lateral, &yaw, true);
+        add(&mut cn, f23 / speed, &yaw, &lateral, true);
+    }
+    let scale = |a: &mut nalgebra::DMatrix<f64>| {
+        for i in 0..n {
+            for j in 0..n {
+                a[(i, j)] /= (m.dof_mass[i] * m.dof_mass[j]).sqrt();
+            }
+        }
+    };
+    for a in [&mut k, &mut c, &mut kn, &mut cn] {
+        scale(a);
+    }
+    let largest = |a: nalgebra::DMatrix<f64>| {
+        a.symmetric_eigenvalues()
+            .iter()
+            .fold(0.0f64, |m, l| m.max(*l))
+    };
+    let norm = |a: &nalgebra::DMatrix<f64>| {
+        let rows = (0..n).map(|i| a.row(i).sum()).fold(0.0, f64::max);
+        let cols = (0..n).map(|j| a.column(j).sum()).fold(0.0, f64::max);
+        (rows * cols).sqrt()
+    };
+    (largest(k) + norm(&kn), largest(c) + norm(&cn))
+}
+
+/// The largest `|d rho / du|`, `|tan delta|` and `|d delta / du|` of a wheel's geometry.
+fn geometry_slopes(g: &crate::wheel::Geometry) -> (f64, f64, f64) {
+    match g {
+        crate::wheel::Geometry::Cone { gamma, .. } => (gamma.abs(), gamma.abs(), 0.0),
+        crate::wheel::Geometry::Table {
+            shift,
+            radius,
+            angle,
+        } => {
+            let slope = |v: &[f64]| {
+                shift
+                    .windows(2)
+                    .zip(v.windows(2))
+                    .map(|(s, v)| ((v[1] - v[0]) / (s[1] - s[0])).abs())
+                    .fold(0.0, f64::max)
+            };
+            let tan = angle.iter().map(|a| a.tan().abs()).fold(0.0, f64::max);
+            (slope(radius), tan, slope(angle))
+        }
+    }
+}
+
 /// Largest eigenvalue of `Y^T Y` (`y[j * nm + k] = Y_k(x_j)`) by power iteration, times
 /// [`POWER_MARGIN`].
 fn support_gram(y: &[f64], nm: usize) -> f64 {
@@ -174,44 +359,56 @@ impl Bound {
     pub fn of(engine: &Engine) -> Self {
         let m = &engine.model;
         let c = &engine.config;
-        let statics = crate::statics::static_forces(&engine.system, m);
+        let statics = crate::statics::static_forces(&engine.system, m)
+            .map(|s| s.force)
+            .or_else(|| linear_contact_loads(engine));
         let total_load: f64 = m.loads.iter().map(|l| l.force.abs()).sum();
         let (mut omega2, mut damping) = (0.0, 0.0);
-        // Beams and supports.
+        // Beams and supports: each beam with its supports is a system of its own (their
+        // matrices are blocks on disjoint DOFs), so the largest of their bounds holds for all.
         for (b, beam) in engine.beams.iter().enumerate() {
-            omega2 += beam.modal.omega2.last().copied().unwrap_or(0.0);
-            damping += beam.modal.damping.last().copied().unwrap_or(0.0);
+            let (mut beam_omega2, mut beam_damping) = (0.0, 0.0);
+            beam_omega2 += beam.modal.omega2.last().copied().unwrap_or(0.0);
+            beam_damping += beam.modal.damping.last().copied().unwrap_or(0.0);
             let mb = &m.beams[b];
-            let (s, seat) = match &beam.coupling {
-                Coupling::None => continue,
-                Coupling::Fast(s) => (s, 1.0 / (mb.mass_per_length * s.spacing)),
-                Coupling::Dense(s, y) => (s, support_gram(y, beam.modal.modes())),
+            let supported = match &beam.coupling {
+                Coupling::None => None,
+                Coupling::Fast(s) => Some((s, 1.0 / (mb.mass_per_length * s.spacing))),
+                Coupling::Dense(s, y) => Some((s, support_gram(y, beam.modal.modes()))),
             };
-            let top = &s.levels[0];
-            omega2 += top.k * (seat + 1.0 / top.mass);
-            damping += top.c * (seat + 1.0 / top.mass);
-            for pair in s.levels.windows(2) {
-                let coupling = 1.0 / pair[0].mass + 1.0 / pair[1].mass;
-                omega2 += pair[1].k * coupling;
-                damping += pair[1].c * coupling;
+            if let Some((s, seat)) = supported {
+                let top = &s.levels[0];
+                beam_omega2 += top.k * (seat + 1.0 / top.mass);
+                beam_damping += top.c * (seat + 1.0 / top.mass);
+                for pair in s.levels.windows(2) {
+                    let coupling = 1.0 / pair[0].mass + 1.0 / pair[1].mass;
+                    beam_omega2 += pair[1].k * coupling;
+                    beam_damping += pair[1].c * coupling;
+                }
+                let last = s.levels.last().expect("at least one level");
+                let (kw, cw) = last.shear.unwrap_or((0.0, 0.0));
+                beam_omega2 += (s.ground.0 + 4.0 * kw) / last.mass;
+                beam_damping += (s.ground.1 + 4.0 * cw) / last.mass;
             }
-            let last = s.levels.last().expect("at least one level");
-            let (kw, cw) = last.shear.unwrap_or((0.0, 0.0));
-            omega2 += (s.ground.0 + 4.0 * kw) / last.mass;
-            damping += (s.ground.1 + 4.0 * cw) / last.mass;
+            omega2 = f64::max(omega2, beam_omega2);
+            damping = f64::max(damping, beam_damping);
         }
         // Elements: to points moving on a beam (per beam), or among bodies and the ground.
+        // A contact's static force: its own when the rigid part is determinate, else every
+        // load at once (an upper bound).
+        let static_load = |e: usize| -> f64 {
+            statics
+                .as_ref()
+                .map_or(total_load, |s| s[e])
+                .abs()
+                .max(1e-9)
+        };
         let tangent = |e: usize| -> f64 {
             let law = &m.elements[e].law;
             match law {
-                ModelLaw::Hertz { .. } => {
-                    let f = statics
-                        .as_ref()
-                        .map_or(total_load, |s| s.force[e])
-                        .abs()
-                        .max(1e-9);
+                ModelLaw::Hertz { .. } | ModelLaw::Wheel(_) => {
                     let d = law
-                        .static_deflection(CONTACT_LOAD_FACTOR * f)
+                        .static_deflection(CONTACT_LOAD_FACTOR * static_load(e))
                         .unwrap_or(0.0);
                     law.stiffness(d)
                 }
@@ -232,17 +429,23 @@ impl Bound {
         let rigid: Vec<usize> = (0..m.elements.len())
             .filter(|&e| on_beam(e).is_none())
             .collect();
-        omega2 += rigid_gershgorin(
-            engine,
-            &rigid.iter().map(|&e| (e, tangent(e))).collect::<Vec<_>>(),
-        );
-        damping += rigid_gershgorin(
-            engine,
-            &rigid
-                .iter()
-                .map(|&e| (e, m.elements[e].law.damping()))
-                .collect::<Vec<_>>(),
-        );
+        let stiffnesses: Vec<(usize, f64)> = rigid.iter().map(|&e| (e, tangent(e))).collect();
+        let dampings: Vec<(usize, f64)> = rigid
+            .iter()
+            .map(|&e| (e, m.elements[e].law.damping()))
+            .collect();
+        if engine.wheels.is_empty() {
+            omega2 += rigid_gershgorin(engine, &stiffnesses);
+            damping += rigid_gershgorin(engine, &dampings);
+        } else {
+            let (k, c) = spatial_rigid(engine, &stiffnesses, &dampings, &|e| {
+                CONTACT_LOAD_FACTOR * static_load(e)
+            });
+            // The beams with their supports and the rigid part act on disjoint DOFs: the
+            // larger of their bounds holds for both (the elements joining them come below).
+            omega2 = omega2.max(k);
+            damping = damping.max(c);
+        }
         let t_end = c.t_end();
         for (b, beam) in engine.beams.iter().enumerate() {
             let elements: Vec<usize> = (0..m.elements.len())

@@ -66,15 +66,20 @@ pub struct StaticForces {
 
 fn body_dofs(system: &System, body: usize) -> Vec<usize> {
     let b = &system.bodies[body];
-    b.z.into_iter().chain(b.pitch).collect()
+    // Vertical bodies keep the order z, pitch of the closed forms below.
+    b.z.into_iter()
+        .chain(b.pitch)
+        .chain(
+            b.dofs()
+                .into_iter()
+                .filter(|&d| Some(d) != b.z && Some(d) != b.pitch),
+        )
+        .collect()
 }
 
 fn on_body(end: &ModelEnd, dofs: &[usize]) -> bool {
     match end {
-        ModelEnd::Body(t) => {
-            t.z.is_some_and(|z| dofs.contains(&z))
-                || t.pitch.is_some_and(|(p, _)| dofs.contains(&p))
-        }
+        ModelEnd::Body(t) => t.terms().any(|(i, _)| dofs.contains(&i)),
         _ => false,
     }
 }
@@ -195,8 +200,42 @@ pub fn equilibrium(engine: &Engine) -> Result<Vec<f64>> {
         if let Some(f) = static_forces(&engine.system, &engine.model) {
             return fast(engine, &f);
         }
+        if engine.beams.iter().any(|b| !b.points.is_empty()) {
+            return condensed(engine);
+        }
     }
     general(engine)
+}
+
+/// The static state of beam `b` under the point forces `point_force` (N, downward, at the
+/// points' positions `px` at `t = 0`): its modal coordinates and support levels.
+fn beam_static(
+    engine: &Engine,
+    b: usize,
+    px: &[f64],
+    point_force: &[f64],
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let beam = &engine.beams[b];
+    let nm = beam.modal.modes();
+    let mut rhs = vec![0.0; nm];
+    let mut y = vec![0.0; nm];
+    for &p in &beam.points {
+        beam.modal.shapes_at(px[p], &mut y);
+        for (r, yk) in rhs.iter_mut().zip(&y) {
+            *r += point_force[p] * yk;
+        }
+    }
+    match &beam.coupling {
+        Coupling::None => Ok((
+            rhs.iter()
+                .zip(&beam.modal.omega2)
+                .map(|(r, w2)| r / w2)
+                .collect(),
+            Vec::new(),
+        )),
+        Coupling::Fast(s) => supported_deflection(&beam.modal, s, &rhs),
+        Coupling::Dense(..) => unreachable!("the general route handles dense couplings"),
+    }
 }
 
 /// Deflection `w` under moving point `p` of a static beam state (m; 0 on the ground or off a
@@ -230,34 +269,11 @@ fn fast(engine: &Engine, sf: &StaticForces) -> Result<Vec<f64>> {
             point_force[p] += l.force;
         }
     }
-    for (b, beam) in engine.beams.iter().enumerate() {
+    for b in 0..engine.beams.len() {
         let lay = &engine.layout.beams[b];
-        let nm = beam.modal.modes();
-        let mut rhs = vec![0.0; nm];
-        let mut y = vec![0.0; nm];
-        for &p in &beam.points {
-            beam.modal.shapes_at(px[p], &mut y);
-            for (r, yk) in rhs.iter_mut().zip(&y) {
-                *r += point_force[p] * yk;
-            }
-        }
-        match &beam.coupling {
-            Coupling::None => {
-                for ((q, r), w2) in x[lay.modes.clone()]
-                    .iter_mut()
-                    .zip(&rhs)
-                    .zip(&beam.modal.omega2)
-                {
-                    *q = r / w2;
-                }
-            }
-            Coupling::Fast(s) => {
-                let (q, levels) = supported_deflection(&beam.modal, s, &rhs)?;
-                x[lay.modes.clone()].copy_from_slice(&q);
-                x[lay.supports.clone()].copy_from_slice(&levels);
-            }
-            Coupling::Dense(..) => unreachable!("the general route handles dense couplings"),
-        }
+        let (q, levels) = beam_static(engine, b, &px, &point_force)?;
+        x[lay.modes.clone()].copy_from_slice(&q);
+        x[lay.supports.clone()].copy_from_slice(&levels);
     }
     // Positions, bodies in the reverse order of the force pass.
     let ramp = c.ramp(0.0);
@@ -326,11 +342,7 @@ fn solve_positions(
     rows: &[(mbd_system::model::PointTerms, f64)],
 ) -> Option<Vec<f64>> {
     let coef = |t: &mbd_system::model::PointTerms, dof: usize| -> f64 {
-        if t.z == Some(dof) {
-            1.0
-        } else {
-            t.pitch.filter(|p| p.0 == dof).map_or(0.0, |p| p.1)
-        }
+        t.terms().find(|(i, _)| *i == dof).map_or(0.0, |(_, c)| c)
     };
     match dofs.len() {
         1 => {
@@ -562,6 +574,188 @@ pub(crate) fn supported_deflection(
     Ok((q, out))
 }
 
+/// The condensed route, for a rigid part that is not statically determinate on beams whose
+/// statics are linear (no supports, or uniform ones): each beam's static response to a unit
+/// force at each of its points (`U_j`, the state of [`beam_static`]) makes the beams' state
+/// the superposition `sum_j F_j U_j` of the point forces `F`; Newton's method (central
+/// differences, dense LU, backtracking) then solves the rigid DOFs `q` and the point forces
+/// together, `M A_rigid(q, F) = 0` and `F = (the elements' net force at each point)`, a few
+/// dozen unknowns instead of the whole state.
+fn condensed(engine: &Engine) -> Result<Vec<f64>> {
+    let m = &engine.model;
+    let c = &engine.config;
+    let (len, n_r) = (engine.layout.len, engine.layout.rigid);
+    let px: Vec<f64> = m.points.iter().map(|(_, o)| c.x0 + o).collect();
+    let loaded: Vec<usize> = (0..m.points.len())
+        .filter(|&p| m.points[p].0.is_some())
+        .collect();
+    // Unit responses.
+    let mut units: Vec<Vec<f64>> = Vec::with_capacity(loaded.len());
+    for &p in &loaded {
+        let b = m.points[p].0.expect("a point on a beam");
+        let lay = &engine.layout.beams[b];
+        // A beam with the same modes and points as an earlier one (the other rail) has the
+        // same response to its k-th point: moved into this beam's part of the state.
+        let k = engine.beams[b]
+            .points
+            .iter()
+            .position(|&o| o == p)
+            .expect("its point");
+        let earlier = engine.beams[b].shares.and_then(|b0| {
+            let p0 = engine.beams[b0].points[k];
+            let j = loaded.iter().position(|&l| l == p0)?;
+            let l0 = &engine.layout.beams[b0];
+            let mut u = vec![0.0; len];
+            u[lay.modes.clone()].copy_from_slice(&units[j][l0.modes.clone()]);
+            u[lay.supports.clone()].copy_from_slice(&units[j][l0.supports.clone()]);
+            Some(u)
+        });
+        if let Some(u) = earlier {
+            units.push(u);
+            continue;
+        }
+        let mut unit_force = vec![0.0; m.points.len()];
+        unit_force[p] = 1.0;
+        let (q, levels) = beam_static(engine, b, &px, &unit_force)?;
+        let mut u = vec![0.0; len];
+        u[lay.modes.clone()].copy_from_slice(&q);
+        u[lay.supports.clone()].copy_from_slice(&levels);
+        units.push(u);
+    }
+    // Compliance: the deflection under loaded point i of unit response j.
+    let compliance: Vec<Vec<f64>> = loaded
+        .iter()
+        .map(|&p| {
+            units
+                .iter()
+                .map(|u| point_deflection(engine, u, p, px[p]))
+                .collect()
+        })
+        .collect();
+    let n = n_r + loaded.len();
+    let state = |z: &[f64]| -> Vec<f64> {
+        let mut x = vec![0.0; len];
+        x[..n_r].copy_from_slice(&z[..n_r]);
+        for (u, f) in units.iter().zip(&z[n_r..]) {
+            for (xi, ui) in x[n_r..].iter_mut().zip(&u[n_r..]) {
+                *xi += f * ui;
+            }
+        }
+        x
+    };
+    // The rigid part alone: the beams enter through their deflections under the points.
+    let scratch = std::cell::RefCell::new((
+        crate::engine::Quantities::with_wheels(
+            m.elements.len(),
+            m.points.len(),
+            !engine.wheels.is_empty(),
+        ),
+        vec![0.0; n_r],
+    ));
+    let zero = vec![0.0; n_r];
+    let residual = |z: &[f64]| -> Vec<f64> {
+        let mut guard = scratch.borrow_mut();
+        let (q, a) = &mut *guard;
+        q.point_x.copy_from_slice(&px);
+        q.point_w.fill(0.0);
+        q.point_rate.fill(0.0);
+        for (i, &p) in loaded.iter().enumerate() {
+            q.point_w[p] = compliance[i]
+                .iter()
+                .zip(&z[n_r..])
+                .map(|(c, f)| c * f)
+                .sum();
+        }
+        engine.rigid_part(q, 0.0, &z[..n_r], &zero, a);
+        let mut r: Vec<f64> = (0..n_r).map(|i| a[i] * m.dof_mass[i]).collect();
+        r.extend(
+            loaded
+                .iter()
+                .zip(&z[n_r..])
+                .map(|(&p, f)| q.point_force[p] - f),
+        );
+        r
+    };
+    let scale = m.loads.iter().map(|l| l.force.abs()).sum::<f64>().max(1.0);
+    let mut z = closed_contacts(engine)[..n_r].to_vec();
+    z.extend(vec![0.0; loaded.len()]);
+    // Start from the point forces of the rigid start on undeflected beams.
+    let r0 = residual(&z);
+    for (k, zf) in z[n_r..].iter_mut().enumerate() {
+        *zf = r0[n_r + k];
+    }
+    let typical = |j: usize| if j < n_r { 1e-6 } else { 1.0 };
+    let z = newton(
+        &residual,
+        z,
+        &typical,
+        scale,
+        "static equilibrium (Newton, condensed route)",
+    )?;
+    debug_assert_eq!(z.len(), n);
+    Ok(state(&z))
+}
+
+/// Newton's method on `residual(z) = 0` from `z`, the Jacobian by central differences with
+/// steps `1e-7 max(|z_j|, typical(j))`, a dense LU solve and backtracking on `|residual|`;
+/// converged at `|residual| <= 1e-12 scale`.
+fn newton(
+    residual: &dyn Fn(&[f64]) -> Vec<f64>,
+    mut z: Vec<f64>,
+    typical: &dyn Fn(usize) -> f64,
+    scale: f64,
+    what: &str,
+) -> Result<Vec<f64>> {
+    let n = z.len();
+    let norm = |r: &[f64]| dot(r, r).sqrt();
+    let mut r = residual(&z);
+    for _ in 0..NEWTON_ITERATIONS {
+        if norm(&r) <= 1e-12 * scale {
+            return Ok(z);
+        }
+        let mut jac = nalgebra::DMatrix::<f64>::zeros(n, n);
+        for j in 0..n {
+            let h = 1e-7 * z[j].abs().max(typical(j));
+            let mut zp = z.clone();
+            zp[j] += h;
+            let rp = residual(&zp);
+            zp[j] = z[j] - h;
+            let rm = residual(&zp);
+            for i in 0..n {
+                jac[(i, j)] = (rp[i] - rm[i]) / (2.0 * h);
+            }
+        }
+        let rhs = nalgebra::DVector::from_iterator(n, r.iter().map(|v| -v));
+        let step = jac.lu().solve(&rhs).ok_or_else(|| Error::Statics {
+            what: "the static problem is singular (a DOF no element restrains?)".to_owned(),
+        })?;
+        let r0 = norm(&r);
+        let mut lambda = 1.0;
+        loop {
+            let trial: Vec<f64> = z
+                .iter()
+                .zip(step.iter())
+                .map(|(x, s)| x + lambda * s)
+                .collect();
+            let rt = residual(&trial);
+            if norm(&rt) < r0 || lambda < 1e-6 {
+                z = trial;
+                r = rt;
+                break;
+            }
+            lambda *= 0.5;
+        }
+    }
+    if norm(&r) <= 1e-9 * scale {
+        return Ok(z);
+    }
+    Err(Error::NoConvergence {
+        what: what.to_owned(),
+        iterations: NEWTON_ITERATIONS,
+        residual: norm(&r) / scale,
+    })
+}
+
 /// The general route: Newton on `A(X) = 0` (velocities zero, `t = 0`) with a central-difference
 /// Jacobian and backtracking on `|M A|`.
 fn general(engine: &Engine) -> Result<Vec<f64>> {
@@ -574,7 +768,6 @@ fn general(engine: &Engine) -> Result<Vec<f64>> {
         let (a, _) = engine.evaluate(0.0, x, &zero);
         a.iter().zip(&masses).map(|(a, m)| a * m).collect()
     };
-    let norm = |r: &[f64]| dot(r, r).sqrt();
     let scale = engine
         .model
         .loads
@@ -582,53 +775,13 @@ fn general(engine: &Engine) -> Result<Vec<f64>> {
         .map(|l| l.force.abs())
         .sum::<f64>()
         .max(1.0);
-    let mut x = closed_contacts(engine);
-    let mut r = residual(&x);
-    for _ in 0..NEWTON_ITERATIONS {
-        if norm(&r) <= 1e-12 * scale {
-            return Ok(x);
-        }
-        let mut jac = nalgebra::DMatrix::<f64>::zeros(n, n);
-        for j in 0..n {
-            let h = 1e-7 * x[j].abs().max(1e-7);
-            let mut xp = x.clone();
-            xp[j] += h;
-            let rp = residual(&xp);
-            xp[j] = x[j] - h;
-            let rm = residual(&xp);
-            for i in 0..n {
-                jac[(i, j)] = (rp[i] - rm[i]) / (2.0 * h);
-            }
-        }
-        let rhs = nalgebra::DVector::from_iterator(n, r.iter().map(|v| -v));
-        let step = jac.lu().solve(&rhs).ok_or_else(|| Error::Statics {
-            what: "the static problem is singular (a DOF no element restrains?)".to_owned(),
-        })?;
-        let r0 = norm(&r);
-        let mut lambda = 1.0;
-        loop {
-            let trial: Vec<f64> = x
-                .iter()
-                .zip(step.iter())
-                .map(|(x, s)| x + lambda * s)
-                .collect();
-            let rt = residual(&trial);
-            if norm(&rt) < r0 || lambda < 1e-6 {
-                x = trial;
-                r = rt;
-                break;
-            }
-            lambda *= 0.5;
-        }
-    }
-    if norm(&r) <= 1e-9 * scale {
-        return Ok(x);
-    }
-    Err(Error::NoConvergence {
-        what: "static equilibrium (Newton, general route)".to_owned(),
-        iterations: NEWTON_ITERATIONS,
-        residual: norm(&r) / scale,
-    })
+    newton(
+        &residual,
+        closed_contacts(engine),
+        &|_| 1e-7,
+        scale,
+        "static equilibrium (Newton, general route)",
+    )
 }
 
 /// Newton's starting point: zero, except that the upper body of every contact sits on the

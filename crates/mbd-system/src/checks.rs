@@ -11,7 +11,7 @@
 use crate::diag::Diagnostics;
 use crate::model::ModelLaw;
 use crate::reader::Field;
-use crate::schema::{RawDescription, RawLaw, RawLink, RawProfileKind};
+use crate::schema::{RawDescription, RawGeometry, RawLaw, RawLink, RawProfileKind, RawWheelset};
 use crate::system::System;
 use crate::yaml::Pos;
 
@@ -48,8 +48,13 @@ pub(crate) fn position(raw: &RawDescription, path: &str) -> Pos {
         "bodies" => raw.bodies.iter().find(|b| b.name == name).map(|b| {
             match field.as_slice() {
                 ["mass"] => at(&b.mass),
-                ["inertia"] => at(&b.inertia),
-                ["points", p] => b.points.iter().find(|q| q.0 == *p).map(|q| q.2.pos),
+                ["inertia"] => b.inertia.first().map(|f| f.1.pos),
+                ["inertia", axis] => b
+                    .inertia
+                    .iter()
+                    .find(|(k, _)| k.keyword() == *axis)
+                    .map(|f| f.1.pos),
+                ["points", p] => b.points.iter().find(|q| q.name == *p).map(|q| q.x.pos),
                 _ => None,
             }
             .unwrap_or(b.pos)
@@ -102,6 +107,7 @@ pub(crate) fn position(raw: &RawDescription, path: &str) -> Pos {
                 (RawLaw::Table { force, .. }, [key]) if key.starts_with("force") => {
                     list(force, key)
                 }
+                (RawLaw::Wheelset(w), rest) => wheelset_field(w, rest),
                 _ => None,
             }
             .unwrap_or(e.pos)
@@ -124,6 +130,20 @@ pub(crate) fn position(raw: &RawDescription, path: &str) -> Pos {
                 (RawProfileKind::Generated { interpolation, .. }, ["interpolation"]) => {
                     Some(interpolation.1)
                 }
+                (
+                    RawProfileKind::Generated {
+                        until: Some((x, _)),
+                        ..
+                    },
+                    ["until", "x"],
+                ) => Some(x.pos),
+                (
+                    RawProfileKind::Generated {
+                        until: Some((_, taper)),
+                        ..
+                    },
+                    ["until", "taper"],
+                ) => Some(taper.pos),
                 _ => None,
             }
             .unwrap_or(p.pos)
@@ -140,6 +160,62 @@ pub(crate) fn position(raw: &RawDescription, path: &str) -> Pos {
         _ => None,
     };
     found.unwrap_or(Pos { line: 1, col: 1 })
+}
+
+/// Where a field of a wheelset was written (`rest` the path below the element).
+fn wheelset_field(w: &RawWheelset, rest: &[&str]) -> Option<Pos> {
+    let at = |f: &Option<Field>| f.as_ref().map(|f| f.pos);
+    let item = |s: &str| -> Option<usize> { s.split_once('[')?.1.strip_suffix(']')?.parse().ok() };
+    match rest {
+        ["half_gauge"] => at(&w.half_gauge),
+        ["radius"] => at(&w.radius),
+        ["hertz"] => at(&w.hertz),
+        ["conicity"] => match &w.geometry {
+            Some(RawGeometry::Conicity(c)) => Some(c.pos),
+            _ => None,
+        },
+        ["geometry", key] => match &w.geometry {
+            Some(RawGeometry::Table {
+                pos,
+                shift,
+                radius,
+                angle,
+            }) => {
+                let list = if key.starts_with("shift") {
+                    shift
+                } else if key.starts_with("radius") {
+                    radius
+                } else {
+                    angle
+                };
+                item(key)
+                    .and_then(|i| list.get(i))
+                    .map(|f| f.pos)
+                    .or(Some(*pos))
+            }
+            _ => None,
+        },
+        ["creep", key] => w.creep.as_ref().and_then(|c| {
+            match *key {
+                "young" => at(&c.young),
+                "poisson" => at(&c.poisson),
+                "friction" => at(&c.friction),
+                "rail_radius" => at(&c.rail_radius),
+                "wheel_profile_radius" => at(&c.wheel_profile_radius),
+                _ => None,
+            }
+            .or(Some(c.pos))
+        }),
+        ["flange", key] => w.flange.as_ref().and_then(|f| {
+            match *key {
+                "clearance" => at(&f.clearance),
+                "stiffness" => at(&f.stiffness),
+                _ => None,
+            }
+            .or(Some(f.pos))
+        }),
+        _ => None,
+    }
 }
 
 /// Domain and restraint checks at the nominal values.
@@ -161,13 +237,18 @@ pub fn nominal_checks(system: &System, raw: &RawDescription, diag: &mut Diagnost
     for e in &model.elements {
         let stiffness = match &e.law {
             ModelLaw::SpringDamper { k, .. } => *k,
-            ModelLaw::Hertz { .. } => 1.0,
-            ModelLaw::Table { .. } => 1.0,
+            ModelLaw::Hertz { .. } | ModelLaw::Table { .. } | ModelLaw::Wheel(_) => 1.0,
         };
-        let b = e.incidence(n);
-        for i in 0..n {
-            for j in 0..n {
-                k[i][j] += stiffness * b[i] * b[j];
+        let mut b = vec![e.incidence(n)];
+        // A wheel holds its wheelset laterally and in yaw too (creep, gravity, flange).
+        if let Some(w) = e.law.wheel() {
+            b.extend(w.tangential_incidence(n));
+        }
+        for b in &b {
+            for i in 0..n {
+                for j in 0..n {
+                    k[i][j] += stiffness * b[i] * b[j];
+                }
             }
         }
     }

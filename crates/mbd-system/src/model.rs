@@ -7,9 +7,14 @@
 use crate::expr::Expr;
 use crate::sampled::{Sampled, SampledError};
 use crate::schema::Outside;
+use crate::schema::{Axis, DofKind};
 use crate::system::{
-    Beam, End, Interpolation, Law, ParamSource, Profile, Source, Supports, System,
+    Beam, End, Geometry, Interpolation, Law, ParamSource, Profile, Source, Supports, System,
 };
+
+/// Largest equivalent conicity a wheelset may declare (rad): 0.05-0.4 in service (EN 15302),
+/// beyond 0.6 the linearised geometry of a tread no longer describes a wheel on a rail.
+pub const MAX_CONICITY: f64 = 0.6;
 
 /// A field out of its domain: which, its value and what is allowed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -27,25 +32,42 @@ pub struct FieldError {
     pub sources: Vec<String>,
 }
 
-/// The rigid-DOF participation of a body point: `u = z + c beta`.
+/// The rigid-DOF participation of a body point along an element's axis: `u = q_t + c_1 q_r1
+/// + c_2 q_r2`, `q_t` the translation along the axis and `q_r1`, `q_r2` the rotations that
+/// move the point along it with their lever arms (vertical: `u = z - x beta + y phi`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PointTerms {
-    /// The body's vertical DOF.
+    /// The body's translation DOF along the axis (`z` for a vertical element).
     pub z: Option<usize>,
-    /// The body's pitch DOF and the coefficient `c = -x`.
+    /// The first rotation and its coefficient (pitch with `c = -x` for a vertical element).
     pub pitch: Option<(usize, f64)>,
+    /// The second rotation and its coefficient (roll with `c = y` for a vertical element).
+    pub roll: Option<(usize, f64)>,
 }
 
 impl PointTerms {
-    /// `u = z + c beta` of the rigid state `q` (left to right, as written).
+    /// `u = q_t + c_1 q_r1 + c_2 q_r2` of the rigid state `q` (left to right, as written).
     #[inline]
     pub fn displacement(&self, q: &[f64]) -> f64 {
-        match (self.z, self.pitch) {
+        let u = match (self.z, self.pitch) {
             (Some(z), Some((p, c))) => q[z] + c * q[p],
             (Some(z), None) => q[z],
             (None, Some((p, c))) => c * q[p],
             (None, None) => 0.0,
+        };
+        match self.roll {
+            Some((r, c)) => u + c * q[r],
+            None => u,
         }
+    }
+
+    /// Every DOF with its coefficient.
+    pub fn terms(&self) -> impl Iterator<Item = (usize, f64)> {
+        self.z
+            .map(|z| (z, 1.0))
+            .into_iter()
+            .chain(self.pitch)
+            .chain(self.roll)
     }
 }
 
@@ -88,6 +110,82 @@ pub enum ModelLaw {
         /// N s/m.
         c: f64,
     },
+    /// One wheel of a wheelset: vertically `(d / g)^(3/2)` for `d > 0` (N), its tangential
+    /// forces computed by the engine from the wheelset's motion.
+    Wheel(Box<ModelWheel>),
+}
+
+/// The contact geometry of a wheelset in numbers (the right wheel's).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModelGeometry {
+    /// Equivalent conicity `gamma` (rad): `rho(u) = gamma u`, `tan delta = gamma`.
+    Conicity(f64),
+    /// Against the shift `u` (m, increasing): rolling-radius change (m), contact angle (rad).
+    Table {
+        /// Shifts (m).
+        shift: Vec<f64>,
+        /// Rolling-radius changes (m).
+        radius: Vec<f64>,
+        /// Contact angles (rad).
+        angle: Vec<f64>,
+    },
+}
+
+/// One wheel of a wheelset in numbers (see [`crate::system::Wheel`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelWheel {
+    /// `-1` for the left wheel, `+1` for the right one.
+    pub side: f64,
+    /// The wheelset's lateral DOF.
+    pub y: usize,
+    /// Its roll DOF.
+    pub roll: usize,
+    /// Its yaw DOF.
+    pub yaw: usize,
+    /// Its longitudinal DOF, if it has one.
+    pub x: Option<usize>,
+    /// The lateral DOF of the body carrying the rail, if any.
+    pub rail: Option<usize>,
+    /// `e0` (m).
+    pub half_gauge: f64,
+    /// `r0` (m).
+    pub radius: f64,
+    /// Hertz constant `G` (m/N^(2/3)).
+    pub hertz: f64,
+    /// Geometry.
+    pub geometry: ModelGeometry,
+    /// Young's modulus (Pa).
+    pub young: f64,
+    /// Poisson's ratio.
+    pub poisson: f64,
+    /// Coefficient of friction.
+    pub friction: f64,
+    /// Rail head transverse radius (m).
+    pub rail_radius: f64,
+    /// Wheel tread transverse radius (m), `None` for a straight tread.
+    pub wheel_profile_radius: Option<f64>,
+    /// Flange clearance (m) and stiffness (N/m).
+    pub flange: Option<(f64, f64)>,
+}
+
+impl ModelWheel {
+    /// The incidences of the wheel's tangential motion on `n` rigid DOFs: lateral (the
+    /// contact point's lateral motion relative to the rail, `y - r0 phi - y_rail`) and
+    /// longitudinal (`x - s e0 psi`): a tangential stiffness or damping `k` adds `k b b^T`.
+    pub fn tangential_incidence(&self, n: usize) -> [Vec<f64>; 2] {
+        let mut lateral = vec![0.0; n];
+        lateral[self.y] += 1.0;
+        lateral[self.roll] -= self.radius;
+        if let Some(r) = self.rail {
+            lateral[r] -= 1.0;
+        }
+        let mut longitudinal = vec![0.0; n];
+        longitudinal[self.yaw] -= self.side * self.half_gauge;
+        if let Some(x) = self.x {
+            longitudinal[x] += 1.0;
+        }
+        [lateral, longitudinal]
+    }
 }
 
 impl ModelLaw {
@@ -108,6 +206,7 @@ impl ModelLaw {
                 force,
                 c,
             } => table(deflection, force, d) + c * dv,
+            ModelLaw::Wheel(w) => hertz(d, w.hertz, 1.5),
         }
     }
 
@@ -128,6 +227,11 @@ impl ModelLaw {
                 let i = segment(deflection, d);
                 (force[i + 1] - force[i]) / (deflection[i + 1] - deflection[i])
             }
+            ModelLaw::Wheel(w) => ModelLaw::Hertz {
+                g: w.hertz,
+                exponent: 1.5,
+            }
+            .stiffness(d),
         }
     }
 
@@ -135,7 +239,7 @@ impl ModelLaw {
     pub fn damping(&self) -> f64 {
         match self {
             ModelLaw::SpringDamper { c, .. } | ModelLaw::Table { c, .. } => *c,
-            ModelLaw::Hertz { .. } => 0.0,
+            ModelLaw::Hertz { .. } | ModelLaw::Wheel(_) => 0.0,
         }
     }
 
@@ -149,6 +253,11 @@ impl ModelLaw {
                     (f == *preload).then_some(0.0)
                 }
             }
+            ModelLaw::Wheel(w) => ModelLaw::Hertz {
+                g: w.hertz,
+                exponent: 1.5,
+            }
+            .static_deflection(f),
             ModelLaw::Hertz { g, exponent } => {
                 if f > 0.0 {
                     Some(if *exponent == 1.5 {
@@ -181,7 +290,15 @@ impl ModelLaw {
 
     /// Whether this is a contact law.
     pub fn is_contact(&self) -> bool {
-        matches!(self, ModelLaw::Hertz { .. })
+        matches!(self, ModelLaw::Hertz { .. } | ModelLaw::Wheel(_))
+    }
+
+    /// The wheel, for a wheel of a wheelset.
+    pub fn wheel(&self) -> Option<&ModelWheel> {
+        match self {
+            ModelLaw::Wheel(w) => Some(w),
+            _ => None,
+        }
     }
 }
 
@@ -230,11 +347,8 @@ impl ModelElement {
         let mut b = vec![0.0; n];
         for (end, sign) in [(&self.from, 1.0), (&self.to, -1.0)] {
             if let ModelEnd::Body(t) = end {
-                if let Some(z) = t.z {
-                    b[z] += sign;
-                }
-                if let Some((p, c)) = t.pitch {
-                    b[p] += sign * c;
+                for (i, c) in t.terms() {
+                    b[i] += sign * c;
                 }
             }
         }
@@ -308,8 +422,10 @@ pub struct ModelBeam {
 }
 
 /// A profile in numbers.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum ModelProfile {
+    /// A weighted sum of other profiles (indices, weights), each generated or harmonic.
+    Combination(Vec<(usize, f64)>),
     /// Supplied per sample (the `irregularity` stage's profile), read between its points
     /// by `interpolation`.
     Generated {
@@ -350,6 +466,9 @@ pub struct Model {
     pub sensors: Vec<(usize, f64)>,
     /// Profiles.
     pub profiles: Vec<ModelProfile>,
+    /// Per profile, where a generated one's irregularity ends and the taper before it
+    /// (`[x, taper]`, m), when it does.
+    pub profile_ends: Vec<Option<[f64; 2]>>,
 }
 
 impl System {
@@ -446,12 +565,28 @@ impl System {
         let loads = c.loads();
         let assembly = c.assembly();
         let (beams, length_valid) = c.beams();
-        let speed = c.non_negative(|| "moving.speed".to_owned(), &self.speed);
+        let speed = if self.elements.iter().any(|e| e.law.wheel().is_some()) {
+            // The creepages divide by the speed.
+            c.positive(|| "moving.speed".to_owned(), &self.speed)
+        } else {
+            c.non_negative(|| "moving.speed".to_owned(), &self.speed)
+        };
         let points = c.points();
         let sensors = c.sensors(&beams, &length_valid);
         let profiles = c.profiles();
+        let profile_ends = c.profile_ends();
         if !c.errors.is_empty() {
-            return Err(c.errors);
+            // A wheelset's two wheels share its fields: one report per field.
+            let mut errors: Vec<FieldError> = Vec::with_capacity(c.errors.len());
+            for e in c.errors {
+                if !errors
+                    .iter()
+                    .any(|k| k.path == e.path && k.value.to_bits() == e.value.to_bits())
+                {
+                    errors.push(e);
+                }
+            }
+            return Err(errors);
         }
         Ok(Model {
             values: v,
@@ -464,6 +599,7 @@ impl System {
             points,
             sensors,
             profiles,
+            profile_ends,
         })
     }
 }
@@ -531,33 +667,45 @@ impl Checker<'_> {
         let mut dof_mass = vec![0.0; system.dofs.len()];
         for b in &system.bodies {
             let m = self.positive(|| format!("bodies.{}.mass", b.name), &b.mass);
-            if let Some(z) = b.z {
-                dof_mass[z] = m;
+            for kind in DofKind::ALL {
+                let Some(i) = b.dof(kind) else { continue };
+                dof_mass[i] = match b.inertia_of(kind) {
+                    Some(j) => self.positive(|| b.inertia_path(kind), j),
+                    None => m,
+                };
             }
-            if let (Some(p), Some(j)) = (b.pitch, &b.inertia) {
-                dof_mass[p] = self.positive(|| format!("bodies.{}.inertia", b.name), j);
-            }
-            for (name, x) in &b.points {
-                self.finite(|| format!("bodies.{}.points.{name}", b.name), x);
+            for p in &b.points {
+                let path = || format!("bodies.{}.points.{}", b.name, p.name);
+                self.finite(path, &p.x);
+                for c in [&p.y, &p.z].into_iter().flatten() {
+                    self.finite(path, c);
+                }
             }
         }
         dof_mass
     }
 
-    /// An end in numbers: a body point's rigid-DOF participation (no pitch term at `x = 0`).
-    fn end(&self, e: &End) -> ModelEnd {
+    /// An end in numbers along `axis`: a body point's rigid-DOF participation (no rotation
+    /// term where the lever arm is 0).
+    fn end(&self, e: &End, axis: Axis) -> ModelEnd {
         match e {
             End::Ground => ModelEnd::Ground,
             End::Moving(i) => ModelEnd::Moving(*i),
-            End::Body { body, x } => {
+            End::Body { body, .. } => {
                 let b = &self.system.bodies[*body];
-                let c = x.as_ref().map_or(0.0, |x| -self.eval(x));
+                let [first, second] = axis.rotations().map(|(kind, coordinate, sign)| {
+                    let lever = e.coordinate(coordinate).filter(|c| !c.is_zero())?;
+                    let c = if sign < 0.0 {
+                        -self.eval(lever)
+                    } else {
+                        self.eval(lever)
+                    };
+                    b.dof(kind).map(|d| (d, c))
+                });
                 ModelEnd::Body(PointTerms {
-                    z: b.z,
-                    pitch: b
-                        .pitch
-                        .filter(|_| x.as_ref().is_some_and(|x| !x.is_zero()))
-                        .map(|p| (p, c)),
+                    z: b.dof(axis.translation()),
+                    pitch: first,
+                    roll: second,
                 })
             }
         }
@@ -571,8 +719,8 @@ impl Checker<'_> {
             let law = self.law(&e.name, &e.law);
             elements.push(ModelElement {
                 law,
-                from: self.end(&e.from),
-                to: self.end(&e.to),
+                from: self.end(&e.from, e.direction),
+                to: self.end(&e.to, e.direction),
                 profile: e.profile,
             });
         }
@@ -609,6 +757,111 @@ impl Checker<'_> {
                     c: self.non_negative(|| format!("{}.c", w()), damping),
                 }
             }
+            Law::Wheel(wheel) => ModelLaw::Wheel(Box::new(self.wheel(wheel))),
+        }
+    }
+
+    /// A wheel in numbers, every field of its wheelset checked (the paths name the declared
+    /// wheelset, `elements.<wheelset>.<field>`): dimensions > 0, the conicity in (0, 0.6], a
+    /// geometry table's shifts increasing and angles within (-pi/2, pi/2), the materials, a
+    /// friction coefficient > 0 and a flange clearance >= 0.
+    fn wheel(&mut self, wheel: &crate::system::Wheel) -> ModelWheel {
+        let w = || format!("elements.{}", wheel.wheelset);
+        let b = &self.system.bodies[wheel.body];
+        let geometry = match &wheel.geometry {
+            Geometry::Conicity(c) => {
+                let g = self.eval(c);
+                ModelGeometry::Conicity(self.check(
+                    || format!("{}.conicity", w()),
+                    g,
+                    g > 0.0 && g <= MAX_CONICITY,
+                    || {
+                        format!(
+                            "in (0, {MAX_CONICITY}] rad (equivalent conicity; 0.05-0.4 in service)"
+                        )
+                    },
+                    &[c],
+                ))
+            }
+            Geometry::Table {
+                shift,
+                radius,
+                angle,
+            } => {
+                let u: Vec<f64> = shift.iter().map(|e| self.eval(e)).collect();
+                for (i, pair) in u.windows(2).enumerate() {
+                    self.check(
+                        || format!("{}.geometry.shift[{}]", w(), i + 1),
+                        pair[1],
+                        pair[1] > pair[0],
+                        || "finite and above the previous shift".to_owned(),
+                        &[&shift[i], &shift[i + 1]],
+                    );
+                }
+                let r: Vec<f64> = radius
+                    .iter()
+                    .enumerate()
+                    .map(|(i, e)| self.finite(|| format!("{}.geometry.radius[{i}]", w()), e))
+                    .collect();
+                let a: Vec<f64> = angle
+                    .iter()
+                    .enumerate()
+                    .map(|(i, e)| {
+                        let v = self.eval(e);
+                        self.check(
+                            || format!("{}.geometry.angle[{i}]", w()),
+                            v,
+                            v.abs() < std::f64::consts::FRAC_PI_2,
+                            || "in (-pi/2, pi/2) rad".to_owned(),
+                            &[e],
+                        )
+                    })
+                    .collect();
+                ModelGeometry::Table {
+                    shift: u,
+                    radius: r,
+                    angle: a,
+                }
+            }
+        };
+        let poisson = self.eval(&wheel.poisson);
+        ModelWheel {
+            side: wheel.side.sign(),
+            y: b.y.expect("checked: a wheelset body has y"),
+            roll: b.roll.expect("checked: a wheelset body rolls"),
+            yaw: b.yaw.expect("checked: a wheelset body yaws"),
+            x: b.x,
+            rail: wheel.rail.and_then(|r| self.system.bodies[r].y),
+            half_gauge: self.positive(|| format!("{}.half_gauge", w()), &wheel.half_gauge),
+            radius: self.positive(|| format!("{}.radius", w()), &wheel.radius),
+            hertz: self.positive(|| format!("{}.hertz", w()), &wheel.hertz),
+            geometry,
+            young: self.positive(|| format!("{}.creep.young", w()), &wheel.young),
+            poisson: self.check(
+                || format!("{}.creep.poisson", w()),
+                poisson,
+                (0.0..=0.5).contains(&poisson),
+                || "in [0, 0.5] (the range of Kalker's table)".to_owned(),
+                &[&wheel.poisson],
+            ),
+            friction: self.positive(|| format!("{}.creep.friction", w()), &wheel.friction),
+            rail_radius: self.positive(|| format!("{}.creep.rail_radius", w()), &wheel.rail_radius),
+            wheel_profile_radius: wheel.wheel_profile_radius.as_ref().map(|e| {
+                let v = self.eval(e);
+                self.check(
+                    || format!("{}.creep.wheel_profile_radius", w()),
+                    v,
+                    v != 0.0,
+                    || "finite and not 0 (m; negative for a hollow tread)".to_owned(),
+                    &[e],
+                )
+            }),
+            flange: wheel.flange.as_ref().map(|(c, k)| {
+                (
+                    self.non_negative(|| format!("{}.flange.clearance", w()), c),
+                    self.non_negative(|| format!("{}.flange.stiffness", w()), k),
+                )
+            }),
         }
     }
 
@@ -650,7 +903,7 @@ impl Checker<'_> {
         let mut loads = Vec::with_capacity(system.loads.len());
         for l in &system.loads {
             loads.push(ModelLoad {
-                at: self.end(&l.at),
+                at: self.end(&l.at, l.direction),
                 force: self.finite(|| format!("loads.{}.force", l.name), &l.force),
             });
         }
@@ -806,12 +1059,42 @@ impl Checker<'_> {
         sensors
     }
 
+    /// Where each generated profile's irregularity ends: `x` >= 0 and a taper > 0 no longer
+    /// than `x`.
+    fn profile_ends(&mut self) -> Vec<Option<[f64; 2]>> {
+        let system = self.system;
+        system
+            .profiles
+            .iter()
+            .map(|p| match p {
+                Profile::Generated {
+                    name,
+                    until: Some((x, taper)),
+                    ..
+                } => {
+                    let x = self.non_negative(|| format!("profiles.{name}.until.x"), x);
+                    let t = self.eval(taper);
+                    let t = self.check(
+                        || format!("profiles.{name}.until.taper"),
+                        t,
+                        t > 0.0 && t <= x,
+                        || format!("> 0 and at most until.x = {x} m"),
+                        &[taper],
+                    );
+                    Some([x, t])
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
     /// The profiles: a harmonic one's amplitude and phase finite, its wavelength > 0.
     fn profiles(&mut self) -> Vec<ModelProfile> {
         let system = self.system;
         let mut profiles = Vec::with_capacity(system.profiles.len());
         for p in &system.profiles {
             profiles.push(match p {
+                Profile::Combination { terms, .. } => ModelProfile::Combination(terms.clone()),
                 Profile::Generated { interpolation, .. } => ModelProfile::Generated {
                     interpolation: *interpolation,
                 },
@@ -842,10 +1125,12 @@ mod tests {
         let upper = PointTerms {
             z: Some(0),
             pitch: Some((1, -2.5)),
+            roll: None,
         };
         let lower = PointTerms {
             z: Some(2),
             pitch: None,
+            roll: None,
         };
         let el = |to| ModelElement {
             law: ModelLaw::SpringDamper {

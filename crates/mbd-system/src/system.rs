@@ -3,7 +3,7 @@
 //! one sample by [`System::instantiate`], giving a [`crate::model::Model`].
 
 use crate::expr::Expr;
-use crate::schema::{DofKind, IndexStat, Outside, RawPsdSegment};
+use crate::schema::{Axis, DofKind, IndexStat, Outside, RawPsdSegment};
 
 /// How a compiled parameter gets its value.
 #[derive(Debug, Clone, PartialEq)]
@@ -45,6 +45,20 @@ pub struct Dof {
     pub kind: DofKind,
 }
 
+/// A named attachment point of a body (m, from its centre: `x` forward, `y` right, `z` down;
+/// `None` for 0).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodyPoint {
+    /// Name.
+    pub name: String,
+    /// Longitudinal position.
+    pub x: Expr,
+    /// Lateral position.
+    pub y: Option<Expr>,
+    /// Vertical position.
+    pub z: Option<Expr>,
+}
+
 /// A rigid body.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Body {
@@ -56,12 +70,77 @@ pub struct Body {
     pub mass: Expr,
     /// Pitch inertia (kg m^2), when it pitches.
     pub inertia: Option<Expr>,
+    /// Roll inertia (kg m^2), when it rolls.
+    pub roll_inertia: Option<Expr>,
+    /// Yaw inertia (kg m^2), when it yaws.
+    pub yaw_inertia: Option<Expr>,
+    /// Whether the inertias were written as a map (`inertia: {roll, pitch, yaw}`): their
+    /// fields are then `inertia.pitch` and so on, else the pitch inertia is `inertia`.
+    pub inertia_map: bool,
     /// Index of its vertical DOF.
     pub z: Option<usize>,
     /// Index of its pitch DOF.
     pub pitch: Option<usize>,
-    /// Named attachment points: name and `x` (m, forward).
-    pub points: Vec<(String, Expr)>,
+    /// Index of its lateral DOF.
+    pub y: Option<usize>,
+    /// Index of its roll DOF.
+    pub roll: Option<usize>,
+    /// Index of its yaw DOF.
+    pub yaw: Option<usize>,
+    /// Index of its longitudinal DOF.
+    pub x: Option<usize>,
+    /// Named attachment points.
+    pub points: Vec<BodyPoint>,
+}
+
+impl Body {
+    /// The index of its DOF of kind `kind`, if it has one.
+    pub fn dof(&self, kind: DofKind) -> Option<usize> {
+        match kind {
+            DofKind::Z => self.z,
+            DofKind::Pitch => self.pitch,
+            DofKind::Y => self.y,
+            DofKind::Roll => self.roll,
+            DofKind::Yaw => self.yaw,
+            DofKind::X => self.x,
+        }
+    }
+
+    /// Its DOF indices in state order.
+    pub fn dofs(&self) -> Vec<usize> {
+        let mut v: Vec<usize> = DofKind::ALL.iter().filter_map(|&k| self.dof(k)).collect();
+        v.sort_unstable();
+        v
+    }
+
+    /// Whether a force along `axis` at the point `end` (of this body) moves one of its DOFs:
+    /// the translation along the axis, or a rotation with a lever arm that is not 0.
+    pub fn moves_along(&self, axis: Axis, end: &End) -> bool {
+        self.dof(axis.translation()).is_some()
+            || axis.rotations().iter().any(|(k, coordinate, _)| {
+                self.dof(*k).is_some() && end.coordinate(*coordinate).is_some_and(|c| !c.is_zero())
+            })
+    }
+
+    /// The moment of inertia (kg m^2) of rotation `kind`, its expression if it has one.
+    pub fn inertia_of(&self, kind: DofKind) -> Option<&Expr> {
+        match kind {
+            DofKind::Pitch => self.inertia.as_ref(),
+            DofKind::Roll => self.roll_inertia.as_ref(),
+            DofKind::Yaw => self.yaw_inertia.as_ref(),
+            _ => None,
+        }
+    }
+
+    /// The dotted path of the inertia of rotation `kind` (`bodies.c.inertia` for a plain
+    /// pitch inertia, `bodies.c.inertia.roll` in the map form).
+    pub fn inertia_path(&self, kind: DofKind) -> String {
+        if self.inertia_map {
+            format!("bodies.{}.inertia.{}", self.name, kind.keyword())
+        } else {
+            format!("bodies.{}.inertia", self.name)
+        }
+    }
 }
 
 /// One end of an element or the point of a load.
@@ -69,15 +148,39 @@ pub struct Body {
 pub enum End {
     /// Fixed ground.
     Ground,
-    /// A point of a body: its `x` (m, forward; `None` for the centre).
+    /// A point of a body: its offset from the body's centre (m; `None` for 0).
     Body {
         /// The body.
         body: usize,
-        /// Longitudinal position of the point (m); `None` at the centre.
+        /// Longitudinal position of the point (m, forward).
         x: Option<Expr>,
+        /// Lateral position (m, to the right).
+        y: Option<Expr>,
+        /// Vertical position (m, downward).
+        z: Option<Expr>,
     },
     /// A point of the moving frame.
     Moving(usize),
+}
+
+impl End {
+    /// The centre of body `body`.
+    pub fn centre(body: usize) -> Self {
+        End::Body {
+            body,
+            x: None,
+            y: None,
+            z: None,
+        }
+    }
+
+    /// The offset coordinate `axis` (0 `x`, 1 `y`, 2 `z`) of a body point.
+    pub fn coordinate(&self, axis: usize) -> Option<&Expr> {
+        match self {
+            End::Body { x, y, z, .. } => [x, y, z][axis].as_ref(),
+            _ => None,
+        }
+    }
 }
 
 /// A link of a support chain: stiffness and damping expressions.
@@ -223,6 +326,15 @@ pub enum Profile {
         wavelengths: [f64; 2],
         /// How the points are read between them.
         interpolation: Interpolation,
+        /// Where the irregularity ends (m) and the taper before it (m), when it does.
+        until: Option<(Expr, Expr)>,
+    },
+    /// A weighted sum of other profiles (each generated or harmonic).
+    Combination {
+        /// Name.
+        name: String,
+        /// The profiles (indices) and their weights.
+        terms: Vec<(usize, f64)>,
     },
     /// Analytic harmonic.
     Harmonic {
@@ -241,9 +353,93 @@ impl Profile {
     /// The profile's name.
     pub fn name(&self) -> &str {
         match self {
-            Profile::Generated { name, .. } | Profile::Harmonic { name, .. } => name,
+            Profile::Generated { name, .. }
+            | Profile::Harmonic { name, .. }
+            | Profile::Combination { name, .. } => name,
         }
     }
+}
+
+/// A side of a wheelset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// The left wheel (at `y = -e0`).
+    Left,
+    /// The right wheel (at `y = +e0`).
+    Right,
+}
+
+impl Side {
+    /// Both sides, left first (the order of a wheelset's pairs).
+    pub const BOTH: [Side; 2] = [Side::Left, Side::Right];
+
+    /// `-1` for the left wheel, `+1` for the right one: the sign of its lateral position.
+    pub fn sign(self) -> f64 {
+        match self {
+            Side::Left => -1.0,
+            Side::Right => 1.0,
+        }
+    }
+
+    /// The suffix of the wheel's element name (`l`, `r`).
+    pub fn suffix(self) -> &'static str {
+        match self {
+            Side::Left => "l",
+            Side::Right => "r",
+        }
+    }
+}
+
+/// The contact geometry of a wheelset (the right wheel's; the left mirrors it).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Geometry {
+    /// Equivalent conicity (rad).
+    Conicity(Expr),
+    /// Rolling-radius change (m) and contact angle (rad) against the shift (m).
+    Table {
+        /// Shifts (m).
+        shift: Vec<Expr>,
+        /// Rolling-radius changes (m).
+        radius: Vec<Expr>,
+        /// Contact angles (rad).
+        angle: Vec<Expr>,
+    },
+}
+
+/// One wheel of a wheelset (`kind: wheelset`, compiled into one element per wheel): its
+/// vertical contact is the element's Hertz law between the wheelset at `y = s e0` and its
+/// rail point; its creep, normal and flange forces act in the track plane
+/// (`docs/model.md`, "Wheelset on two rails").
+#[derive(Debug, Clone, PartialEq)]
+pub struct Wheel {
+    /// The declared wheelset element (its fields are `elements.<wheelset>.<field>`).
+    pub wheelset: String,
+    /// Which wheel.
+    pub side: Side,
+    /// The wheelset body.
+    pub body: usize,
+    /// The body carrying this wheel's rail laterally (its `y` DOF), when declared.
+    pub rail: Option<usize>,
+    /// Half the distance between the contact points `e0` (m).
+    pub half_gauge: Expr,
+    /// Nominal rolling radius `r0` (m).
+    pub radius: Expr,
+    /// Hertz constant `G` (m/N^(2/3)).
+    pub hertz: Expr,
+    /// Contact geometry.
+    pub geometry: Geometry,
+    /// Young's modulus (Pa).
+    pub young: Expr,
+    /// Poisson's ratio.
+    pub poisson: Expr,
+    /// Coefficient of friction.
+    pub friction: Expr,
+    /// Transverse radius of the rail head (m).
+    pub rail_radius: Expr,
+    /// Transverse radius of the wheel tread (m), `None` for a straight tread.
+    pub wheel_profile_radius: Option<Expr>,
+    /// Flange clearance (m) and stiffness (N/m).
+    pub flange: Option<(Expr, Expr)>,
 }
 
 /// A compiled force law.
@@ -274,12 +470,22 @@ pub enum Law {
         /// Damping (N s/m).
         c: Expr,
     },
+    /// One wheel of a wheelset on its rail: the vertical force is Hertz's `(d / G)^(3/2)`.
+    Wheel(Box<Wheel>),
 }
 
 impl Law {
     /// Whether this is a contact law (its force column is `p_<name>`).
     pub fn is_contact(&self) -> bool {
-        matches!(self, Law::Hertz { .. })
+        matches!(self, Law::Hertz { .. } | Law::Wheel(_))
+    }
+
+    /// The wheel, for a wheel of a wheelset.
+    pub fn wheel(&self) -> Option<&Wheel> {
+        match self {
+            Law::Wheel(w) => Some(w),
+            _ => None,
+        }
     }
 
     /// Whether the force reads the deflection's rate: a damping `c` that is not a literal 0
@@ -287,7 +493,7 @@ impl Law {
     pub fn is_damped(&self) -> bool {
         match self {
             Law::SpringDamper { c, .. } | Law::Table { c, .. } => !c.is_zero(),
-            Law::Hertz { .. } => false,
+            Law::Hertz { .. } | Law::Wheel(_) => false,
         }
     }
 }
@@ -305,6 +511,8 @@ pub struct Element {
     pub to: End,
     /// Profile under the lower end.
     pub profile: Option<usize>,
+    /// The axis it acts along.
+    pub direction: Axis,
 }
 
 impl Element {
@@ -322,8 +530,10 @@ pub struct Load {
     pub name: String,
     /// Where it acts.
     pub at: End,
-    /// Force (N, downward).
+    /// Force (N, positive along `direction`).
     pub force: Expr,
+    /// The axis it pushes along.
+    pub direction: Axis,
 }
 
 /// What produces a generalised force term.
@@ -364,6 +574,15 @@ pub enum Quantity {
     Force(usize),
     /// The deflection of element `i` (m).
     Deflection(usize),
+    /// The lateral force `Y` (N) of the rail on wheel `i` (a wheel of a wheelset), positive
+    /// toward the track's centre: the `Y` of the derailment quotient `Y/Q`.
+    WheelLateral(usize),
+    /// The flange contact force (N, >= 0) of wheel `i`.
+    Flange(usize),
+    /// The longitudinal creep force (N, on the wheel, positive forward) of wheel `i`.
+    Creep(usize),
+    /// The lateral shift (m) of wheel `i` relative to its rail, positive toward its flange.
+    Shift(usize),
 }
 
 /// Learning role of a channel (the tensors of `docs/learning.md`).
@@ -436,6 +655,42 @@ pub struct Railway {
     pub static_wheel_load: Expr,
 }
 
+/// Limits of the lateral indices (`None`: no limit); a value passes at or below its limit.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LateralLimits {
+    /// Of the derailment quotient's 2 m sliding mean.
+    pub derailment_quotient: Option<f64>,
+    /// Of the wheelset lateral force over the Prud'homme limit.
+    pub lateral_force: Option<f64>,
+    /// Of the lateral Sperling index at each car-body point.
+    pub sperling: Option<f64>,
+    /// Of the lateral oscillation's growth rate (1/s).
+    pub stability: Option<f64>,
+}
+
+/// The lateral indices' binding (indices into [`System::channels`]) and constants.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lateral {
+    /// Per wheel, front to rear and left before right: its `Y` and `Q` columns.
+    pub wheels: Vec<[usize; 2]>,
+    /// The car body's lateral, yaw and roll accelerations.
+    pub car_body: [usize; 3],
+    /// Half the distance between the bogie centres (m).
+    pub half_length: Expr,
+    /// Height of the measuring points, `z` below the car body's centre (m).
+    pub floor: Expr,
+    /// The static axle load `P0` (N).
+    pub axle_load: Expr,
+    /// `alpha` of the Prud'homme limit.
+    pub prudhomme: Expr,
+    /// The column whose oscillation after the irregularity gives the stability index.
+    pub stability: usize,
+    /// The stored excitation columns (the irregularity has ended where all are zero).
+    pub excitations: Vec<usize>,
+    /// Limits.
+    pub limits: LateralLimits,
+}
+
 /// A validated, compiled description.
 #[derive(Debug, Clone, PartialEq)]
 pub struct System {
@@ -473,6 +728,8 @@ pub struct System {
     pub indices: Vec<Index>,
     /// The railway indices' binding, when declared.
     pub railway: Option<Railway>,
+    /// The lateral indices' binding, when declared.
+    pub lateral: Option<Lateral>,
     /// Time (s) from which the indices read a record (`indices_from`, default 0): what comes
     /// before is the simulation's start-up, which the indices leave out.
     pub indices_from: f64,
@@ -562,7 +819,19 @@ impl System {
                         .column_of(Quantity::Excitation(i))
                         .is_some_and(|c| inputs.contains(&c)))
         };
+        // A wheel's tangential forces are not a coefficient group: the DOFs of its wheelset
+        // and of the body carrying its rail have no equation a learner can check.
+        let wheeled: Vec<usize> = self
+            .elements
+            .iter()
+            .filter_map(|e| e.law.wheel())
+            .flat_map(|w| {
+                let rail = w.rail.and_then(|r| self.bodies[r].y);
+                self.bodies[w.body].dofs().into_iter().chain(rail)
+            })
+            .collect();
         (0..self.dofs.len())
+            .filter(|i| !wheeled.contains(i))
             .filter(|&i| {
                 self.assembly[i]
                     .iter()

@@ -163,11 +163,7 @@ pub fn units_of(system: &System) -> Result<Units> {
         pairs.push((c.name.clone(), c.unit.clone()));
     }
     for d in &system.dofs {
-        let unit = match d.kind {
-            mbd_system::schema::DofKind::Z => "N",
-            mbd_system::schema::DofKind::Pitch => "N m",
-        };
-        pairs.push((phi_column(&d.name), unit.to_owned()));
+        pairs.push((phi_column(&d.name), d.kind.force_unit().to_owned()));
     }
     for ix in pino_indices::IndexSet::of(system).columns(system) {
         pairs.push((ix.name, ix.unit));

@@ -45,12 +45,14 @@
 #![warn(missing_docs)]
 
 mod config;
+pub mod lateral;
 pub mod sperling;
 
 pub mod system;
 
 pub use config::{IndexConfig, IndexParams, Limits, SperlingParams, Taper};
-pub use system::{IndexSet, RailwayColumns};
+pub use lateral::{lateral_indices, LateralParams, LateralRecord, LATERAL_COLUMNS};
+pub use system::{IndexSet, LateralColumns, RailwayColumns};
 
 /// Errors of the index computation; each names the field or signal at fault.
 #[derive(Debug, thiserror::Error)]

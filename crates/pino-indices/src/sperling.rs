@@ -1,4 +1,4 @@
-//! The Sperling ride index `W_z` (vertical), spectral form.
+//! The Sperling ride index, vertical `W_z` and lateral `W_y`, spectral form.
 //!
 //! Of an acceleration `a(t)` (m/s^2) sampled at `dt` over `N` points: the one-sided amplitude
 //! spectrum `a_k` (cm/s^2) at `f_k = k / (N dt)` (Hz), `k = 1..N/2`,
@@ -10,6 +10,11 @@
 //! F(f) = 0.325 f^2 (0.5 <= f < 5.9),  400 / f^2 (5.9 <= f < 20),  1 (f >= 20)
 //! W_z = (sum_{f_k >= f_min} W_k^10)^(1/10) = 0.896 (sum a_k^3 F(f_k) / f_k)^(1/10)
 //! ```
+//!
+//! The lateral index `W_y` takes the lateral weighting ([`weighting_lateral`]):
+//! `F(f) = 0.8 f^2 (0.5 <= f < 5.4), 650 / f^2 (5.4 <= f < 26), 1 (f >= 26)` (Sperling's
+//! lateral curve, as tabulated for GB/T 5599 and in Garg and Dukkipati, *Dynamics of railway
+//! vehicle systems*, 1984).
 //!
 //! with `w_n` the taper (1 for [`Taper::None`]). A sinusoid of amplitude `A` on a spectral
 //! line therefore gives `0.896 (A^3 F(f) / f)^0.1` exactly (the closed form in the tests).
@@ -33,12 +38,23 @@ pub fn weighting(f: f64) -> f64 {
     }
 }
 
+/// The frequency weighting `F(f)` of the lateral Sperling index (f in Hz).
+pub fn weighting_lateral(f: f64) -> f64 {
+    if f < 5.4 {
+        0.8 * f * f
+    } else if f < 26.0 {
+        650.0 / (f * f)
+    } else {
+        1.0
+    }
+}
+
 thread_local! {
     static PLANNER: RefCell<FftPlanner<f64>> = RefCell::new(FftPlanner::new());
 }
 
 /// `sum_k a_k^3 F(f_k) / f_k` of one segment (a_k in cm/s^2).
-fn weighted_sum(a: &[f64], dt: f64, taper: Taper, f_min: f64) -> f64 {
+fn weighted_sum(a: &[f64], dt: f64, taper: Taper, f_min: f64, weight: fn(f64) -> f64) -> f64 {
     let n = a.len();
     let w: Vec<f64> = match taper {
         Taper::None => vec![1.0; n],
@@ -65,13 +81,23 @@ fn weighted_sum(a: &[f64], dt: f64, taper: Taper, f_min: f64) -> f64 {
         }
         let c = if 2 * k == n { 1.0 } else { 2.0 };
         let amp = c * x.norm() / gain;
-        sum += amp * amp * amp * weighting(f) / f;
+        sum += amp * amp * amp * weight(f) / f;
     }
     sum
 }
 
 /// `W_z` of acceleration `a` (m/s^2) sampled every `dt` seconds.
 pub fn sperling_wz(a: &[f64], dt: f64, p: &SperlingParams) -> Result<f64> {
+    sperling_with(a, dt, p, weighting)
+}
+
+/// `W_y` (lateral) of acceleration `a` (m/s^2) sampled every `dt` seconds.
+pub fn sperling_wy(a: &[f64], dt: f64, p: &SperlingParams) -> Result<f64> {
+    sperling_with(a, dt, p, weighting_lateral)
+}
+
+/// The Sperling index of `a` with the frequency weighting `weight`.
+fn sperling_with(a: &[f64], dt: f64, p: &SperlingParams, weight: fn(f64) -> f64) -> Result<f64> {
     let n = a.len();
     let seg = match p.segment_s {
         None => n,
@@ -93,7 +119,7 @@ pub fn sperling_wz(a: &[f64], dt: f64, p: &SperlingParams) -> Result<f64> {
     }
     let worst = a
         .chunks_exact(seg)
-        .map(|s| weighted_sum(s, dt, p.taper, p.f_min_hz))
+        .map(|s| weighted_sum(s, dt, p.taper, p.f_min_hz, weight))
         .fold(0.0f64, f64::max);
     Ok(0.896 * worst.powf(0.1))
 }

@@ -1,6 +1,7 @@
 //! The indices of a described system: the railway family (this crate's [`crate::compute`]) when
-//! the description binds it to its columns (`railway:` in the description), then the
-//! description's own simple indices (`indices:`): `stat(channel - subtract) / divide` over the
+//! the description binds it to its columns (`railway:` in the description), the lateral family
+//! ([`crate::lateral`]) when it binds that (`lateral:`), then the description's own simple
+//! indices (`indices:`): `stat(channel - subtract) / divide` over the
 //! evaluation window with `stat` one of max, min, max |.|, RMS and peak-to-peak, and an
 //! optional upper limit.
 //!
@@ -8,8 +9,12 @@
 //! (the `indices` stage), a prediction (`evaluate`, `predict`) and the solver under the
 //! explorer: the caller hands a lookup `column name -> values over the window`.
 
-use crate::{IndexConfig, Indices, Record, Result, INDEX_COLUMNS};
+use crate::{
+    lateral_indices, IndexConfig, Indices, LateralParams, LateralRecord, Record, Result,
+    INDEX_COLUMNS, LATERAL_COLUMNS,
+};
 use mbd_system::schema::IndexStat;
+use mbd_system::system::{Lateral, LateralLimits};
 use mbd_system::System;
 
 /// Column names the railway indices read, from the description's binding.
@@ -39,6 +44,39 @@ impl RailwayColumns {
     }
 }
 
+/// Column names the lateral indices read, from the description's binding.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LateralColumns {
+    /// Per wheel, front to rear, left before right: `Y` and `Q`.
+    pub wheels: Vec<[String; 2]>,
+    /// The car body's lateral, yaw and roll accelerations.
+    pub car_body: [String; 3],
+    /// The stability column.
+    pub stability: String,
+    /// The stored excitations.
+    pub excitations: Vec<String>,
+}
+
+impl LateralColumns {
+    /// Every column, each once, in the binding's order.
+    pub fn all(&self) -> Vec<&str> {
+        let mut v: Vec<&str> = Vec::new();
+        let names = self
+            .wheels
+            .iter()
+            .flatten()
+            .chain(&self.car_body)
+            .chain(std::iter::once(&self.stability))
+            .chain(&self.excitations);
+        for n in names {
+            if !v.contains(&n.as_str()) {
+                v.push(n);
+            }
+        }
+        v
+    }
+}
+
 /// One index column of a system: name, unit, definition, limit.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IndexInfo {
@@ -55,6 +93,8 @@ pub struct IndexInfo {
 pub struct IndexSet {
     /// The railway binding.
     pub railway: Option<RailwayColumns>,
+    /// The lateral binding.
+    pub lateral: Option<LateralColumns>,
     /// The simple indices: `(index number in System::indices, channel name)`.
     simple: Vec<(usize, String)>,
 }
@@ -73,18 +113,35 @@ impl IndexSet {
             z_t_a: arr(system, &r.bogies),
             z_r: arr(system, &r.rails),
         });
+        let name = |c: usize| system.channels[c].name.clone();
+        let lateral = system.lateral.as_ref().map(|l| LateralColumns {
+            wheels: l.wheels.iter().map(|w| w.map(name)).collect(),
+            car_body: l.car_body.map(name),
+            stability: name(l.stability),
+            excitations: l.excitations.iter().map(|&c| name(c)).collect(),
+        });
         let simple = system
             .indices
             .iter()
             .enumerate()
             .map(|(i, ix)| (i, system.channels[ix.channel].name.clone()))
             .collect();
-        Self { railway, simple }
+        Self {
+            railway,
+            lateral,
+            simple,
+        }
     }
 
     /// Whether there is no index.
     pub fn is_empty(&self) -> bool {
-        self.railway.is_none() && self.simple.is_empty()
+        self.railway.is_none() && self.lateral.is_none() && self.simple.is_empty()
+    }
+
+    /// The number of columns before the simple indices' (the families').
+    fn families_len(&self) -> usize {
+        self.railway.as_ref().map_or(0, |_| INDEX_COLUMNS.len())
+            + self.lateral.as_ref().map_or(0, |_| LATERAL_COLUMNS.len())
     }
 
     /// The index columns in value order: the railway family's, then the simple ones.
@@ -92,6 +149,13 @@ impl IndexSet {
         let mut out = Vec::new();
         if self.railway.is_some() {
             out.extend(INDEX_COLUMNS.iter().map(|c| IndexInfo {
+                name: c.name.to_owned(),
+                unit: c.unit.to_owned(),
+                definition: c.definition.to_owned(),
+            }));
+        }
+        if self.lateral.is_some() {
+            out.extend(LATERAL_COLUMNS.iter().map(|c| IndexInfo {
                 name: c.name.to_owned(),
                 unit: c.unit.to_owned(),
                 definition: c.definition.to_owned(),
@@ -126,6 +190,11 @@ impl IndexSet {
             .flat_map(|r| r.all())
             .map(str::to_owned)
             .collect();
+        for c in self.lateral.iter().flat_map(|l| l.all()) {
+            if !v.iter().any(|x| x == c) {
+                v.push(c.to_owned());
+            }
+        }
         for (_, c) in &self.simple {
             if !v.contains(c) {
                 v.push(c.clone());
@@ -174,6 +243,36 @@ impl IndexSet {
             out.extend(ix.values());
             railway = Some(ix);
         }
+        if let (Some(l), Some(b)) = (&self.lateral, &system.lateral) {
+            let fetch = |c: &str| get(c).ok_or_else(|| missing(c));
+            let wheels: Vec<[Vec<f64>; 2]> = l
+                .wheels
+                .iter()
+                .map(|[y, q]| Ok([fetch(y)?, fetch(q)?]))
+                .collect::<Result<_>>()?;
+            let car: Vec<Vec<f64>> = l.car_body.iter().map(|c| fetch(c)).collect::<Result<_>>()?;
+            let stability = fetch(&l.stability)?;
+            let excitations: Vec<Vec<f64>> = l
+                .excitations
+                .iter()
+                .map(|c| fetch(c))
+                .collect::<Result<_>>()?;
+            let rec = LateralRecord {
+                dt,
+                wheels: wheels
+                    .iter()
+                    .map(|[y, q]| (y.as_slice(), q.as_slice()))
+                    .collect(),
+                car_body: [&car[0], &car[1], &car[2]],
+                stability: &stability,
+                excitations: excitations.iter().map(Vec::as_slice).collect(),
+            };
+            out.extend(lateral_indices(
+                &rec,
+                &lateral_params(system, b, values),
+                &cfg.sperling,
+            )?);
+        }
         for (i, channel) in &self.simple {
             let ix = &system.indices[*i];
             let x = get(channel).ok_or_else(|| missing(channel))?;
@@ -202,6 +301,13 @@ impl IndexSet {
                 _ => None,
             }));
         }
+        if let (Some(_), Some(b)) = (&self.lateral, &system.lateral) {
+            out.extend(
+                LATERAL_COLUMNS
+                    .iter()
+                    .map(|c| lateral_limit(c.name, &b.limits)),
+            );
+        }
         out.extend(self.simple.iter().map(|(i, _)| system.indices[*i].limit));
         out
     }
@@ -224,11 +330,19 @@ impl IndexSet {
                     .collect()
             })
             .unwrap_or_default();
-        let offset = if self.railway.is_some() {
-            INDEX_COLUMNS.len()
-        } else {
-            0
-        };
+        if let (Some(_), Some(b)) = (&self.lateral, &system.lateral) {
+            let start = self.railway.as_ref().map_or(0, |_| INDEX_COLUMNS.len());
+            for (k, c) in LATERAL_COLUMNS.iter().enumerate() {
+                if let (Some(limit), Some(&v)) =
+                    (lateral_limit(c.name, &b.limits), values.get(start + k))
+                {
+                    if (v > limit || v.is_nan()) && !out.iter().any(|o| o == c.name) {
+                        out.push(c.name.to_owned());
+                    }
+                }
+            }
+        }
+        let offset = self.families_len();
         for (k, (i, _)) in self.simple.iter().enumerate() {
             let ix = &system.indices[*i];
             if let Some(limit) = ix.limit {
@@ -239,6 +353,29 @@ impl IndexSet {
             }
         }
         out
+    }
+}
+
+/// The limit of a lateral index column (`name` of [`LATERAL_COLUMNS`]).
+fn lateral_limit(name: &str, l: &LateralLimits) -> Option<f64> {
+    match name {
+        "derailment_quotient_2m" => l.derailment_quotient,
+        "prudhomme_ratio" => l.lateral_force,
+        n if n.starts_with("sperling_wy") => l.sperling,
+        "lateral_stability_growth_1ps" => l.stability,
+        _ => None,
+    }
+}
+
+/// A sample's lateral constants: the frame's speed and the binding's expressions over its
+/// parameter values.
+pub fn lateral_params(system: &System, b: &Lateral, values: &[f64]) -> LateralParams {
+    LateralParams {
+        speed: system.speed.eval(values),
+        half_length: b.half_length.eval(values),
+        floor: b.floor.eval(values),
+        axle_load: b.axle_load.eval(values),
+        prudhomme: b.prudhomme.eval(values),
     }
 }
 

@@ -7,7 +7,10 @@ use mbd_system::schema::IndexStat;
 use mbd_system::system::ParamSource;
 use mbd_system::{System, SystemSource};
 use pino_indices::system::simple;
-use pino_indices::{IndexParams, IndexSet, Record, INDEX_COLUMNS};
+use pino_indices::{
+    lateral_indices, IndexParams, IndexSet, LateralParams, LateralRecord, Record, INDEX_COLUMNS,
+    LATERAL_COLUMNS,
+};
 
 fn compile(file: &str, text: &str) -> System {
     SystemSource {
@@ -248,4 +251,108 @@ fn simple_indices_over_a_record_and_their_limits() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("`f_tyre`") && e.contains("row 2"), "{e}");
+}
+
+fn vtcd_3d() -> System {
+    compile(
+        "vtcd-3d.yaml",
+        include_str!("../../../systems/vtcd-3d.yaml"),
+    )
+}
+
+/// The spatial vehicle binds both families: the railway columns, then the lateral ones; through
+/// the binding the lateral values are [`pino_indices::lateral_indices`] with the sample's speed,
+/// `l_c`, floor height and axle load `2 W`; the description's limits judge them (a steady
+/// `Y/Q` of 0.9 fails the 0.8 of the 2 m mean, its 65 kN track shift force the Prud'homme
+/// limit of about 52 kN, a gentle sway passes `W_y` 2.5 and a decay the stability limit).
+#[test]
+fn the_lateral_family_through_the_binding() {
+    let system = vtcd_3d();
+    let set = IndexSet::of(&system);
+    let l = set
+        .lateral
+        .as_ref()
+        .expect("vtcd-3d.yaml binds the lateral indices");
+    assert_eq!(l.wheels[0], ["fy_ws1_l".to_owned(), "p_ws1_l".to_owned()]);
+    assert_eq!(l.wheels.len(), 8);
+    let names: Vec<String> = set.columns(&system).into_iter().map(|c| c.name).collect();
+    let want: Vec<&str> = INDEX_COLUMNS
+        .iter()
+        .chain(&LATERAL_COLUMNS)
+        .map(|c| c.name)
+        .collect();
+    assert_eq!(names, want);
+    let sampled = nominal(&system);
+    let values = system.values(&sampled).unwrap();
+    let (n, dt) = (3000, 1e-3);
+    let wave = |f: f64, a: f64, c: f64| -> Vec<f64> {
+        (0..n)
+            .map(|k| c + a * (2.0 * std::f64::consts::PI * f * k as f64 * dt).sin())
+            .collect()
+    };
+    // Wheels under 70 kN, the right one of the leading wheelset pushed to Y/Q 0.9; the car
+    // body swaying gently; the leading wheelset's shift decaying after the excitations end.
+    let q = vec![7.0e4; n];
+    let y_hi = vec![0.9 * 7.0e4; n];
+    let y_lo = vec![-2.0e3; n];
+    let car = wave(1.0, 0.2, 0.0);
+    let shift: Vec<f64> = (0..n)
+        .map(|k| {
+            let t = k as f64 * dt;
+            1e-3 * (-t).exp() * (2.0 * std::f64::consts::PI * 4.0 * t).sin()
+        })
+        .collect();
+    let excitation: Vec<f64> = (0..n).map(|k| if k < 1000 { 1e-4 } else { 0.0 }).collect();
+    let get = |c: &str| -> Option<Vec<f64>> {
+        Some(match c {
+            "fy_ws1_r" => y_hi.clone(),
+            c if c.starts_with("fy_ws") => y_lo.clone(),
+            c if c.starts_with("p_ws") => q.clone(),
+            c if c.starts_with("eta_") => excitation.clone(),
+            "y_w1" => shift.clone(),
+            "y_c_a" => car.clone(),
+            "psi_c_a" | "phi_c_a" => vec![0.0; n],
+            "z_c_a" | "beta_c_a" | "z_t1_a" | "z_t2_a" => vec![0.0; n],
+            c if c.starts_with("z_r") => vec![0.0; n],
+            _ => return None,
+        })
+    };
+    let cfg = IndexParams::default().validate().unwrap();
+    let (got, railway) = set.compute(&system, &values, &get, dt, &cfg).unwrap();
+    let lat = &got[INDEX_COLUMNS.len()..];
+    let v = |name: &str| values[system.parameter(name).unwrap()];
+    let p = LateralParams {
+        speed: v("v_kmh") / 3.6,
+        half_length: v("l_c"),
+        floor: v("h_floor"),
+        axle_load: 2.0 * v("W"),
+        prudhomme: 1.0,
+    };
+    let wheels: Vec<(&[f64], &[f64])> = (0..8)
+        .map(|k| (if k == 1 { &y_hi[..] } else { &y_lo[..] }, &q[..]))
+        .collect();
+    let zero = vec![0.0; n];
+    let rec = LateralRecord {
+        dt,
+        wheels,
+        car_body: [&car, &zero, &zero],
+        stability: &shift,
+        excitations: vec![&excitation; l.excitations.len()],
+    };
+    let direct = lateral_indices(&rec, &p, &cfg.sperling).unwrap();
+    assert_eq!(lat, direct);
+    assert!((lat[1] - 0.9).abs() < 1e-12, "{}", lat[1]);
+    // The decay rate of exp(-t): about -1 /s.
+    assert!((lat[13] + 1.0).abs() < 0.05, "{}", lat[13]);
+    let failed = set.failed(&system, &got, railway.as_ref(), &cfg);
+    assert_eq!(
+        failed,
+        ["derailment_quotient_2m", "prudhomme_ratio"],
+        "{:?}",
+        &lat
+    );
+    let limits = set.column_limits(&system, &cfg);
+    let k = INDEX_COLUMNS.len();
+    assert_eq!(limits[k + 1], Some(0.8));
+    assert_eq!(limits[k + 13], Some(0.0));
 }

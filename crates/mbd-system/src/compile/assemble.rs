@@ -12,22 +12,26 @@ pub(super) fn assemble(
     loads: &[Load],
 ) -> Vec<Vec<Group>> {
     let mut out: Vec<Vec<Group>> = vec![Vec::new(); dofs.len()];
-    // A force `F` (downward) applied at a point `x` of a body: `F` on z, `-x F` on pitch.
-    let mut add = |end: &End, applied_sign: f64, source: Source| {
-        let End::Body { body, x } = end else { return };
+    // A force `F` along `axis` applied at a point `r` of a body: `F` on the translation along
+    // the axis, `F c` on each rotation that moves the point along it (`c` the coordinate of
+    // `Axis::rotations` with its sign: for `z`, `-x F` on pitch and `y F` on roll).
+    let mut add = |end: &End, axis: Axis, applied_sign: f64, source: Source| {
+        let End::Body { body, .. } = end else { return };
         let b = &bodies[*body];
-        if let Some(z) = b.z {
-            push_term(&mut out[z], None, applied_sign, source);
+        if let Some(t) = b.dof(axis.translation()) {
+            push_term(&mut out[t], None, applied_sign, source);
         }
-        if let (Some(p), Some(x)) = (b.pitch, x) {
-            if !x.is_zero() {
-                let (s, magnitude) = x.split_sign();
-                push_term(
-                    &mut out[p],
-                    Some(magnitude.clone()),
-                    -applied_sign * s,
-                    source,
-                );
+        for (kind, coordinate, sign) in axis.rotations() {
+            if let (Some(r), Some(c)) = (b.dof(kind), end.coordinate(coordinate)) {
+                if !c.is_zero() {
+                    let (s, magnitude) = c.split_sign();
+                    push_term(
+                        &mut out[r],
+                        Some(magnitude.clone()),
+                        applied_sign * sign * s,
+                        source,
+                    );
+                }
             }
         }
     };
@@ -47,13 +51,15 @@ pub(super) fn assemble(
     for item in order {
         match item {
             Some(i) => {
-                // The element pushes its upper end up (-f) and its lower end down (+f).
-                add(&elements[i].from, -1.0, Source::Element(i));
-                add(&elements[i].to, 1.0, Source::Element(i));
+                // The element pushes its upper end against its direction (-f) and its lower
+                // end along it (+f).
+                let e = &elements[i];
+                add(&e.from, e.direction, -1.0, Source::Element(i));
+                add(&e.to, e.direction, 1.0, Source::Element(i));
             }
             None => {
                 for (i, l) in loads.iter().enumerate() {
-                    add(&l.at, 1.0, Source::Load(i));
+                    add(&l.at, l.direction, 1.0, Source::Load(i));
                 }
             }
         }

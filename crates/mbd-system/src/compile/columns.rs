@@ -98,6 +98,104 @@ impl Compiler<'_, '_> {
     }
 }
 
+impl Compiler<'_, '_> {
+    /// The `lateral` section: each wheelset's wheels' `Y` and `Q` columns (which must be
+    /// stored), the car body's columns, the constants and limits (none where a part fails).
+    pub(super) fn lateral(
+        &mut self,
+        channels: &[Channel],
+        elements: &[Element],
+    ) -> Option<Lateral> {
+        let r = self.raw.lateral.as_ref()?;
+        let mut wheels = Vec::new();
+        for (name, pos) in &r.wheelsets {
+            let is_wheelset = elements
+                .iter()
+                .any(|e| e.law.wheel().is_some_and(|w| &w.wheelset == name));
+            if !is_wheelset {
+                let known: Vec<&str> = self
+                    .raw
+                    .elements
+                    .iter()
+                    .filter(|e| matches!(e.law, RawLaw::Wheelset(_)))
+                    .map(|e| e.name.as_str())
+                    .collect();
+                self.diag.push(
+                    *pos,
+                    format!(
+                        "lateral.wheelsets: `{name}` is not a wheelset (`kind: wheelset`); wheelsets: {}",
+                        names(known.iter())
+                    ),
+                );
+                continue;
+            }
+            for side in Side::BOTH {
+                let wheel = format!("{name}_{}", side.suffix());
+                let y = stored_column(
+                    channels,
+                    &(format!("fy_{wheel}"), *pos),
+                    "lateral.wheelsets",
+                    self.diag,
+                );
+                let q = stored_column(
+                    channels,
+                    &(format!("p_{wheel}"), *pos),
+                    "lateral.wheelsets",
+                    self.diag,
+                );
+                if let (Some(y), Some(q)) = (y, q) {
+                    wheels.push([y, q]);
+                }
+            }
+        }
+        let car_body = r.car_body.as_ref().map(|c| {
+            c.iter()
+                .map(|n| stored_column(channels, n, "lateral.car_body", self.diag))
+                .collect::<Option<Vec<usize>>>()
+        });
+        let stability = r
+            .stability
+            .as_ref()
+            .and_then(|n| stored_column(channels, n, "lateral.stability", self.diag));
+        if r.stability.is_none() {
+            self.diag.push(r.pos, "lateral.stability: name the column whose oscillation after the irregularity gives the stability index (a leading wheelset's `y`)".to_owned());
+        }
+        let half_length = self
+            .scope
+            .req(&r.half_length, "lateral.half_length", self.diag);
+        let floor = self.scope.req(&r.floor, "lateral.floor", self.diag);
+        let axle_load = self.scope.req(&r.axle_load, "lateral.axle_load", self.diag);
+        let prudhomme = self
+            .scope
+            .opt(&r.prudhomme, 1.0, "lateral.prudhomme", self.diag);
+        let l = &r.limits;
+        let limits = LateralLimits {
+            derailment_quotient: l.derailment_quotient.map(|v| v.0),
+            lateral_force: l.lateral_force.map(|v| v.0),
+            sperling: l.sperling.map(|v| v.0),
+            stability: l.stability.map(|v| v.0),
+        };
+        let excitations = channels
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| matches!(c.quantity, Quantity::Excitation(_)))
+            .map(|(i, _)| i)
+            .collect();
+        let car_body: Vec<usize> = car_body??;
+        Some(Lateral {
+            wheels,
+            car_body: [car_body[0], car_body[1], car_body[2]],
+            half_length: half_length?,
+            floor: floor?,
+            axle_load: axle_load?,
+            prudhomme: prudhomme?,
+            stability: stability?,
+            excitations,
+            limits,
+        })
+    }
+}
+
 /// The index of the stored column `name` (`what` in the message when there is none).
 fn stored_column(
     channels: &[Channel],
@@ -145,13 +243,18 @@ pub(super) fn channel_table(
             Quantity::Excitation(i)
             | Quantity::ExcitationRate(i)
             | Quantity::Force(i)
-            | Quantity::Deflection(i) => ("element", elements[i].name.as_str()),
+            | Quantity::Deflection(i)
+            | Quantity::WheelLateral(i)
+            | Quantity::Flange(i)
+            | Quantity::Creep(i)
+            | Quantity::Shift(i) => ("element", elements[i].name.as_str()),
         });
     };
     for (i, d) in dofs.iter().enumerate() {
-        let (u, v, a) = match d.kind {
-            DofKind::Z => ("m", "m/s", "m/s^2"),
-            DofKind::Pitch => ("rad", "rad/s", "rad/s^2"),
+        let (u, v, a) = if d.kind.is_rotation() {
+            ("rad", "rad/s", "rad/s^2")
+        } else {
+            ("m", "m/s", "m/s^2")
         };
         push(d.name.clone(), u, Quantity::Dof(i, 0), Role::Solution);
         push(
@@ -227,6 +330,32 @@ pub(super) fn channel_table(
             Quantity::Deflection(i),
             Role::Other,
         );
+        if e.law.wheel().is_some() {
+            push(
+                format!("fy_{}", e.name),
+                "N",
+                Quantity::WheelLateral(i),
+                Role::Force,
+            );
+            push(
+                format!("ff_{}", e.name),
+                "N",
+                Quantity::Flange(i),
+                Role::Other,
+            );
+            push(
+                format!("fx_{}", e.name),
+                "N",
+                Quantity::Creep(i),
+                Role::Other,
+            );
+            push(
+                format!("dy_{}", e.name),
+                "m",
+                Quantity::Shift(i),
+                Role::Other,
+            );
+        }
     }
     report_column_clashes(&out, &owners, raw, diag);
     out

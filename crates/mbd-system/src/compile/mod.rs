@@ -37,8 +37,8 @@ use crate::diag::Diagnostics;
 use crate::expr::Expr;
 use crate::reader::Field;
 use crate::schema::{
-    self, DofKind, Named, ParamKind, RawBeam, RawBody, RawDescription, RawLaw, RawLink,
-    RawProfileKind, RawSupports,
+    self, Axis, DofKind, Named, ParamKind, RawBeam, RawBody, RawDescription, RawElement,
+    RawGeometry, RawLaw, RawLink, RawProfileKind, RawSupports, RawWheelset,
 };
 use crate::system::*;
 use crate::yaml::Pos;
@@ -201,6 +201,7 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
     let channels = stored_channels(&dofs, &table, raw, cx.diag);
     let indices = cx.indices(&channels);
     let railway = cx.railway(&channels);
+    let lateral = cx.lateral(&channels, &elements);
     let indices_from = cx.indices_from();
     cx.report_unused();
     let assembly = assemble(&bodies, &dofs, &elements, &loads);
@@ -227,6 +228,7 @@ pub fn compile(raw: &RawDescription, diag: &mut Diagnostics) -> Option<System> {
         channels,
         indices,
         railway,
+        lateral,
         indices_from,
         sampled_list,
     };

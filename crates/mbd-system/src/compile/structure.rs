@@ -14,16 +14,23 @@ impl Compiler<'_, '_> {
         for b in &self.raw.bodies {
             let what = format!("bodies.{}", b.name);
             let mass = self.scope.req(&b.mass, &format!("{what}.mass"), self.diag);
-            let inertia = self.inertia(b, &what);
             let mut body = Body {
                 name: b.name.clone(),
                 doc: b.doc.clone(),
                 mass: mass.unwrap_or(Expr::Num(f64::NAN)),
-                inertia,
+                inertia: None,
+                roll_inertia: None,
+                yaw_inertia: None,
+                inertia_map: !b.inertia_scalar && !b.inertia.is_empty(),
                 z: None,
                 pitch: None,
+                y: None,
+                roll: None,
+                yaw: None,
+                x: None,
                 points: Vec::new(),
             };
+            self.inertias(b, &what, &mut body);
             for (kind, _) in &b.dofs {
                 let i = dofs.len();
                 dofs.push(Dof {
@@ -31,17 +38,32 @@ impl Compiler<'_, '_> {
                     body: bodies.len(),
                     kind: *kind,
                 });
-                match kind {
-                    DofKind::Z => body.z = Some(i),
-                    DofKind::Pitch => body.pitch = Some(i),
-                }
+                let slot = match kind {
+                    DofKind::Z => &mut body.z,
+                    DofKind::Pitch => &mut body.pitch,
+                    DofKind::Y => &mut body.y,
+                    DofKind::Roll => &mut body.roll,
+                    DofKind::Yaw => &mut body.yaw,
+                    DofKind::X => &mut body.x,
+                };
+                *slot = Some(i);
             }
-            for (name, _, x) in &b.points {
-                if let Some(e) = self
-                    .scope
-                    .resolve(x, &format!("{what}.points.{name}"), self.diag)
-                {
-                    body.points.push((name.clone(), e));
+            for p in &b.points {
+                let w = format!("{what}.points.{}", p.name);
+                let x = self.scope.resolve(&p.x, &w, self.diag);
+                let y =
+                    p.y.as_ref()
+                        .and_then(|f| self.scope.resolve(f, &w, self.diag));
+                let z =
+                    p.z.as_ref()
+                        .and_then(|f| self.scope.resolve(f, &w, self.diag));
+                if let Some(x) = x {
+                    body.points.push(BodyPoint {
+                        name: p.name.clone(),
+                        x,
+                        y: y.filter(|e| !e.is_zero()),
+                        z: z.filter(|e| !e.is_zero()),
+                    });
                 }
             }
             bodies.push(body);
@@ -49,28 +71,49 @@ impl Compiler<'_, '_> {
         (bodies, dofs)
     }
 
-    /// A body's pitch inertia: required with a pitch DOF, refused without one.
-    fn inertia(&mut self, b: &RawBody, what: &str) -> Option<Expr> {
-        let pitches = b.dofs.iter().any(|d| d.0 == DofKind::Pitch);
-        match (&b.inertia, pitches) {
-            (Some(f), true) => self.scope.resolve(f, &format!("{what}.inertia"), self.diag),
-            (None, true) => {
-                self.diag.push(
-                    b.pos,
-                    format!("{what}: a body with a pitch DOF needs `inertia` (kg m^2)"),
-                );
-                None
+    /// A body's moments of inertia: one for each rotation DOF (required), none for a rotation
+    /// it does not have (refused).
+    fn inertias(&mut self, b: &RawBody, what: &str, body: &mut Body) {
+        for kind in [DofKind::Roll, DofKind::Pitch, DofKind::Yaw] {
+            let has_dof = b.dofs.iter().any(|d| d.0 == kind);
+            let given = b.inertia.iter().find(|(k, _)| *k == kind).map(|(_, f)| f);
+            let field = if b.inertia_scalar {
+                format!("{what}.inertia")
+            } else {
+                format!("{what}.inertia.{}", kind.keyword())
+            };
+            let value = match (given, has_dof) {
+                (Some(f), true) => self.scope.resolve(f, &field, self.diag),
+                (None, true) => {
+                    let how = if kind == DofKind::Pitch {
+                        "`inertia` (kg m^2)".to_owned()
+                    } else {
+                        format!("`inertia: {{{}: ...}}` (kg m^2)", kind.keyword())
+                    };
+                    self.diag.push(
+                        b.inertia_pos.unwrap_or(b.pos),
+                        format!("{what}: a body with a {} DOF needs {how}", kind.keyword()),
+                    );
+                    None
+                }
+                (Some(f), false) => {
+                    self.diag.push(
+                        f.pos,
+                        format!(
+                            "{field}: the body has no {} DOF (add `{}` to its `dofs`)",
+                            kind.keyword(),
+                            kind.keyword()
+                        ),
+                    );
+                    None
+                }
+                (None, false) => None,
+            };
+            match kind {
+                DofKind::Roll => body.roll_inertia = value,
+                DofKind::Pitch => body.inertia = value,
+                _ => body.yaw_inertia = value,
             }
-            (Some(f), false) => {
-                self.diag.push(
-                    f.pos,
-                    format!(
-                        "{what}.inertia: the body has no pitch DOF (dofs: [z, pitch] to add one)"
-                    ),
-                );
-                None
-            }
-            (None, false) => None,
         }
     }
 

@@ -4,7 +4,7 @@
 //!
 //! Sections (`docs/systems.md` documents each field with its unit):
 //! `format` (1), `name`, `doc`, `parameters`, `bodies`, `beams`, `moving`, `sensors`,
-//! `profiles`, `elements`, `loads`, `outputs`, `indices`, `railway`, `indices_from`.
+//! `profiles`, `elements`, `loads`, `outputs`, `indices`, `railway`, `lateral`, `indices_from`.
 //!
 //! This module holds the records; `sections` the readers, one per section, and [`read`] the
 //! whole description.
@@ -60,39 +60,158 @@ pub struct RawParameter {
     pub kind: ParamKind,
 }
 
-/// Kinds of rigid-body degrees of freedom.
+/// Kinds of rigid-body degrees of freedom: small motions of a body in space, in the frame `x`
+/// forward, `y` to the right, `z` down (right-handed), rotations about those axes by the
+/// right-hand rule.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum DofKind {
     /// Vertical displacement (m, positive downward); column `z_<body>`.
     Z,
-    /// Pitch rotation (rad, positive nose-up: the front rises); column `beta_<body>`.
+    /// Pitch rotation about `y` (rad, positive nose-up: the front rises); column `beta_<body>`.
     Pitch,
+    /// Lateral displacement (m, positive to the right); column `y_<body>`.
+    Y,
+    /// Roll rotation about `x` (rad, positive when the right side goes down); column
+    /// `phi_<body>`.
+    Roll,
+    /// Yaw rotation about `z` (rad, positive when the nose turns right); column `psi_<body>`.
+    Yaw,
+    /// Longitudinal displacement (m, positive forward); column `x_<body>`.
+    X,
 }
 
 impl DofKind {
+    /// Every kind, in the order a message lists them.
+    pub const ALL: [DofKind; 6] = [
+        DofKind::Z,
+        DofKind::Pitch,
+        DofKind::Y,
+        DofKind::Roll,
+        DofKind::Yaw,
+        DofKind::X,
+    ];
+
     /// The keyword in `dofs:`.
     pub fn keyword(self) -> &'static str {
         match self {
             DofKind::Z => "z",
             DofKind::Pitch => "pitch",
+            DofKind::Y => "y",
+            DofKind::Roll => "roll",
+            DofKind::Yaw => "yaw",
+            DofKind::X => "x",
         }
     }
 
-    /// The column prefix (`z`, `beta`).
+    /// The kind of a `dofs:` keyword.
+    pub fn from_keyword(keyword: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.keyword() == keyword)
+    }
+
+    /// The column prefix (`z`, `beta`, `y`, `phi`, `psi`, `x`).
     pub fn symbol(self) -> &'static str {
         match self {
             DofKind::Z => "z",
             DofKind::Pitch => "beta",
+            DofKind::Y => "y",
+            DofKind::Roll => "phi",
+            DofKind::Yaw => "psi",
+            DofKind::X => "x",
         }
+    }
+
+    /// Whether the DOF is a rotation (rad) rather than a displacement (m).
+    pub fn is_rotation(self) -> bool {
+        matches!(self, DofKind::Pitch | DofKind::Roll | DofKind::Yaw)
     }
 
     /// Unit of the displacement.
     pub fn unit(self) -> &'static str {
-        match self {
-            DofKind::Z => "m",
-            DofKind::Pitch => "rad",
+        if self.is_rotation() {
+            "rad"
+        } else {
+            "m"
         }
     }
+
+    /// Unit of the generalised force of the DOF (its equation of motion's residual).
+    pub fn force_unit(self) -> &'static str {
+        if self.is_rotation() {
+            "N m"
+        } else {
+            "N"
+        }
+    }
+}
+
+/// An axis of the body frame: the direction an element acts in or a load pushes along.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub enum Axis {
+    /// Longitudinal, positive forward.
+    X,
+    /// Lateral, positive to the right.
+    Y,
+    /// Vertical, positive downward (the default: every planar element).
+    #[default]
+    Z,
+}
+
+impl Axis {
+    /// Every axis with its keyword.
+    pub const ALL: [(Axis, &'static str); 3] = [(Axis::X, "x"), (Axis::Y, "y"), (Axis::Z, "z")];
+
+    /// The keyword of `direction:`.
+    pub fn keyword(self) -> &'static str {
+        Self::ALL
+            .iter()
+            .find(|(a, _)| *a == self)
+            .map_or("", |(_, k)| k)
+    }
+
+    /// The axis of a keyword.
+    pub fn from_keyword(keyword: &str) -> Option<Self> {
+        Self::ALL
+            .iter()
+            .find(|(_, k)| *k == keyword)
+            .map(|(a, _)| *a)
+    }
+
+    /// The translation DOF along this axis.
+    pub fn translation(self) -> DofKind {
+        match self {
+            Axis::X => DofKind::X,
+            Axis::Y => DofKind::Y,
+            Axis::Z => DofKind::Z,
+        }
+    }
+
+    /// The two rotations that move a point along this axis, with the point's coordinate each
+    /// multiplies and its sign: a small rotation `theta` moves the point `r = (x, y, z)` by
+    /// `theta x r`, so along `z` by `roll y - pitch x`, along `y` by `yaw x - roll z`, along `x`
+    /// by `pitch z - yaw y`. Coordinates are indexed 0 (`x`), 1 (`y`), 2 (`z`).
+    pub fn rotations(self) -> [(DofKind, usize, f64); 2] {
+        match self {
+            Axis::Z => [(DofKind::Pitch, 0, -1.0), (DofKind::Roll, 1, 1.0)],
+            Axis::Y => [(DofKind::Yaw, 0, 1.0), (DofKind::Roll, 2, -1.0)],
+            Axis::X => [(DofKind::Pitch, 2, 1.0), (DofKind::Yaw, 1, -1.0)],
+        }
+    }
+}
+
+/// A named attachment point of a body: `x` forward, `y` to the right, `z` down of the body's
+/// centre (m); a plain number is `x` alone.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawPoint {
+    /// Its name.
+    pub name: String,
+    /// Where.
+    pub pos: Pos,
+    /// Longitudinal position (m).
+    pub x: Field,
+    /// Lateral position (m), absent: 0.
+    pub y: Option<Field>,
+    /// Vertical position (m, downward), absent: 0.
+    pub z: Option<Field>,
 }
 
 /// One entry of `bodies`.
@@ -104,12 +223,18 @@ pub struct RawBody {
     pub pos: Pos,
     /// Mass (kg).
     pub mass: Option<Field>,
-    /// Pitch inertia about the centre (kg m^2), with a pitch DOF.
-    pub inertia: Option<Field>,
+    /// Moments of inertia about the centre (kg m^2), one per rotation DOF: `inertia: j` is the
+    /// pitch inertia, `inertia: {roll, pitch, yaw}` each axis's (principal axes; products of
+    /// inertia are not modelled).
+    pub inertia: Vec<(DofKind, Field)>,
+    /// Whether `inertia` was written as a plain value (the pitch inertia) rather than a map.
+    pub inertia_scalar: bool,
+    /// Where `inertia` was written.
+    pub inertia_pos: Option<Pos>,
     /// Its DOFs in the order written.
     pub dofs: Vec<(DofKind, Pos)>,
-    /// Attachment points: name and longitudinal position `x` (m, forward positive).
-    pub points: Vec<(String, Pos, Field)>,
+    /// Attachment points.
+    pub points: Vec<RawPoint>,
     /// What it is.
     pub doc: Option<String>,
 }
@@ -251,6 +376,15 @@ pub enum RawProfileKind {
         /// `interpolation:` (default linear) and where it is given (the profile's entry when
         /// not).
         interpolation: (Interpolation, Pos),
+        /// `until: {x, taper}`: the irregularity ends at `x` (m), faded out over the `taper`
+        /// (m) before it; zero beyond.
+        until: Option<(Field, Field)>,
+    },
+    /// A weighted sum of other (generated or harmonic) profiles, `sum_k w_k eta_k(x)`: a rail's
+    /// vertical profile from the track's vertical profile and its cross-level.
+    Combination {
+        /// The profiles and their weights (literal numbers).
+        terms: Vec<(Named, f64)>,
     },
     /// `eta(x) = amplitude sin(2 pi x / wavelength + phase)` (an analytic test input).
     Harmonic {
@@ -303,6 +437,8 @@ pub enum RawLaw {
         /// Damping (N s/m), default 0.
         c: Option<Field>,
     },
+    /// A wheelset on two rails.
+    Wheelset(Box<RawWheelset>),
 }
 
 impl RawLaw {
@@ -312,12 +448,90 @@ impl RawLaw {
             RawLaw::SpringDamper { .. } => "spring_damper",
             RawLaw::Hertz { .. } => "hertz",
             RawLaw::Table { .. } => "table",
+            RawLaw::Wheelset(_) => "wheelset",
         }
     }
 }
 
-/// One entry of `elements`: a force element between two points, compression positive when
-/// `from` moves down relative to `to`.
+/// The contact geometry of a wheelset's right wheel against its rail, as a function of the
+/// wheelset's lateral shift relative to the rail (the left wheel mirrors it).
+#[derive(Debug, Clone, PartialEq)]
+pub enum RawGeometry {
+    /// Conical treads of equivalent conicity `gamma` (rad): rolling radius `r0 + gamma u`,
+    /// contact angle `atan gamma`.
+    Conicity(Field),
+    /// Tabulated against the shift `u` (m, toward the wheel's flange): rolling-radius change
+    /// (m) and contact angle (rad), linear between the points, held beyond them.
+    Table {
+        /// Where the table was written.
+        pos: Pos,
+        /// Shifts (m), increasing.
+        shift: Vec<Field>,
+        /// Rolling-radius change at each shift (m).
+        radius: Vec<Field>,
+        /// Contact angle at each shift (rad).
+        angle: Vec<Field>,
+    },
+}
+
+/// Creep of a wheelset's contacts: materials, friction and the curvatures that fix the Hertz
+/// contact ellipse.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawCreep {
+    /// Where.
+    pub pos: Pos,
+    /// Young's modulus of wheel and rail (Pa).
+    pub young: Option<Field>,
+    /// Poisson's ratio of wheel and rail.
+    pub poisson: Option<Field>,
+    /// Coefficient of friction.
+    pub friction: Option<Field>,
+    /// Transverse radius of the rail head (m).
+    pub rail_radius: Option<Field>,
+    /// Transverse radius of the wheel tread (m; absent: a straight, conical tread).
+    pub wheel_profile_radius: Option<Field>,
+}
+
+/// Flange contact as a stiff lateral spring beyond a clearance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawFlange {
+    /// Where.
+    pub pos: Pos,
+    /// Lateral clearance between the tread contact and flange contact (m, >= 0).
+    pub clearance: Option<Field>,
+    /// Lateral stiffness of the flange contact (N/m).
+    pub stiffness: Option<Field>,
+}
+
+/// A wheelset on two rails (`kind: wheelset`): both wheels' contacts, compiled into one
+/// element per wheel (`<name>_l`, `<name>_r`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawWheelset {
+    /// The rail points under the left and the right wheel.
+    pub rails: Vec<Named>,
+    /// The vertical profiles under the left and the right wheel (optional).
+    pub profiles: Vec<Named>,
+    /// The bodies that carry each rail laterally (a `y` DOF; optional: rigid).
+    pub lateral_rails: Vec<Named>,
+    /// Where `rails` was written.
+    pub rails_pos: Pos,
+    /// Half the lateral distance between the contact points `e0` (m).
+    pub half_gauge: Option<Field>,
+    /// Nominal rolling radius `r0` (m).
+    pub radius: Option<Field>,
+    /// Hertz constant `G` (m/N^(2/3)) of each wheel's normal contact.
+    pub hertz: Option<Field>,
+    /// Contact geometry.
+    pub geometry: Option<RawGeometry>,
+    /// Creep.
+    pub creep: Option<RawCreep>,
+    /// Flange contact.
+    pub flange: Option<RawFlange>,
+}
+
+/// One entry of `elements`: a force element between two points acting along its `direction`,
+/// its deflection positive when `from` moves along the direction relative to `to` (for the
+/// default, vertical, direction: compression positive when `from` moves down).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RawElement {
     /// Name.
@@ -326,6 +540,8 @@ pub struct RawElement {
     pub pos: Pos,
     /// Its law.
     pub law: RawLaw,
+    /// The axis it acts along (default `z`) and where `direction:` was written.
+    pub direction: (Axis, Option<Pos>),
     /// Upper end (a body point).
     pub from: Option<Named>,
     /// Lower end (a body point, a moving point or `ground`).
@@ -334,7 +550,7 @@ pub struct RawElement {
     pub profile: Option<Named>,
 }
 
-/// One entry of `loads`: a constant downward force (N) at a point.
+/// One entry of `loads`: a constant force (N) at a point, along an axis (downward by default).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RawLoad {
     /// Name.
@@ -343,8 +559,10 @@ pub struct RawLoad {
     pub pos: Pos,
     /// The point (a body point or a moving point).
     pub at: Option<Named>,
-    /// Force (N, downward positive).
+    /// Force (N, positive along `direction`: downward for the default `z`).
     pub force: Option<Field>,
+    /// The axis it pushes along (default `z`) and where `direction:` was written.
+    pub direction: (Axis, Option<Pos>),
 }
 
 /// Statistics an index takes of a channel.
@@ -427,6 +645,44 @@ pub struct RawRailway {
     pub static_wheel_load: Option<Field>,
 }
 
+/// Limits of the lateral indices (`lateral.limits`), each a literal and where it was written.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RawLateralLimits {
+    /// Upper limit of the derailment quotient's 2 m sliding mean.
+    pub derailment_quotient: Option<(f64, Pos)>,
+    /// Upper limit of the wheelset lateral force over the Prud'homme limit.
+    pub lateral_force: Option<(f64, Pos)>,
+    /// Upper limit of the lateral Sperling index.
+    pub sperling: Option<(f64, Pos)>,
+    /// Upper limit of the lateral oscillation's growth rate after the irregularity (1/s).
+    pub stability: Option<(f64, Pos)>,
+}
+
+/// The `lateral` section: the lateral indices of a railway vehicle in space (`docs/indices.md`,
+/// "Lateral indices") bound to its wheelsets and columns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawLateral {
+    /// Where.
+    pub pos: Pos,
+    /// The wheelsets (`kind: wheelset` elements), front to rear.
+    pub wheelsets: Vec<Named>,
+    /// The car body's lateral, yaw and roll accelerations (stored columns).
+    pub car_body: Option<[Named; 3]>,
+    /// Half the distance between the bogie centres (m).
+    pub half_length: Option<Field>,
+    /// Height of the measuring points: `z` below the car body's centre (m).
+    pub floor: Option<Field>,
+    /// The static axle load `P0` (N) of the Prud'homme limit.
+    pub axle_load: Option<Field>,
+    /// The factor `alpha` of the Prud'homme limit `alpha (10 + P0 / 3)` kN (1 for passenger
+    /// vehicles), default 1.
+    pub prudhomme: Option<Field>,
+    /// The column whose oscillation after the irregularity gives the stability index.
+    pub stability: Option<Named>,
+    /// Limits.
+    pub limits: RawLateralLimits,
+}
+
 /// A description as written.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RawDescription {
@@ -456,6 +712,8 @@ pub struct RawDescription {
     pub indices: Vec<RawIndex>,
     /// `railway`.
     pub railway: Option<RawRailway>,
+    /// `lateral`.
+    pub lateral: Option<RawLateral>,
     /// `indices_from` (s) and where it was written.
     pub indices_from: Option<(f64, Pos)>,
 }

@@ -7,7 +7,7 @@ use crate::diag::Diagnostics;
 use crate::reader::{read_expr, read_names, read_pair, valid_name, MapReader};
 use crate::yaml::Node;
 
-const TOP: [&str; 15] = [
+const TOP: [&str; 16] = [
     "format",
     "name",
     "doc",
@@ -22,6 +22,7 @@ const TOP: [&str; 15] = [
     "outputs",
     "indices",
     "railway",
+    "lateral",
     "indices_from",
 ];
 
@@ -122,8 +123,9 @@ pub fn read(root: &Node, diag: &mut Diagnostics) -> RawDescription {
                 pos: *p,
                 at: m.required_string("at", diag),
                 force: m.required_expr("force", diag),
+                direction: direction(&mut m, &format!("loads.{n}"), diag),
             };
-            m.finish(&["at", "force"], diag);
+            m.finish(&["at", "force", "direction"], diag);
             Some(l)
         })
         .collect();
@@ -139,6 +141,9 @@ pub fn read(root: &Node, diag: &mut Diagnostics) -> RawDescription {
     }
     if let Some(node) = top.get("railway") {
         out.railway = railway(node, diag);
+    }
+    if let Some(node) = top.get("lateral") {
+        out.lateral = lateral(node, diag);
     }
     out.indices_from = top.number("indices_from", diag);
     top.finish(&TOP, diag);
@@ -238,21 +243,21 @@ fn body(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<Raw
     let what = format!("bodies.{name}");
     let mut m = MapReader::new(node, &what, diag)?;
     let mass = m.required_expr("mass", diag);
-    let inertia = m.expr("inertia", diag);
+    let inertia_node = m.get("inertia");
     let doc = m.string("doc", diag).map(|d| d.0);
     let mut dofs = Vec::new();
     if let Some(n) = m.required("dofs", diag) {
+        let allowed: Vec<&str> = DofKind::ALL.iter().map(|k| k.keyword()).collect();
         for (kw, p) in read_names(n, &format!("{what}.dofs"), diag) {
-            let kind = match kw.as_str() {
-                "z" => DofKind::Z,
-                "pitch" => DofKind::Pitch,
-                other => {
-                    diag.push(
-                        p,
-                        format!("{what}.dofs: unknown DOF `{other}`; allowed: z (vertical), pitch"),
-                    );
-                    continue;
-                }
+            let Some(kind) = DofKind::from_keyword(&kw) else {
+                diag.push(
+                    p,
+                    format!(
+                        "{what}.dofs: unknown DOF `{kw}`; allowed: {} (z vertical, pitch, y lateral, roll, yaw, x longitudinal)",
+                        allowed.join(", ")
+                    ),
+                );
+                continue;
             };
             if dofs.iter().any(|(k, _)| *k == kind) {
                 diag.push(p, format!("{what}.dofs: `{kw}` listed twice"));
@@ -263,10 +268,20 @@ fn body(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<Raw
         if dofs.is_empty() && n.as_seq().is_some() {
             diag.push(
                 n.pos,
-                format!("{what}.dofs: a body needs at least one DOF (z, pitch)"),
+                format!("{what}.dofs: a body needs at least one DOF (z, pitch, y, roll, yaw, x)"),
             );
         }
     }
+    let (inertia, inertia_scalar) = match inertia_node {
+        None => (Vec::new(), false),
+        Some(n) if n.as_map().is_some() => (inertia_axes(n, &what, diag), false),
+        Some(n) => (
+            read_expr(n, &format!("{what}.inertia"), diag)
+                .map(|f| vec![(DofKind::Pitch, f)])
+                .unwrap_or_default(),
+            true,
+        ),
+    };
     let mut points = Vec::new();
     if let Some(n) = m.get("points") {
         if let Some(mut pm) = MapReader::new(n, &format!("{what}.points"), diag) {
@@ -278,8 +293,14 @@ fn body(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<Raw
                     );
                     continue;
                 }
-                if let Some(f) = read_expr(v, &format!("{what}.points.{}", k.name), diag) {
-                    points.push((k.name.clone(), k.pos, f));
+                if let Some(p) = point(
+                    &k.name,
+                    k.pos,
+                    v,
+                    &format!("{what}.points.{}", k.name),
+                    diag,
+                ) {
+                    points.push(p);
                 }
             }
         }
@@ -290,10 +311,89 @@ fn body(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<Raw
         pos,
         mass,
         inertia,
+        inertia_scalar,
+        inertia_pos: inertia_node.map(|n| n.pos),
         dofs,
         points,
         doc,
     })
+}
+
+/// `inertia: {roll: .., pitch: .., yaw: ..}` (kg m^2, each optional).
+fn inertia_axes(node: &Node, what: &str, diag: &mut Diagnostics) -> Vec<(DofKind, Field)> {
+    let w = format!("{what}.inertia");
+    let Some(mut m) = MapReader::new(node, &w, diag) else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for kind in [DofKind::Roll, DofKind::Pitch, DofKind::Yaw] {
+        if let Some(f) = m.expr(kind.keyword(), diag) {
+            out.push((kind, f));
+        }
+    }
+    m.finish(&["roll", "pitch", "yaw"], diag);
+    out
+}
+
+/// A body point: `x` (a number or expression) or `[x, y, z]` (m; `y` right, `z` down).
+fn point(
+    name: &str,
+    pos: Pos,
+    node: &Node,
+    what: &str,
+    diag: &mut Diagnostics,
+) -> Option<RawPoint> {
+    let Some(items) = node.as_seq() else {
+        return read_expr(node, what, diag).map(|x| RawPoint {
+            name: name.to_owned(),
+            pos,
+            x,
+            y: None,
+            z: None,
+        });
+    };
+    if items.len() != 3 {
+        diag.push(
+            node.pos,
+            format!(
+                "{what}: a point is `x` or `[x, y, z]` (m: forward, right, down of the centre), found {} values",
+                items.len()
+            ),
+        );
+        return None;
+    }
+    let axes: Vec<Option<Field>> = ["x", "y", "z"]
+        .iter()
+        .zip(items)
+        .map(|(a, n)| read_expr(n, &format!("{what}.{a}"), diag))
+        .collect();
+    let [x, y, z]: [Option<Field>; 3] = axes.try_into().ok()?;
+    Some(RawPoint {
+        name: name.to_owned(),
+        pos,
+        x: x?,
+        y: Some(y?),
+        z: Some(z?),
+    })
+}
+
+/// `direction:` of an element or load: `x`, `y` or `z` (the default).
+fn direction(m: &mut MapReader, what: &str, diag: &mut Diagnostics) -> (Axis, Option<Pos>) {
+    match m.string("direction", diag) {
+        None => (Axis::Z, None),
+        Some((k, p)) => match Axis::from_keyword(&k) {
+            Some(a) => (a, Some(p)),
+            None => {
+                diag.push(
+                    p,
+                    format!(
+                        "{what}.direction: `{k}`; allowed: x (forward), y (right), z (down, the default)"
+                    ),
+                );
+                (Axis::Z, Some(p))
+            }
+        },
+    }
 }
 
 fn link(node: &Node, what: &str, diag: &mut Diagnostics) -> Option<RawLink> {
@@ -466,7 +566,17 @@ fn profile(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
                         }
                     },
                 };
-                m.finish(&["kind", "psd", "wavelengths", "interpolation"], diag);
+                let until = m.get("until").and_then(|n| {
+                    let mut u = MapReader::new(n, &format!("{what}.until"), diag)?;
+                    let x = u.required_expr("x", diag);
+                    let taper = u.required_expr("taper", diag);
+                    u.finish(&["x", "taper"], diag);
+                    Some((x?, taper?))
+                });
+                m.finish(
+                    &["kind", "psd", "wavelengths", "interpolation", "until"],
+                    diag,
+                );
                 let wavelengths = wavelengths?;
                 if !(wavelengths[0] > 0.0 && wavelengths[0] < wavelengths[1]) {
                     diag.push(
@@ -481,6 +591,7 @@ fn profile(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
                     segments: psd?,
                     wavelengths,
                     interpolation,
+                    until,
                 }
             }
             "harmonic" => {
@@ -492,8 +603,32 @@ fn profile(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
                 m.finish(&["kind", "amplitude", "wavelength", "phase"], diag);
                 k
             }
+            "combination" => {
+                let mut terms = Vec::new();
+                if let Some(n) = m.required("of", diag) {
+                    if let Some(mut om) = MapReader::new(n, &format!("{what}.of"), diag) {
+                        for (k, v) in om.entries() {
+                            if let Some(w) = crate::reader::read_number(
+                                v,
+                                &format!("{what}.of.{}", k.name),
+                                diag,
+                            ) {
+                                terms.push(((k.name.clone(), k.pos), w));
+                            }
+                        }
+                        if terms.is_empty() && n.as_map().is_some() {
+                            diag.push(
+                                n.pos,
+                                format!("{what}.of: at least one profile with its weight"),
+                            );
+                        }
+                    }
+                }
+                m.finish(&["kind", "of"], diag);
+                RawProfileKind::Combination { terms }
+            }
             other => {
-                diag.push(p, format!("{what}.kind: `{other}`; allowed: generated (random-phase from a spectrum, one per sample), harmonic (analytic)"));
+                diag.push(p, format!("{what}.kind: `{other}`; allowed: generated (random-phase from a spectrum, one per sample), harmonic (analytic), combination (a weighted sum of others)"));
                 return None;
             }
         },
@@ -591,19 +726,26 @@ fn element(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
     let what = format!("elements.{name}");
     let mut m = MapReader::new(node, &what, diag)?;
     let (kind, kpos) = m.required_string("kind", diag)?;
+    if kind == "wheelset" {
+        return wheelset(name, pos, m, diag);
+    }
     let from = m.required_string("from", diag);
     let to = m.required_string("to", diag);
     let profile = m.string("profile", diag);
     let common = ["kind", "from", "to", "profile"];
+    let mut directed = false;
     let (law, extra): (RawLaw, &[&str]) = match kind.as_str() {
-        "spring_damper" => (
-            RawLaw::SpringDamper {
-                k: m.required_expr("k", diag),
-                c: m.expr("c", diag),
-                preload: m.expr("preload", diag),
-            },
-            &["k", "c", "preload"],
-        ),
+        "spring_damper" => {
+            directed = true;
+            (
+                RawLaw::SpringDamper {
+                    k: m.required_expr("k", diag),
+                    c: m.expr("c", diag),
+                    preload: m.expr("preload", diag),
+                },
+                &["k", "c", "preload"],
+            )
+        }
         "hertz" => (
             RawLaw::Hertz {
                 g: m.required_expr("g", diag),
@@ -627,6 +769,7 @@ fn element(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
                     None => Vec::new(),
                 }
             };
+            directed = true;
             let deflection = list(&mut m, "deflection", diag);
             let force = list(&mut m, "force", diag);
             if deflection.len() != force.len() || deflection.len() < 2 {
@@ -644,20 +787,196 @@ fn element(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
         other => {
             diag.push(
                 kpos,
-                format!("{what}.kind: `{other}`; allowed: spring_damper, hertz, table"),
+                format!("{what}.kind: `{other}`; allowed: spring_damper, hertz, table, wheelset"),
             );
             return None;
         }
     };
-    let allowed: Vec<&str> = common.iter().chain(extra).copied().collect();
+    let direction = if directed {
+        direction(&mut m, &what, diag)
+    } else {
+        (Axis::Z, None)
+    };
+    let directions: &[&str] = if directed { &["direction"] } else { &[] };
+    let allowed: Vec<&str> = common
+        .iter()
+        .chain(extra)
+        .chain(directions)
+        .copied()
+        .collect();
     m.finish(&allowed, diag);
     Some(RawElement {
         name: name.to_owned(),
         pos,
         law,
+        direction,
         from,
         to,
         profile,
+    })
+}
+
+/// `kind: wheelset`: the wheelset body (`from`), the rail points, profiles and lateral rail
+/// bodies of its left and right wheel (pairs), its dimensions, contact geometry, creep and
+/// flange.
+fn wheelset(name: &str, pos: Pos, mut m: MapReader, diag: &mut Diagnostics) -> Option<RawElement> {
+    let what = format!("elements.{name}");
+    let from = m.required_string("from", diag);
+    let pair = |m: &mut MapReader, key: &str, required: bool, diag: &mut Diagnostics| {
+        let node = if required {
+            m.required(key, diag)
+        } else {
+            m.get(key)
+        };
+        let Some(node) = node else {
+            return (Vec::new(), pos);
+        };
+        let names = read_names(node, &format!("{what}.{key}"), diag);
+        if names.len() != 2 {
+            diag.push(
+                node.pos,
+                format!(
+                    "{what}.{key}: one for each wheel, [left, right]: 2 names, found {}",
+                    names.len()
+                ),
+            );
+        }
+        (names, node.pos)
+    };
+    let (rails, rails_pos) = pair(&mut m, "rails", true, diag);
+    let (profiles, _) = pair(&mut m, "profiles", false, diag);
+    let (lateral_rails, _) = pair(&mut m, "lateral_rails", false, diag);
+    let conicity = m.expr("conicity", diag);
+    let table = m
+        .get("geometry")
+        .and_then(|n| geometry_table(n, &format!("{what}.geometry"), diag));
+    let geometry = match (conicity, table) {
+        (Some(c), None) => Some(RawGeometry::Conicity(c)),
+        (None, Some(t)) => Some(t),
+        (None, None) => {
+            diag.push(pos, format!("{what}: give the contact geometry: `conicity` (equivalent conicity, rad) or `geometry: {{shift, radius, angle}}`"));
+            None
+        }
+        (Some(c), Some(_)) => {
+            diag.push(
+                c.pos,
+                format!("{what}: give `conicity` or `geometry`, not both"),
+            );
+            None
+        }
+    };
+    let creep = m.required("creep", diag).and_then(|n| {
+        let w = format!("{what}.creep");
+        let mut c = MapReader::new(n, &w, diag)?;
+        let r = RawCreep {
+            pos: n.pos,
+            young: c.required_expr("young", diag),
+            poisson: c.required_expr("poisson", diag),
+            friction: c.required_expr("friction", diag),
+            rail_radius: c.required_expr("rail_radius", diag),
+            wheel_profile_radius: c.expr("wheel_profile_radius", diag),
+        };
+        c.finish(
+            &[
+                "young",
+                "poisson",
+                "friction",
+                "rail_radius",
+                "wheel_profile_radius",
+            ],
+            diag,
+        );
+        Some(r)
+    });
+    let flange = m.get("flange").and_then(|n| {
+        let mut f = MapReader::new(n, &format!("{what}.flange"), diag)?;
+        let r = RawFlange {
+            pos: n.pos,
+            clearance: f.required_expr("clearance", diag),
+            stiffness: f.required_expr("stiffness", diag),
+        };
+        f.finish(&["clearance", "stiffness"], diag);
+        Some(r)
+    });
+    let w = RawWheelset {
+        rails,
+        profiles,
+        lateral_rails,
+        rails_pos,
+        half_gauge: m.required_expr("half_gauge", diag),
+        radius: m.required_expr("radius", diag),
+        hertz: m.required_expr("hertz", diag),
+        geometry,
+        creep,
+        flange,
+    };
+    m.finish(
+        &[
+            "kind",
+            "from",
+            "rails",
+            "profiles",
+            "lateral_rails",
+            "half_gauge",
+            "radius",
+            "hertz",
+            "conicity",
+            "geometry",
+            "creep",
+            "flange",
+        ],
+        diag,
+    );
+    Some(RawElement {
+        name: name.to_owned(),
+        pos,
+        law: RawLaw::Wheelset(Box::new(w)),
+        direction: (Axis::Z, None),
+        from,
+        to: None,
+        profile: None,
+    })
+}
+
+/// `geometry: {shift: [...], radius: [...], angle: [...]}`, as many of each, at least 2.
+fn geometry_table(node: &Node, what: &str, diag: &mut Diagnostics) -> Option<RawGeometry> {
+    let mut m = MapReader::new(node, what, diag)?;
+    let mut list = |key: &str, diag: &mut Diagnostics| -> Vec<Field> {
+        match m.required(key, diag) {
+            Some(n) => match n.as_seq() {
+                Some(items) => items
+                    .iter()
+                    .filter_map(|i| read_expr(i, &format!("{what}.{key}"), diag))
+                    .collect(),
+                None => {
+                    diag.push(n.pos, format!("{what}.{key}: expected a list"));
+                    Vec::new()
+                }
+            },
+            None => Vec::new(),
+        }
+    };
+    let shift = list("shift", diag);
+    let radius = list("radius", diag);
+    let angle = list("angle", diag);
+    m.finish(&["shift", "radius", "angle"], diag);
+    if shift.len() < 2 || radius.len() != shift.len() || angle.len() != shift.len() {
+        diag.push(
+            node.pos,
+            format!(
+                "{what}: `shift`, `radius` and `angle` need the same length, at least 2 (found {}, {} and {})",
+                shift.len(),
+                radius.len(),
+                angle.len()
+            ),
+        );
+        return None;
+    }
+    Some(RawGeometry::Table {
+        pos: node.pos,
+        shift,
+        radius,
+        angle,
     })
 }
 
@@ -741,6 +1060,73 @@ fn railway(node: &Node, diag: &mut Diagnostics) -> Option<RawRailway> {
             "bogies",
             "rails",
             "static_wheel_load",
+        ],
+        diag,
+    );
+    Some(r)
+}
+
+/// The `lateral` section.
+fn lateral(node: &Node, diag: &mut Diagnostics) -> Option<RawLateral> {
+    let mut m = MapReader::new(node, "lateral", diag)?;
+    let wheelsets = m
+        .required("wheelsets", diag)
+        .map(|n| read_names(n, "lateral.wheelsets", diag))
+        .unwrap_or_default();
+    let car_body = m.required("car_body", diag).and_then(|n| {
+        let mut c = MapReader::new(n, "lateral.car_body", diag)?;
+        let l = c.required_string("lateral", diag);
+        let y = c.required_string("yaw", diag);
+        let r = c.required_string("roll", diag);
+        c.finish(&["lateral", "yaw", "roll"], diag);
+        Some([l?, y?, r?])
+    });
+    let limits = match m.get("limits") {
+        None => RawLateralLimits::default(),
+        Some(n) => {
+            let mut l = match MapReader::new(n, "lateral.limits", diag) {
+                Some(l) => l,
+                None => return None,
+            };
+            let r = RawLateralLimits {
+                derailment_quotient: l.number("derailment_quotient", diag),
+                lateral_force: l.number("lateral_force", diag),
+                sperling: l.number("sperling", diag),
+                stability: l.number("stability", diag),
+            };
+            l.finish(
+                &[
+                    "derailment_quotient",
+                    "lateral_force",
+                    "sperling",
+                    "stability",
+                ],
+                diag,
+            );
+            r
+        }
+    };
+    let r = RawLateral {
+        pos: node.pos,
+        wheelsets,
+        car_body,
+        half_length: m.required_expr("half_length", diag),
+        floor: m.required_expr("floor", diag),
+        axle_load: m.required_expr("axle_load", diag),
+        prudhomme: m.expr("prudhomme", diag),
+        stability: m.string("stability", diag),
+        limits,
+    };
+    m.finish(
+        &[
+            "wheelsets",
+            "car_body",
+            "half_length",
+            "floor",
+            "axle_load",
+            "prudhomme",
+            "stability",
+            "limits",
         ],
         diag,
     );
