@@ -131,8 +131,19 @@ pub fn recipe(system: &System, meta: &ModelMeta) -> Result<Value> {
             Profile::Generated {
                 name,
                 interpolation,
+                until: None,
                 ..
             } => json!({"name": name, "kind": "points", "interpolation": interpolation.keyword()}),
+            Profile::Generated { name, .. } => {
+                return Err(Error::Unsupported(format!(
+                    "generated profile `{name}` ends (`until`): the recipe describes points read as they are"
+                )))
+            }
+            Profile::Combination { name, .. } => {
+                return Err(Error::Unsupported(format!(
+                    "profile `{name}` combines other profiles: the recipe describes single profiles"
+                )))
+            }
             Profile::Harmonic {
                 name,
                 amplitude,

@@ -1084,10 +1084,7 @@ fn lateral(node: &Node, diag: &mut Diagnostics) -> Option<RawLateral> {
     let limits = match m.get("limits") {
         None => RawLateralLimits::default(),
         Some(n) => {
-            let mut l = match MapReader::new(n, "lateral.limits", diag) {
-                Some(l) => l,
-                None => return None,
-            };
+            let mut l = MapReader::new(n, "lateral.limits", diag)?;
             let r = RawLateralLimits {
                 derailment_quotient: l.number("derailment_quotient", diag),
                 lateral_force: l.number("lateral_force", diag),
