@@ -482,22 +482,7 @@ fn draft_stage(
             format!("stage name `{name}` may only use letters, digits, `_` and `-`"),
         ));
     }
-    let cmd = rs.cmd.unwrap_or_default();
-    if cmd.is_empty() || cmd[0].is_empty() {
-        return Err(src.err(
-            loc.field_line(&name, "cmd"),
-            format!("stage `{name}`: `cmd` must name a program"),
-        ));
-    }
-    let exe = &cmd[0];
-    if exe.contains('/') {
-        if let Some(why) = escape(workspace, base, exe) {
-            return Err(src.err(
-                loc.field_line(&name, "cmd"),
-                format!("stage `{name}`: command `{exe}` {why} (or use a bare name)"),
-            ));
-        }
-    }
+    let cmd = stage_command(src, workspace, base, &name, rs.cmd)?;
     let shards = rs.shards.unwrap_or(1);
     if shards == 0 {
         return Err(src.err(
@@ -512,8 +497,67 @@ fn draft_stage(
             format!("stage `{name}`: {why}"),
         )
     })?;
-    let inputs: BTreeMap<String, Vec<String>> = rs
-        .inputs
+    let inputs = stage_inputs(src, &name, rs.inputs)?;
+    let params: Map<String, Value> = rs
+        .params
+        .map(|m| m.0.into_iter().collect())
+        .unwrap_or_default();
+    let matrix = rs.matrix.map(|m| m.0).unwrap_or_default();
+    check_matrix(src, &name, &params, &matrix)?;
+    Ok(Draft {
+        stage: Stage {
+            name,
+            line,
+            cmd,
+            inputs,
+            shards,
+            expansions: Vec::new(),
+            overrides: Vec::new(),
+            resources,
+            check: rs.check.unwrap_or(false),
+            extends: None,
+        },
+        params,
+        matrix,
+    })
+}
+
+/// A stage's `cmd`: it names a program, and a program given by path stays inside the workspace.
+fn stage_command(
+    src: &SourceFile,
+    workspace: &Path,
+    base: &Path,
+    name: &str,
+    cmd: Option<Vec<String>>,
+) -> Result<Vec<String>> {
+    let loc = &src.loc;
+    let cmd = cmd.unwrap_or_default();
+    if cmd.is_empty() || cmd[0].is_empty() {
+        return Err(src.err(
+            loc.field_line(name, "cmd"),
+            format!("stage `{name}`: `cmd` must name a program"),
+        ));
+    }
+    let exe = &cmd[0];
+    if exe.contains('/') {
+        if let Some(why) = escape(workspace, base, exe) {
+            return Err(src.err(
+                loc.field_line(name, "cmd"),
+                format!("stage `{name}`: command `{exe}` {why} (or use a bare name)"),
+            ));
+        }
+    }
+    Ok(cmd)
+}
+
+/// A stage's `inputs`: valid names, each naming at least one stage and none twice.
+fn stage_inputs(
+    src: &SourceFile,
+    name: &str,
+    raw: Option<UniqueMap<Upstreams>>,
+) -> Result<BTreeMap<String, Vec<String>>> {
+    let loc = &src.loc;
+    let inputs: BTreeMap<String, Vec<String>> = raw
         .map(|m| m.0)
         .unwrap_or_default()
         .into_iter()
@@ -521,7 +565,7 @@ fn draft_stage(
         .collect();
     if let Some(input) = inputs.keys().find(|i| !valid_name(i)) {
         return Err(src.err(
-            loc.field_line(&name, "inputs"),
+            loc.field_line(name, "inputs"),
             format!(
                 "stage `{name}`: input name `{input}` may only use letters, digits, `_` and `-`"
             ),
@@ -538,18 +582,24 @@ fn draft_stage(
         };
         if let Some(problem) = problem {
             return Err(src.err(
-                loc.field_line(&name, "inputs"),
+                loc.field_line(name, "inputs"),
                 format!("stage `{name}`: input `{input}` {problem}"),
             ));
         }
     }
-    let params: Map<String, Value> = rs
-        .params
-        .map(|m| m.0.into_iter().collect())
-        .unwrap_or_default();
-    let matrix = rs.matrix.map(|m| m.0).unwrap_or_default();
-    for (k, values) in &matrix {
-        let l = loc.word_line(&name, "matrix", k);
+    Ok(inputs)
+}
+
+/// A stage's `matrix`: no key also a parameter, every key with values, no value twice.
+fn check_matrix(
+    src: &SourceFile,
+    name: &str,
+    params: &Map<String, Value>,
+    matrix: &BTreeMap<String, Vec<Value>>,
+) -> Result<()> {
+    let loc = &src.loc;
+    for (k, values) in matrix {
+        let l = loc.word_line(name, "matrix", k);
         if params.contains_key(k) {
             return Err(src.err(
                 l,
@@ -569,22 +619,7 @@ fn draft_stage(
             ));
         }
     }
-    Ok(Draft {
-        stage: Stage {
-            name,
-            line,
-            cmd,
-            inputs,
-            shards,
-            expansions: Vec::new(),
-            overrides: Vec::new(),
-            resources,
-            check: rs.check.unwrap_or(false),
-            extends: None,
-        },
-        params,
-        matrix,
-    })
+    Ok(())
 }
 
 /// Every input names a stage of the pipeline.
@@ -791,6 +826,57 @@ fn expand_matrix(draft: &mut Draft) {
         .collect();
 }
 
+/// The directory of the stage programs: the command line wins, then the environment (both in
+/// `opts`), then the file's `bin_dir` (which must stay inside the workspace), then
+/// `target/release` of the workspace.
+fn resolve_bin_dir(
+    src: &SourceFile,
+    workspace: &Path,
+    base: &Path,
+    opts: &LoadOptions,
+    file_dir: Option<&str>,
+) -> Result<PathBuf> {
+    if let Some(d) = file_dir {
+        if let Some(why) = escape(workspace, base, d) {
+            return Err(src.err(src.loc.top_line("bin_dir"), format!("bin_dir `{d}` {why}")));
+        }
+    }
+    Ok(match (&opts.bin_dir, file_dir) {
+        (Some(d), _) => std::path::absolute(d).map_err(|e| Error::io(d, e))?,
+        (None, Some(d)) => normalize(&base.join(d)),
+        (None, None) => workspace.join("target").join("release"),
+    })
+}
+
+/// The drafted stages, each after the stages it reads; a dependency cycle is refused at the
+/// line of its first edge.
+fn in_dependency_order(
+    src: &SourceFile,
+    mut drafts: BTreeMap<String, Draft>,
+) -> Result<Vec<Stage>> {
+    let order = topo_order(
+        &drafts
+            .iter()
+            .map(|(k, d)| {
+                (
+                    k.clone(),
+                    d.stage.inputs.values().flatten().cloned().collect(),
+                )
+            })
+            .collect(),
+    )
+    .map_err(|cycle| {
+        src.err(
+            src.loc.word_line(&cycle[0], "inputs", &cycle[1]),
+            format!("dependency cycle: {}", cycle.join(" -> ")),
+        )
+    })?;
+    Ok(order
+        .into_iter()
+        .map(|n| drafts.remove(&n).expect("known stage").stage)
+        .collect())
+}
+
 impl Pipeline {
     /// Reads, parses and validates the pipeline file `file` (relative to the current
     /// directory) of the workspace `workspace`.
@@ -816,17 +902,7 @@ impl Pipeline {
             loc: Locator::new(&text),
         };
 
-        // bin_dir: the command line wins, then the environment, then the file.
-        if let Some(d) = &raw.bin_dir {
-            if let Some(why) = escape(&workspace, &base, d) {
-                return Err(src.err(src.loc.top_line("bin_dir"), format!("bin_dir `{d}` {why}")));
-            }
-        }
-        let bin_dir = match (&opts.bin_dir, &raw.bin_dir) {
-            (Some(d), _) => std::path::absolute(d).map_err(|e| Error::io(d, e))?,
-            (None, Some(d)) => normalize(&base.join(d)),
-            (None, None) => workspace.join("target").join("release"),
-        };
+        let bin_dir = resolve_bin_dir(&src, &workspace, &base, opts, raw.bin_dir.as_deref())?;
 
         let mut constants: Map<String, Value> = raw.constants.0.into_iter().collect();
         let mut drafts = BTreeMap::new();
@@ -870,27 +946,7 @@ impl Pipeline {
             expand_matrix(draft);
         }
 
-        let order = topo_order(
-            &drafts
-                .iter()
-                .map(|(k, d)| {
-                    (
-                        k.clone(),
-                        d.stage.inputs.values().flatten().cloned().collect(),
-                    )
-                })
-                .collect(),
-        )
-        .map_err(|cycle| {
-            src.err(
-                src.loc.word_line(&cycle[0], "inputs", &cycle[1]),
-                format!("dependency cycle: {}", cycle.join(" -> ")),
-            )
-        })?;
-        let stages = order
-            .into_iter()
-            .map(|n| drafts.remove(&n).expect("known stage").stage)
-            .collect();
+        let stages = in_dependency_order(&src, drafts)?;
         Ok(Self {
             file: display,
             key,

@@ -403,75 +403,81 @@ fn render(fig: &Figure) -> Result<Canvas> {
             (p % fig.cols * pw) as i64,
             (header + p / fig.cols * ph) as i64,
         );
-        cv.text(ox + 8, oy + 4, &panel.title, TEXT);
-        let (y0, y1) = (oy + TOP, oy + ph as i64 - BOTTOM);
-        let xr = range(panel.series.iter().flat_map(|s| &s.x), false);
-        let yr = range(panel.series.iter().flat_map(|s| &s.y), panel.log_y);
-        let (Some((xmin, xmax)), Some((ymin, ymax))) = (xr, yr) else {
-            // Nothing to draw: the frame alone.
-            cv.frame((ox + 8, y0, ox + pw as i64 - RIGHT, y1));
-            continue;
-        };
-        let max_y = ((y1 - y0) / Y_PITCH).max(3) as usize;
-        let yt = if panel.log_y {
-            log_ticks(ymin, ymax, max_y)
-        } else {
-            linear_ticks(ymin, ymax, max_y)
-        };
-        let label_w = yt.labels.iter().map(|l| text_width(l)).max().unwrap_or(0);
-        let (x0, x1) = (ox + 6 + label_w + 3 + TICK, ox + pw as i64 - RIGHT);
-        // As many x ticks as their labels leave room for.
-        let mut max_x = ((x1 - x0) / 40).max(3) as usize;
-        let xt = loop {
-            let t = linear_ticks(xmin, xmax, max_x);
-            let widest = t.labels.iter().map(|l| text_width(l)).max().unwrap_or(0);
-            if max_x <= 3 || t.at.len() as i64 * (widest + X_GAP) <= x1 - x0 {
-                break t;
-            }
-            max_x -= 1;
-        };
-        let fx = |x: f64| x0 + ((x - xt.lo) / (xt.hi - xt.lo) * (x1 - x0) as f64).round() as i64;
-        let fy = |y: f64| y1 - ((y - yt.lo) / (yt.hi - yt.lo) * (y1 - y0) as f64).round() as i64;
-        for (&x, l) in xt.at.iter().zip(&xt.labels) {
-            let px = fx(x);
-            cv.line((px, y0), (px, y1), GRID, false);
-            cv.line((px, y1), (px, y1 + TICK), FRAME, false);
-            cv.text(px - text_width(l) / 2, y1 + TICK + 3, l, TEXT);
-        }
-        for (&y, l) in yt.at.iter().zip(&yt.labels) {
-            let py = fy(y);
-            cv.line((x0, py), (x1, py), GRID, false);
-            cv.line((x0 - TICK, py), (x0, py), FRAME, false);
-            cv.text(x0 - TICK - 3 - text_width(l), py - 3, l, TEXT);
-        }
-        if !panel.log_y && yt.lo < 0.0 && yt.hi > 0.0 {
-            cv.line((x0, fy(0.0)), (x1, fy(0.0)), ZERO, false);
-        }
-        for s in &panel.series {
-            let mut last: Option<(i64, i64)> = None;
-            for (&x, &y) in s.x.iter().zip(&s.y) {
-                let y = if panel.log_y { y.log10() } else { y };
-                if !(x.is_finite() && y.is_finite()) {
-                    last = None;
-                    continue;
-                }
-                let q = (fx(x), fy(y));
-                if let Some(prev) = last {
-                    cv.line(prev, q, s.color, true);
-                }
-                last = Some(q);
-            }
-        }
-        cv.frame((x0, y0, x1, y1));
-        let xl = (x0 + x1 - text_width(&panel.xlabel)) / 2;
-        cv.text(xl, y1 + TICK + 3 + font::HEIGHT + 5, &panel.xlabel, TEXT);
-        cv.axes.push(Axes {
-            frame: (x0, y0, x1, y1),
-            x: xt,
-            y: yt,
-        });
+        draw_panel(&mut cv, panel, (ox, oy), (pw, ph));
     }
     Ok(cv)
+}
+
+/// Draws one panel (title, ticks and grid, series, frame, x label) with its top-left corner at
+/// `(ox, oy)` and the size `(pw, ph)` px, and records its axes.
+fn draw_panel(cv: &mut Canvas, panel: &Panel, (ox, oy): (i64, i64), (pw, ph): (usize, usize)) {
+    cv.text(ox + 8, oy + 4, &panel.title, TEXT);
+    let (y0, y1) = (oy + TOP, oy + ph as i64 - BOTTOM);
+    let xr = range(panel.series.iter().flat_map(|s| &s.x), false);
+    let yr = range(panel.series.iter().flat_map(|s| &s.y), panel.log_y);
+    let (Some((xmin, xmax)), Some((ymin, ymax))) = (xr, yr) else {
+        // Nothing to draw: the frame alone.
+        cv.frame((ox + 8, y0, ox + pw as i64 - RIGHT, y1));
+        return;
+    };
+    let max_y = ((y1 - y0) / Y_PITCH).max(3) as usize;
+    let yt = if panel.log_y {
+        log_ticks(ymin, ymax, max_y)
+    } else {
+        linear_ticks(ymin, ymax, max_y)
+    };
+    let label_w = yt.labels.iter().map(|l| text_width(l)).max().unwrap_or(0);
+    let (x0, x1) = (ox + 6 + label_w + 3 + TICK, ox + pw as i64 - RIGHT);
+    // As many x ticks as their labels leave room for.
+    let mut max_x = ((x1 - x0) / 40).max(3) as usize;
+    let xt = loop {
+        let t = linear_ticks(xmin, xmax, max_x);
+        let widest = t.labels.iter().map(|l| text_width(l)).max().unwrap_or(0);
+        if max_x <= 3 || t.at.len() as i64 * (widest + X_GAP) <= x1 - x0 {
+            break t;
+        }
+        max_x -= 1;
+    };
+    let fx = |x: f64| x0 + ((x - xt.lo) / (xt.hi - xt.lo) * (x1 - x0) as f64).round() as i64;
+    let fy = |y: f64| y1 - ((y - yt.lo) / (yt.hi - yt.lo) * (y1 - y0) as f64).round() as i64;
+    for (&x, l) in xt.at.iter().zip(&xt.labels) {
+        let px = fx(x);
+        cv.line((px, y0), (px, y1), GRID, false);
+        cv.line((px, y1), (px, y1 + TICK), FRAME, false);
+        cv.text(px - text_width(l) / 2, y1 + TICK + 3, l, TEXT);
+    }
+    for (&y, l) in yt.at.iter().zip(&yt.labels) {
+        let py = fy(y);
+        cv.line((x0, py), (x1, py), GRID, false);
+        cv.line((x0 - TICK, py), (x0, py), FRAME, false);
+        cv.text(x0 - TICK - 3 - text_width(l), py - 3, l, TEXT);
+    }
+    if !panel.log_y && yt.lo < 0.0 && yt.hi > 0.0 {
+        cv.line((x0, fy(0.0)), (x1, fy(0.0)), ZERO, false);
+    }
+    for s in &panel.series {
+        let mut last: Option<(i64, i64)> = None;
+        for (&x, &y) in s.x.iter().zip(&s.y) {
+            let y = if panel.log_y { y.log10() } else { y };
+            if !(x.is_finite() && y.is_finite()) {
+                last = None;
+                continue;
+            }
+            let q = (fx(x), fy(y));
+            if let Some(prev) = last {
+                cv.line(prev, q, s.color, true);
+            }
+            last = Some(q);
+        }
+    }
+    cv.frame((x0, y0, x1, y1));
+    let xl = (x0 + x1 - text_width(&panel.xlabel)) / 2;
+    cv.text(xl, y1 + TICK + 3 + font::HEIGHT + 5, &panel.xlabel, TEXT);
+    cv.axes.push(Axes {
+        frame: (x0, y0, x1, y1),
+        x: xt,
+        y: yt,
+    });
 }
 
 /// Renders and writes a PNG atomically (same figure, same bytes).
