@@ -266,7 +266,7 @@ class _Answers:
         on ``excitation_id`` (default: stream 0, or the table's first sample). ``x0`` (m)
         overrides the run's start."""
         df = _frame(
-            self._native._predict(_designs(designs), _excitation(excitation), _id(excitation_id), x0, coverage, int(batch), bool(strict))
+            self._native._answer("histories", _designs(designs), _excitation(excitation), _id(excitation_id), x0, coverage, int(batch), bool(strict))
         )
         _warn_outside(df)
         return df
@@ -292,7 +292,7 @@ class _Answers:
         its interval and verdict those of the member routed to it; ``pass``, ``failed`` and
         ``verdict`` judged on the assembled indices). Arguments as ``predict``."""
         df = _frame(
-            self._native._indices(_designs(designs), _excitation(excitation), _id(excitation_id), x0, coverage, int(batch), bool(strict))
+            self._native._answer("indices", _designs(designs), _excitation(excitation), _id(excitation_id), x0, coverage, int(batch), bool(strict))
         )
         _warn_outside(df)
         return df

@@ -3,7 +3,7 @@
 arguments their defaults; units are SI unless stated."""
 
 from os import PathLike
-from typing import Any, Optional
+from typing import Any, Literal, Optional
 
 __version__: str
 
@@ -78,8 +78,9 @@ class _Answers:
     @property
     def design_parameters(self) -> list[str]:
         """The design parameters, in value order."""
-    def _predict(
+    def _answer(
         self,
+        table: Literal["histories", "indices"],
         designs: object,
         excitation: object,
         excitation_id: Optional[int],
@@ -88,20 +89,9 @@ class _Answers:
         batch: int,
         strict: bool,
     ) -> ArrowTable:
-        """Time histories (``predict --out``): each row on the excitation of its
-        ``sample_id``, else of ``excitation_id``; ``x0`` in m."""
-    def _indices(
-        self,
-        designs: object,
-        excitation: object,
-        excitation_id: Optional[int],
-        x0: Optional[float],
-        coverage: Optional[float],
-        batch: int,
-        strict: bool,
-    ) -> ArrowTable:
-        """Indices with intervals and verdicts (``predict --indices``), rows as
-        ``_predict``; ``x0`` in m."""
+        """``histories``: time histories (``predict --out``), each row on the excitation of
+        its ``sample_id``, else of ``excitation_id``; ``indices``: indices with intervals and
+        verdicts (``predict --indices``), rows alike; ``x0`` in m."""
 
 class Model(_Answers):
     """A trained model with its optional calibration."""

@@ -14,7 +14,7 @@ use pino_eval::predict::{outside_flag, Predictor, ProfileSource};
 use pino_eval::surrogate::Surrogate;
 use pyo3::prelude::*;
 
-/// The arguments of a `_predict` / `_indices` call, as the Python layer passes them.
+/// The arguments of an `_answer` call, as the Python layer passes them.
 struct Request<'a, 'py> {
     designs: &'a Bound<'py, PyAny>,
     excitation: Option<&'a Bound<'py, PyAny>>,
@@ -171,12 +171,14 @@ impl PyAnswers {
         self.surrogate.primary().space.names().to_vec()
     }
 
-    /// Time histories of every design (the table of `predict --out`).
-    #[pyo3(signature = (designs, excitation, excitation_id, x0, coverage, batch, strict))]
+    /// One table of every design: `histories` (the table of `predict --out`) or `indices` (the
+    /// table of `predict --indices`).
+    #[pyo3(signature = (table, designs, excitation, excitation_id, x0, coverage, batch, strict))]
     #[allow(clippy::too_many_arguments)]
-    fn _predict(
+    fn _answer(
         &self,
         py: Python<'_>,
+        table: &str,
         designs: &Bound<'_, PyAny>,
         excitation: Option<&Bound<'_, PyAny>>,
         excitation_id: Option<i64>,
@@ -194,32 +196,12 @@ impl PyAnswers {
             batch,
             strict,
         };
-        predict(py, &self.surrogate, &r)
-    }
-
-    /// The engineering indices of every design (the table of `predict --indices`).
-    #[pyo3(signature = (designs, excitation, excitation_id, x0, coverage, batch, strict))]
-    #[allow(clippy::too_many_arguments)]
-    fn _indices(
-        &self,
-        py: Python<'_>,
-        designs: &Bound<'_, PyAny>,
-        excitation: Option<&Bound<'_, PyAny>>,
-        excitation_id: Option<i64>,
-        x0: Option<f64>,
-        coverage: Option<f64>,
-        batch: usize,
-        strict: bool,
-    ) -> PyResult<ArrowTable> {
-        let r = Request {
-            designs,
-            excitation,
-            excitation_id,
-            x0,
-            coverage,
-            batch,
-            strict,
-        };
-        indices(py, &self.surrogate, &r)
+        match table {
+            "histories" => predict(py, &self.surrogate, &r),
+            "indices" => indices(py, &self.surrogate, &r),
+            other => Err(value_error(format!(
+                "table `{other}`: allowed `histories` or `indices`"
+            ))),
+        }
     }
 }

@@ -166,7 +166,7 @@ def test_refusals_speak_of_the_packages_arguments(model, quarter_car) -> None:
 def test_tables_have_booleans_nulls_and_one_dimensionless_unit(run, model) -> None:
     """`pass`, `extrapolated` are Booleans, an absent flag is null, and every dimensionless
     column is in `1`: in the package's tables and in the files the stages write."""
-    native = model._native._indices(pl.DataFrame({"k_s": [2.0e4, 4.0e4]}), 7, None, None, None, 16, False)
+    native = model._native._answer("indices", pl.DataFrame({"k_s": [2.0e4, 4.0e4]}), 7, None, None, None, 16, False)
     units = dict(native.units)
     assert units["pass"] == units["extrapolated"] == units["set"] == units["outside_training_range"] == "1"
     assert "-" not in units.values(), units
