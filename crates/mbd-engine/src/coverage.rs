@@ -11,8 +11,8 @@
 //! start (`x0 < 0` under a generated profile).
 
 use crate::config::RunConfig;
+use crate::corners::{box_corners, corner_values};
 use crate::profile::ProfileSource;
-use crate::stability::{box_corners, corner_values};
 use crate::{Error, Result};
 use mbd_system::model::{Model, ModelEnd};
 use mbd_system::schema::Outside;
