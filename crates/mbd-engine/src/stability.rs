@@ -30,7 +30,7 @@
 //! [`POWER_MARGIN`]. The same split bounds the damping rate. A `dt` is accepted when every
 //! oscillator with `w <= w_max` and `2 xi w <= c_max` is stable.
 
-use crate::corners::{box_corners, corner_values};
+use crate::corners::{corner_values, largest_corners_up_to};
 use crate::engine::{Coupling, Engine};
 use mbd_system::model::{ModelEnd, ModelLaw};
 use std::f64::consts::PI;
@@ -576,48 +576,45 @@ fn moving_point_terms(engine: &Engine, tangent: &dyn Fn(usize) -> f64) -> Vec<(f
 
 /// The bound over the whole box of sampling ranges: the largest frequency and damping bounds
 /// over its corners (each bound term grows or falls monotonically with each parameter of the
-/// simple models, so the corners hold the extremes), with every corner's model assembled
-/// (coverage of the beams checked). Returns the bound and the corner that set the frequency
-/// bound, as `(name, value)` pairs.
+/// simple models, so the corners hold the extremes; which corners are visited:
+/// [`crate::corners`]), with every visited corner's model assembled (coverage of the beams
+/// checked). Returns the bound and the corner that set the frequency bound, as `(name,
+/// value)` pairs.
 pub fn parameter_box(
     system: &std::sync::Arc<mbd_system::System>,
     config: &crate::RunConfig,
 ) -> crate::Result<(Bound, Vec<(String, f64)>)> {
+    parameter_box_up_to(system, config, crate::corners::ALL_CORNERS_UP_TO)
+}
+
+/// [`parameter_box`], visiting every corner up to `all_up_to` sampled parameters.
+fn parameter_box_up_to(
+    system: &std::sync::Arc<mbd_system::System>,
+    config: &crate::RunConfig,
+    all_up_to: usize,
+) -> crate::Result<(Bound, Vec<(String, f64)>)> {
     let ranges = system.ranges();
-    let n = ranges.len();
-    let corners = box_corners(n);
-    use rayon::prelude::*;
-    let bounds: Vec<(Bound, u64)> = corners
-        .into_par_iter()
-        .map(|mask| {
-            let model = system.instantiate(&corner_values(system, &ranges, mask))?;
-            let engine = Engine::assemble(
-                system.clone(),
-                model,
-                config,
-                Vec::new(),
-                crate::Route::Fast,
-            )?;
-            Ok((Bound::of(&engine), mask))
-        })
-        .collect::<crate::Result<_>>()?;
-    let damping = bounds.iter().map(|b| b.0.damping_max).fold(0.0, f64::max);
-    // The first corner (in mask order) with the largest frequency bound: deterministic.
-    let worst = bounds
-        .iter()
-        .fold(None, |w: Option<&(Bound, u64)>, b| match w {
-            Some(w) if w.0.omega_max >= b.0.omega_max => Some(w),
-            _ => Some(b),
-        });
-    let &(b, mask) = worst.expect("at least one corner");
+    let largest = largest_corners_up_to(ranges.len(), all_up_to, &|mask| {
+        let model = system.instantiate(&corner_values(system, &ranges, mask))?;
+        let engine = Engine::assemble(
+            system.clone(),
+            model,
+            config,
+            Vec::new(),
+            crate::Route::Fast,
+        )?;
+        let b = Bound::of(&engine);
+        Ok(vec![b.omega_max, b.damping_max])
+    })?;
+    let (omega_max, mask) = largest[0];
     let corner = corner_values(system, &ranges, mask)
         .iter()
         .map(|(n, v)| (n.to_owned(), v))
         .collect();
     Ok((
         Bound {
-            omega_max: b.omega_max,
-            damping_max: damping,
+            omega_max,
+            damping_max: largest[1].0,
         },
         corner,
     ))
@@ -630,6 +627,35 @@ fn mb_mu(engine: &Engine, b: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The bound over the box found by the search of [`crate::corners`] is the bound of
+    /// every corner visited, on the shipped quarter car and bridge (their bounds move
+    /// monotonically with each parameter).
+    #[test]
+    fn the_searched_box_bound_is_the_bound_over_every_corner() {
+        let config = crate::RunConfig {
+            duration: 0.5,
+            dt: 1e-4,
+            output_every: 10,
+            start: crate::StartMode::Equilibrium,
+            startup_zero_fraction: 0.0,
+            startup_ramp_fraction: 0.0,
+            x0: 5.0,
+        };
+        for text in [
+            include_str!("../../../systems/quarter-car.yaml"),
+            include_str!("../../../systems/bridge.yaml"),
+        ] {
+            let system = std::sync::Arc::new(
+                mbd_system::load_str(text, "s.yaml", &Default::default())
+                    .unwrap_or_else(|d| panic!("{d}")),
+            );
+            let (every, _) = parameter_box_up_to(&system, &config, 64).unwrap();
+            let (searched, corner) = parameter_box_up_to(&system, &config, 0).unwrap();
+            assert_eq!(searched, every, "{}", system.name);
+            assert_eq!(corner.len(), system.ranges().len());
+        }
+    }
 
     /// The worked limits of the damped oscillator, to the 2 decimals given.
     #[test]
