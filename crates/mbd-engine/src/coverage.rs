@@ -11,8 +11,8 @@
 //! start (`x0 < 0` under a generated profile).
 
 use crate::config::RunConfig;
+use crate::corners::{corner_values, largest_corners};
 use crate::profile::ProfileSource;
-use crate::stability::{box_corners, corner_values};
 use crate::{Error, Result};
 use mbd_system::model::{Model, ModelEnd};
 use mbd_system::schema::Outside;
@@ -175,9 +175,10 @@ impl std::fmt::Display for EarlyRead {
 /// Refuses a run whose moving points read a generated profile before its start
 /// ([`GENERATED_PROFILE_START`]) anywhere in the box of sampling ranges, the check a pipeline
 /// makes before any profile exists: the positions read, `x0 + v t + offset` with the speed and
-/// the offsets expressions of the sampled parameters, are taken at every corner of the box
-/// ([`box_corners`], as the time-step bound is), and the least position each element reads is
-/// checked with the per-sample check's own comparison. The error
+/// the offsets expressions of the sampled parameters, are taken at the corners of the box
+/// (every corner, or the searched least one: [`crate::corners`], as for the time-step bound),
+/// and the least position each element reads is checked with the per-sample check's own
+/// comparison. The error
 /// ([`Error::BeforeProfile`]) gives the least `x0` that passes and the corner that reads
 /// least. A corner out of the description's domains is refused as a sample would be.
 pub fn check_profile_starts(system: &System, c: &RunConfig) -> Result<()> {
@@ -200,27 +201,18 @@ pub fn check_profile_starts(system: &System, c: &RunConfig) -> Result<()> {
         return Ok(());
     }
     let ranges = system.ranges();
-    use rayon::prelude::*;
-    let corners: Vec<(Vec<Read>, u64)> = box_corners(ranges.len())
-        .into_par_iter()
-        .map(|mask| {
-            let model = system.instantiate(&corner_values(system, &ranges, mask))?;
-            Ok((profile_reads(&model, c), mask))
-        })
-        .collect::<Result<_>>()?;
-    // Per element, the corner whose read starts least (the first in mask order at a tie).
-    let mut least: Vec<(Read, u64)> = Vec::new();
-    for (reads, mask) in corners {
-        if least.is_empty() {
-            least = reads.into_iter().map(|r| (r, mask)).collect();
-            continue;
-        }
-        for (l, r) in least.iter_mut().zip(reads) {
-            if r.x[0] < l.0.x[0] {
-                *l = (r, mask);
-            }
-        }
-    }
+    let reads_at = |mask: u64| -> Result<Vec<Read>> {
+        let model = system.instantiate(&corner_values(system, &ranges, mask))?;
+        Ok(profile_reads(&model, c))
+    };
+    // Per element, the corner whose read starts least.
+    let least: Vec<(Read, u64)> = largest_corners(ranges.len(), |mask| {
+        Ok(reads_at(mask)?.iter().map(|r| -r.x[0]).collect())
+    })?
+    .iter()
+    .enumerate()
+    .map(|(k, &(_, mask))| Ok((reads_at(mask)?[k], mask)))
+    .collect::<Result<_>>()?;
     let reads: Vec<Read> = least.iter().map(|l| l.0).collect();
     let Some((k, have)) = uncovered(&reads, generated) else {
         return Ok(());
@@ -259,26 +251,22 @@ pub fn check_profile_starts(system: &System, c: &RunConfig) -> Result<()> {
 }
 
 /// The farthest position (m) an element reads a generated profile at in run `c`, over the box
-/// of sampling ranges (every corner, [`box_corners`], as [`check_profile_starts`] takes them):
+/// of sampling ranges (its corners, as [`check_profile_starts`] takes them):
 /// what a generated profile must reach to cover the run of every design inside the ranges;
 /// `None` when no element reads a generated profile (or the profiles never come on).
 pub fn generated_profile_reach(system: &System, c: &RunConfig) -> Result<Option<f64>> {
     c.validate()?;
     let generated = |p: usize| matches!(system.profiles[p], DescribedProfile::Generated { .. });
     let ranges = system.ranges();
-    use rayon::prelude::*;
-    let reach: Vec<Option<f64>> = box_corners(ranges.len())
-        .into_par_iter()
-        .map(|mask| {
-            let model = system.instantiate(&corner_values(system, &ranges, mask))?;
-            Ok(profile_reads(&model, c)
-                .iter()
-                .filter(|r| generated(r.profile))
-                .map(|r| r.x[1])
-                .reduce(f64::max))
-        })
-        .collect::<Result<_>>()?;
-    Ok(reach.into_iter().flatten().reduce(f64::max))
+    let reach = largest_corners(ranges.len(), |mask| {
+        let model = system.instantiate(&corner_values(system, &ranges, mask))?;
+        Ok(profile_reads(&model, c)
+            .iter()
+            .filter(|r| generated(r.profile))
+            .map(|r| r.x[1])
+            .collect())
+    })?;
+    Ok(reach.into_iter().map(|r| r.0).reduce(f64::max))
 }
 
 /// [`check_profile_starts`] as a pipeline's check mode reports it: its refusal placed at the
@@ -475,13 +463,14 @@ mod tests {
     }
 
     /// The shipped descriptions pass with the start positions of their shipped pipelines
-    /// (`pipeline.yaml` and `configs/`: vtcd 20 m, quarter car 5 m, bridge 0 m).
+    /// (`pipeline.yaml` and `configs/`: vtcd 20 m, quarter car 5 m, bridge 0 m, vtcd-3d 20 m).
     #[test]
     fn the_shipped_systems_pass_from_their_shipped_starts() {
         for (text, x0) in [
             (include_str!("../../../systems/vtcd.yaml"), 20.0),
             (QUARTER_CAR, 5.0),
             (include_str!("../../../systems/bridge.yaml"), 0.0),
+            (include_str!("../../../systems/vtcd-3d.yaml"), 20.0),
         ] {
             let system = compile(text);
             check_profile_starts(&system, &run(x0, 0.0)).unwrap_or_else(|e| panic!("{e}"));

@@ -30,13 +30,13 @@
 //! (every output step) ends the sample with a [`Failure`] naming what and when.
 
 use crate::beam::{ModalBeam, LANES};
-use crate::config::{RunConfig, StartMode};
+use crate::config::RunConfig;
 use crate::coverage::check_coverage;
 use crate::dst::SineTransform;
 use crate::integrator;
 use crate::profile::{Profile, ProfileSource};
 use crate::wheel::{Wheel, WheelForces};
-use crate::{Error, Result};
+use crate::Result;
 use mbd_system::model::{Model, ModelEnd, ModelProfile, ModelSupports};
 use mbd_system::system::{Quantity, Source};
 use mbd_system::System;
@@ -105,15 +105,6 @@ pub struct Failure {
     pub t: f64,
     /// What was not finite.
     pub reason: String,
-}
-
-/// Stored rows of one sample: `t` and one column per stored channel.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Trajectory {
-    /// Output times (s).
-    pub t: Vec<f64>,
-    /// Channel columns in [`System::channels`] order, each `t.len()` long.
-    pub columns: Vec<Vec<f64>>,
 }
 
 /// Quantities of one force evaluation besides the accelerations.
@@ -231,32 +222,6 @@ fn fast_structure(beam: &mbd_system::model::ModelBeam, s: &ModelSupports) -> boo
 }
 
 impl Engine {
-    /// Assembles one sample's model on the fast path; see [`Engine::with_route`].
-    pub fn new(
-        system: Arc<System>,
-        model: Model,
-        config: &RunConfig,
-        profiles: Vec<Option<Profile>>,
-    ) -> Result<Self> {
-        Self::with_route(system, model, config, profiles, Route::Fast)
-    }
-
-    /// Assembles one sample's model. `profiles[p]` supplies the points of generated profile
-    /// `p` (`None`: a level profile). Checks the run controls, that the moving points stay on
-    /// the beams that refuse leavers and, while the profiles are on, on their profiles, and the
-    /// time step against the stability bound ([`crate::stability`]).
-    pub fn with_route(
-        system: Arc<System>,
-        model: Model,
-        config: &RunConfig,
-        profiles: Vec<Option<Profile>>,
-        route: Route,
-    ) -> Result<Self> {
-        let engine = Self::assemble(system, model, config, profiles, route)?;
-        crate::stability::Bound::of(&engine).check(config.dt)?;
-        Ok(engine)
-    }
-
     /// As [`Engine::with_route`] without the time-step check (for bounds over many models).
     pub fn assemble(
         system: Arc<System>,
@@ -267,11 +232,6 @@ impl Engine {
     ) -> Result<Self> {
         config.validate()?;
         let sources = profile_sources(&model, profiles)?;
-        // Layout and beams.
-        let rigid = model.dof_mass.len();
-        let mut at = rigid;
-        let mut layout_beams = Vec::new();
-        let mut beams = Vec::new();
         let needs_rate: Vec<bool> = model
             .elements
             .iter()
@@ -283,102 +243,10 @@ impl Engine {
             .zip(&needs_rate)
             .map(|(e, &needed)| needed || e.reads_profile_rate())
             .collect();
-        for (b, mb) in model.beams.iter().enumerate() {
-            let modes = at..at + mb.modes;
-            at = modes.end;
-            let n_sup = mb.supports.as_ref().map_or(0, |s| s.count * s.levels.len());
-            let supports = at..at + n_sup;
-            at = supports.end;
-            layout_beams.push(BeamLayout { modes, supports });
-            let modal = ModalBeam::new(
-                mb.length,
-                mb.mass_per_length,
-                mb.bending_stiffness,
-                mb.modes,
-                mb.damping_ratio,
-            );
-            let coupling = match &mb.supports {
-                None => Coupling::None,
-                Some(s) if route == Route::Fast && fast_structure(mb, s) => {
-                    Coupling::Fast(s.clone())
-                }
-                Some(s) => {
-                    let mut shapes = vec![0.0; s.count * mb.modes];
-                    for (j, x) in crate::supports::positions(s).into_iter().enumerate() {
-                        modal.shapes_at(x, &mut shapes[j * mb.modes..(j + 1) * mb.modes]);
-                    }
-                    Coupling::Dense(s.clone(), shapes)
-                }
-            };
-            let points: Vec<usize> = model
-                .points
-                .iter()
-                .enumerate()
-                .filter(|(_, p)| p.0 == Some(b))
-                .map(|(i, _)| i)
-                .collect();
-            let rates = model.elements.iter().zip(&needs_rate).any(|(e, &r)| {
-                r && matches!(e.to, ModelEnd::Moving(p) if model.points[p].0 == Some(b))
-            });
-            let offsets =
-                |pts: &[usize]| -> Vec<f64> { pts.iter().map(|&p| model.points[p].1).collect() };
-            let shares = beams.iter().position(|other: &BeamRuntime| {
-                !rates
-                    && !other.rates
-                    && other.shares.is_none()
-                    && other.modal.length == modal.length
-                    && other.modal.modes() == modal.modes()
-                    && other.modal.shape_scale == modal.shape_scale
-                    && offsets(&other.points) == offsets(&points)
-            });
-            beams.push(BeamRuntime {
-                modal,
-                points,
-                coupling,
-                rates,
-                shares,
-            });
-        }
-        let layout = Layout {
-            rigid,
-            beams: layout_beams,
-            len: at,
-        };
-        // Net force terms of each moving point, in the accumulation order of the assembly.
-        let mut point_terms = vec![Vec::new(); model.points.len()];
-        let kinds = [false, true];
-        for contact in kinds {
-            if contact {
-                for (i, l) in model.loads.iter().enumerate() {
-                    if let ModelEnd::Moving(p) = l.at {
-                        point_terms[p].push((Source::Load(i), 1.0));
-                    }
-                }
-            }
-            for (i, e) in model.elements.iter().enumerate() {
-                if e.law.is_contact() == contact {
-                    if let ModelEnd::Moving(p) = e.to {
-                        point_terms[p].push((Source::Element(i), 1.0));
-                    }
-                }
-            }
-        }
+        let (layout, beams) = beam_layout(&model, &needs_rate, route);
+        let point_terms = point_terms(&model);
         let wheels = run_wheels(&system, &model)?;
-        let same_read = (0..model.elements.len())
-            .map(|e| {
-                let el = &model.elements[e];
-                let ModelEnd::Moving(pt) = el.to else {
-                    return None;
-                };
-                el.profile?;
-                (0..e).find(|&f| {
-                    let other = &model.elements[f];
-                    other.profile == el.profile
-                        && other.to == ModelEnd::Moving(pt)
-                        && (profile_rate[f] || !profile_rate[e])
-                })
-            })
-            .collect();
+        let same_read = same_reads(&model, &profile_rate);
         let sensor_shapes = model
             .sensors
             .iter()
@@ -722,24 +590,6 @@ impl Engine {
         }
     }
 
-    /// Runs from [`Engine::initial_state`] for `steps` steps, calling `observe` at every step
-    /// (including step 0). Stops with a [`Failure`] on a non-finite element force or rigid
-    /// acceleration (every step) or state (every output step), or when `cancel` is set (checked
-    /// every output step; the failure then says so).
-    pub fn run_observed(
-        &self,
-        steps: usize,
-        cancel: Option<&AtomicBool>,
-        observe: impl FnMut(&StepView),
-    ) -> std::result::Result<(), Failure> {
-        let x = self.initial_state().map_err(|e| Failure {
-            t: 0.0,
-            reason: format!("initial state: {e}"),
-        })?;
-        let v = vec![0.0; self.layout.len];
-        self.run_observed_from(x, v, steps, cancel, observe)
-    }
-
     /// As [`Engine::run_observed`] from the state `(x, v)` at `t = 0` (each [`Layout::len`]
     /// long) instead of the start of the run controls: a perturbed equilibrium, a state
     /// carried over from another run.
@@ -820,35 +670,6 @@ impl Engine {
         Ok(())
     }
 
-    /// Runs the configured duration and returns the stored rows.
-    pub fn run(&self) -> std::result::Result<Trajectory, Failure> {
-        self.run_cancellable(None)
-    }
-
-    /// As [`Engine::run`], stopping early when `cancel` is set.
-    pub fn run_cancellable(
-        &self,
-        cancel: Option<&AtomicBool>,
-    ) -> std::result::Result<Trajectory, Failure> {
-        let n_out = self.config.n_outputs();
-        let every = self.config.output_every;
-        let channels = &self.system.channels;
-        let mut t_col = Vec::with_capacity(n_out);
-        let mut columns: Vec<Vec<f64>> = (0..channels.len())
-            .map(|_| Vec::with_capacity(n_out))
-            .collect();
-        self.run_observed((n_out - 1) * every, cancel, |s| {
-            if s.step % every != 0 {
-                return;
-            }
-            t_col.push(s.t);
-            for (col, ch) in columns.iter_mut().zip(channels) {
-                col.push(self.channel_value(ch.quantity, s));
-            }
-        })?;
-        Ok(Trajectory { t: t_col, columns })
-    }
-
     /// The value of a stored quantity at a step.
     pub fn channel_value(&self, quantity: Quantity, s: &StepView) -> f64 {
         match quantity {
@@ -877,15 +698,6 @@ impl Engine {
         }
     }
 
-    /// Displacements at `t = 0`: zero for [`StartMode::Rest`], the static equilibrium
-    /// ([`crate::statics`]) for [`StartMode::Equilibrium`].
-    pub fn initial_state(&self) -> Result<Vec<f64>> {
-        match self.config.start {
-            StartMode::Rest => Ok(vec![0.0; self.layout.len]),
-            StartMode::Equilibrium => crate::statics::equilibrium(self),
-        }
-    }
-
     /// One force evaluation at `(t, x, v)`: the accelerations and the quantities.
     pub fn evaluate(&self, t: f64, x: &[f64], v: &[f64]) -> (Vec<f64>, Quantities) {
         let mut ws = self.workspace();
@@ -893,6 +705,134 @@ impl Engine {
         self.accelerations(&mut ws, t, x, v, &mut a);
         (a, ws.q)
     }
+}
+
+/// The state layout (rigid DOFs, then per beam its modes and support levels) and every beam at
+/// run time: its modes, points, coupling to its supports by `route`, and whether it shares the
+/// mode shapes of an earlier beam.
+fn beam_layout(model: &Model, needs_rate: &[bool], route: Route) -> (Layout, Vec<BeamRuntime>) {
+    let rigid = model.dof_mass.len();
+    let mut at = rigid;
+    let mut layout_beams = Vec::new();
+    let mut beams = Vec::new();
+    for (b, mb) in model.beams.iter().enumerate() {
+        let modes = at..at + mb.modes;
+        at = modes.end;
+        let n_sup = mb.supports.as_ref().map_or(0, |s| s.count * s.levels.len());
+        let supports = at..at + n_sup;
+        at = supports.end;
+        layout_beams.push(BeamLayout { modes, supports });
+        let beam = beam_runtime(model, b, needs_rate, route, &beams);
+        beams.push(beam);
+    }
+    let layout = Layout {
+        rigid,
+        beams: layout_beams,
+        len: at,
+    };
+    (layout, beams)
+}
+
+/// Beam `b` at run time, after the `earlier` beams (the first of which with the same modes and
+/// point offsets, neither needing deflection rates, lends it its mode shapes).
+fn beam_runtime(
+    model: &Model,
+    b: usize,
+    needs_rate: &[bool],
+    route: Route,
+    earlier: &[BeamRuntime],
+) -> BeamRuntime {
+    let mb = &model.beams[b];
+    let modal = ModalBeam::new(
+        mb.length,
+        mb.mass_per_length,
+        mb.bending_stiffness,
+        mb.modes,
+        mb.damping_ratio,
+    );
+    let coupling = match &mb.supports {
+        None => Coupling::None,
+        Some(s) if route == Route::Fast && fast_structure(mb, s) => Coupling::Fast(s.clone()),
+        Some(s) => {
+            let mut shapes = vec![0.0; s.count * mb.modes];
+            for (j, x) in crate::supports::positions(s).into_iter().enumerate() {
+                modal.shapes_at(x, &mut shapes[j * mb.modes..(j + 1) * mb.modes]);
+            }
+            Coupling::Dense(s.clone(), shapes)
+        }
+    };
+    let points: Vec<usize> = model
+        .points
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.0 == Some(b))
+        .map(|(i, _)| i)
+        .collect();
+    let rates =
+        model.elements.iter().zip(needs_rate).any(|(e, &r)| {
+            r && matches!(e.to, ModelEnd::Moving(p) if model.points[p].0 == Some(b))
+        });
+    let offsets = |pts: &[usize]| -> Vec<f64> { pts.iter().map(|&p| model.points[p].1).collect() };
+    let shares = earlier.iter().position(|other: &BeamRuntime| {
+        !rates
+            && !other.rates
+            && other.shares.is_none()
+            && other.modal.length == modal.length
+            && other.modal.modes() == modal.modes()
+            && other.modal.shape_scale == modal.shape_scale
+            && offsets(&other.points) == offsets(&points)
+    });
+    BeamRuntime {
+        modal,
+        points,
+        coupling,
+        rates,
+        shares,
+    }
+}
+
+/// Per moving point, the terms of its net force in the accumulation order of the assembly:
+/// the non-contact elements, then the loads, then the contacts.
+fn point_terms(model: &Model) -> Vec<Vec<(Source, f64)>> {
+    let mut point_terms = vec![Vec::new(); model.points.len()];
+    let kinds = [false, true];
+    for contact in kinds {
+        if contact {
+            for (i, l) in model.loads.iter().enumerate() {
+                if let ModelEnd::Moving(p) = l.at {
+                    point_terms[p].push((Source::Load(i), 1.0));
+                }
+            }
+        }
+        for (i, e) in model.elements.iter().enumerate() {
+            if e.law.is_contact() == contact {
+                if let ModelEnd::Moving(p) = e.to {
+                    point_terms[p].push((Source::Element(i), 1.0));
+                }
+            }
+        }
+    }
+    point_terms
+}
+
+/// Per element, an earlier element reading the same profile at the same moving point whose
+/// reading it can take (that one's rate is evaluated wherever this one's is, `profile_rate`).
+fn same_reads(model: &Model, profile_rate: &[bool]) -> Vec<Option<usize>> {
+    (0..model.elements.len())
+        .map(|e| {
+            let el = &model.elements[e];
+            let ModelEnd::Moving(pt) = el.to else {
+                return None;
+            };
+            el.profile?;
+            (0..e).find(|&f| {
+                let other = &model.elements[f];
+                other.profile == el.profile
+                    && other.to == ModelEnd::Moving(pt)
+                    && (profile_rate[f] || !profile_rate[e])
+            })
+        })
+        .collect()
 }
 
 /// The profile each of `model`'s profiles reads: its analytic form, the points `profiles[p]`
@@ -1085,67 +1025,6 @@ fn check_state(t: f64, x: &[f64], v: &[f64], a: &[f64]) -> std::result::Result<(
                 t,
                 reason: format!("non-finite {name} (state index {i}) at t = {t:.4} s"),
             });
-        }
-    }
-    Ok(())
-}
-
-/// One sample to simulate.
-#[derive(Debug, Clone)]
-pub struct SampleInput {
-    /// Sample id.
-    pub id: u64,
-    /// The design: the values of the system's sampled parameters.
-    pub params: mbd_system::Sampled,
-    /// Points of each generated profile (`None`: level).
-    pub profiles: Vec<Option<Profile>>,
-}
-
-/// Builds every sample's engine in parallel, checking each before anything runs; the error of
-/// the first bad sample (in input order) is returned with its id.
-pub fn prepare(
-    system: &Arc<System>,
-    config: &RunConfig,
-    inputs: Vec<SampleInput>,
-) -> std::result::Result<Vec<(u64, Engine)>, (u64, Error)> {
-    use rayon::prelude::*;
-    config
-        .validate()
-        .map_err(|e| (inputs.first().map_or(0, |s| s.id), e))?;
-    inputs
-        .into_par_iter()
-        .map(|s| {
-            let model = system
-                .instantiate(&s.params)
-                .map_err(|e| (s.id, Error::Field(e)))?;
-            Engine::new(system.clone(), model, config, s.profiles)
-                .map(|e| (s.id, e))
-                .map_err(|e| (s.id, e))
-        })
-        .collect()
-}
-
-/// Runs prepared samples in parallel (rayon), `chunk` at a time, handing each outcome to
-/// `sink` in input order (the output never depends on the thread count); `done` is called once
-/// per finished sample from the worker threads. Memory holds at most `chunk` trajectories.
-pub fn run_all<E>(
-    engines: &[(u64, Engine)],
-    chunk: usize,
-    done: &(dyn Fn() + Sync),
-    mut sink: impl FnMut(u64, std::result::Result<Trajectory, Failure>) -> std::result::Result<(), E>,
-) -> std::result::Result<(), E> {
-    use rayon::prelude::*;
-    for block in engines.chunks(chunk.max(1)) {
-        let outcomes: Vec<_> = block
-            .par_iter()
-            .map(|(id, engine)| {
-                let out = engine.run();
-                done();
-                (*id, out)
-            })
-            .collect();
-        for (id, out) in outcomes {
-            sink(id, out)?;
         }
     }
     Ok(())

@@ -95,7 +95,7 @@ impl Excitations {
 mod tests {
     use super::*;
     use crate::{Engine, StartMode};
-    use mbd_system::system::Interpolation;
+    use mbd_system::schema::Interpolation;
     use std::sync::Arc;
 
     const TEXT: &str = include_str!("../../../systems/quarter-car.yaml");

@@ -6,10 +6,12 @@
 //! Conventions: SI units; vertical displacements positive downward, measured from the static
 //! equilibrium on rigid supports; pitch positive nose-up; `x` forward.
 //!
-//! - [`engine`]: state layout, force evaluation, time loop, outputs.
+//! - [`engine`]: state layout, force evaluation, time loop; [`run`]: engines built with their
+//!   checks, started, run to their stored rows, many samples in parallel.
 //! - [`beam`]: modal simply supported beams; [`dst`]: the sine transform of uniform supports;
 //!   [`supports`]: the support chains.
 //! - [`statics`]: the static-equilibrium start; [`stability`]: the time-step bound.
+//! - [`corners`]: the corners of the box of sampling ranges the box checks visit;
 //! - [`coverage`]: whether a run stays on its beams and profiles, per sample and over the box
 //!   of sampling ranges;
 //! - [`residual`]: the ODE residuals of the rigid DOFs for learning, by the same element code;
@@ -25,6 +27,7 @@
 
 pub mod beam;
 pub mod config;
+pub mod corners;
 pub mod coverage;
 pub mod dst;
 pub mod engine;
@@ -32,15 +35,17 @@ pub mod excitation;
 pub mod integrator;
 pub mod profile;
 pub mod residual;
+pub mod run;
 pub mod stability;
 pub mod statics;
 pub mod supports;
 pub mod wheel;
 
 pub use config::{RunConfig, StartMode};
-pub use engine::{prepare, run_all, Engine, Failure, Route, SampleInput, StepView, Trajectory};
+pub use engine::{Engine, Failure, Route, StepView};
 pub use excitation::Excitations;
 pub use profile::{Profile, ProfileSource};
+pub use run::{prepare, run_all, SampleInput, Trajectory};
 
 /// Errors of the engine; variants carry the offending values.
 #[derive(Debug, thiserror::Error)]

@@ -23,7 +23,7 @@
 //! the interpolation's loss of amplitude.
 
 use crate::{Error, Result};
-use mbd_system::system::Interpolation;
+use mbd_system::schema::Interpolation;
 
 /// Sampled profile points and how they are read between them.
 #[derive(Debug, Clone, PartialEq)]

@@ -30,6 +30,7 @@
 //! [`POWER_MARGIN`]. The same split bounds the damping rate. A `dt` is accepted when every
 //! oscillator with `w <= w_max` and `2 xi w <= c_max` is stable.
 
+use crate::corners::{corner_values, largest_corners_up_to};
 use crate::engine::{Coupling, Engine};
 use mbd_system::model::{ModelEnd, ModelLaw};
 use std::f64::consts::PI;
@@ -358,41 +359,11 @@ impl Bound {
     /// The bound of one assembled sample.
     pub fn of(engine: &Engine) -> Self {
         let m = &engine.model;
-        let c = &engine.config;
         let statics = crate::statics::static_forces(&engine.system, m)
             .map(|s| s.force)
             .or_else(|| linear_contact_loads(engine));
         let total_load: f64 = m.loads.iter().map(|l| l.force.abs()).sum();
-        let (mut omega2, mut damping) = (0.0, 0.0);
-        // Beams and supports: each beam with its supports is a system of its own (their
-        // matrices are blocks on disjoint DOFs), so the largest of their bounds holds for all.
-        for (b, beam) in engine.beams.iter().enumerate() {
-            let (mut beam_omega2, mut beam_damping) = (0.0, 0.0);
-            beam_omega2 += beam.modal.omega2.last().copied().unwrap_or(0.0);
-            beam_damping += beam.modal.damping.last().copied().unwrap_or(0.0);
-            let mb = &m.beams[b];
-            let supported = match &beam.coupling {
-                Coupling::None => None,
-                Coupling::Fast(s) => Some((s, 1.0 / (mb.mass_per_length * s.spacing))),
-                Coupling::Dense(s, y) => Some((s, support_gram(y, beam.modal.modes()))),
-            };
-            if let Some((s, seat)) = supported {
-                let top = &s.levels[0];
-                beam_omega2 += top.k * (seat + 1.0 / top.mass);
-                beam_damping += top.c * (seat + 1.0 / top.mass);
-                for pair in s.levels.windows(2) {
-                    let coupling = 1.0 / pair[0].mass + 1.0 / pair[1].mass;
-                    beam_omega2 += pair[1].k * coupling;
-                    beam_damping += pair[1].c * coupling;
-                }
-                let last = s.levels.last().expect("at least one level");
-                let (kw, cw) = last.shear.unwrap_or((0.0, 0.0));
-                beam_omega2 += (s.ground.0 + 4.0 * kw) / last.mass;
-                beam_damping += (s.ground.1 + 4.0 * cw) / last.mass;
-            }
-            omega2 = f64::max(omega2, beam_omega2);
-            damping = f64::max(damping, beam_damping);
-        }
+        let (mut omega2, mut damping) = beams_with_supports(engine);
         // Elements: to points moving on a beam (per beam), or among bodies and the ground.
         // A contact's static force: its own when the rigid part is determinate, else every
         // load at once (an upper bound).
@@ -403,31 +374,9 @@ impl Bound {
                 .abs()
                 .max(1e-9)
         };
-        let tangent = |e: usize| -> f64 {
-            let law = &m.elements[e].law;
-            match law {
-                ModelLaw::Hertz { .. } | ModelLaw::Wheel(_) => {
-                    let d = law
-                        .static_deflection(CONTACT_LOAD_FACTOR * static_load(e))
-                        .unwrap_or(0.0);
-                    law.stiffness(d)
-                }
-                ModelLaw::Table {
-                    deflection, force, ..
-                } => deflection
-                    .windows(2)
-                    .zip(force.windows(2))
-                    .map(|(d, f)| ((f[1] - f[0]) / (d[1] - d[0])).abs())
-                    .fold(0.0, f64::max),
-                ModelLaw::SpringDamper { k, .. } => *k,
-            }
-        };
-        let on_beam = |e: usize| match m.elements[e].to {
-            ModelEnd::Moving(p) => m.points[p].0,
-            _ => None,
-        };
+        let tangent = |e: usize| tangent_stiffness(&m.elements[e].law, static_load(e));
         let rigid: Vec<usize> = (0..m.elements.len())
-            .filter(|&e| on_beam(e).is_none())
+            .filter(|&e| on_beam(engine, e).is_none())
             .collect();
         let stiffnesses: Vec<(usize, f64)> = rigid.iter().map(|&e| (e, tangent(e))).collect();
         let dampings: Vec<(usize, f64)> = rigid
@@ -446,48 +395,9 @@ impl Bound {
             omega2 = omega2.max(k);
             damping = damping.max(c);
         }
-        let t_end = c.t_end();
-        for (b, beam) in engine.beams.iter().enumerate() {
-            let elements: Vec<usize> = (0..m.elements.len())
-                .filter(|&e| on_beam(e) == Some(b))
-                .collect();
-            if elements.is_empty() {
-                continue;
-            }
-            let n_modes = beam.modal.modes() as f64;
-            let l = beam.modal.length;
-            let offsets: Vec<f64> = beam.points.iter().map(|&p| m.points[p].1).collect();
-            let lo = offsets.iter().fold(f64::INFINITY, |a, o| a.min(c.x0 + o));
-            let hi = offsets
-                .iter()
-                .fold(f64::NEG_INFINITY, |a, o| a.max(c.x0 + m.speed * t_end + o));
-            let edge = lo.min(l - hi).max(0.0);
-            let mut spacing = f64::INFINITY;
-            for (i, a) in offsets.iter().enumerate() {
-                for b in &offsets[i + 1..] {
-                    spacing = spacing.min((a - b).abs());
-                }
-            }
-            let n_p = offsets.len() as f64;
-            let d_e = dirichlet(n_modes, PI * edge / l);
-            let d_d = if spacing.is_finite() {
-                dirichlet(n_modes, PI * spacing / (2.0 * l))
-            } else {
-                0.0
-            };
-            let row = (n_modes + d_e) + (n_p - 1.0) * (d_d + d_e);
-            let gram = row.min(2.0 * n_p * n_modes) / (mb_mu(engine, b) * l);
-            let body_side = rigid_gershgorin(
-                engine,
-                &elements.iter().map(|&e| (e, 1.0)).collect::<Vec<_>>(),
-            );
-            let k_max = elements.iter().map(|&e| tangent(e)).fold(0.0, f64::max);
-            let c_max = elements
-                .iter()
-                .map(|&e| m.elements[e].law.damping())
-                .fold(0.0, f64::max);
-            omega2 += k_max * (body_side + gram);
-            damping += c_max * (body_side + gram);
+        for (k, c) in moving_point_terms(engine, &tangent) {
+            omega2 += k;
+            damping += c;
         }
         Bound {
             omega_max: omega2.sqrt(),
@@ -546,95 +456,168 @@ impl Bound {
     }
 }
 
-/// Most corners of the parameter box [`parameter_box`] visits (`2^16`); beyond, it visits
-/// that many corners drawn from a fixed sequence.
-pub const MAX_CORNERS: usize = 1 << 16;
+/// The bounds (1/s^2, 1/s) of the beams with their supports: each beam with its supports is a
+/// system of its own (their matrices are blocks on disjoint DOFs), so the largest of their
+/// bounds holds for all.
+fn beams_with_supports(engine: &Engine) -> (f64, f64) {
+    let m = &engine.model;
+    let (mut omega2, mut damping) = (0.0, 0.0);
+    for (b, beam) in engine.beams.iter().enumerate() {
+        let (mut beam_omega2, mut beam_damping) = (0.0, 0.0);
+        beam_omega2 += beam.modal.omega2.last().copied().unwrap_or(0.0);
+        beam_damping += beam.modal.damping.last().copied().unwrap_or(0.0);
+        let mb = &m.beams[b];
+        let supported = match &beam.coupling {
+            Coupling::None => None,
+            Coupling::Fast(s) => Some((s, 1.0 / (mb.mass_per_length * s.spacing))),
+            Coupling::Dense(s, y) => Some((s, support_gram(y, beam.modal.modes()))),
+        };
+        if let Some((s, seat)) = supported {
+            let top = &s.levels[0];
+            beam_omega2 += top.k * (seat + 1.0 / top.mass);
+            beam_damping += top.c * (seat + 1.0 / top.mass);
+            for pair in s.levels.windows(2) {
+                let coupling = 1.0 / pair[0].mass + 1.0 / pair[1].mass;
+                beam_omega2 += pair[1].k * coupling;
+                beam_damping += pair[1].c * coupling;
+            }
+            let last = s.levels.last().expect("at least one level");
+            let (kw, cw) = last.shear.unwrap_or((0.0, 0.0));
+            beam_omega2 += (s.ground.0 + 4.0 * kw) / last.mass;
+            beam_damping += (s.ground.1 + 4.0 * cw) / last.mass;
+        }
+        omega2 = f64::max(omega2, beam_omega2);
+        damping = f64::max(damping, beam_damping);
+    }
+    (omega2, damping)
+}
+
+/// The largest tangent stiffness of a law (N/m): a contact's at [`CONTACT_LOAD_FACTOR`] times
+/// its static force `static_load` (N), a table's steepest segment, a spring's `k`.
+fn tangent_stiffness(law: &ModelLaw, static_load: f64) -> f64 {
+    match law {
+        ModelLaw::Hertz { .. } | ModelLaw::Wheel(_) => {
+            let d = law
+                .static_deflection(CONTACT_LOAD_FACTOR * static_load)
+                .unwrap_or(0.0);
+            law.stiffness(d)
+        }
+        ModelLaw::Table {
+            deflection, force, ..
+        } => deflection
+            .windows(2)
+            .zip(force.windows(2))
+            .map(|(d, f)| ((f[1] - f[0]) / (d[1] - d[0])).abs())
+            .fold(0.0, f64::max),
+        ModelLaw::SpringDamper { k, .. } => *k,
+    }
+}
+
+/// The beam that element `e`'s lower end moves on, if any.
+fn on_beam(engine: &Engine, e: usize) -> Option<usize> {
+    let m = &engine.model;
+    match m.elements[e].to {
+        ModelEnd::Moving(p) => m.points[p].0,
+        _ => None,
+    }
+}
+
+/// Per beam with elements to points moving on it, the terms (1/s^2, 1/s) of those elements:
+/// their largest tangent stiffness (`tangent`, N/m) and damping times the Gershgorin bound of
+/// their body side plus the Dirichlet-kernel bound of the beam's Gram matrix at its points.
+fn moving_point_terms(engine: &Engine, tangent: &dyn Fn(usize) -> f64) -> Vec<(f64, f64)> {
+    let m = &engine.model;
+    let c = &engine.config;
+    let t_end = c.t_end();
+    let mut terms = Vec::new();
+    for (b, beam) in engine.beams.iter().enumerate() {
+        let elements: Vec<usize> = (0..m.elements.len())
+            .filter(|&e| on_beam(engine, e) == Some(b))
+            .collect();
+        if elements.is_empty() {
+            continue;
+        }
+        let n_modes = beam.modal.modes() as f64;
+        let l = beam.modal.length;
+        let offsets: Vec<f64> = beam.points.iter().map(|&p| m.points[p].1).collect();
+        let lo = offsets.iter().fold(f64::INFINITY, |a, o| a.min(c.x0 + o));
+        let hi = offsets
+            .iter()
+            .fold(f64::NEG_INFINITY, |a, o| a.max(c.x0 + m.speed * t_end + o));
+        let edge = lo.min(l - hi).max(0.0);
+        let mut spacing = f64::INFINITY;
+        for (i, a) in offsets.iter().enumerate() {
+            for b in &offsets[i + 1..] {
+                spacing = spacing.min((a - b).abs());
+            }
+        }
+        let n_p = offsets.len() as f64;
+        let d_e = dirichlet(n_modes, PI * edge / l);
+        let d_d = if spacing.is_finite() {
+            dirichlet(n_modes, PI * spacing / (2.0 * l))
+        } else {
+            0.0
+        };
+        let row = (n_modes + d_e) + (n_p - 1.0) * (d_d + d_e);
+        let gram = row.min(2.0 * n_p * n_modes) / (mb_mu(engine, b) * l);
+        let body_side = rigid_gershgorin(
+            engine,
+            &elements.iter().map(|&e| (e, 1.0)).collect::<Vec<_>>(),
+        );
+        let k_max = elements.iter().map(|&e| tangent(e)).fold(0.0, f64::max);
+        let c_max = elements
+            .iter()
+            .map(|&e| m.elements[e].law.damping())
+            .fold(0.0, f64::max);
+        terms.push((k_max * (body_side + gram), c_max * (body_side + gram)));
+    }
+    terms
+}
 
 /// The bound over the whole box of sampling ranges: the largest frequency and damping bounds
 /// over its corners (each bound term grows or falls monotonically with each parameter of the
-/// simple models, so the corners hold the extremes), with every corner's model assembled
-/// (coverage of the beams checked). Returns the bound and the corner that set the frequency
-/// bound, as `(name, value)` pairs.
+/// simple models, so the corners hold the extremes; which corners are visited:
+/// [`crate::corners`]), with every visited corner's model assembled (coverage of the beams
+/// checked). Returns the bound and the corner that set the frequency bound, as `(name,
+/// value)` pairs.
 pub fn parameter_box(
     system: &std::sync::Arc<mbd_system::System>,
     config: &crate::RunConfig,
 ) -> crate::Result<(Bound, Vec<(String, f64)>)> {
+    parameter_box_up_to(system, config, crate::corners::ALL_CORNERS_UP_TO)
+}
+
+/// [`parameter_box`], visiting every corner up to `all_up_to` sampled parameters.
+fn parameter_box_up_to(
+    system: &std::sync::Arc<mbd_system::System>,
+    config: &crate::RunConfig,
+    all_up_to: usize,
+) -> crate::Result<(Bound, Vec<(String, f64)>)> {
     let ranges = system.ranges();
-    let n = ranges.len();
-    let corners = box_corners(n);
-    use rayon::prelude::*;
-    let bounds: Vec<(Bound, u64)> = corners
-        .into_par_iter()
-        .map(|mask| {
-            let model = system.instantiate(&corner_values(system, &ranges, mask))?;
-            let engine = Engine::assemble(
-                system.clone(),
-                model,
-                config,
-                Vec::new(),
-                crate::Route::Fast,
-            )?;
-            Ok((Bound::of(&engine), mask))
-        })
-        .collect::<crate::Result<_>>()?;
-    let damping = bounds.iter().map(|b| b.0.damping_max).fold(0.0, f64::max);
-    // The first corner (in mask order) with the largest frequency bound: deterministic.
-    let worst = bounds
-        .iter()
-        .fold(None, |w: Option<&(Bound, u64)>, b| match w {
-            Some(w) if w.0.omega_max >= b.0.omega_max => Some(w),
-            _ => Some(b),
-        });
-    let &(b, mask) = worst.expect("at least one corner");
+    let largest = largest_corners_up_to(ranges.len(), all_up_to, &|mask| {
+        let model = system.instantiate(&corner_values(system, &ranges, mask))?;
+        let engine = Engine::assemble(
+            system.clone(),
+            model,
+            config,
+            Vec::new(),
+            crate::Route::Fast,
+        )?;
+        let b = Bound::of(&engine);
+        Ok(vec![b.omega_max, b.damping_max])
+    })?;
+    let (omega_max, mask) = largest[0];
     let corner = corner_values(system, &ranges, mask)
         .iter()
         .map(|(n, v)| (n.to_owned(), v))
         .collect();
     Ok((
         Bound {
-            omega_max: b.omega_max,
-            damping_max: damping,
+            omega_max,
+            damping_max: largest[1].0,
         },
         corner,
     ))
-}
-
-/// The corners of a box of `n` sampled parameters that the box checks visit, as masks (bit
-/// `j % 64` set: parameter `j` at its maximum): all `2^n` up to 16 parameters, else
-/// [`MAX_CORNERS`] drawn from a fixed sequence (deterministic).
-pub fn box_corners(n: usize) -> Vec<u64> {
-    if n <= 16 {
-        (0..1u64 << n).collect()
-    } else {
-        // A fixed odd-multiplier sequence of corner masks (splitmix64).
-        let mut z = 0x9e37_79b9_7f4a_7c15u64;
-        (0..MAX_CORNERS)
-            .map(|_| {
-                z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-                let mut x = z;
-                x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-                x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-                x ^ (x >> 31)
-            })
-            .collect()
-    }
-}
-
-/// The design at corner `mask` ([`box_corners`]) of `system`'s box of sampling ranges
-/// (`ranges`: [`mbd_system::System::ranges`]).
-pub fn corner_values(
-    system: &mbd_system::System,
-    ranges: &[[f64; 2]],
-    mask: u64,
-) -> mbd_system::Sampled {
-    let values: Vec<f64> = ranges
-        .iter()
-        .enumerate()
-        .map(|(j, r)| r[((mask >> (j % 64)) & 1) as usize])
-        .collect();
-    system
-        .sampled_values(values)
-        .expect("one sampling range per sampled parameter")
 }
 
 fn mb_mu(engine: &Engine, b: usize) -> f64 {
@@ -644,6 +627,35 @@ fn mb_mu(engine: &Engine, b: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The bound over the box found by the search of [`crate::corners`] is the bound of
+    /// every corner visited, on the shipped quarter car and bridge (their bounds move
+    /// monotonically with each parameter).
+    #[test]
+    fn the_searched_box_bound_is_the_bound_over_every_corner() {
+        let config = crate::RunConfig {
+            duration: 0.5,
+            dt: 1e-4,
+            output_every: 10,
+            start: crate::StartMode::Equilibrium,
+            startup_zero_fraction: 0.0,
+            startup_ramp_fraction: 0.0,
+            x0: 5.0,
+        };
+        for text in [
+            include_str!("../../../systems/quarter-car.yaml"),
+            include_str!("../../../systems/bridge.yaml"),
+        ] {
+            let system = std::sync::Arc::new(
+                mbd_system::load_str(text, "s.yaml", &Default::default())
+                    .unwrap_or_else(|d| panic!("{d}")),
+            );
+            let (every, _) = parameter_box_up_to(&system, &config, 64).unwrap();
+            let (searched, corner) = parameter_box_up_to(&system, &config, 0).unwrap();
+            assert_eq!(searched, every, "{}", system.name);
+            assert_eq!(corner.len(), system.ranges().len());
+        }
+    }
 
     /// The worked limits of the damped oscillator, to the 2 decimals given.
     #[test]

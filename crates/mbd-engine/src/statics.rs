@@ -574,24 +574,13 @@ pub(crate) fn supported_deflection(
     Ok((q, out))
 }
 
-/// The condensed route, for a rigid part that is not statically determinate on beams whose
-/// statics are linear (no supports, or uniform ones): each beam's static response to a unit
-/// force at each of its points (`U_j`, the state of [`beam_static`]) makes the beams' state
-/// the superposition `sum_j F_j U_j` of the point forces `F`; Newton's method (central
-/// differences, dense LU, backtracking) then solves the rigid DOFs `q` and the point forces
-/// together, `M A_rigid(q, F) = 0` and `F = (the elements' net force at each point)`, a few
-/// dozen unknowns instead of the whole state.
-fn condensed(engine: &Engine) -> Result<Vec<f64>> {
+/// Each beam's static response to a unit force at each of the `loaded` points (at `px`), as a
+/// whole state (zero outside that beam's modes and supports), in `loaded` order.
+fn unit_responses(engine: &Engine, loaded: &[usize], px: &[f64]) -> Result<Vec<Vec<f64>>> {
     let m = &engine.model;
-    let c = &engine.config;
-    let (len, n_r) = (engine.layout.len, engine.layout.rigid);
-    let px: Vec<f64> = m.points.iter().map(|(_, o)| c.x0 + o).collect();
-    let loaded: Vec<usize> = (0..m.points.len())
-        .filter(|&p| m.points[p].0.is_some())
-        .collect();
-    // Unit responses.
+    let len = engine.layout.len;
     let mut units: Vec<Vec<f64>> = Vec::with_capacity(loaded.len());
-    for &p in &loaded {
+    for &p in loaded {
         let b = m.points[p].0.expect("a point on a beam");
         let lay = &engine.layout.beams[b];
         // A beam with the same modes and points as an earlier one (the other rail) has the
@@ -616,12 +605,31 @@ fn condensed(engine: &Engine) -> Result<Vec<f64>> {
         }
         let mut unit_force = vec![0.0; m.points.len()];
         unit_force[p] = 1.0;
-        let (q, levels) = beam_static(engine, b, &px, &unit_force)?;
+        let (q, levels) = beam_static(engine, b, px, &unit_force)?;
         let mut u = vec![0.0; len];
         u[lay.modes.clone()].copy_from_slice(&q);
         u[lay.supports.clone()].copy_from_slice(&levels);
         units.push(u);
     }
+    Ok(units)
+}
+
+/// The condensed route, for a rigid part that is not statically determinate on beams whose
+/// statics are linear (no supports, or uniform ones): each beam's static response to a unit
+/// force at each of its points (`U_j`, the state of [`beam_static`]) makes the beams' state
+/// the superposition `sum_j F_j U_j` of the point forces `F`; Newton's method (central
+/// differences, dense LU, backtracking) then solves the rigid DOFs `q` and the point forces
+/// together, `M A_rigid(q, F) = 0` and `F = (the elements' net force at each point)`, a few
+/// dozen unknowns instead of the whole state.
+fn condensed(engine: &Engine) -> Result<Vec<f64>> {
+    let m = &engine.model;
+    let c = &engine.config;
+    let (len, n_r) = (engine.layout.len, engine.layout.rigid);
+    let px: Vec<f64> = m.points.iter().map(|(_, o)| c.x0 + o).collect();
+    let loaded: Vec<usize> = (0..m.points.len())
+        .filter(|&p| m.points[p].0.is_some())
+        .collect();
+    let units = unit_responses(engine, &loaded, &px)?;
     // Compliance: the deflection under loaded point i of unit response j.
     let compliance: Vec<Vec<f64>> = loaded
         .iter()

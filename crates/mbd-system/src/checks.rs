@@ -11,7 +11,10 @@
 use crate::diag::Diagnostics;
 use crate::model::ModelLaw;
 use crate::reader::Field;
-use crate::schema::{RawDescription, RawGeometry, RawLaw, RawLink, RawProfileKind, RawWheelset};
+use crate::schema::{
+    RawBeam, RawBody, RawDescription, RawElement, RawGeometry, RawLaw, RawLink, RawProfile,
+    RawProfileKind, RawWheelset,
+};
 use crate::system::System;
 use crate::yaml::Pos;
 
@@ -27,134 +30,50 @@ pub(crate) fn position(raw: &RawDescription, path: &str) -> Pos {
         .get(1)
         .map_or("", |n| n.split('[').next().unwrap_or(n));
     let field: Vec<&str> = parts.iter().skip(2).copied().collect();
-    let at = |f: &Option<Field>| f.as_ref().map(|f| f.pos);
-    // `name[i]` -> i.
-    let item = |s: &str| -> Option<usize> { s.split_once('[')?.1.strip_suffix(']')?.parse().ok() };
-    let link = |l: &Option<RawLink>, rest: &[&str]| -> Option<Pos> {
-        let l = l.as_ref()?;
-        match rest {
-            ["k"] => at(&l.k),
-            ["c"] => at(&l.c),
-            _ => None,
-        }
-        .or(Some(l.pos))
-    };
+    let field = field.as_slice();
     let found = match section {
         "parameters" => raw
             .parameters
             .iter()
             .find(|p| p.name == name)
             .map(|p| p.pos),
-        "bodies" => raw.bodies.iter().find(|b| b.name == name).map(|b| {
-            match field.as_slice() {
-                ["mass"] => at(&b.mass),
-                ["inertia"] => b.inertia.first().map(|f| f.1.pos),
-                ["inertia", axis] => b
-                    .inertia
-                    .iter()
-                    .find(|(k, _)| k.keyword() == *axis)
-                    .map(|f| f.1.pos),
-                ["points", p] => b.points.iter().find(|q| q.name == *p).map(|q| q.x.pos),
-                _ => None,
-            }
-            .unwrap_or(b.pos)
-        }),
-        "beams" => raw.beams.iter().find(|b| b.name == name).map(|b| {
-            let supports = |rest: &[&str]| -> Option<Pos> {
-                let s = b.supports.as_ref()?;
-                match rest {
-                    ["spacing"] => at(&s.spacing),
-                    ["count"] => at(&s.count),
-                    ["first"] => at(&s.first),
-                    ["ground", rest @ ..] => link(&s.ground, rest),
-                    [level, rest @ ..] if level.starts_with("levels[") => {
-                        let l = s.levels.get(item(level)?)?;
-                        match rest {
-                            ["mass"] => at(&l.mass),
-                            ["link", rest @ ..] => link(&l.link, rest),
-                            ["shear", rest @ ..] => link(&l.shear, rest),
-                            _ => None,
-                        }
-                        .or(Some(l.pos))
-                    }
-                    _ => None,
-                }
-                .or(Some(s.pos))
-            };
-            match field.as_slice() {
-                ["length"] => at(&b.length),
-                ["modes"] => at(&b.modes),
-                ["mass_per_length"] => at(&b.mass_per_length),
-                ["bending_stiffness"] => at(&b.bending_stiffness),
-                ["damping_ratio"] => at(&b.damping_ratio),
-                ["supports", rest @ ..] => supports(rest),
-                _ => None,
-            }
-            .unwrap_or(b.pos)
-        }),
-        "elements" => raw.elements.iter().find(|e| e.name == name).map(|e| {
-            let list =
-                |fields: &[Field], key: &str| item(key).and_then(|i| fields.get(i)).map(|f| f.pos);
-            match (&e.law, field.as_slice()) {
-                (RawLaw::SpringDamper { k, .. }, ["k"]) => at(k),
-                (RawLaw::SpringDamper { c, .. } | RawLaw::Table { c, .. }, ["c"]) => at(c),
-                (RawLaw::SpringDamper { preload, .. }, ["preload"]) => at(preload),
-                (RawLaw::Hertz { g, .. }, ["g"]) => at(g),
-                (RawLaw::Hertz { exponent, .. }, ["exponent"]) => at(exponent),
-                (RawLaw::Table { deflection, .. }, [key]) if key.starts_with("deflection") => {
-                    list(deflection, key)
-                }
-                (RawLaw::Table { force, .. }, [key]) if key.starts_with("force") => {
-                    list(force, key)
-                }
-                (RawLaw::Wheelset(w), rest) => wheelset_field(w, rest),
-                _ => None,
-            }
-            .unwrap_or(e.pos)
-        }),
+        "bodies" => raw
+            .bodies
+            .iter()
+            .find(|b| b.name == name)
+            .map(|b| body_field(b, field).unwrap_or(b.pos)),
+        "beams" => raw
+            .beams
+            .iter()
+            .find(|b| b.name == name)
+            .map(|b| beam_field(b, field).unwrap_or(b.pos)),
+        "elements" => raw
+            .elements
+            .iter()
+            .find(|e| e.name == name)
+            .map(|e| element_field(e, field).unwrap_or(e.pos)),
         "loads" => raw
             .loads
             .iter()
             .find(|l| l.name == name)
-            .map(|l| at(&l.force).unwrap_or(l.pos)),
+            .map(|l| written(&l.force).unwrap_or(l.pos)),
         "sensors" => raw
             .sensors
             .iter()
             .find(|s| s.name == name)
-            .map(|s| at(&s.x).unwrap_or(s.pos)),
-        "profiles" => raw.profiles.iter().find(|p| p.name == name).map(|p| {
-            match (&p.kind, field.as_slice()) {
-                (RawProfileKind::Harmonic { amplitude, .. }, ["amplitude"]) => at(amplitude),
-                (RawProfileKind::Harmonic { wavelength, .. }, ["wavelength"]) => at(wavelength),
-                (RawProfileKind::Harmonic { phase, .. }, ["phase"]) => at(phase),
-                (RawProfileKind::Generated { interpolation, .. }, ["interpolation"]) => {
-                    Some(interpolation.1)
-                }
-                (
-                    RawProfileKind::Generated {
-                        until: Some((x, _)),
-                        ..
-                    },
-                    ["until", "x"],
-                ) => Some(x.pos),
-                (
-                    RawProfileKind::Generated {
-                        until: Some((_, taper)),
-                        ..
-                    },
-                    ["until", "taper"],
-                ) => Some(taper.pos),
-                _ => None,
-            }
-            .unwrap_or(p.pos)
-        }),
+            .map(|s| written(&s.x).unwrap_or(s.pos)),
+        "profiles" => raw
+            .profiles
+            .iter()
+            .find(|p| p.name == name)
+            .map(|p| profile_field(p, field).unwrap_or(p.pos)),
         "moving" => raw.moving.as_ref().map(|m| match parts.as_slice() {
-            [_, "speed"] => at(&m.speed).unwrap_or(m.pos),
+            [_, "speed"] => written(&m.speed).unwrap_or(m.pos),
             [_, "points", point, ..] => m
                 .points
                 .iter()
                 .find(|p| p.name == *point)
-                .map_or(m.pos, |p| at(&p.offset).unwrap_or(p.pos)),
+                .map_or(m.pos, |p| written(&p.offset).unwrap_or(p.pos)),
             _ => m.pos,
         }),
         _ => None,
@@ -162,14 +81,127 @@ pub(crate) fn position(raw: &RawDescription, path: &str) -> Pos {
     found.unwrap_or(Pos { line: 1, col: 1 })
 }
 
+/// Where a field was written, when it was.
+fn written(f: &Option<Field>) -> Option<Pos> {
+    f.as_ref().map(|f| f.pos)
+}
+
+/// The index of a list item written `name[i]`.
+fn item(s: &str) -> Option<usize> {
+    s.split_once('[')?.1.strip_suffix(']')?.parse().ok()
+}
+
+/// Where a field of a link (`rest`: `k` or `c`) was written, else the link.
+fn link_field(l: &Option<RawLink>, rest: &[&str]) -> Option<Pos> {
+    let l = l.as_ref()?;
+    match rest {
+        ["k"] => written(&l.k),
+        ["c"] => written(&l.c),
+        _ => None,
+    }
+    .or(Some(l.pos))
+}
+
+/// Where a field of a body (`field` the path below the body) was written.
+fn body_field(b: &RawBody, field: &[&str]) -> Option<Pos> {
+    match field {
+        ["mass"] => written(&b.mass),
+        ["inertia"] => b.inertia.first().map(|f| f.1.pos),
+        ["inertia", axis] => b
+            .inertia
+            .iter()
+            .find(|(k, _)| k.keyword() == *axis)
+            .map(|f| f.1.pos),
+        ["points", p] => b.points.iter().find(|q| q.name == *p).map(|q| q.x.pos),
+        _ => None,
+    }
+}
+
+/// Where a field of a beam (`field` the path below the beam) was written.
+fn beam_field(b: &RawBeam, field: &[&str]) -> Option<Pos> {
+    let supports = |rest: &[&str]| -> Option<Pos> {
+        let s = b.supports.as_ref()?;
+        match rest {
+            ["spacing"] => written(&s.spacing),
+            ["count"] => written(&s.count),
+            ["first"] => written(&s.first),
+            ["ground", rest @ ..] => link_field(&s.ground, rest),
+            [level, rest @ ..] if level.starts_with("levels[") => {
+                let l = s.levels.get(item(level)?)?;
+                match rest {
+                    ["mass"] => written(&l.mass),
+                    ["link", rest @ ..] => link_field(&l.link, rest),
+                    ["shear", rest @ ..] => link_field(&l.shear, rest),
+                    _ => None,
+                }
+                .or(Some(l.pos))
+            }
+            _ => None,
+        }
+        .or(Some(s.pos))
+    };
+    match field {
+        ["length"] => written(&b.length),
+        ["modes"] => written(&b.modes),
+        ["mass_per_length"] => written(&b.mass_per_length),
+        ["bending_stiffness"] => written(&b.bending_stiffness),
+        ["damping_ratio"] => written(&b.damping_ratio),
+        ["supports", rest @ ..] => supports(rest),
+        _ => None,
+    }
+}
+
+/// Where a field of an element's law (`field` the path below the element) was written.
+fn element_field(e: &RawElement, field: &[&str]) -> Option<Pos> {
+    let list = |fields: &[Field], key: &str| item(key).and_then(|i| fields.get(i)).map(|f| f.pos);
+    match (&e.law, field) {
+        (RawLaw::SpringDamper { k, .. }, ["k"]) => written(k),
+        (RawLaw::SpringDamper { c, .. } | RawLaw::Table { c, .. }, ["c"]) => written(c),
+        (RawLaw::SpringDamper { preload, .. }, ["preload"]) => written(preload),
+        (RawLaw::Hertz { g, .. }, ["g"]) => written(g),
+        (RawLaw::Hertz { exponent, .. }, ["exponent"]) => written(exponent),
+        (RawLaw::Table { deflection, .. }, [key]) if key.starts_with("deflection") => {
+            list(deflection, key)
+        }
+        (RawLaw::Table { force, .. }, [key]) if key.starts_with("force") => list(force, key),
+        (RawLaw::Wheelset(w), rest) => wheelset_field(w, rest),
+        _ => None,
+    }
+}
+
+/// Where a field of a profile (`field` the path below the profile) was written.
+fn profile_field(p: &RawProfile, field: &[&str]) -> Option<Pos> {
+    match (&p.kind, field) {
+        (RawProfileKind::Harmonic { amplitude, .. }, ["amplitude"]) => written(amplitude),
+        (RawProfileKind::Harmonic { wavelength, .. }, ["wavelength"]) => written(wavelength),
+        (RawProfileKind::Harmonic { phase, .. }, ["phase"]) => written(phase),
+        (RawProfileKind::Generated { interpolation, .. }, ["interpolation"]) => {
+            Some(interpolation.1)
+        }
+        (
+            RawProfileKind::Generated {
+                until: Some((x, _)),
+                ..
+            },
+            ["until", "x"],
+        ) => Some(x.pos),
+        (
+            RawProfileKind::Generated {
+                until: Some((_, taper)),
+                ..
+            },
+            ["until", "taper"],
+        ) => Some(taper.pos),
+        _ => None,
+    }
+}
+
 /// Where a field of a wheelset was written (`rest` the path below the element).
 fn wheelset_field(w: &RawWheelset, rest: &[&str]) -> Option<Pos> {
-    let at = |f: &Option<Field>| f.as_ref().map(|f| f.pos);
-    let item = |s: &str| -> Option<usize> { s.split_once('[')?.1.strip_suffix(']')?.parse().ok() };
     match rest {
-        ["half_gauge"] => at(&w.half_gauge),
-        ["radius"] => at(&w.radius),
-        ["hertz"] => at(&w.hertz),
+        ["half_gauge"] => written(&w.half_gauge),
+        ["radius"] => written(&w.radius),
+        ["hertz"] => written(&w.hertz),
         ["conicity"] => match &w.geometry {
             Some(RawGeometry::Conicity(c)) => Some(c.pos),
             _ => None,
@@ -197,19 +229,19 @@ fn wheelset_field(w: &RawWheelset, rest: &[&str]) -> Option<Pos> {
         },
         ["creep", key] => w.creep.as_ref().and_then(|c| {
             match *key {
-                "young" => at(&c.young),
-                "poisson" => at(&c.poisson),
-                "friction" => at(&c.friction),
-                "rail_radius" => at(&c.rail_radius),
-                "wheel_profile_radius" => at(&c.wheel_profile_radius),
+                "young" => written(&c.young),
+                "poisson" => written(&c.poisson),
+                "friction" => written(&c.friction),
+                "rail_radius" => written(&c.rail_radius),
+                "wheel_profile_radius" => written(&c.wheel_profile_radius),
                 _ => None,
             }
             .or(Some(c.pos))
         }),
         ["flange", key] => w.flange.as_ref().and_then(|f| {
             match *key {
-                "clearance" => at(&f.clearance),
-                "stiffness" => at(&f.stiffness),
+                "clearance" => written(&f.clearance),
+                "stiffness" => written(&f.stiffness),
                 _ => None,
             }
             .or(Some(f.pos))

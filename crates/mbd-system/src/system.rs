@@ -3,6 +3,7 @@
 //! one sample by [`System::instantiate`], giving a [`crate::model::Model`].
 
 use crate::expr::Expr;
+pub use crate::schema::Interpolation;
 use crate::schema::{Axis, DofKind, IndexStat, Outside, RawPsdSegment};
 
 /// How a compiled parameter gets its value.
@@ -268,49 +269,6 @@ pub struct Sensor {
 /// Where a generated profile starts (m): it covers `[GENERATED_PROFILE_START, length)`, its
 /// `length` a control of the stage that makes it (`mbd_dataset::profile`).
 pub const GENERATED_PROFILE_START: f64 = 0.0;
-
-/// How a generated profile is read between its points (`interpolation:` of a profile).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Interpolation {
-    /// Straight segments: continuous level, a slope that jumps at every point (the default).
-    #[default]
-    Linear,
-    /// A not-a-knot cubic spline: continuous level, slope and curvature.
-    Cubic,
-}
-
-impl Interpolation {
-    /// Every interpolation with its keyword, in the order a message lists them.
-    pub const ALL: [(Interpolation, &'static str); 2] = [
-        (Interpolation::Linear, "linear"),
-        (Interpolation::Cubic, "cubic"),
-    ];
-
-    /// The keyword of `interpolation:`.
-    pub fn keyword(self) -> &'static str {
-        Self::ALL
-            .iter()
-            .find(|(i, _)| *i == self)
-            .map_or("", |(_, k)| k)
-    }
-
-    /// The interpolation of a keyword.
-    pub fn from_keyword(keyword: &str) -> Option<Self> {
-        Self::ALL
-            .iter()
-            .find(|(_, k)| *k == keyword)
-            .map(|(i, _)| *i)
-    }
-
-    /// The fewest points the interpolation takes: 2 for a segment, 4 for a not-a-knot spline
-    /// (its two end conditions each need two cells).
-    pub fn min_points(self) -> usize {
-        match self {
-            Interpolation::Linear => 2,
-            Interpolation::Cubic => 4,
-        }
-    }
-}
 
 /// A compiled profile.
 #[derive(Debug, Clone, PartialEq)]

@@ -18,6 +18,7 @@
 
 use saphyr_parser::{Event, Parser, ScalarStyle};
 use std::collections::HashMap;
+use std::ops::ControlFlow;
 
 /// Deepest nesting of collections accepted.
 pub const MAX_DEPTH: usize = 64;
@@ -111,19 +112,7 @@ pub fn parse(text: &str) -> Result<Node, SyntaxError> {
     let mut stack: Vec<Open> = Vec::new();
     // Anchored nodes with their sizes in nodes.
     let mut anchors: HashMap<usize, (Node, usize)> = HashMap::new();
-    let mut nodes = 0usize;
-    let mut count = |n: usize, pos: Pos| -> Result<(), SyntaxError> {
-        nodes += n;
-        if nodes > MAX_NODES {
-            return Err(SyntaxError {
-                pos,
-                message: format!(
-                    "more than {MAX_NODES} nodes with the aliases expanded; a description is far smaller"
-                ),
-            });
-        }
-        Ok(())
-    };
+    let mut nodes = NodeCount(0);
     let mut root: Option<Node> = None;
     let mut documents = 0;
     for item in Parser::new_from_str(text) {
@@ -145,7 +134,7 @@ pub fn parse(text: &str) -> Result<Node, SyntaxError> {
             }
             Event::Alias(id) => match anchors.get(&id) {
                 Some((node, size)) => {
-                    count(*size, pos)?;
+                    nodes.add(*size, pos)?;
                     Some((0, node.clone()))
                 }
                 None => {
@@ -157,29 +146,23 @@ pub fn parse(text: &str) -> Result<Node, SyntaxError> {
             },
             Event::Scalar(text, style, anchor, tag) => {
                 refuse_tag(tag.is_some(), pos)?;
-                count(1, pos)?;
-                let quoted = !matches!(style, ScalarStyle::Plain);
-                Some((
-                    anchor,
-                    Node {
-                        pos,
-                        value: Value::Scalar {
-                            text: text.into_owned(),
-                            quoted,
-                        },
-                    },
-                ))
+                nodes.add(1, pos)?;
+                let value = Value::Scalar {
+                    text: text.into_owned(),
+                    quoted: !matches!(style, ScalarStyle::Plain),
+                };
+                Some((anchor, Node { pos, value }))
             }
             Event::SequenceStart(anchor, tag) => {
                 refuse_tag(tag.is_some(), pos)?;
-                count(1, pos)?;
+                nodes.add(1, pos)?;
                 depth_check(stack.len(), pos)?;
                 stack.push(Open::Seq(pos, anchor, Vec::new()));
                 None
             }
             Event::MappingStart(anchor, tag) => {
                 refuse_tag(tag.is_some(), pos)?;
-                count(1, pos)?;
+                nodes.add(1, pos)?;
                 depth_check(stack.len(), pos)?;
                 stack.push(Open::Map(pos, anchor, Vec::new(), None));
                 None
@@ -211,40 +194,66 @@ pub fn parse(text: &str) -> Result<Node, SyntaxError> {
         if anchor > 0 {
             anchors.insert(anchor, (node.clone(), size(&node)));
         }
-        match stack.last_mut() {
-            None => root = Some(node),
-            Some(Open::Seq(_, _, items)) => items.push(node),
-            Some(Open::Map(_, _, entries, pending)) => match pending.take() {
-                None => {
-                    let Value::Scalar { text, .. } = node.value else {
-                        return Err(SyntaxError {
-                            pos: node.pos,
-                            message: "a mapping key must be a plain name, not a collection"
-                                .to_owned(),
-                        });
-                    };
-                    if let Some((first, _)) = entries.iter().find(|(k, _)| k.name == text) {
-                        return Err(SyntaxError {
-                            pos: node.pos,
-                            message: format!(
-                                "duplicate key `{text}` (first written at line {})",
-                                first.pos.line
-                            ),
-                        });
-                    }
-                    *pending = Some(Key {
-                        name: text,
-                        pos: node.pos,
-                    });
-                }
-                Some(key) => entries.push((key, node)),
-            },
-        }
+        attach(&mut stack, &mut root, node)?;
     }
     Ok(root.unwrap_or(Node {
         pos: Pos { line: 1, col: 1 },
         value: Value::Map(Vec::new()),
     }))
+}
+
+/// Places a complete `node` in the collection open on top of `stack` (the `root` when none
+/// is): an item of a sequence, a mapping's next key (a plain name, not written before) or the
+/// value of its pending key.
+fn attach(stack: &mut [Open], root: &mut Option<Node>, node: Node) -> Result<(), SyntaxError> {
+    match stack.last_mut() {
+        None => *root = Some(node),
+        Some(Open::Seq(_, _, items)) => items.push(node),
+        Some(Open::Map(_, _, entries, pending)) => match pending.take() {
+            None => {
+                let Value::Scalar { text, .. } = node.value else {
+                    return Err(SyntaxError {
+                        pos: node.pos,
+                        message: "a mapping key must be a plain name, not a collection".to_owned(),
+                    });
+                };
+                if let Some((first, _)) = entries.iter().find(|(k, _)| k.name == text) {
+                    return Err(SyntaxError {
+                        pos: node.pos,
+                        message: format!(
+                            "duplicate key `{text}` (first written at line {})",
+                            first.pos.line
+                        ),
+                    });
+                }
+                *pending = Some(Key {
+                    name: text,
+                    pos: node.pos,
+                });
+            }
+            Some(key) => entries.push((key, node)),
+        },
+    }
+    Ok(())
+}
+
+/// Nodes read so far, aliases expanded, against [`MAX_NODES`].
+struct NodeCount(usize);
+
+impl NodeCount {
+    /// Counts `n` more nodes, refusing at `pos` beyond [`MAX_NODES`].
+    fn add(&mut self, n: usize, pos: Pos) -> Result<(), SyntaxError> {
+        self.0 += n;
+        if self.0 > MAX_NODES {
+            return Err(SyntaxError {
+                pos,
+                message: format!(
+                    "more than {MAX_NODES} nodes with the aliases expanded; a description is far smaller"
+                ),
+            });
+        }
+        Ok(())
+    }
 }
 
 /// Nodes in `node`, itself included.
@@ -331,44 +340,74 @@ struct Unclosed {
 /// (`|`, `>`) are skipped, and outside flow collections a bracket or a quote counts only where
 /// a node starts (after `key: `, `- `, at a line's start): `doc: it's [so]` is plain text.
 fn unclosed_flow(text: &str) -> Option<Unclosed> {
-    let mut open: Vec<(char, Pos)> = Vec::new();
-    // Lines indented no deeper than this close the block the outermost open collection is in.
-    let mut limit = 0isize;
-    let mut quote: Option<char> = None;
-    // The indentation of the line a block scalar starts on: deeper lines are its text.
-    let mut block_scalar: Option<usize> = None;
-    let left = |open: &mut Vec<(char, Pos)>| {
-        open.pop().map(|(c, pos)| Unclosed {
-            open: c,
-            pos,
-            wrong_close: None,
-        })
+    let mut scan = FlowScan {
+        open: Vec::new(),
+        limit: 0,
+        quote: None,
+        block_scalar: None,
     };
     for (l, line) in text.lines().enumerate() {
         let chars: Vec<char> = line.chars().collect();
         let indent = chars.iter().take_while(|&&c| c == ' ').count();
         let blank = matches!(chars.get(indent), None | Some('#'));
-        if let Some(n) = block_scalar {
+        if let Some(n) = scan.block_scalar {
             if blank || indent > n {
                 continue;
             }
-            block_scalar = None;
+            scan.block_scalar = None;
         }
-        if quote.is_none() && !open.is_empty() && !blank && (indent as isize) <= limit {
-            return left(&mut open);
+        if scan.quote.is_none()
+            && !scan.open.is_empty()
+            && !blank
+            && (indent as isize) <= scan.limit
+        {
+            return scan.innermost();
         }
+        if let ControlFlow::Break(found) = scan.line(l, &chars, indent) {
+            return found;
+        }
+    }
+    scan.innermost()
+}
+
+/// The state of [`unclosed_flow`]'s scan between lines.
+struct FlowScan {
+    /// Open flow brackets with where they opened, innermost last.
+    open: Vec<(char, Pos)>,
+    /// Lines indented no deeper than this close the block the outermost open collection is in.
+    limit: isize,
+    /// The quote a string open across lines started with.
+    quote: Option<char>,
+    /// The indentation of the line a block scalar starts on: deeper lines are its text.
+    block_scalar: Option<usize>,
+}
+
+impl FlowScan {
+    /// The innermost open bracket, as left unclosed.
+    fn innermost(&mut self) -> Option<Unclosed> {
+        self.open.pop().map(|(c, pos)| Unclosed {
+            open: c,
+            pos,
+            wrong_close: None,
+        })
+    }
+
+    /// Scans line `l` (its characters `chars`, indented by `indent`) for brackets; breaks with
+    /// a bracket closed by the wrong kind, or with `None` at a close without an opening
+    /// (not a case of an unclosed bracket).
+    fn line(&mut self, l: usize, chars: &[char], indent: usize) -> ControlFlow<Option<Unclosed>> {
         // Whether a node may start here.
         let mut start = true;
         let mut i = 0;
         while i < chars.len() {
             let c = chars[i];
             let next = chars.get(i + 1).copied();
-            let flow = !open.is_empty();
-            if let Some(q) = quote {
+            let flow = !self.open.is_empty();
+            if let Some(q) = self.quote {
                 match (q, c) {
                     ('"', '\\') => i += 1,
                     ('\'', '\'') if next == Some('\'') => i += 1,
-                    ('"', '"') | ('\'', '\'') => quote = None,
+                    ('"', '"') | ('\'', '\'') => self.quote = None,
                     _ => {}
                 }
                 i += 1;
@@ -378,7 +417,7 @@ fn unclosed_flow(text: &str) -> Option<Unclosed> {
                 ' ' | '\t' => {}
                 '#' if i == 0 || chars[i - 1].is_whitespace() => break,
                 '"' | '\'' if start => {
-                    quote = Some(c);
+                    self.quote = Some(c);
                     start = false;
                 }
                 '{' | '[' if start || flow => {
@@ -386,9 +425,9 @@ fn unclosed_flow(text: &str) -> Option<Unclosed> {
                         // Content lines of a collection that opens its line belong to the
                         // block above it; else to the line's own block.
                         let opens_line = i == indent;
-                        limit = indent as isize - isize::from(opens_line);
+                        self.limit = indent as isize - isize::from(opens_line);
                     }
-                    open.push((
+                    self.open.push((
                         c,
                         Pos {
                             line: l + 1,
@@ -398,9 +437,11 @@ fn unclosed_flow(text: &str) -> Option<Unclosed> {
                     start = true;
                 }
                 '}' | ']' if flow => {
-                    let (o, pos) = open.pop()?;
+                    let Some((o, pos)) = self.open.pop() else {
+                        return ControlFlow::Break(None);
+                    };
                     if (o == '{') != (c == '}') {
-                        return Some(Unclosed {
+                        return ControlFlow::Break(Some(Unclosed {
                             open: o,
                             pos,
                             wrong_close: Some((
@@ -410,7 +451,7 @@ fn unclosed_flow(text: &str) -> Option<Unclosed> {
                                     col: i + 1,
                                 },
                             )),
-                        });
+                        }));
                     }
                     start = false;
                 }
@@ -418,7 +459,7 @@ fn unclosed_flow(text: &str) -> Option<Unclosed> {
                 ':' if flow || next.is_none_or(char::is_whitespace) => start = true,
                 '-' | '?' if start && !flow && next.is_none_or(char::is_whitespace) => {}
                 '|' | '>' if start && !flow => {
-                    block_scalar = Some(indent);
+                    self.block_scalar = Some(indent);
                     break;
                 }
                 // An anchor or a tag: the node follows.
@@ -431,8 +472,8 @@ fn unclosed_flow(text: &str) -> Option<Unclosed> {
             }
             i += 1;
         }
+        ControlFlow::Continue(())
     }
-    left(&mut open)
 }
 
 fn unbalanced(pos: Pos) -> SyntaxError {

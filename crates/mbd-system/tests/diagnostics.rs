@@ -644,7 +644,7 @@ fn an_unclosed_flow_collection_is_reported_where_it_opens() {
 #[test]
 fn a_profiles_interpolation_is_linear_by_default_cubic_on_request_and_nothing_else() {
     use mbd_system::model::ModelProfile;
-    use mbd_system::system::Interpolation;
+    use mbd_system::schema::Interpolation;
     let generated = |extra: &str| {
         edit(
             BASE,

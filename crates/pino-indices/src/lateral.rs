@@ -13,8 +13,9 @@
 //!                           centre: peak max |a|, RMS, lateral Sperling W_y (lateral weighting)
 //! stability                 the growth rate (1/s) of a column's oscillation once the
 //!                           irregularity has ended (every stored excitation exactly 0 to the
-//!                           end): ln(RMS of its second half / RMS of its first half) / half
-//!                           the span, about its mean; > 0 grows (hunting), < 0 decays
+//!                           end): the slope of a line fitted to ln RMS of its periods (about
+//!                           its mean), moved toward 0 by 2 standard errors of the slope (0
+//!                           within them); > 0 grows (hunting), < 0 decays
 //! ```
 //!
 //! `Y` is the rail's lateral force on the wheel toward the track's centre (the flanging wheel's
@@ -95,7 +96,7 @@ pub const LATERAL_COLUMNS: [IndexColumn; 14] = [
     IndexColumn {
         name: "lateral_stability_growth_1ps",
         unit: "1/s",
-        definition: "growth rate of the stability column's oscillation after the irregularity ends (> 0: it grows)",
+        definition: "growth rate of the stability column's oscillation after the irregularity ends, 0 within 2 standard errors of its fit (> 0: it grows)",
     },
 ];
 
@@ -156,7 +157,9 @@ pub fn car_body_lateral(rec: &LateralRecord, p: &LateralParams) -> [Vec<f64>; 3]
     })
 }
 
-/// The growth rate (1/s) of `y` over the part of the window where every excitation is zero.
+/// The growth rate (1/s) of `y` over the part of the window where every excitation is zero:
+/// the slope of a straight line fitted to the logarithm of its envelope ([`envelope`]),
+/// moved toward 0 by [`STABILITY_SIGMAS`] standard errors of that slope (0 when within them).
 fn stability(rec: &LateralRecord) -> Result<f64> {
     let n = rec.stability.len();
     let quiet_from = (0..n)
@@ -164,25 +167,86 @@ fn stability(rec: &LateralRecord) -> Result<f64> {
         .find(|&t| rec.excitations.iter().any(|e| e[t] != 0.0))
         .map_or(0, |t| t + 1);
     let needed = (MIN_QUIET_S / rec.dt).ceil() as usize;
-    if n - quiet_from < needed.max(4) {
+    if n - quiet_from < needed.max(4 * MIN_WINDOWS) {
         return Err(Error::TooShort {
             what: format!(
                 "the stability index's quiet part (every excitation zero to the end, at least {MIN_QUIET_S} s)"
             ),
             found: n - quiet_from,
-            needed: needed.max(4),
+            needed: needed.max(4 * MIN_WINDOWS),
         });
     }
-    let y = &rec.stability[quiet_from..];
-    let mean = y.iter().sum::<f64>() / y.len() as f64;
-    let half = y.len() / 2;
-    let rms =
-        |s: &[f64]| (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / s.len() as f64).sqrt();
-    let (first, second) = (rms(&y[..half]), rms(&y[y.len() - half..]));
-    if first == 0.0 || second == 0.0 {
+    let Some(points) = envelope(&rec.stability[quiet_from..], rec.dt) else {
         return Ok(0.0);
-    }
-    Ok((second / first).ln() / ((y.len() - half) as f64 * rec.dt))
+    };
+    let (slope, error) = line_slope(&points);
+    let tolerance = STABILITY_SIGMAS * error;
+    Ok(if slope > tolerance {
+        slope - tolerance
+    } else if slope < -tolerance {
+        slope + tolerance
+    } else {
+        0.0
+    })
+}
+
+/// Standard errors of the fitted slope by which the stability index is moved toward 0: a
+/// growth rate within them is no verdict either way (about 2.5 % of records with a steady
+/// oscillation and noise read above 0).
+pub const STABILITY_SIGMAS: f64 = 2.0;
+
+/// Fewest windows of the envelope the stability index fits a line to.
+pub const MIN_WINDOWS: usize = 4;
+
+/// The envelope of an oscillation `y` at spacing `dt` (s): `(t, ln RMS)` of consecutive
+/// windows one period long, about the mean of `y`, the last window ending at the end; the
+/// period is the lag of the highest peak of `y`'s autocorrelation after its first zero
+/// crossing (white noise adds only to lag 0). When fewer than [`MIN_WINDOWS`] periods fit
+/// (or `y` does not oscillate), [`MIN_WINDOWS`] equal windows. `None` when a window is still.
+fn envelope(y: &[f64], dt: f64) -> Option<Vec<(f64, f64)>> {
+    let n = y.len();
+    let mean = y.iter().sum::<f64>() / n as f64;
+    let d: Vec<f64> = y.iter().map(|v| v - mean).collect();
+    let lag = |l: usize| -> f64 { d[..n - l].iter().zip(&d[l..]).map(|(a, b)| a * b).sum() };
+    let period = (1..n / MIN_WINDOWS)
+        .find(|&l| lag(l) < 0.0)
+        .and_then(|first| {
+            (first..n / MIN_WINDOWS)
+                .map(|l| (l, lag(l)))
+                .filter(|&(_, r)| r > 0.0)
+                .fold(None, |best: Option<(usize, f64)>, (l, r)| match best {
+                    Some((_, b)) if b >= r => best,
+                    _ => Some((l, r)),
+                })
+                .map(|(l, _)| l)
+        });
+    let width = period.unwrap_or(n / MIN_WINDOWS);
+    let windows = n / width;
+    let start = n - windows * width;
+    (0..windows)
+        .map(|k| {
+            let w = &d[start + k * width..start + (k + 1) * width];
+            let rms = (w.iter().map(|v| v * v).sum::<f64>() / width as f64).sqrt();
+            let centre = (start + k * width) as f64 + 0.5 * (width as f64 - 1.0);
+            (rms > 0.0).then(|| (centre * dt, rms.ln()))
+        })
+        .collect()
+}
+
+/// The least-squares slope of `points` `(t, v)` and its standard error (from the residuals,
+/// `points.len() - 2` degrees of freedom).
+fn line_slope(points: &[(f64, f64)]) -> (f64, f64) {
+    let m = points.len() as f64;
+    let t_mean = points.iter().map(|p| p.0).sum::<f64>() / m;
+    let v_mean = points.iter().map(|p| p.1).sum::<f64>() / m;
+    let stt: f64 = points.iter().map(|p| (p.0 - t_mean).powi(2)).sum();
+    let stv: f64 = points.iter().map(|p| (p.0 - t_mean) * (p.1 - v_mean)).sum();
+    let slope = stv / stt;
+    let residual: f64 = points
+        .iter()
+        .map(|p| (p.1 - v_mean - slope * (p.0 - t_mean)).powi(2))
+        .sum();
+    (slope, (residual / (m - 2.0) / stt).sqrt())
 }
 
 /// The lateral indices of one record, in [`LATERAL_COLUMNS`] order. The record must be
@@ -321,6 +385,78 @@ mod tests {
         let busy = vec![1e-3; n];
         let rec = record(&wheels, &zero, &y, &busy);
         assert!(lateral_indices(&rec, &params(), &SperlingParams::default()).is_err());
+    }
+
+    /// A quiet record `exp(sigma t) sin(2 pi 5 t)` (1.6 s after a 0.4 s excitation, 1 ms
+    /// steps) plus uniform noise of half-width `noise` drawn from `seed` (xorshift).
+    fn oscillation(sigma: f64, noise: f64, seed: u64) -> Vec<f64> {
+        let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+        (0..2000)
+            .map(|t| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let u = (state >> 11) as f64 / (1u64 << 53) as f64;
+                let t = t as f64 * 1e-3;
+                (sigma * t).exp() * (2.0 * std::f64::consts::PI * 5.0 * t).sin()
+                    + noise * (2.0 * u - 1.0)
+            })
+            .collect()
+    }
+
+    /// The stability index of `y` on a record whose excitation ends at 0.4 s.
+    fn growth(y: &[f64]) -> f64 {
+        let zero = vec![0.0; y.len()];
+        let excitation: Vec<f64> = (0..y.len())
+            .map(|t| if t < 400 { 1.0 } else { 0.0 })
+            .collect();
+        let wheels = vec![(vec![0.0; y.len()], vec![7.5e4; y.len()]); 2];
+        let rec = record(&wheels, &zero, y, &excitation);
+        lateral_indices(&rec, &params(), &SperlingParams::default()).unwrap()[13]
+    }
+
+    /// The fitted envelope of a damped or growing sinusoid is its exponential: the slope is
+    /// `sigma` with a vanishing standard error (the windows are whole periods).
+    #[test]
+    fn the_envelope_of_an_exponential_sinusoid_is_its_exponential() {
+        for sigma in [-0.8, -0.1, 0.3, 0.8] {
+            let y = oscillation(sigma, 0.0, 1);
+            let points = envelope(&y[400..], 1e-3).unwrap();
+            assert_eq!(points.len(), 8, "sigma {sigma}: one window per period");
+            let (slope, error) = line_slope(&points);
+            assert!(
+                (slope - sigma).abs() < 2e-3 * sigma.abs().max(1.0),
+                "{sigma}: {slope}"
+            );
+            assert!(error < 1e-3, "{sigma}: {error}");
+        }
+    }
+
+    /// With noise (5 % of the starting amplitude): a decay reads as decay and a growth as
+    /// growth, each within 0.1/s; a steady oscillation reads 0 in most records and never
+    /// more than 0.05/s; a slow decay (-0.05/s) never reads as growth. Over 40 records each.
+    #[test]
+    fn noise_within_its_standard_errors_is_no_growth() {
+        for seed in 1..=40 {
+            let decay = growth(&oscillation(-0.8, 0.05, seed));
+            assert!(
+                decay < 0.0 && (decay + 0.8).abs() < 0.1,
+                "seed {seed}: {decay}"
+            );
+            let grow = growth(&oscillation(0.8, 0.05, seed));
+            assert!(
+                grow > 0.0 && (grow - 0.8).abs() < 0.1,
+                "seed {seed}: {grow}"
+            );
+            let slow = growth(&oscillation(-0.05, 0.05, seed));
+            assert!(slow <= 0.0, "seed {seed}: {slow}");
+        }
+        let steady: Vec<f64> = (1..=40)
+            .map(|s| growth(&oscillation(0.0, 0.05, s)))
+            .collect();
+        let zeros = steady.iter().filter(|g| **g == 0.0).count();
+        assert!(zeros >= 30, "{zeros} of 40 read 0: {steady:?}");
+        assert!(steady.iter().all(|g| g.abs() < 0.05), "{steady:?}");
     }
 
     /// The lateral Sperling index of a sinusoid on a spectral line is the closed form with the

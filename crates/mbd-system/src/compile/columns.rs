@@ -64,15 +64,9 @@ impl Compiler<'_, '_> {
     /// where a part fails).
     pub(super) fn railway(&mut self, channels: &[Channel]) -> Option<Railway> {
         let r = self.raw.railway.as_ref()?;
-        let diag = &mut *self.diag;
-        let mut cols = |v: &[Named]| -> Option<Vec<usize>> {
-            v.iter()
-                .map(|n| stored_column(channels, n, "railway", diag))
-                .collect()
-        };
-        let contact_forces = cols(&r.contact_forces);
-        let bogies = cols(&r.bogies);
-        let rails = cols(&r.rails);
+        let contact_forces = stored_columns(channels, &r.contact_forces, "railway", self.diag);
+        let bogies = stored_columns(channels, &r.bogies, "railway", self.diag);
+        let rails = stored_columns(channels, &r.rails, "railway", self.diag);
         let (cv, cp) = match &r.car_body {
             Some((v, p)) => (
                 stored_column(channels, v, "railway", self.diag),
@@ -148,11 +142,10 @@ impl Compiler<'_, '_> {
                 }
             }
         }
-        let car_body = r.car_body.as_ref().map(|c| {
-            c.iter()
-                .map(|n| stored_column(channels, n, "lateral.car_body", self.diag))
-                .collect::<Option<Vec<usize>>>()
-        });
+        let car_body = r
+            .car_body
+            .as_ref()
+            .map(|c| stored_columns(channels, c, "lateral.car_body", self.diag));
         let stability = r
             .stability
             .as_ref()
@@ -196,6 +189,20 @@ impl Compiler<'_, '_> {
     }
 }
 
+/// The indices of the stored columns `names`, in order (none from the first that is not
+/// stored, reported as by [`stored_column`]).
+fn stored_columns(
+    channels: &[Channel],
+    names: &[Named],
+    what: &str,
+    diag: &mut Diagnostics,
+) -> Option<Vec<usize>> {
+    names
+        .iter()
+        .map(|n| stored_column(channels, n, what, diag))
+        .collect()
+}
+
 /// The index of the stored column `name` (`what` in the message when there is none).
 fn stored_column(
     channels: &[Channel],
@@ -227,16 +234,46 @@ pub(super) fn channel_table(
     diag: &mut Diagnostics,
 ) -> Vec<Channel> {
     let mut out = Vec::new();
+    for (i, d) in dofs.iter().enumerate() {
+        let (u, v, a) = if d.kind.is_rotation() {
+            ("rad", "rad/s", "rad/s^2")
+        } else {
+            ("m", "m/s", "m/s^2")
+        };
+        named_columns(
+            &mut out,
+            &d.name,
+            [
+                ("", "", u, Quantity::Dof(i, 0), Role::Solution),
+                ("", "_v", v, Quantity::Dof(i, 1), Role::Velocity),
+                ("", "_a", a, Quantity::Dof(i, 2), Role::Acceleration),
+            ],
+        );
+    }
+    for (i, p) in points.iter().enumerate() {
+        if p.beam.is_some() {
+            let z = ("z_", "", "m", Quantity::Point(i), Role::Solution);
+            named_columns(&mut out, &p.name, [z]);
+        }
+    }
+    for (i, s) in sensors.iter().enumerate() {
+        named_columns(
+            &mut out,
+            &s.name,
+            [
+                ("z_", "", "m", Quantity::Sensor(i, 0), Role::Solution),
+                ("z_", "_v", "m/s", Quantity::Sensor(i, 1), Role::Other),
+                ("z_", "_a", "m/s^2", Quantity::Sensor(i, 2), Role::Other),
+            ],
+        );
+    }
+    for (i, e) in elements.iter().enumerate() {
+        named_columns(&mut out, &e.name, element_columns(i, e));
+    }
     // Who produces each column, for messages: what and its name.
-    let mut owners: Vec<(&str, &str)> = Vec::new();
-    let mut push = |name: String, unit: &str, quantity: Quantity, role: Role| {
-        out.push(Channel {
-            name,
-            unit: unit.to_owned(),
-            quantity,
-            role,
-        });
-        owners.push(match quantity {
+    let owners: Vec<(&str, &str)> = out
+        .iter()
+        .map(|c| match c.quantity {
             Quantity::Dof(i, _) => ("body", bodies[dofs[i].body].name.as_str()),
             Quantity::Point(i) => ("moving point", points[i].name.as_str()),
             Quantity::Sensor(i, _) => ("sensor", sensors[i].name.as_str()),
@@ -248,117 +285,51 @@ pub(super) fn channel_table(
             | Quantity::Flange(i)
             | Quantity::Creep(i)
             | Quantity::Shift(i) => ("element", elements[i].name.as_str()),
-        });
-    };
-    for (i, d) in dofs.iter().enumerate() {
-        let (u, v, a) = if d.kind.is_rotation() {
-            ("rad", "rad/s", "rad/s^2")
-        } else {
-            ("m", "m/s", "m/s^2")
-        };
-        push(d.name.clone(), u, Quantity::Dof(i, 0), Role::Solution);
-        push(
-            format!("{}_v", d.name),
-            v,
-            Quantity::Dof(i, 1),
-            Role::Velocity,
-        );
-        push(
-            format!("{}_a", d.name),
-            a,
-            Quantity::Dof(i, 2),
-            Role::Acceleration,
-        );
-    }
-    for (i, p) in points.iter().enumerate() {
-        if p.beam.is_some() {
-            push(
-                format!("z_{}", p.name),
-                "m",
-                Quantity::Point(i),
-                Role::Solution,
-            );
-        }
-    }
-    for (i, s) in sensors.iter().enumerate() {
-        push(
-            format!("z_{}", s.name),
-            "m",
-            Quantity::Sensor(i, 0),
-            Role::Solution,
-        );
-        push(
-            format!("z_{}_v", s.name),
-            "m/s",
-            Quantity::Sensor(i, 1),
-            Role::Other,
-        );
-        push(
-            format!("z_{}_a", s.name),
-            "m/s^2",
-            Quantity::Sensor(i, 2),
-            Role::Other,
-        );
-    }
-    for (i, e) in elements.iter().enumerate() {
-        if e.profile.is_some() {
-            push(
-                format!("eta_{}", e.name),
-                "m",
-                Quantity::Excitation(i),
-                Role::Excitation,
-            );
-        }
-        if e.reads_profile_rate() {
-            push(
-                format!("eta_{}_v", e.name),
-                "m/s",
-                Quantity::ExcitationRate(i),
-                Role::Excitation,
-            );
-        }
-        let sym = if e.law.is_contact() { "p" } else { "f" };
-        push(
-            format!("{sym}_{}", e.name),
-            "N",
-            Quantity::Force(i),
-            Role::Force,
-        );
-        push(
-            format!("d_{}", e.name),
-            "m",
-            Quantity::Deflection(i),
-            Role::Other,
-        );
-        if e.law.wheel().is_some() {
-            push(
-                format!("fy_{}", e.name),
-                "N",
-                Quantity::WheelLateral(i),
-                Role::Force,
-            );
-            push(
-                format!("ff_{}", e.name),
-                "N",
-                Quantity::Flange(i),
-                Role::Other,
-            );
-            push(
-                format!("fx_{}", e.name),
-                "N",
-                Quantity::Creep(i),
-                Role::Other,
-            );
-            push(
-                format!("dy_{}", e.name),
-                "m",
-                Quantity::Shift(i),
-                Role::Other,
-            );
-        }
-    }
+        })
+        .collect();
     report_column_clashes(&out, &owners, raw, diag);
     out
+}
+
+/// One column of a producer: `(prefix, suffix, unit, quantity, role)`, the column named
+/// `{prefix}{producer}{suffix}`.
+type ColumnOf = (&'static str, &'static str, &'static str, Quantity, Role);
+
+/// Appends the `columns` of the producer `name` to `out`, in order.
+fn named_columns(out: &mut Vec<Channel>, name: &str, columns: impl IntoIterator<Item = ColumnOf>) {
+    for (prefix, suffix, unit, quantity, role) in columns {
+        out.push(Channel {
+            name: format!("{prefix}{name}{suffix}"),
+            unit: unit.to_owned(),
+            quantity,
+            role,
+        });
+    }
+}
+
+/// The columns of element `i`: its profile and profile rate where it reads them, its force
+/// and deflection, and a wheel's lateral, flange and longitudinal forces and lateral shift.
+fn element_columns(i: usize, e: &Element) -> Vec<ColumnOf> {
+    let mut columns = Vec::new();
+    if e.profile.is_some() {
+        columns.push(("eta_", "", "m", Quantity::Excitation(i), Role::Excitation));
+    }
+    if e.reads_profile_rate() {
+        let rate = Quantity::ExcitationRate(i);
+        columns.push(("eta_", "_v", "m/s", rate, Role::Excitation));
+    }
+    let sym = if e.law.is_contact() { "p_" } else { "f_" };
+    columns.push((sym, "", "N", Quantity::Force(i), Role::Force));
+    columns.push(("d_", "", "m", Quantity::Deflection(i), Role::Other));
+    if e.law.wheel().is_some() {
+        columns.extend([
+            ("fy_", "", "N", Quantity::WheelLateral(i), Role::Force),
+            ("ff_", "", "N", Quantity::Flange(i), Role::Other),
+            ("fx_", "", "N", Quantity::Creep(i), Role::Other),
+            ("dy_", "", "m", Quantity::Shift(i), Role::Other),
+        ]);
+    }
+    columns
 }
 
 /// Unique column names: a collision (a body `c_v` beside a body `c`, a sensor named like a

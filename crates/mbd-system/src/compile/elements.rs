@@ -231,16 +231,7 @@ impl Compiler<'_, '_> {
         what: &str,
     ) -> Vec<Element> {
         let body = self.wheelset_body(e, ends, what);
-        let rails: Vec<Option<End>> = w
-            .rails
-            .iter()
-            .map(|(n, p)| ends.resolve(n, *p, &format!("{what}.rails"), self.diag))
-            .collect();
-        for (end, (n, p)) in rails.iter().zip(&w.rails) {
-            if end.as_ref().is_some_and(|t| !matches!(t, End::Moving(_))) {
-                self.diag.push(*p, format!("{what}.rails: `{n}` is not a moving point; a wheel rolls on a rail point (`moving.points`: {})", names(ends.points.iter().map(|p| &p.name))));
-            }
-        }
+        let rails = self.wheelset_rails(w, ends, what);
         let wheel_profiles: Vec<usize> = w
             .profiles
             .iter()
@@ -254,6 +245,64 @@ impl Compiler<'_, '_> {
             .iter()
             .map(|(n, p)| self.lateral_rail(n, *p, ends, what))
             .collect();
+        let law = self.wheel_law(e, w, body, what);
+        Side::BOTH
+            .iter()
+            .enumerate()
+            .map(|(i, &side)| {
+                let wheel = Wheel {
+                    side,
+                    rail: lateral.get(i).copied().flatten(),
+                    ..law.clone()
+                };
+                let lever = match side {
+                    Side::Left => Expr::Neg(Box::new(law.half_gauge.clone())),
+                    Side::Right => law.half_gauge.clone(),
+                };
+                Element {
+                    name: format!("{}_{}", e.name, side.suffix()),
+                    law: Law::Wheel(Box::new(wheel)),
+                    from: match body {
+                        Some(b) => End::Body {
+                            body: b,
+                            x: None,
+                            y: Some(lever),
+                            z: None,
+                        },
+                        None => End::Ground,
+                    },
+                    to: rails.get(i).cloned().flatten().unwrap_or(End::Ground),
+                    profile: wheel_profiles.get(i).copied(),
+                    direction: Axis::Z,
+                }
+            })
+            .collect()
+    }
+
+    /// The rail points of a wheelset's wheels, each refused unless it is a moving point.
+    fn wheelset_rails(&mut self, w: &RawWheelset, ends: &Ends, what: &str) -> Vec<Option<End>> {
+        let rails: Vec<Option<End>> = w
+            .rails
+            .iter()
+            .map(|(n, p)| ends.resolve(n, *p, &format!("{what}.rails"), self.diag))
+            .collect();
+        for (end, (n, p)) in rails.iter().zip(&w.rails) {
+            if end.as_ref().is_some_and(|t| !matches!(t, End::Moving(_))) {
+                self.diag.push(*p, format!("{what}.rails: `{n}` is not a moving point; a wheel rolls on a rail point (`moving.points`: {})", names(ends.points.iter().map(|p| &p.name))));
+            }
+        }
+        rails
+    }
+
+    /// The law both wheels of a wheelset share (the left side's, without a lateral rail):
+    /// gauge, radius, Hertz constant, geometry, creep and flange fields.
+    fn wheel_law(
+        &mut self,
+        e: &RawElement,
+        w: &RawWheelset,
+        body: Option<usize>,
+        what: &str,
+    ) -> Wheel {
         let half_gauge = self.req_or(&w.half_gauge, &format!("{what}.half_gauge"), f64::NAN);
         let radius = self.req_or(&w.radius, &format!("{what}.radius"), f64::NAN);
         let hertz = self.req_or(&w.hertz, &format!("{what}.hertz"), f64::NAN);
@@ -276,82 +325,39 @@ impl Compiler<'_, '_> {
             None => Geometry::Conicity(Expr::Num(f64::NAN)),
         };
         let creep = w.creep.as_ref();
-        let field = |f: Option<&Option<Field>>| f.cloned().flatten();
-        let young = self.req_or(
-            &field(creep.map(|c| &c.young)),
-            &format!("{what}.creep.young"),
-            f64::NAN,
-        );
-        let poisson = self.req_or(
-            &field(creep.map(|c| &c.poisson)),
-            &format!("{what}.creep.poisson"),
-            f64::NAN,
-        );
-        let friction = self.req_or(
-            &field(creep.map(|c| &c.friction)),
-            &format!("{what}.creep.friction"),
-            f64::NAN,
-        );
-        let rail_radius = self.req_or(
-            &field(creep.map(|c| &c.rail_radius)),
-            &format!("{what}.creep.rail_radius"),
-            f64::NAN,
-        );
-        let wheel_profile_radius = field(creep.map(|c| &c.wheel_profile_radius)).map(|f| {
-            self.req_or(
-                &Some(f),
-                &format!("{what}.creep.wheel_profile_radius"),
-                f64::NAN,
-            )
-        });
+        let mut creep_field = |key: &str, field: fn(&RawCreep) -> &Option<Field>| {
+            let written = creep.and_then(|c| field(c).clone());
+            self.req_or(&written, &format!("{what}.creep.{key}"), f64::NAN)
+        };
+        let young = creep_field("young", |c| &c.young);
+        let poisson = creep_field("poisson", |c| &c.poisson);
+        let friction = creep_field("friction", |c| &c.friction);
+        let rail_radius = creep_field("rail_radius", |c| &c.rail_radius);
+        let wheel_profile_radius = creep
+            .is_some_and(|c| c.wheel_profile_radius.is_some())
+            .then(|| creep_field("wheel_profile_radius", |c| &c.wheel_profile_radius));
         let flange = w.flange.as_ref().map(|f| {
             (
                 self.req_or(&f.clearance, &format!("{what}.flange.clearance"), f64::NAN),
                 self.req_or(&f.stiffness, &format!("{what}.flange.stiffness"), f64::NAN),
             )
         });
-        Side::BOTH
-            .iter()
-            .enumerate()
-            .map(|(i, &side)| {
-                let wheel = Wheel {
-                    wheelset: e.name.clone(),
-                    side,
-                    body: body.unwrap_or(0),
-                    rail: lateral.get(i).copied().flatten(),
-                    half_gauge: half_gauge.clone(),
-                    radius: radius.clone(),
-                    hertz: hertz.clone(),
-                    geometry: geometry.clone(),
-                    young: young.clone(),
-                    poisson: poisson.clone(),
-                    friction: friction.clone(),
-                    rail_radius: rail_radius.clone(),
-                    wheel_profile_radius: wheel_profile_radius.clone(),
-                    flange: flange.clone(),
-                };
-                let lever = match side {
-                    Side::Left => Expr::Neg(Box::new(half_gauge.clone())),
-                    Side::Right => half_gauge.clone(),
-                };
-                Element {
-                    name: format!("{}_{}", e.name, side.suffix()),
-                    law: Law::Wheel(Box::new(wheel)),
-                    from: match body {
-                        Some(b) => End::Body {
-                            body: b,
-                            x: None,
-                            y: Some(lever),
-                            z: None,
-                        },
-                        None => End::Ground,
-                    },
-                    to: rails.get(i).cloned().flatten().unwrap_or(End::Ground),
-                    profile: wheel_profiles.get(i).copied(),
-                    direction: Axis::Z,
-                }
-            })
-            .collect()
+        Wheel {
+            wheelset: e.name.clone(),
+            side: Side::Left,
+            body: body.unwrap_or(0),
+            rail: None,
+            half_gauge,
+            radius,
+            hertz,
+            geometry,
+            young,
+            poisson,
+            friction,
+            rail_radius,
+            wheel_profile_radius,
+            flange,
+        }
     }
 
     /// The wheelset body of a wheelset element: a body's centre with the DOFs `y`, `z`,

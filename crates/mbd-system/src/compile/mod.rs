@@ -37,7 +37,7 @@ use crate::diag::Diagnostics;
 use crate::expr::Expr;
 use crate::reader::Field;
 use crate::schema::{
-    self, Axis, DofKind, Named, ParamKind, RawBeam, RawBody, RawDescription, RawElement,
+    self, Axis, DofKind, Named, ParamKind, RawBeam, RawBody, RawCreep, RawDescription, RawElement,
     RawGeometry, RawLaw, RawLink, RawProfileKind, RawSupports, RawWheelset,
 };
 use crate::system::*;

@@ -14,7 +14,6 @@ mod sections;
 pub use sections::read;
 
 use crate::reader::Field;
-use crate::system::Interpolation;
 use crate::yaml::Pos;
 
 /// The only format version this crate reads.
@@ -289,6 +288,49 @@ pub enum Outside {
     Refuse,
     /// Off the beam, a point rests on rigid level ground (approach embankments of a bridge).
     Rigid,
+}
+
+/// How a generated profile is read between its points (`interpolation:` of a profile).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Interpolation {
+    /// Straight segments: continuous level, a slope that jumps at every point (the default).
+    #[default]
+    Linear,
+    /// A not-a-knot cubic spline: continuous level, slope and curvature.
+    Cubic,
+}
+
+impl Interpolation {
+    /// Every interpolation with its keyword, in the order a message lists them.
+    pub const ALL: [(Interpolation, &'static str); 2] = [
+        (Interpolation::Linear, "linear"),
+        (Interpolation::Cubic, "cubic"),
+    ];
+
+    /// The keyword of `interpolation:`.
+    pub fn keyword(self) -> &'static str {
+        Self::ALL
+            .iter()
+            .find(|(i, _)| *i == self)
+            .map_or("", |(_, k)| k)
+    }
+
+    /// The interpolation of a keyword.
+    pub fn from_keyword(keyword: &str) -> Option<Self> {
+        Self::ALL
+            .iter()
+            .find(|(_, k)| *k == keyword)
+            .map(|(i, _)| *i)
+    }
+
+    /// The fewest points the interpolation takes: 2 for a segment, 4 for a not-a-knot spline
+    /// (its two end conditions each need two cells).
+    pub fn min_points(self) -> usize {
+        match self {
+            Interpolation::Linear => 2,
+            Interpolation::Cubic => 4,
+        }
+    }
 }
 
 /// One entry of `beams`: a simply supported Euler-Bernoulli beam by modal superposition.

@@ -47,92 +47,22 @@ pub fn read(root: &Node, diag: &mut Diagnostics) -> RawDescription {
         out.name = name;
     }
     out.doc = top.string("doc", diag).map(|d| d.0);
-    let mut section = |name: &str, diag: &mut Diagnostics| -> Vec<(String, Pos, Node)> {
-        let Some(node) = top.get(name) else {
-            return Vec::new();
-        };
-        let Some(mut m) = MapReader::new(node, name, diag) else {
-            return Vec::new();
-        };
-        m.entries()
-            .iter()
-            .filter_map(|(k, v)| {
-                if valid_name(&k.name) {
-                    Some((k.name.clone(), k.pos, v.clone()))
-                } else {
-                    diag.push(
-                        k.pos,
-                        format!(
-                            "{name}: `{}` is not a valid name (letters, digits and `_`, at most 64)",
-                            k.name
-                        ),
-                    );
-                    None
-                }
-            })
-            .collect()
-    };
-    let parameters = section("parameters", diag);
-    let bodies = section("bodies", diag);
-    let beams = section("beams", diag);
-    let sensors = section("sensors", diag);
-    let profiles = section("profiles", diag);
-    let elements = section("elements", diag);
-    let loads = section("loads", diag);
-    let indices = section("indices", diag);
-    out.parameters = parameters
-        .iter()
-        .filter_map(|(n, p, v)| parameter(n, *p, v, diag))
-        .collect();
-    out.bodies = bodies
-        .iter()
-        .filter_map(|(n, p, v)| body(n, *p, v, diag))
-        .collect();
-    out.beams = beams
-        .iter()
-        .filter_map(|(n, p, v)| beam(n, *p, v, diag))
-        .collect();
-    out.sensors = sensors
-        .iter()
-        .filter_map(|(n, p, v)| {
-            let mut m = MapReader::new(v, &format!("sensors.{n}"), diag)?;
-            let s = RawSensor {
-                name: n.clone(),
-                pos: *p,
-                on: m.required_string("on", diag),
-                x: m.required_expr("x", diag),
-            };
-            m.finish(&["on", "x"], diag);
-            Some(s)
-        })
-        .collect();
-    out.profiles = profiles
-        .iter()
-        .filter_map(|(n, p, v)| profile(n, *p, v, diag))
-        .collect();
-    out.elements = elements
-        .iter()
-        .filter_map(|(n, p, v)| element(n, *p, v, diag))
-        .collect();
-    out.loads = loads
-        .iter()
-        .filter_map(|(n, p, v)| {
-            let mut m = MapReader::new(v, &format!("loads.{n}"), diag)?;
-            let l = RawLoad {
-                name: n.clone(),
-                pos: *p,
-                at: m.required_string("at", diag),
-                force: m.required_expr("force", diag),
-                direction: direction(&mut m, &format!("loads.{n}"), diag),
-            };
-            m.finish(&["at", "force", "direction"], diag);
-            Some(l)
-        })
-        .collect();
-    out.indices = indices
-        .iter()
-        .filter_map(|(n, p, v)| index(n, *p, v, diag))
-        .collect();
+    let parameters = named_entries(&mut top, "parameters", diag);
+    let bodies = named_entries(&mut top, "bodies", diag);
+    let beams = named_entries(&mut top, "beams", diag);
+    let sensors = named_entries(&mut top, "sensors", diag);
+    let profiles = named_entries(&mut top, "profiles", diag);
+    let elements = named_entries(&mut top, "elements", diag);
+    let loads = named_entries(&mut top, "loads", diag);
+    let indices = named_entries(&mut top, "indices", diag);
+    out.parameters = read_entries(&parameters, parameter, diag);
+    out.bodies = read_entries(&bodies, body, diag);
+    out.beams = read_entries(&beams, beam, diag);
+    out.sensors = read_entries(&sensors, sensor, diag);
+    out.profiles = read_entries(&profiles, profile, diag);
+    out.elements = read_entries(&elements, element, diag);
+    out.loads = read_entries(&loads, load, diag);
+    out.indices = read_entries(&indices, index, diag);
     if let Some(node) = top.get("moving") {
         out.moving = moving(node, diag);
     }
@@ -148,6 +78,77 @@ pub fn read(root: &Node, diag: &mut Diagnostics) -> RawDescription {
     out.indices_from = top.number("indices_from", diag);
     top.finish(&TOP, diag);
     out
+}
+
+/// The entries of the section `name` (a mapping of names to entries), each with its name and
+/// where the name was written; an invalid name is reported and its entry left out.
+fn named_entries(
+    top: &mut MapReader,
+    name: &str,
+    diag: &mut Diagnostics,
+) -> Vec<(String, Pos, Node)> {
+    let Some(node) = top.get(name) else {
+        return Vec::new();
+    };
+    let Some(mut m) = MapReader::new(node, name, diag) else {
+        return Vec::new();
+    };
+    m.entries()
+        .iter()
+        .filter_map(|(k, v)| {
+            if valid_name(&k.name) {
+                Some((k.name.clone(), k.pos, v.clone()))
+            } else {
+                diag.push(
+                    k.pos,
+                    format!(
+                        "{name}: `{}` is not a valid name (letters, digits and `_`, at most 64)",
+                        k.name
+                    ),
+                );
+                None
+            }
+        })
+        .collect()
+}
+
+/// Reads every entry of a section with `entry` (name, where, node), keeping those it reads.
+fn read_entries<T>(
+    entries: &[(String, Pos, Node)],
+    entry: fn(&str, Pos, &Node, &mut Diagnostics) -> Option<T>,
+    diag: &mut Diagnostics,
+) -> Vec<T> {
+    entries
+        .iter()
+        .filter_map(|(n, p, v)| entry(n, *p, v, diag))
+        .collect()
+}
+
+/// One entry of `sensors`.
+fn sensor(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<RawSensor> {
+    let mut m = MapReader::new(node, &format!("sensors.{name}"), diag)?;
+    let s = RawSensor {
+        name: name.to_owned(),
+        pos,
+        on: m.required_string("on", diag),
+        x: m.required_expr("x", diag),
+    };
+    m.finish(&["on", "x"], diag);
+    Some(s)
+}
+
+/// One entry of `loads`.
+fn load(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<RawLoad> {
+    let mut m = MapReader::new(node, &format!("loads.{name}"), diag)?;
+    let l = RawLoad {
+        name: name.to_owned(),
+        pos,
+        at: m.required_string("at", diag),
+        force: m.required_expr("force", diag),
+        direction: direction(&mut m, &format!("loads.{name}"), diag),
+    };
+    m.finish(&["at", "force", "direction"], diag);
+    Some(l)
 }
 
 fn parameter(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<RawParameter> {
@@ -541,59 +542,7 @@ fn profile(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
     let mut m = MapReader::new(node, &what, diag)?;
     let kind = match m.required_string("kind", diag) {
         Some((k, p)) => match k.as_str() {
-            "generated" => {
-                let wavelengths = m
-                    .required("wavelengths", diag)
-                    .and_then(|n| read_pair(n, &format!("{what}.wavelengths"), diag));
-                let psd = m
-                    .required("psd", diag)
-                    .and_then(|n| psd(n, &format!("{what}.psd"), diag));
-                let interpolation = match m.string("interpolation", diag) {
-                    None => (Interpolation::default(), pos),
-                    Some((k, p)) => match Interpolation::from_keyword(&k) {
-                        Some(i) => (i, p),
-                        None => {
-                            let allowed: Vec<&str> =
-                                Interpolation::ALL.iter().map(|(_, k)| *k).collect();
-                            diag.push(
-                                p,
-                                format!(
-                                    "{what}.interpolation: `{k}`; allowed: {} (default linear)",
-                                    allowed.join(", ")
-                                ),
-                            );
-                            return None;
-                        }
-                    },
-                };
-                let until = m.get("until").and_then(|n| {
-                    let mut u = MapReader::new(n, &format!("{what}.until"), diag)?;
-                    let x = u.required_expr("x", diag);
-                    let taper = u.required_expr("taper", diag);
-                    u.finish(&["x", "taper"], diag);
-                    Some((x?, taper?))
-                });
-                m.finish(
-                    &["kind", "psd", "wavelengths", "interpolation", "until"],
-                    diag,
-                );
-                let wavelengths = wavelengths?;
-                if !(wavelengths[0] > 0.0 && wavelengths[0] < wavelengths[1]) {
-                    diag.push(
-                        pos,
-                        format!(
-                            "{what}.wavelengths: need 0 < min < max (m), found {wavelengths:?}"
-                        ),
-                    );
-                    return None;
-                }
-                RawProfileKind::Generated {
-                    segments: psd?,
-                    wavelengths,
-                    interpolation,
-                    until,
-                }
-            }
+            "generated" => generated_profile(m, &what, pos, diag)?,
             "harmonic" => {
                 let k = RawProfileKind::Harmonic {
                     amplitude: m.required_expr("amplitude", diag),
@@ -603,30 +552,7 @@ fn profile(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
                 m.finish(&["kind", "amplitude", "wavelength", "phase"], diag);
                 k
             }
-            "combination" => {
-                let mut terms = Vec::new();
-                if let Some(n) = m.required("of", diag) {
-                    if let Some(mut om) = MapReader::new(n, &format!("{what}.of"), diag) {
-                        for (k, v) in om.entries() {
-                            if let Some(w) = crate::reader::read_number(
-                                v,
-                                &format!("{what}.of.{}", k.name),
-                                diag,
-                            ) {
-                                terms.push(((k.name.clone(), k.pos), w));
-                            }
-                        }
-                        if terms.is_empty() && n.as_map().is_some() {
-                            diag.push(
-                                n.pos,
-                                format!("{what}.of: at least one profile with its weight"),
-                            );
-                        }
-                    }
-                }
-                m.finish(&["kind", "of"], diag);
-                RawProfileKind::Combination { terms }
-            }
+            "combination" => combination_profile(m, &what, diag),
             other => {
                 diag.push(p, format!("{what}.kind: `{other}`; allowed: generated (random-phase from a spectrum, one per sample), harmonic (analytic), combination (a weighted sum of others)"));
                 return None;
@@ -639,6 +565,88 @@ fn profile(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
         pos,
         kind,
     })
+}
+
+/// The fields of a `generated` profile (`m` its mapping, `pos` where it is declared): its
+/// wavelengths, spectrum, interpolation and optional end; `None` when one cannot be read.
+fn generated_profile(
+    mut m: MapReader,
+    what: &str,
+    pos: Pos,
+    diag: &mut Diagnostics,
+) -> Option<RawProfileKind> {
+    let wavelengths = m
+        .required("wavelengths", diag)
+        .and_then(|n| read_pair(n, &format!("{what}.wavelengths"), diag));
+    let psd = m
+        .required("psd", diag)
+        .and_then(|n| psd(n, &format!("{what}.psd"), diag));
+    let interpolation = match m.string("interpolation", diag) {
+        None => (Interpolation::default(), pos),
+        Some((k, p)) => match Interpolation::from_keyword(&k) {
+            Some(i) => (i, p),
+            None => {
+                let allowed: Vec<&str> = Interpolation::ALL.iter().map(|(_, k)| *k).collect();
+                diag.push(
+                    p,
+                    format!(
+                        "{what}.interpolation: `{k}`; allowed: {} (default linear)",
+                        allowed.join(", ")
+                    ),
+                );
+                return None;
+            }
+        },
+    };
+    let until = m.get("until").and_then(|n| {
+        let mut u = MapReader::new(n, &format!("{what}.until"), diag)?;
+        let x = u.required_expr("x", diag);
+        let taper = u.required_expr("taper", diag);
+        u.finish(&["x", "taper"], diag);
+        Some((x?, taper?))
+    });
+    m.finish(
+        &["kind", "psd", "wavelengths", "interpolation", "until"],
+        diag,
+    );
+    let wavelengths = wavelengths?;
+    if !(wavelengths[0] > 0.0 && wavelengths[0] < wavelengths[1]) {
+        diag.push(
+            pos,
+            format!("{what}.wavelengths: need 0 < min < max (m), found {wavelengths:?}"),
+        );
+        return None;
+    }
+    Some(RawProfileKind::Generated {
+        segments: psd?,
+        wavelengths,
+        interpolation,
+        until,
+    })
+}
+
+/// The weighted terms of a `combination` profile (`m` its mapping).
+fn combination_profile(mut m: MapReader, what: &str, diag: &mut Diagnostics) -> RawProfileKind {
+    let mut terms = Vec::new();
+    if let Some(n) = m.required("of", diag) {
+        if let Some(mut om) = MapReader::new(n, &format!("{what}.of"), diag) {
+            for (k, v) in om.entries() {
+                if let Some(w) =
+                    crate::reader::read_number(v, &format!("{what}.of.{}", k.name), diag)
+                {
+                    terms.push(((k.name.clone(), k.pos), w));
+                }
+            }
+            if terms.is_empty() && n.as_map().is_some() {
+                diag.push(
+                    n.pos,
+                    format!("{what}.of: at least one profile with its weight"),
+                );
+            }
+        }
+    }
+    m.finish(&["kind", "of"], diag);
+    RawProfileKind::Combination { terms }
 }
 
 /// `{iso8608: C}`, or `{unit: "mm^2 m" | "m^3", segments: [{f_start, a, n}, ...]}`; returns the
@@ -754,24 +762,9 @@ fn element(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
             &["g", "exponent"],
         ),
         "table" => {
-            let list = |m: &mut MapReader, key: &str, diag: &mut Diagnostics| -> Vec<Field> {
-                match m.required(key, diag) {
-                    Some(n) => match n.as_seq() {
-                        Some(items) => items
-                            .iter()
-                            .filter_map(|i| read_expr(i, &format!("{what}.{key}"), diag))
-                            .collect(),
-                        None => {
-                            diag.push(n.pos, format!("{what}.{key}: expected a list"));
-                            Vec::new()
-                        }
-                    },
-                    None => Vec::new(),
-                }
-            };
             directed = true;
-            let deflection = list(&mut m, "deflection", diag);
-            let force = list(&mut m, "force", diag);
+            let deflection = expr_list(&mut m, "deflection", &what, diag);
+            let force = expr_list(&mut m, "force", &what, diag);
             if deflection.len() != force.len() || deflection.len() < 2 {
                 diag.push(pos, format!("{what}: `deflection` and `force` need the same length, at least 2 (found {} and {})", deflection.len(), force.len()));
             }
@@ -822,72 +815,13 @@ fn element(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<
 fn wheelset(name: &str, pos: Pos, mut m: MapReader, diag: &mut Diagnostics) -> Option<RawElement> {
     let what = format!("elements.{name}");
     let from = m.required_string("from", diag);
-    let pair = |m: &mut MapReader, key: &str, required: bool, diag: &mut Diagnostics| {
-        let node = if required {
-            m.required(key, diag)
-        } else {
-            m.get(key)
-        };
-        let Some(node) = node else {
-            return (Vec::new(), pos);
-        };
-        let names = read_names(node, &format!("{what}.{key}"), diag);
-        if names.len() != 2 {
-            diag.push(
-                node.pos,
-                format!(
-                    "{what}.{key}: one for each wheel, [left, right]: 2 names, found {}",
-                    names.len()
-                ),
-            );
-        }
-        (names, node.pos)
-    };
-    let (rails, rails_pos) = pair(&mut m, "rails", true, diag);
-    let (profiles, _) = pair(&mut m, "profiles", false, diag);
-    let (lateral_rails, _) = pair(&mut m, "lateral_rails", false, diag);
-    let conicity = m.expr("conicity", diag);
-    let table = m
-        .get("geometry")
-        .and_then(|n| geometry_table(n, &format!("{what}.geometry"), diag));
-    let geometry = match (conicity, table) {
-        (Some(c), None) => Some(RawGeometry::Conicity(c)),
-        (None, Some(t)) => Some(t),
-        (None, None) => {
-            diag.push(pos, format!("{what}: give the contact geometry: `conicity` (equivalent conicity, rad) or `geometry: {{shift, radius, angle}}`"));
-            None
-        }
-        (Some(c), Some(_)) => {
-            diag.push(
-                c.pos,
-                format!("{what}: give `conicity` or `geometry`, not both"),
-            );
-            None
-        }
-    };
-    let creep = m.required("creep", diag).and_then(|n| {
-        let w = format!("{what}.creep");
-        let mut c = MapReader::new(n, &w, diag)?;
-        let r = RawCreep {
-            pos: n.pos,
-            young: c.required_expr("young", diag),
-            poisson: c.required_expr("poisson", diag),
-            friction: c.required_expr("friction", diag),
-            rail_radius: c.required_expr("rail_radius", diag),
-            wheel_profile_radius: c.expr("wheel_profile_radius", diag),
-        };
-        c.finish(
-            &[
-                "young",
-                "poisson",
-                "friction",
-                "rail_radius",
-                "wheel_profile_radius",
-            ],
-            diag,
-        );
-        Some(r)
-    });
+    let (rails, rails_pos) = wheel_names(&mut m, "rails", true, &what, pos, diag);
+    let (profiles, _) = wheel_names(&mut m, "profiles", false, &what, pos, diag);
+    let (lateral_rails, _) = wheel_names(&mut m, "lateral_rails", false, &what, pos, diag);
+    let geometry = contact_geometry(&mut m, &what, pos, diag);
+    let creep = m
+        .required("creep", diag)
+        .and_then(|n| creep(n, &format!("{what}.creep"), diag));
     let flange = m.get("flange").and_then(|n| {
         let mut f = MapReader::new(n, &format!("{what}.flange"), diag)?;
         let r = RawFlange {
@@ -938,27 +872,113 @@ fn wheelset(name: &str, pos: Pos, mut m: MapReader, diag: &mut Diagnostics) -> O
     })
 }
 
+/// A wheelset's list `key` of one name per wheel, `[left, right]` (refused unless 2), and
+/// where it was written (the wheelset's `pos` when absent).
+fn wheel_names(
+    m: &mut MapReader,
+    key: &str,
+    required: bool,
+    what: &str,
+    pos: Pos,
+    diag: &mut Diagnostics,
+) -> (Vec<(String, Pos)>, Pos) {
+    let node = if required {
+        m.required(key, diag)
+    } else {
+        m.get(key)
+    };
+    let Some(node) = node else {
+        return (Vec::new(), pos);
+    };
+    let names = read_names(node, &format!("{what}.{key}"), diag);
+    if names.len() != 2 {
+        diag.push(
+            node.pos,
+            format!(
+                "{what}.{key}: one for each wheel, [left, right]: 2 names, found {}",
+                names.len()
+            ),
+        );
+    }
+    (names, node.pos)
+}
+
+/// A wheelset's contact geometry: `conicity` or a `geometry` table, exactly one of them.
+fn contact_geometry(
+    m: &mut MapReader,
+    what: &str,
+    pos: Pos,
+    diag: &mut Diagnostics,
+) -> Option<RawGeometry> {
+    let conicity = m.expr("conicity", diag);
+    let table = m
+        .get("geometry")
+        .and_then(|n| geometry_table(n, &format!("{what}.geometry"), diag));
+    match (conicity, table) {
+        (Some(c), None) => Some(RawGeometry::Conicity(c)),
+        (None, Some(t)) => Some(t),
+        (None, None) => {
+            diag.push(pos, format!("{what}: give the contact geometry: `conicity` (equivalent conicity, rad) or `geometry: {{shift, radius, angle}}`"));
+            None
+        }
+        (Some(c), Some(_)) => {
+            diag.push(
+                c.pos,
+                format!("{what}: give `conicity` or `geometry`, not both"),
+            );
+            None
+        }
+    }
+}
+
+/// A wheelset's `creep:` constants (`what` its path).
+fn creep(n: &Node, what: &str, diag: &mut Diagnostics) -> Option<RawCreep> {
+    let mut c = MapReader::new(n, what, diag)?;
+    let r = RawCreep {
+        pos: n.pos,
+        young: c.required_expr("young", diag),
+        poisson: c.required_expr("poisson", diag),
+        friction: c.required_expr("friction", diag),
+        rail_radius: c.required_expr("rail_radius", diag),
+        wheel_profile_radius: c.expr("wheel_profile_radius", diag),
+    };
+    c.finish(
+        &[
+            "young",
+            "poisson",
+            "friction",
+            "rail_radius",
+            "wheel_profile_radius",
+        ],
+        diag,
+    );
+    Some(r)
+}
+
+/// The required list `key` of `m` (`what` its path), each item a number or an expression;
+/// empty when absent or not a list (reported).
+fn expr_list(m: &mut MapReader, key: &str, what: &str, diag: &mut Diagnostics) -> Vec<Field> {
+    match m.required(key, diag) {
+        Some(n) => match n.as_seq() {
+            Some(items) => items
+                .iter()
+                .filter_map(|i| read_expr(i, &format!("{what}.{key}"), diag))
+                .collect(),
+            None => {
+                diag.push(n.pos, format!("{what}.{key}: expected a list"));
+                Vec::new()
+            }
+        },
+        None => Vec::new(),
+    }
+}
+
 /// `geometry: {shift: [...], radius: [...], angle: [...]}`, as many of each, at least 2.
 fn geometry_table(node: &Node, what: &str, diag: &mut Diagnostics) -> Option<RawGeometry> {
     let mut m = MapReader::new(node, what, diag)?;
-    let mut list = |key: &str, diag: &mut Diagnostics| -> Vec<Field> {
-        match m.required(key, diag) {
-            Some(n) => match n.as_seq() {
-                Some(items) => items
-                    .iter()
-                    .filter_map(|i| read_expr(i, &format!("{what}.{key}"), diag))
-                    .collect(),
-                None => {
-                    diag.push(n.pos, format!("{what}.{key}: expected a list"));
-                    Vec::new()
-                }
-            },
-            None => Vec::new(),
-        }
-    };
-    let shift = list("shift", diag);
-    let radius = list("radius", diag);
-    let angle = list("angle", diag);
+    let shift = expr_list(&mut m, "shift", what, diag);
+    let radius = expr_list(&mut m, "radius", what, diag);
+    let angle = expr_list(&mut m, "angle", what, diag);
     m.finish(&["shift", "radius", "angle"], diag);
     if shift.len() < 2 || radius.len() != shift.len() || angle.len() != shift.len() {
         diag.push(
