@@ -103,7 +103,7 @@ fn predict(py: Python<'_>, s: &Surrogate, r: &Request<'_, '_>) -> PyResult<Arrow
     let batch = r.batch;
     let table = py.detach(|| {
         let of = |k| c.profiles.of(k);
-        s.histories_flagged_with(
+        s.histories_flagged(
             &c.sets,
             &ProfileSource::PerDesign(&of),
             &c.run,
@@ -129,7 +129,7 @@ fn indices(py: Python<'_>, s: &Surrogate, r: &Request<'_, '_>) -> PyResult<Arrow
         let of = |k| c.profiles.of(k);
         let profiles = ProfileSource::PerDesign(&of);
         let answers = s
-            .answers_with(&c.sets, &profiles, &c.run, &cfg, batch, level)
+            .answers(&c.sets, &profiles, &c.run, &cfg, batch, level)
             .map_err(to_py)?;
         s.indices_table(&c.sets, &answers, &c.outside)
             .map_err(to_py)

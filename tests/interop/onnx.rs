@@ -451,7 +451,7 @@ fn differ(a: &[f64], b: &[f64]) -> bool {
 /// made to win half of the indices and channels by its recorded validation errors, built by
 /// `pino_surrogate::build`) exported by `export --surrogate`: in ONNX Runtime every
 /// channel, band, index, interval, verdict and range flag equals the surrogate's own answers
-/// (`predict --surrogate`, which answers through `Surrogate::answers_with` and
+/// (`predict --surrogate`, which answers through `Surrogate::answers` and
 /// `Surrogate::histories`), and the file's metadata routes every quantity to the member the
 /// manifest does. Each route is checked for power: the surrogate's answer is its member's own
 /// (`predict --model`), and on some quantity of each member the other member answers

@@ -755,7 +755,7 @@ impl Explorer {
             self.surrogate
                 .answers(
                     &designs,
-                    &profiles,
+                    &ProfileSource::Shared(&profiles),
                     &self.run,
                     &self.index_cfg,
                     batch,

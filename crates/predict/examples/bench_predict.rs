@@ -21,7 +21,7 @@ use pino_learn::config::{TrainParams, WindowConfig};
 use pino_learn::model::Fno;
 use pino_learn::spectral::Transform;
 use pino_learn::train::model_meta;
-use pino_predict::{parse_sweep, Predictor, ProfileChoice};
+use pino_predict::{parse_sweep, Predictor, ProfileChoice, ProfileSource};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -110,7 +110,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             predictor.indices(&sets, &profiles, &run, &cfg, batch)?;
             plain.push(t0.elapsed().as_secs_f64());
             let t0 = Instant::now();
-            predictor.answers(&sets, &profiles, &run, &cfg, batch, 0.9)?;
+            predictor.answers(
+                &sets,
+                &ProfileSource::Shared(&profiles),
+                &run,
+                &cfg,
+                batch,
+                0.9,
+            )?;
             with.push(t0.elapsed().as_secs_f64());
         }
         let median = |v: &mut Vec<f64>| {

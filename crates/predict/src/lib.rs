@@ -487,24 +487,11 @@ impl Predictor {
         Ok(parts.into_iter().flatten().collect())
     }
 
-    /// The time histories of every design (module doc) as one table; with a calibration and
-    /// `coverage`, each channel's band `<channel>_lo`, `<channel>_hi` beside (the outputs and
-    /// rates; excitations are exact inputs).
+    /// The time histories of every design (module doc) as one table, each design under the
+    /// profiles `profiles` gives it; with a calibration and `coverage`, each channel's band
+    /// `<channel>_lo`, `<channel>_hi` beside (the outputs and rates; excitations are exact
+    /// inputs).
     pub fn histories(
-        &self,
-        sets: &[Vec<f64>],
-        profiles: &[Option<Profile>],
-        run: &RunConfig,
-        batch: usize,
-        coverage: Option<f64>,
-    ) -> Result<Table> {
-        let profiles = ProfileSource::Shared(profiles);
-        self.histories_with(sets, &profiles, run, batch, coverage)
-    }
-
-    /// [`Predictor::histories`] with the profiles of each design from `profiles` (each design
-    /// under its own excitation).
-    pub fn histories_with(
         &self,
         sets: &[Vec<f64>],
         profiles: &ProfileSource<'_>,
@@ -582,25 +569,12 @@ impl Predictor {
     pub fn histories_flagged(
         &self,
         sets: &[Vec<f64>],
-        profiles: &[Option<Profile>],
-        run: &RunConfig,
-        batch: usize,
-        coverage: Option<f64>,
-    ) -> Result<Table> {
-        let profiles = ProfileSource::Shared(profiles);
-        self.histories_flagged_with(sets, &profiles, run, batch, coverage)
-    }
-
-    /// [`Predictor::histories_flagged`] with the profiles of each design from `profiles`.
-    pub fn histories_flagged_with(
-        &self,
-        sets: &[Vec<f64>],
         profiles: &ProfileSource<'_>,
         run: &RunConfig,
         batch: usize,
         coverage: Option<f64>,
     ) -> Result<Table> {
-        let mut table = self.histories_with(sets, profiles, run, batch, coverage)?;
+        let mut table = self.histories(sets, profiles, run, batch, coverage)?;
         self.flag_rows(&mut table, sets)?;
         Ok(table)
     }
@@ -690,23 +664,9 @@ impl Predictor {
     }
 
     /// Every design's indices and, with a calibration, their intervals and three-valued
-    /// verdicts at `coverage` (batches of `batch` sets, as [`Predictor::indices`]).
+    /// verdicts at `coverage` (batches of `batch` sets, as [`Predictor::indices`]), each design
+    /// under the profiles `profiles` gives it.
     pub fn answers(
-        &self,
-        sets: &[Vec<f64>],
-        profiles: &[Option<Profile>],
-        run: &RunConfig,
-        cfg: &IndexConfig,
-        batch: usize,
-        coverage: f64,
-    ) -> Result<Vec<DesignAnswer>> {
-        let profiles = ProfileSource::Shared(profiles);
-        self.answers_with(sets, &profiles, run, cfg, batch, coverage)
-    }
-
-    /// [`Predictor::answers`] with the profiles of each design from `profiles` (a study's
-    /// designs, each under its own excitation).
-    pub fn answers_with(
         &self,
         sets: &[Vec<f64>],
         profiles: &ProfileSource<'_>,
@@ -1136,8 +1096,9 @@ mod tests {
                 .unwrap();
         assert_eq!(pred[0].physical.u, to_physical(&evaluated[0], meta).u);
         // The time-history table: interior rows, outputs, rates and excitations by name.
+        let shared = ProfileSource::Shared(&profiles);
         let table = predictor
-            .histories(std::slice::from_ref(&design), &profiles, &run, 4, None)
+            .histories(std::slice::from_ref(&design), &shared, &run, 4, None)
             .unwrap();
         assert_eq!(table.num_rows(), meta.grid.t_points - 2);
         for name in layout.outputs.iter().chain(&layout.excitations) {
@@ -1147,7 +1108,7 @@ mod tests {
         // Indices of the prediction with the design's columns.
         let cfg = predictor.index_config().unwrap();
         let ix = predictor
-            .answers(std::slice::from_ref(&design), &profiles, &run, &cfg, 4, 0.9)
+            .answers(std::slice::from_ref(&design), &shared, &run, &cfg, 4, 0.9)
             .unwrap();
         assert!(ix[0].calibrated.is_none(), "no calibration loaded");
         let it = predictor

@@ -158,7 +158,7 @@ impl<'a> Evaluator<'a> {
     ) -> Result<Vec<DesignAnswer>> {
         let of = |k: usize| self.profiles.of(excitation[k]);
         self.surrogate
-            .answers_with(
+            .answers(
                 designs,
                 &ProfileSource::PerDesign(&of),
                 &self.run,

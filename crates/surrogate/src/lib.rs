@@ -392,8 +392,8 @@ impl Surrogate {
     }
 
     /// Every design's indices with their intervals and verdicts at `coverage` (with a
-    /// calibration), each from the member answering it ([`Predictor::answers_with`]).
-    pub fn answers_with(
+    /// calibration), each from the member answering it ([`Predictor::answers`]).
+    pub fn answers(
         &self,
         sets: &[Vec<f64>],
         profiles: &ProfileSource<'_>,
@@ -403,7 +403,7 @@ impl Surrogate {
         coverage: f64,
     ) -> Result<Vec<DesignAnswer>> {
         let per =
-            self.per_index_member(|p| p.answers_with(sets, profiles, run, cfg, batch, coverage))?;
+            self.per_index_member(|p| p.answers(sets, profiles, run, cfg, batch, coverage))?;
         (0..sets.len())
             .map(|k| {
                 let indices = per.iter().map(|a| a.as_ref().map(|a| &a[k].indices));
@@ -418,20 +418,6 @@ impl Surrogate {
                 })
             })
             .collect()
-    }
-
-    /// [`Surrogate::answers_with`] with one set of profiles for every design.
-    pub fn answers(
-        &self,
-        sets: &[Vec<f64>],
-        profiles: &[Option<Profile>],
-        run: &RunConfig,
-        cfg: &IndexConfig,
-        batch: usize,
-        coverage: f64,
-    ) -> Result<Vec<DesignAnswer>> {
-        let profiles = ProfileSource::Shared(profiles);
-        self.answers_with(sets, &profiles, run, cfg, batch, coverage)
     }
 
     /// `f` of every member answering some index (`None` for the others).
@@ -513,20 +499,6 @@ impl Surrogate {
     pub fn histories(
         &self,
         sets: &[Vec<f64>],
-        profiles: &[Option<Profile>],
-        run: &RunConfig,
-        batch: usize,
-        coverage: Option<f64>,
-    ) -> Result<Table> {
-        let profiles = ProfileSource::Shared(profiles);
-        self.histories_with(sets, &profiles, run, batch, coverage)
-    }
-
-    /// [`Surrogate::histories`] with the profiles of each design from `profiles` (each design
-    /// under its own excitation, [`Predictor::histories_with`]).
-    pub fn histories_with(
-        &self,
-        sets: &[Vec<f64>],
         profiles: &ProfileSource<'_>,
         run: &RunConfig,
         batch: usize,
@@ -536,7 +508,7 @@ impl Surrogate {
             .map(|m| {
                 let answers = m == self.primary || self.channels.iter().any(|(_, x, _)| *x == m);
                 answers
-                    .then(|| self.members[m].histories_with(sets, profiles, run, batch, coverage))
+                    .then(|| self.members[m].histories(sets, profiles, run, batch, coverage))
                     .transpose()
             })
             .collect::<Result<_>>()?;
@@ -588,25 +560,12 @@ impl Surrogate {
     pub fn histories_flagged(
         &self,
         sets: &[Vec<f64>],
-        profiles: &[Option<Profile>],
-        run: &RunConfig,
-        batch: usize,
-        coverage: Option<f64>,
-    ) -> Result<Table> {
-        let profiles = ProfileSource::Shared(profiles);
-        self.histories_flagged_with(sets, &profiles, run, batch, coverage)
-    }
-
-    /// [`Surrogate::histories_flagged`] with the profiles of each design from `profiles`.
-    pub fn histories_flagged_with(
-        &self,
-        sets: &[Vec<f64>],
         profiles: &ProfileSource<'_>,
         run: &RunConfig,
         batch: usize,
         coverage: Option<f64>,
     ) -> Result<Table> {
-        let mut table = self.histories_with(sets, profiles, run, batch, coverage)?;
+        let mut table = self.histories(sets, profiles, run, batch, coverage)?;
         self.primary().flag_rows(&mut table, sets)?;
         Ok(table)
     }

@@ -203,10 +203,10 @@ fn the_surrogate_answers_as_its_routed_models_do() {
     let run = primary.run_config(None).unwrap();
     let cfg = primary.index_config().unwrap();
     let source = ProfileSource::Shared(&profiles);
-    let got = s.answers_with(&sets, &source, &run, &cfg, 2, 0.75).unwrap();
+    let got = s.answers(&sets, &source, &run, &cfg, 2, 0.75).unwrap();
     let own: Vec<_> = members
         .iter()
-        .map(|p| p.answers_with(&sets, &source, &run, &cfg, 2, 0.75).unwrap())
+        .map(|p| p.answers(&sets, &source, &run, &cfg, 2, 0.75).unwrap())
         .collect();
     let routes = s.index_routes();
     let columns = primary.index_inputs().columns();
@@ -233,10 +233,10 @@ fn the_surrogate_answers_as_its_routed_models_do() {
         }
     }
     // The histories: each channel and its band from its own member.
-    let h = s.histories(&sets, &profiles, &run, 2, Some(0.75)).unwrap();
+    let h = s.histories(&sets, &source, &run, 2, Some(0.75)).unwrap();
     let own_h: Vec<_> = members
         .iter()
-        .map(|p| p.histories(&sets, &profiles, &run, 2, Some(0.75)).unwrap())
+        .map(|p| p.histories(&sets, &source, &run, 2, Some(0.75)).unwrap())
         .collect();
     for (name, m) in [("p_1", 1), ("z_c_a", 1), ("z_c", 0), ("z_w1_v", 0)] {
         for col in [name.to_owned(), format!("{name}_lo"), format!("{name}_hi")] {
@@ -246,9 +246,7 @@ fn the_surrogate_answers_as_its_routed_models_do() {
     assert_eq!(h.num_rows(), own_h[0].num_rows());
     // A single model is a surrogate of one member answering everything as itself.
     let one = Surrogate::of_model(members.into_iter().next().unwrap());
-    let alone = one
-        .answers_with(&sets, &source, &run, &cfg, 2, 0.75)
-        .unwrap();
+    let alone = one.answers(&sets, &source, &run, &cfg, 2, 0.75).unwrap();
     assert_eq!(alone[0].indices, own[0][0].indices);
     assert_eq!(alone[0].calibrated, own[0][0].calibrated);
 }

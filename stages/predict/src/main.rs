@@ -31,7 +31,8 @@ use anyhow::{Context, Result};
 use clap::Parser;
 use pino_learn::config::DeviceKind;
 use pino_predict::{
-    outside_message, DesignSource, DesignSpace, Predictor, ProfileChoice, OUTSIDE_COLUMN,
+    outside_message, DesignSource, DesignSpace, Predictor, ProfileChoice, ProfileSource,
+    OUTSIDE_COLUMN,
 };
 use pino_surrogate::Surrogate;
 use std::path::PathBuf;
@@ -136,6 +137,7 @@ fn run() -> Result<()> {
     pino_data::metadata::set_origin(origin(&args, predictor.space.names(), &sets, &run_config))?;
     let started = std::time::Instant::now();
     let mut wrote = Vec::new();
+    let profiles = ProfileSource::Shared(&profiles);
     if let (Some(out), false) = (&args.out, args.indices_only) {
         let table =
             surrogate.histories_flagged(&sets, &profiles, &run_config, args.batch, coverage)?;
