@@ -1,5 +1,5 @@
 //! What `pino_mbd.Model` ([`crate::model`]) and `pino_mbd.Surrogate` ([`crate::surrogate`])
-//! answer alike, through the `predict` command's library (`pino_eval::surrogate::Surrogate`:
+//! answer alike, through the `predict` command's library (`pino_surrogate::Surrogate`:
 //! a model is a surrogate of one member, as `predict --model` reads it): time histories of
 //! designs, and their engineering indices with calibrated intervals and three-valued verdicts;
 //! the same tables, numbers and `outside_training_range` flags as `predict --out` and `predict
@@ -10,8 +10,8 @@ use crate::arrow::{import, ArrowTable};
 use crate::designs::designs;
 use crate::error::{to_py, value_error};
 use crate::excitation::{Excitation, RowProfiles};
-use pino_eval::predict::{outside_flag, Predictor, ProfileSource};
-use pino_eval::surrogate::Surrogate;
+use pino_predict::{outside_flag, Predictor, ProfileSource};
+use pino_surrogate::Surrogate;
 use pyo3::prelude::*;
 
 /// The arguments of an `_answer` call, as the Python layer passes them.
@@ -103,7 +103,7 @@ fn predict(py: Python<'_>, s: &Surrogate, r: &Request<'_, '_>) -> PyResult<Arrow
     let batch = r.batch;
     let table = py.detach(|| {
         let of = |k| c.profiles.of(k);
-        s.histories_flagged_with(
+        s.histories_flagged(
             &c.sets,
             &ProfileSource::PerDesign(&of),
             &c.run,
@@ -122,14 +122,14 @@ fn indices(py: Python<'_>, s: &Surrogate, r: &Request<'_, '_>) -> PyResult<Arrow
     let level = s
         .interval_level(r.coverage)
         .map_err(to_py)?
-        .unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
+        .unwrap_or(pino_calibration::DEFAULT_COVERAGE);
     let batch = r.batch;
     let table = py.detach(|| -> PyResult<_> {
         let cfg = s.primary().index_config().map_err(to_py)?;
         let of = |k| c.profiles.of(k);
         let profiles = ProfileSource::PerDesign(&of);
         let answers = s
-            .answers_with(&c.sets, &profiles, &c.run, &cfg, batch, level)
+            .answers(&c.sets, &profiles, &c.run, &cfg, batch, level)
             .map_err(to_py)?;
         s.indices_table(&c.sets, &answers, &c.outside)
             .map_err(to_py)

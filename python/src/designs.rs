@@ -8,7 +8,7 @@
 
 use crate::error::value_error;
 use pino_data::{schema, Column, Table};
-use pino_eval::predict::DesignSpace;
+use pino_predict::DesignSpace;
 use pyo3::PyResult;
 use std::path::Path;
 

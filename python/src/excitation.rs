@@ -21,7 +21,7 @@ use mbd_dataset::ProfileParams;
 use mbd_engine::Profile;
 use mbd_system::System;
 use pino_data::{schema, Column, Table};
-use pino_eval::predict::{profiles_of_table, GeneratedProfiles};
+use pino_predict::{profiles_of_table, GeneratedProfiles};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyString};
 use std::collections::BTreeMap;
@@ -153,8 +153,8 @@ pub struct RowProfiles {
 }
 
 impl RowProfiles {
-    /// The profiles of row `k` (for `pino_eval::predict::ProfileSource::PerDesign`).
-    pub fn of(&self, k: usize) -> pino_eval::Result<Vec<Option<Profile>>> {
+    /// The profiles of row `k` (for `pino_predict::ProfileSource::PerDesign`).
+    pub fn of(&self, k: usize) -> pino_outputs::Result<Vec<Option<Profile>>> {
         Ok(self.by_id[&self.ids[k]].clone())
     }
 

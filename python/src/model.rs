@@ -4,9 +4,9 @@
 
 use crate::answers::PyAnswers;
 use crate::error::{to_py, value_error};
-use pino_eval::predict::Predictor;
-use pino_eval::surrogate::Surrogate;
 use pino_learn::config::DeviceKind;
+use pino_predict::Predictor;
+use pino_surrogate::Surrogate;
 use pyo3::prelude::*;
 use std::path::PathBuf;
 

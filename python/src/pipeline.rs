@@ -1,6 +1,6 @@
 //! `pino_mbd.Pipeline` and `pino_mbd.study`: the orchestrator's library (`pipeline::spec`,
 //! `run`, `status`) as the `pipeline` command drives it (`status`, `run`, `show`), and one
-//! design study (`pino_eval::study::run`, the `study` stage's library) on given models; both
+//! design study (`pino_study::run`, the `study` stage's library) on given models; both
 //! release the GIL while they work.
 
 use crate::error::to_py;
@@ -140,14 +140,14 @@ pub fn _study(
     calibration: Option<PathBuf>,
     surrogate: Option<PathBuf>,
 ) -> PyResult<String> {
-    let params: pino_eval::study::StudyParams = serde_json::from_str(&params_json)
+    let params: pino_study::StudyParams = serde_json::from_str(&params_json)
         .map_err(|e| crate::error::value_error(format!("study parameters: {e}")))?;
     py.detach(|| {
         pino_learn::candle_single_threaded_by_default();
         let device = params.device.device().map_err(to_py)?;
         std::fs::create_dir_all(&out)
             .map_err(|e| crate::error::value_error(format!("{}: {e}", out.display())))?;
-        let surrogate = pino_eval::study::load_surrogate(
+        let surrogate = pino_study::load_surrogate(
             surrogate.as_deref(),
             &models,
             calibration.as_deref(),
@@ -155,6 +155,6 @@ pub fn _study(
             &device,
         )
         .map_err(to_py)?;
-        pino_eval::study::run(&surrogate, &params, Path::new(&out)).map_err(to_py)
+        pino_study::run(&surrogate, &params, Path::new(&out)).map_err(to_py)
     })
 }

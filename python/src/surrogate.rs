@@ -1,5 +1,5 @@
 //! `pino_mbd.Surrogate`: the `surrogate` stage's output (`surrogate.json` and its member
-//! models with their calibrations, `pino_eval::surrogate::Surrogate::load`), answering as
+//! models with their calibrations, `pino_surrogate::Surrogate::load`), answering as
 //! `pino_mbd.Model` does ([`crate::answers`]) with each index
 //! and channel from the member it is routed to: the tables of `predict --surrogate DIR --out`
 //! and `--indices`. A member whose files changed since the surrogate was built, or a manifest
@@ -7,8 +7,8 @@
 
 use crate::answers::PyAnswers;
 use crate::error::to_py;
-use pino_eval::surrogate::Surrogate;
 use pino_learn::config::DeviceKind;
+use pino_surrogate::Surrogate;
 use pyo3::prelude::*;
 use std::path::PathBuf;
 

@@ -11,7 +11,7 @@ use mbd_engine::{RunConfig, SampleInput, StartMode};
 use mbd_system::system::{ParamSource, Role};
 use mbd_system::{Override, System, SystemSource};
 use pino_data::{schema, Column, Table};
-use pino_eval::predict::DesignSpace;
+use pino_predict::DesignSpace;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::collections::BTreeMap;
@@ -196,7 +196,7 @@ impl PySystem {
     /// The engineering indices as columns: name, unit, limit (at the defaults), definition.
     fn _indices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let set = pino_indices::system::IndexSet::of(&self.system);
-        let cfg = pino_eval::indices_eval::eval_config(&self.system).map_err(to_py)?;
+        let cfg = pino_outputs::indices_eval::eval_config(&self.system).map_err(to_py)?;
         let cols = set.columns(&self.system);
         let limits = set.column_limits(&self.system, &cfg);
         let d = PyDict::new(py);

@@ -9,7 +9,7 @@
 //! (0, 1) or above n / (n + 1)): exit 2, the file or value named, nothing written. A dataset
 //! without calibration samples gives answers without intervals and says why.
 
-use pino_eval::calibration::{Calibration, Normaliser};
+use pino_calibration::{Calibration, Normaliser};
 use pino_mbd_tests::{output_text as text, run_bin as run, stage_context};
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -110,7 +110,7 @@ fn calibrated_answers_end_to_end_and_every_refusal() {
     assert!(cal.has_intervals());
     let system = learn_fixtures::synthetic::vehicle_track_system();
     let layout = pino_learn::layout::Layout::of(&system);
-    let indices = pino_eval::indices_eval::IndexInputs::of(&system, &layout).unwrap();
+    let indices = pino_outputs::indices_eval::IndexInputs::of(&system, &layout).unwrap();
     let names: Vec<&str> = cal.indices.iter().map(|q| q.name.as_str()).collect();
     let expected: Vec<&str> = indices.columns().iter().map(|c| c.name.as_str()).collect();
     assert_eq!(names, expected);

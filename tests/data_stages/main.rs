@@ -1039,7 +1039,7 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
             "{file}"
         );
         // The calibration stage's settings parse and are valid; evaluate reads its output.
-        let calibrate: pino_eval::calibration::build::CalibrateParams =
+        let calibrate: pino_calibration::build::CalibrateParams =
             serde_json::from_value(params("calibrate"))
                 .unwrap_or_else(|e| panic!("{file}: calibrate: {e}"));
         calibrate
@@ -1055,10 +1055,10 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
             .stages_running("study")
             .flat_map(|(_, s)| s.expansions.clone());
         for expansion in studies {
-            let study: pino_eval::study::spec::StudyParams =
+            let study: pino_study::spec::StudyParams =
                 serde_json::from_value(expansion.params.clone())
                     .unwrap_or_else(|e| panic!("{file}: study: {e}"));
-            pino_eval::study::check(&described, &study).unwrap_or_else(|e| panic!("{file}: {e}"));
+            pino_study::check(&described, &study).unwrap_or_else(|e| panic!("{file}: {e}"));
             kinds.insert(study.study["kind"].as_str().unwrap().to_owned());
         }
         assert_eq!(

@@ -167,7 +167,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
         .parent()
         .unwrap()
         .to_owned();
-    let manifest = pino_eval::surrogate::manifest::Manifest::load(&dir).unwrap();
+    let manifest = pino_surrogate::manifest::Manifest::load(&dir).unwrap();
     assert_eq!(manifest.candidates.len(), 7);
     assert_eq!(manifest.indices.len(), pino_indices::INDEX_COLUMNS.len());
     let members: Vec<&str> = manifest.members.iter().map(|m| m.name.as_str()).collect();
@@ -239,7 +239,7 @@ fn the_default_pipeline_runs_end_to_end_and_then_is_fresh() {
     }
     assert_eq!(checked(&evals), 16 * per_row);
     let sobol = read_parquet(named(&sensitivity, "sobol.parquet")[0], None).unwrap();
-    let indices = pino_eval::study::index_names(&system).unwrap();
+    let indices = pino_study::index_names(&system).unwrap();
     assert_eq!(sobol.num_rows(), indices.len() * 3 * factors);
     let total = sobol.f64("ST").unwrap();
     assert!(

@@ -409,7 +409,7 @@ fn the_exported_graph_answers_as_predict_does_in_onnx_runtime() {
 /// and channels at even positions (`even`) or odd ones: a surrogate of two such candidates
 /// has both as members.
 fn make_win(cal: &Path, model: &Path, even: bool) {
-    use pino_eval::calibration::{Calibration, ModelIdentity};
+    use pino_calibration::{Calibration, ModelIdentity};
     let identity = ModelIdentity::of(model).unwrap();
     let file = Calibration::find(cal, &identity).unwrap();
     let mut c = Calibration::load(&file, &identity).unwrap();
@@ -449,9 +449,9 @@ fn differ(a: &[f64], b: &[f64]) -> bool {
 
 /// A surrogate of two members (two small models of one dataset, calibrated in one run, each
 /// made to win half of the indices and channels by its recorded validation errors, built by
-/// `pino_eval::surrogate::build`) exported by `export --surrogate`: in ONNX Runtime every
+/// `pino_surrogate::build`) exported by `export --surrogate`: in ONNX Runtime every
 /// channel, band, index, interval, verdict and range flag equals the surrogate's own answers
-/// (`predict --surrogate`, which answers through `Surrogate::answers_with` and
+/// (`predict --surrogate`, which answers through `Surrogate::answers` and
 /// `Surrogate::histories`), and the file's metadata routes every quantity to the member the
 /// manifest does. Each route is checked for power: the surrogate's answer is its member's own
 /// (`predict --model`), and on some quantity of each member the other member answers
@@ -470,7 +470,7 @@ fn a_surrogate_of_two_members_answers_as_it_does_in_onnx_runtime() {
     make_win(&cal, &models[0], true);
     make_win(&cal, &models[1], false);
     let sur = dir.join("surrogate");
-    let manifest = pino_eval::surrogate::build::build(&models, &cal, &sur).unwrap();
+    let manifest = pino_surrogate::build::build(&models, &cal, &sur).unwrap();
     assert_eq!(manifest.members.len(), 2, "{:?}", manifest.members);
     let onnx = dir.join("surrogate.onnx");
     let o = export(&[
@@ -529,7 +529,7 @@ fn a_surrogate_of_two_members_answers_as_it_does_in_onnx_runtime() {
         .collect();
     let member_of = |route: &str| -> usize {
         let m = manifest.members.iter().find(|m| m.name == route).unwrap();
-        let hash = |d: &Path| pino_eval::calibration::ModelIdentity::of(d).unwrap().blake3;
+        let hash = |d: &Path| pino_calibration::ModelIdentity::of(d).unwrap().blake3;
         models
             .iter()
             .position(|d| hash(d) == m.model.blake3)

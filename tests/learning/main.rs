@@ -400,7 +400,7 @@ fn pipeline_files_parameter_blocks_parse_into_the_learning_types() {
                 "{file}"
             );
         }
-        let _: pino_eval::eval::EvalParams =
+        let _: pino_eval::EvalParams =
             serde_json::from_value(pino_mbd_tests::stage_params(file, "evaluate"))
                 .unwrap_or_else(|e| panic!("{file}: {e}"));
     }

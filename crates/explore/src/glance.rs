@@ -6,6 +6,7 @@
 //! Read-only: nothing here runs a stage or writes the store.
 
 use crate::studies::STUDY_COMMAND;
+use crate::tables::read_csv;
 use orchestrator::spec::Pipeline;
 use orchestrator::status::{show, unit_states};
 use serde::Serialize;
@@ -88,7 +89,7 @@ pub fn locate_surrogate(
         })
         .and_then(|text| {
             let files: Vec<PathBuf> = text.lines().map(PathBuf::from).collect();
-            files_named(&files, pino_eval::surrogate::manifest::SURROGATE_FILE)
+            files_named(&files, pino_surrogate::manifest::SURROGATE_FILE)
                 .first()
                 .and_then(|f| f.parent().map(Path::to_path_buf))
                 .ok_or_else(|| {
@@ -96,7 +97,7 @@ pub fn locate_surrogate(
                         "{}: `{}` wrote no {}",
                         p.file,
                         stage.name,
-                        pino_eval::surrogate::manifest::SURROGATE_FILE
+                        pino_surrogate::manifest::SURROGATE_FILE
                     )
                 })
         });
@@ -191,7 +192,7 @@ fn calibration_of(p: &Pipeline, train: &str) -> Result<PathBuf, String> {
                 continue;
             }
         };
-        let found = files_named(&files, pino_eval::calibration::CALIBRATION_FILE);
+        let found = files_named(&files, pino_calibration::CALIBRATION_FILE);
         // The model's own file is found in the output directory by its identity.
         if let Some(dir) = found.first().and_then(|f| f.parent()?.parent()) {
             return Ok(dir.to_path_buf());
@@ -201,7 +202,7 @@ fn calibration_of(p: &Pipeline, train: &str) -> Result<PathBuf, String> {
                 "no error bar: `{}` of {} wrote no {}",
                 s.name,
                 p.file,
-                pino_eval::calibration::CALIBRATION_FILE
+                pino_calibration::CALIBRATION_FILE
             );
         }
     }
@@ -314,19 +315,6 @@ pub fn plot_path(p: &Pipeline, name: &str) -> Option<PathBuf> {
         .into_iter()
         .filter(|f| f.extension().is_some_and(|e| e == "png"))
         .find(|f| f.file_name().is_some_and(|n| n == name))
-}
-
-pub(crate) fn read_csv(path: &Path) -> Result<Vec<Vec<String>>, String> {
-    let mut r = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .from_path(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    r.records()
-        .map(|rec| {
-            rec.map(|r| r.iter().map(str::to_owned).collect())
-                .map_err(|e| format!("{}: {e}", path.display()))
-        })
-        .collect()
 }
 
 #[cfg(test)]

@@ -6,8 +6,10 @@
 //! - [`request`]: requests parsed and validated, errors naming the field and the allowed range;
 //! - [`download`]: the design and curve files, each with the model's identity and excitation;
 //!   [`encoding`]: the compact (float32) curves of an answer;
+//! - [`channel`]: the channels of the summary, by family, with where each is predicted;
 //! - [`glance`]: the pipeline at a glance and the model found through the orchestrator's record;
-//! - [`studies`]: the pipeline's studies and those started from the sweep view;
+//! - [`studies`]: the pipeline's studies and those started from the sweep view; [`tables`]: the
+//!   CSV tables of the pipeline's outputs as the page reads them;
 //! - [`client`]: the blocking HTTP client of the load benchmark and the tests;
 //! - [`server`]: axum routes and the solve gate; [`guard`]: what every request passes (host and
 //!   token of [`access`], its body within the deadline) and every answer gets (JSON errors,
@@ -17,6 +19,7 @@
 
 pub mod access;
 pub mod assets;
+pub mod channel;
 pub mod client;
 pub mod compress;
 pub mod download;
@@ -29,3 +32,4 @@ pub mod server;
 pub mod session;
 pub mod solve;
 pub mod studies;
+pub mod tables;

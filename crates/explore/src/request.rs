@@ -127,17 +127,17 @@ pub enum Encoding {
 }
 
 /// The coverage of the intervals when a request names none.
-pub const DEFAULT_COVERAGE: f64 = pino_eval::calibration::DEFAULT_COVERAGE;
+pub const DEFAULT_COVERAGE: f64 = pino_calibration::DEFAULT_COVERAGE;
 
 /// Whether `n` calibration samples support `coverage` (in (0, 1)): the conformal rank
-/// `ceil((n + 1) c)` is at most `n` ([`pino_eval::calibration::conformal_rank`]); the refusal
+/// `ceil((n + 1) c)` is at most `n` ([`pino_calibration::conformal_rank`]); the refusal
 /// says what is allowed.
 pub fn coverage_supported(n: usize, coverage: f64) -> Result<(), String> {
-    match pino_eval::calibration::conformal_rank(n, coverage) {
+    match pino_calibration::conformal_rank(n, coverage) {
         Ok(_) => Ok(()),
         Err(_) => Err(format!(
             "a level the calibration's {n} samples support: at most n / (n + 1) = {:.4}",
-            pino_eval::calibration::max_coverage(n)
+            pino_calibration::max_coverage(n)
         )),
     }
 }
@@ -174,8 +174,8 @@ impl StartedKind {
     /// The `kind` of the study's declaration.
     pub fn as_str(self) -> &'static str {
         match self {
-            Self::MonteCarlo => pino_eval::study::spec::MONTE_CARLO,
-            Self::Sensitivity => pino_eval::study::spec::SENSITIVITY,
+            Self::MonteCarlo => pino_study::spec::MONTE_CARLO,
+            Self::Sensitivity => pino_study::spec::SENSITIVITY,
         }
     }
 
@@ -446,7 +446,7 @@ impl RequestRules {
         let Some(v) = v.filter(|v| !v.is_null()) else {
             return Ok(match self.calibration_n {
                 Some(n) if n > 0 && coverage_supported(n, DEFAULT_COVERAGE).is_err() => {
-                    pino_eval::calibration::max_coverage(n)
+                    pino_calibration::max_coverage(n)
                 }
                 _ => DEFAULT_COVERAGE,
             });
@@ -630,7 +630,7 @@ impl RequestRules {
             StartedKind::MonteCarlo => STUDY_MAX_MONTE_CARLO,
             StartedKind::Sensitivity => STUDY_MAX_SENSITIVITY_ROWS,
         };
-        const MIN_ROWS: usize = pino_eval::study::spec::MIN_SENSITIVITY_ROWS;
+        const MIN_ROWS: usize = pino_study::spec::MIN_SENSITIVITY_ROWS;
         let n = obj.get("n").map_or(Ok(kind.default_n() as u64), |v| {
             integer(v, "n", 1, max_n as u64)
         })? as usize;

@@ -16,17 +16,15 @@
 //! interior rows); sweeps carry each index curve's intervals. Without one the answers say why
 //! ([`Explorer::calibration_note`]).
 
+use crate::channel::{channels_of, Channel};
 use crate::request::{ApiError, DesignRequest, Excitation, RequestRules, SweepRequest};
 use crate::solve::{self, Rates};
 use mbd_engine::{Profile, RunConfig};
-use pino_eval::calibration::{CalibratedAnswer, REPORTED_LEVELS};
-use pino_eval::indices_eval::StoredColumns;
-use pino_eval::predict::{
-    prediction_channels, ChannelSource, DesignAnswer, Predictor, ProfileChoice, ProfileSource,
-    SetPrediction,
-};
-use pino_eval::surrogate::Surrogate;
+use pino_calibration::{CalibratedAnswer, REPORTED_LEVELS};
 use pino_indices::IndexConfig;
+use pino_outputs::indices_eval::StoredColumns;
+use pino_predict::{DesignAnswer, Predictor, ProfileChoice, ProfileSource, SetPrediction};
+use pino_surrogate::Surrogate;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -38,7 +36,7 @@ use std::sync::{Arc, Mutex};
 pub enum Error {
     /// The model or its dataset could not be read.
     #[error(transparent)]
-    Eval(#[from] pino_eval::Error),
+    Eval(#[from] pino_outputs::Error),
     /// Reading the dataset's files.
     #[error(transparent)]
     Data(#[from] pino_data::Error),
@@ -78,43 +76,6 @@ pub struct DatasetFiles {
     pub params: Vec<PathBuf>,
     /// `irregularity.parquet` file(s) (empty for a system without generated profiles).
     pub profiles: Vec<PathBuf>,
-}
-
-/// A channel's family on the page.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Group {
-    /// Solutions (displacements, rotations).
-    Displacement,
-    /// The rigid DOFs' first derivatives.
-    Velocity,
-    /// Their second derivatives.
-    Acceleration,
-    /// Element forces.
-    Force,
-    /// The profiles under the elements.
-    Excitation,
-}
-
-/// One channel of the summary.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Channel {
-    /// Column name (the simulation's).
-    pub name: String,
-    /// Unit.
-    pub unit: String,
-    /// Family.
-    pub group: Group,
-    /// The surrogate's member predicting it.
-    #[serde(skip)]
-    pub(crate) member: usize,
-    /// Where its values sit in that member's prediction.
-    #[serde(skip)]
-    pub(crate) slot: ChannelSource,
-    /// Where they sit in the solver's answer (laid out as the primary member's prediction;
-    /// `None` when the primary has no channel of that name).
-    #[serde(skip)]
-    pub(crate) exact: Option<ChannelSource>,
 }
 
 /// A test sample of the dataset: its design and its profiles.
@@ -373,7 +334,7 @@ impl Explorer {
             "file": self.calibration_file.as_ref().map(|p| p.display().to_string()),
             "n": cal.n,
             "normaliser": cal.normaliser.as_str(),
-            "max_coverage": pino_eval::calibration::max_coverage(cal.n),
+            "max_coverage": pino_calibration::max_coverage(cal.n),
             "levels": levels,
             "default_coverage": crate::request::DEFAULT_COVERAGE,
         })
@@ -581,7 +542,7 @@ impl Explorer {
             .excitations_of(design, profiles, &self.run, "design")
             .and_then(|_| self.predictor().readable(design, "design"))
             .map_err(|e| match e {
-                pino_eval::Error::Learn(pino_learn::Error::OutOfRange {
+                pino_outputs::Error::Learn(pino_learn::Error::OutOfRange {
                     field,
                     value,
                     allowed,
@@ -627,8 +588,8 @@ impl Explorer {
     /// A refusal of the predictor in the request's words: a design parameter at fault
     /// (`sets[k].NAME`) is `design.NAME`, or in a sweep the end (`from`, `to`) a swept
     /// parameter lies towards; anything else is the excitation's.
-    fn refusal(&self, e: pino_eval::Error, sweep: Option<&SweepRequest>) -> ApiError {
-        if let pino_eval::Error::Learn(pino_learn::Error::OutOfRange {
+    fn refusal(&self, e: pino_outputs::Error, sweep: Option<&SweepRequest>) -> ApiError {
+        if let pino_outputs::Error::Learn(pino_learn::Error::OutOfRange {
             field,
             value,
             allowed,
@@ -794,14 +755,14 @@ impl Explorer {
             self.surrogate
                 .answers(
                     &designs,
-                    &profiles,
+                    &ProfileSource::Shared(&profiles),
                     &self.run,
                     &self.index_cfg,
                     batch,
                     req.base.coverage,
                 )
                 .map_err(|e| match e {
-                    pino_eval::Error::Learn(pino_learn::Error::OutOfRange {
+                    pino_outputs::Error::Learn(pino_learn::Error::OutOfRange {
                         ref field, ..
                     }) if !field.starts_with("sets[") => calibration_error(e),
                     e => self.refusal(e, Some(req)),
@@ -924,39 +885,6 @@ impl Explorer {
     }
 }
 
-/// The channels of `surrogate` as the page groups them: each with the member predicting it,
-/// where, and where the solver's answer (laid out as the primary's prediction) holds it.
-fn channels_of(surrogate: &Surrogate) -> Vec<Channel> {
-    let members = surrogate.members();
-    let primary = prediction_channels(&surrogate.primary().meta.layout);
-    surrogate
-        .channels()
-        .iter()
-        .map(|(name, m, slot)| {
-            let layout = &members[*m].meta.layout;
-            let group = match *slot {
-                ChannelSource::Output(i) => match layout.rate_order(i) {
-                    Some(1) => Group::Velocity,
-                    Some(_) => Group::Acceleration,
-                    None if i < layout.solutions => Group::Displacement,
-                    None => Group::Force,
-                },
-                ChannelSource::Velocity(_) => Group::Velocity,
-                ChannelSource::Acceleration(_) => Group::Acceleration,
-                ChannelSource::Excitation(_) => Group::Excitation,
-            };
-            Channel {
-                unit: layout.unit(name).to_owned(),
-                name: name.clone(),
-                group,
-                member: *m,
-                slot: *slot,
-                exact: primary.iter().find(|(n, _)| n == name).map(|(_, s)| *s),
-            }
-        })
-        .collect()
-}
-
 /// A value as an error message quotes it: a number of many digits (`1e300`, written by the
 /// library as 301 digits) in exponent form, anything else as it is.
 fn short_number(value: &str) -> String {
@@ -968,9 +896,9 @@ fn short_number(value: &str) -> String {
 
 /// A calibration's refusal of a request: a level it cannot support is the request's `coverage`;
 /// anything else is a fault of the calibration file.
-fn calibration_error(e: pino_eval::Error) -> ApiError {
+fn calibration_error(e: pino_outputs::Error) -> ApiError {
     match e {
-        pino_eval::Error::Learn(pino_learn::Error::OutOfRange { field, allowed, .. })
+        pino_outputs::Error::Learn(pino_learn::Error::OutOfRange { field, allowed, .. })
             if field == "coverage" =>
         {
             ApiError::bad("coverage", format!("`coverage`: {allowed}"), allowed)
@@ -1000,7 +928,7 @@ fn test_samples(
             .iter()
             .map(|&id| (id, vec![None; system.profiles.len()]))
             .collect(),
-        files => pino_eval::predict::profiles_of_samples(system, files, &ids)?,
+        files => pino_predict::profiles_of_samples(system, files, &ids)?,
     };
     Ok(rows
         .into_iter()

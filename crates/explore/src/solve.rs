@@ -1,4 +1,4 @@
-//! "Solve exactly": one design through the exact solver ([`pino_eval::solve`])
+//! "Solve exactly": one design through the exact solver ([`pino_predict::solve`])
 //! with the dataset's run controls and the same profiles as its prediction, cut to the model's
 //! window (the rows whose times equal the window's), and compared with the prediction channel
 //! by channel (relative L2 error) and index by index.
@@ -6,20 +6,20 @@
 //! The run is cancellable: the engine checks a flag at every output step, so a solve whose
 //! client went away stops within one output interval.
 
+use crate::channel::Channel;
 use crate::request::ApiError;
-use crate::session::Channel;
 use mbd_engine::{Profile, RunConfig};
-use pino_eval::predict::ChannelSource;
-use pino_eval::predict::{Predictor, SetPrediction};
-pub use pino_eval::solve::Exact;
-use pino_eval::solve::SolveError;
 use pino_learn::checkpoint::ModelMeta;
+use pino_outputs::channels::ChannelSource;
+pub use pino_predict::solve::Exact;
+use pino_predict::solve::SolveError;
+use pino_predict::{Predictor, SetPrediction};
 use std::sync::atomic::AtomicBool;
 
 /// The error of a solve stopped by its cancel flag.
 pub const CANCELLED: &str = "cancelled";
 
-/// Runs `design` with `profiles` ([`pino_eval::solve::exact`]), its refusals blamed on the
+/// Runs `design` with `profiles` ([`pino_predict::solve::exact`]), its refusals blamed on the
 /// design.
 pub fn exact(
     predictor: &Predictor,
@@ -28,18 +28,20 @@ pub fn exact(
     profiles: &[Option<Profile>],
     cancel: &AtomicBool,
 ) -> Result<Exact, ApiError> {
-    pino_eval::solve::exact(predictor, run, design, profiles, Some(cancel)).map_err(|e| match e {
-        SolveError::Refused(why) => ApiError::bad("design", why, "a design the solver accepts"),
-        SolveError::Cancelled => {
-            ApiError::bad("design", CANCELLED, "a client that waits for its answer")
-        }
-        e @ SolveError::Failed(_) => ApiError::bad(
-            "design",
-            e.to_string(),
-            "a design whose response stays finite",
-        ),
-        SolveError::Window(why) | SolveError::Indices(why) => ApiError::internal(why),
-    })
+    pino_predict::solve::exact(predictor, run, design, profiles, Some(cancel)).map_err(
+        |e| match e {
+            SolveError::Refused(why) => ApiError::bad("design", why, "a design the solver accepts"),
+            SolveError::Cancelled => {
+                ApiError::bad("design", CANCELLED, "a client that waits for its answer")
+            }
+            e @ SolveError::Failed(_) => ApiError::bad(
+                "design",
+                e.to_string(),
+                "a design whose response stays finite",
+            ),
+            SolveError::Window(why) | SolveError::Indices(why) => ApiError::internal(why),
+        },
+    )
 }
 
 /// Which window points a [`SetPrediction`]'s velocities and accelerations cover.

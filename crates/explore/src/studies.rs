@@ -7,7 +7,7 @@
 //! - studies started from the sweep view: one declaration of a study stage's matrix (the
 //!   sweep's one or two parameters uniform over their intervals, every other parameter fixed
 //!   at the design's value, each design under its own excitation), run in the background by
-//!   the stage's own library ([`pino_eval::study::run`]) on the model being explored.
+//!   the stage's own library ([`pino_study::run`]) on the model being explored.
 //!
 //! A started study writes into `<dir>/<name>.partial/` and is renamed to `<dir>/<name>/` once
 //! every file is written, so a run cut short is never listed as finished. Beside the study's
@@ -25,8 +25,8 @@ use crate::request::{ApiError, Excitation, StudyRequest};
 use crate::session::Explorer;
 use orchestrator::spec::Pipeline;
 use orchestrator::status::{show, unit_states};
-use pino_eval::study::output::{headline_table, SUMMARY_MD_FILE};
-use pino_eval::study::{Progress, StudyParams};
+use pino_study::output::{headline_table, SUMMARY_MD_FILE};
+use pino_study::{Progress, StudyParams};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
@@ -193,7 +193,7 @@ fn with_outputs(mut view: StudyView, dir: &Path) -> StudyView {
         })
         .flatten();
     view.table = headline_table(&view.kind).filter(|f| has(f)).and_then(|f| {
-        crate::glance::read_csv(&dir.join(f))
+        crate::tables::read_csv(&dir.join(f))
             .ok()
             .map(|rows| TableView {
                 file: f.to_owned(),
@@ -650,16 +650,14 @@ fn study_params(ex: &Explorer, declaration: &Value, coverage: f64) -> Result<Stu
 /// all of one length): the end of the interval named (`parameters[0].to`), as a sweep names
 /// its `to`.
 fn validate(ex: &Explorer, req: &StudyRequest, params: &StudyParams) -> Result<(), ApiError> {
-    let parameters = pino_eval::study::model_parameters(ex.predictor());
-    pino_eval::study::spec::Study::parse(&params.study, &parameters, &ex.index_names()).map_err(
-        |e| {
-            let field = match e.field.as_str() {
-                "n" | "solver_check" => e.field.clone(),
-                _ => "parameters".to_owned(),
-            };
-            ApiError::bad(field, e.message, "see docs/studies.md")
-        },
-    )?;
+    let parameters = pino_study::model_parameters(ex.predictor());
+    pino_study::spec::Study::parse(&params.study, &parameters, &ex.index_names()).map_err(|e| {
+        let field = match e.field.as_str() {
+            "n" | "solver_check" => e.field.clone(),
+            _ => "parameters".to_owned(),
+        };
+        ApiError::bad(field, e.message, "see docs/studies.md")
+    })?;
     let names = &ex.rules().names;
     let excitation = Excitation::Seed {
         seed: params.seed,
@@ -758,8 +756,7 @@ fn run_study(
     progress: &Progress,
 ) -> Result<String, String> {
     let params = study_params(ex, declaration, coverage)?;
-    pino_eval::study::run_with(ex.surrogate(), &params, out, Some(progress))
-        .map_err(|e| e.to_string())
+    pino_study::run_with(ex.surrogate(), &params, out, Some(progress)).map_err(|e| e.to_string())
 }
 
 /// Writes the declaration and the record into `partial`, then renames it to `name`.

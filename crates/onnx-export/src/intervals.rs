@@ -10,8 +10,8 @@
 use crate::graph::{Graph, Value};
 use crate::proto::DataType;
 use crate::{Error, Result};
+use pino_calibration::{Calibration, HeadInput, Normaliser, QuantityScores};
 use pino_conformal::ErrorHead;
-use pino_eval::calibration::{Calibration, HeadInput, Normaliser, QuantityScores};
 use pino_learn::checkpoint::TrainingRanges;
 
 /// Which normaliser the graph's intervals use.

@@ -33,7 +33,7 @@ pub mod recipe;
 pub use network::Spectral;
 pub use outputs::{build, Exported, Summary};
 
-use pino_eval::calibration::Normaliser;
+use pino_calibration::Normaliser;
 use std::path::{Path, PathBuf};
 
 /// What can go wrong; every message names the file, layer, index or value at fault.
@@ -41,7 +41,7 @@ use std::path::{Path, PathBuf};
 pub enum Error {
     /// Loading the model or its calibration failed.
     #[error(transparent)]
-    Eval(#[from] pino_eval::Error),
+    Eval(#[from] pino_outputs::Error),
     /// The learning engine refused the model.
     #[error(transparent)]
     Learn(#[from] pino_learn::Error),
@@ -98,7 +98,7 @@ impl ExportSpec {
     /// The surrogate in `dir` (the `surrogate` stage's output): its members, each with its
     /// calibration, the primary first (the channels follow its order), and its routes.
     pub fn surrogate(dir: &Path) -> Result<Self> {
-        use pino_eval::surrogate::manifest::Manifest;
+        use pino_surrogate::manifest::Manifest;
         let m = Manifest::load(dir)?;
         let primary = m.primary();
         let mut order: Vec<usize> = (0..m.members.len()).collect();
@@ -109,7 +109,7 @@ impl ExportSpec {
                 let at = Manifest::member_dir(dir, &m.members[k].name);
                 MemberSpec {
                     key: m.members[k].name.clone(),
-                    calibration: Some(at.join(pino_eval::calibration::CALIBRATION_FILE)),
+                    calibration: Some(at.join(pino_calibration::CALIBRATION_FILE)),
                     model: at,
                 }
             })
@@ -120,7 +120,7 @@ impl ExportSpec {
                 .position(|&k| m.members[k].name == name)
                 .unwrap_or(0)
         };
-        let routes = |r: &[pino_eval::surrogate::manifest::Route]| {
+        let routes = |r: &[pino_surrogate::manifest::Route]| {
             r.iter()
                 .map(|r| (r.name.clone(), position(&r.member)))
                 .collect()
@@ -215,7 +215,7 @@ impl ExportParams {
             (_, Some(a)) => {
                 let mut found = None;
                 for m in models {
-                    if pino_eval::calibration::ModelIdentity::of(m)?.algorithm == a {
+                    if pino_calibration::ModelIdentity::of(m)?.algorithm == a {
                         found = Some(m.clone());
                     }
                 }

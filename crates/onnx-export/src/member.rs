@@ -1,15 +1,16 @@
 //! One model of a surrogate in the graph: its network, its prediction in physical units and
-//! its rates (`pino_eval::eval::to_physical`), the channels `predict --out` writes, and the
-//! series every index reads (`pino_eval::indices_eval`), all in double precision after the
+//! its rates (`pino_outputs::physical::to_physical`), the channels `predict --out` writes, and the
+//! series every index reads (`pino_outputs::indices_eval`), all in double precision after the
 //! network, channel-major until the channels are assembled.
 
 use crate::graph::{Graph, Value};
 use crate::network::{Network, Spectral, Weights};
 use crate::proto::DataType;
 use crate::{Error, Result};
-use pino_eval::indices_eval::Source;
-use pino_eval::predict::{prediction_channels, ChannelSource, Predictor};
 use pino_learn::checkpoint::ModelMeta;
+use pino_outputs::channels::{prediction_channels, ChannelSource};
+use pino_outputs::indices_eval::Source;
+use pino_predict::Predictor;
 
 /// A model's prediction in the graph, physical units, f64, channel-major (`[channel, B,
 /// time]`: a channel's series is one contiguous block per design).
@@ -158,7 +159,7 @@ pub fn assemble_channels(g: &mut Graph, picked: &[&ChannelAt], t: usize) -> Valu
 pub type Series = Vec<(String, std::result::Result<Value, String>)>;
 
 /// The series `[B, N]` of every column the indices read, over the window's rows `first..T-1`
-/// (`first >= 1`), as `pino_eval::indices_eval` rebuilds it from a prediction.
+/// (`first >= 1`), as `pino_outputs::indices_eval` rebuilds it from a prediction.
 pub fn index_series(g: &mut Graph, predictor: &Predictor, p: &Prediction, first: usize) -> Series {
     let meta = &predictor.meta;
     let t = meta.grid.t_points;

@@ -24,10 +24,10 @@ use crate::network::Weights;
 use crate::proto::DataType;
 use crate::{Error, ExportSpec, Result, Spectral};
 use candle_core::Device;
-use pino_eval::calibration::{max_coverage, Calibration, Normaliser};
-use pino_eval::predict::Predictor;
+use pino_calibration::{max_coverage, Calibration, Normaliser};
 use pino_learn::checkpoint::load_model;
 use pino_learn::spectral::Transform;
+use pino_predict::Predictor;
 use serde_json::json;
 use std::path::PathBuf;
 

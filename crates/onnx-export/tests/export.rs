@@ -8,12 +8,12 @@
 use candle_core::Device;
 use learn_fixtures::synthetic::{write_dataset, SyntheticSpec};
 use onnx_export::{build, export, ExportSpec, Spectral};
-use pino_eval::calibration::build::{calibrate, CalibrateParams};
-use pino_eval::calibration::{HeadInput, Normaliser};
-use pino_eval::eval::EvalData;
+use pino_calibration::build::{calibrate, CalibrateParams};
+use pino_calibration::{HeadInput, Normaliser};
 use pino_learn::config::TrainParams;
 use pino_learn::data::DatasetInfo;
 use pino_learn::spectral::Transform;
+use pino_outputs::split::EvalData;
 use std::path::{Path, PathBuf};
 
 /// A model of 2 epochs and its calibration (12 samples: levels up to 12/13).

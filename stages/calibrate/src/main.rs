@@ -10,9 +10,9 @@
 //! each file says so and answers carry no interval. Params: `normaliser` (`none`, `residual`,
 //! `error_head`), `ridge` (the error heads' penalty), `batch_size`, `device`.
 use anyhow::{bail, Context, Result};
-use pino_eval::calibration::build::{calibrate, CalibrateParams};
-use pino_eval::eval::EvalData;
+use pino_calibration::build::{calibrate, CalibrateParams};
 use pino_learn::data::DatasetInfo;
+use pino_outputs::split::EvalData;
 use stage_kit::StageContext;
 
 fn run() -> Result<String> {

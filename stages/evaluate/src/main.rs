@@ -12,9 +12,10 @@
 //! engineering indices of the description against the solver (`indices_*`), prediction and
 //! training-curve PNGs and `plots.md`.
 use anyhow::{bail, Context, Result};
-use pino_eval::eval::{evaluate, EvalData, EvalOptions, EvalParams};
+use pino_eval::{evaluate, EvalOptions, EvalParams};
 use pino_learn::data::DatasetInfo;
 use pino_learn::spectral::Transform;
+use pino_outputs::split::EvalData;
 use stage_kit::StageContext;
 
 fn run() -> Result<()> {
@@ -27,7 +28,7 @@ fn run() -> Result<()> {
         // names (the dataset does not exist yet).
         let (_, system) = stage_kit::load_description(&p.system_values)?;
         let layout = pino_learn::layout::Layout::of(&system);
-        pino_eval::eval::plot_channels(&p.plot_channels, &layout, &system)
+        pino_eval::plot_channels(&p.plot_channels, &layout, &system)
             .with_context(|| format!("stage `{}`: parameter `plot_channels`", ctx.stage))?;
         stage_kit::summary("parameters valid");
         return Ok(());
@@ -67,30 +68,7 @@ fn run() -> Result<()> {
         &device,
         &mut |done, msg| progress.set(done as u64, msg),
     )?;
-    let results = &ev.models;
-    let rows: Vec<String> = results
-        .iter()
-        .map(|r| {
-            format!(
-                "{}: {:.2}/{:.2}/{:.2}% (peak force {:.2}% of the static force)",
-                r.meta.train.algorithm.id(),
-                r.table4[0],
-                r.table4[1],
-                r.table4[2],
-                r.peak_force_error_pct_w
-            )
-        })
-        .collect();
-    let speed = results
-        .iter()
-        .map(|r| r.speed)
-        .fold(f64::INFINITY, f64::min);
-    stage_kit::summary(&format!(
-        "Table 4 on the {} split{} (solutions/first/second) {}; prediction >= {speed:.0} simulated s per wall s",
-        ev.scored_on.split().as_str(),
-        ev.scored_on.flag(),
-        rows.join(", ")
-    ));
+    stage_kit::summary(&ev.summary());
     Ok(())
 }
 

@@ -282,6 +282,13 @@ fn open(args: &Args, pipeline: Option<&Pipeline>, limits: Limits) -> Result<Expl
     eprintln!("explore: opening {what} ...");
     let mut explorer = Explorer::open(&model_dir, dataset, limits)
         .with_context(|| format!("opening the model {}", model_dir.display()))?;
+    attach_calibration(&mut explorer, calibration)?;
+    Ok(explorer)
+}
+
+/// Loads the model's calibration into `explorer` (a refusal is [`Refused`]), or records why
+/// there is none; says on stderr which.
+fn attach_calibration(explorer: &mut Explorer, calibration: Result<PathBuf, String>) -> Result<()> {
     match calibration {
         Ok(path) => {
             explorer
@@ -297,7 +304,7 @@ fn open(args: &Args, pipeline: Option<&Pipeline>, limits: Limits) -> Result<Expl
             explorer.no_calibration(why);
         }
     }
-    Ok(explorer)
+    Ok(())
 }
 
 async fn run(args: Args) -> Result<()> {

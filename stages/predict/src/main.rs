@@ -29,9 +29,12 @@
 //! the calibration cannot support is refused before anything is written (exit 2).
 use anyhow::{Context, Result};
 use clap::Parser;
-use pino_eval::predict::{parse_sweep, Predictor, ProfileChoice, OUTSIDE_COLUMN};
-use pino_eval::surrogate::Surrogate;
 use pino_learn::config::DeviceKind;
+use pino_predict::{
+    outside_message, DesignSource, DesignSpace, Predictor, ProfileChoice, ProfileSource,
+    OUTSIDE_COLUMN,
+};
+use pino_surrogate::Surrogate;
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -113,70 +116,28 @@ impl std::error::Error for Refused {}
 fn run() -> Result<()> {
     pino_learn::tune_allocator();
     let args = Args::parse();
-    let read = |path: &PathBuf| {
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
-    };
     let (surrogate, coverage) = load(&args)?;
     let predictor = surrogate.primary();
-    let space = &predictor.space;
-    let mut sets = match (&args.params, &args.sweep) {
-        (Some(path), _) => space.parse_sets(&read(path)?, path)?,
-        (None, Some(path)) => parse_sweep(space, &read(path)?, path)?,
-        (None, None) => vec![space.nominal()],
-    };
-    for s in &args.sets {
-        space.apply_override(&mut sets, s)?;
-    }
-    for (k, s) in sets.iter().enumerate() {
-        space.check(s, &format!("sets[{k}]"))?;
-    }
+    let sets = designs(&args, &predictor.space)?;
     if let Some(id) = args.profile_id.filter(|id| *id < 0) {
         anyhow::bail!("--profile-id {id}: sample ids are >= 0");
     }
-    let choice = match (&args.profile, args.seed) {
-        (Some(path), _) => Some(ProfileChoice::File {
-            path: path.clone(),
-            sample_id: args.profile_id,
-        }),
-        (None, Some(seed)) => Some(ProfileChoice::Generated {
-            seed,
-            id: args.profile_id.unwrap_or(0) as u64,
-        }),
-        (None, None) => None,
-    };
+    let choice = ProfileChoice::of(args.profile.as_deref(), args.seed, args.profile_id);
     let profiles = predictor.profiles(choice.as_ref())?;
     let run_config = predictor.run_config(args.x0)?;
     let meta = &predictor.meta;
     // Where the model was trained: flag, warn, or refuse under --strict.
     let outside = predictor.outside_training(&sets)?;
-    let flagged: Vec<usize> = (0..sets.len())
-        .filter(|&k| !outside[k].is_empty())
-        .collect();
-    if !flagged.is_empty() {
-        let shown: Vec<String> = flagged
-            .iter()
-            .take(5)
-            .map(|&k| {
-                let what: Vec<String> = outside[k].iter().map(|o| o.to_string()).collect();
-                format!("sets[{k}]: {}", what.join(", "))
-            })
-            .collect();
-        let msg = format!(
-            "{} of {} set(s) outside the model's training ranges (from {}), where its predictions are extrapolations: {}{}",
-            flagged.len(),
-            sets.len(),
-            meta.training_ranges.source,
-            shown.join("; "),
-            if flagged.len() > 5 { "; ..." } else { "" }
-        );
+    if let Some(msg) = outside_message(&outside, &meta.training_ranges.source) {
         if args.strict {
             return Err(Refused(format!("--strict: refused: {msg}")).into());
         }
         eprintln!("predict: warning: {msg} (flagged in column `{OUTSIDE_COLUMN}`)");
     }
-    pino_data::metadata::set_origin(origin(&args, space.names(), &sets, &run_config))?;
+    pino_data::metadata::set_origin(origin(&args, predictor.space.names(), &sets, &run_config))?;
     let started = std::time::Instant::now();
     let mut wrote = Vec::new();
+    let profiles = ProfileSource::Shared(&profiles);
     if let (Some(out), false) = (&args.out, args.indices_only) {
         let table =
             surrogate.histories_flagged(&sets, &profiles, &run_config, args.batch, coverage)?;
@@ -185,7 +146,7 @@ fn run() -> Result<()> {
     }
     if let Some(path) = &args.indices {
         let cfg = predictor.index_config()?;
-        let level = coverage.unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
+        let level = coverage.unwrap_or(pino_calibration::DEFAULT_COVERAGE);
         let answers = surrogate.answers(&sets, &profiles, &run_config, &cfg, args.batch, level)?;
         let table = surrogate.indices_table(&sets, &answers, &outside)?;
         pino_data::write_parquet(path, &table)?;
@@ -197,10 +158,30 @@ fn run() -> Result<()> {
         sets.len(),
         meta.grid.t_points as f64 * meta.grid.dt,
         surrogate.member_names().join(" + "),
-        flagged.len(),
+        outside.iter().filter(|o| !o.is_empty()).count(),
         wrote.join(", ")
     );
     Ok(())
+}
+
+/// The designs of `--params` or `--sweep` (else the nominal design) with every `--set`.
+fn designs(args: &Args, space: &DesignSpace) -> Result<Vec<Vec<f64>>> {
+    let read = |path: &PathBuf| {
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
+    };
+    let text;
+    let source = match (&args.params, &args.sweep) {
+        (Some(path), _) => {
+            text = read(path)?;
+            DesignSource::Sets(&text, path)
+        }
+        (None, Some(path)) => {
+            text = read(path)?;
+            DesignSource::Sweep(&text, path)
+        }
+        (None, None) => DesignSource::Nominal,
+    };
+    Ok(space.designs(source, &args.sets)?)
 }
 
 /// Loads `--surrogate`, or `--model` with its `--calibration`, and checks `--coverage` against
@@ -238,9 +219,7 @@ fn load(args: &Args) -> Result<(Surrogate, Option<f64>)> {
         (None, None) => anyhow::bail!("give --surrogate DIR or --model DIR"),
     };
     let level = surrogate.interval_level(args.coverage).map_err(|e| {
-        let level = args
-            .coverage
-            .unwrap_or(pino_eval::calibration::DEFAULT_COVERAGE);
+        let level = args.coverage.unwrap_or(pino_calibration::DEFAULT_COVERAGE);
         Refused(format!("--coverage {level}: {e}"))
     })?;
     if level.is_none() {

@@ -10,7 +10,7 @@
 //! description named on the command line before anything runs. Writes the study's files
 //! (`evaluations.parquet`, `solver.parquet`, `summary.{parquet,csv,md}`).
 use anyhow::{bail, Context, Result};
-use pino_eval::study::StudyParams;
+use pino_study::StudyParams;
 use stage_kit::StageContext;
 
 fn run() -> Result<String> {
@@ -20,7 +20,7 @@ fn run() -> Result<String> {
     let p: StudyParams = ctx.params()?;
     if ctx.is_check() {
         let (_, system) = stage_kit::load_description(&p.system_values)?;
-        let study = pino_eval::study::check(&system, &p)
+        let study = pino_study::check(&system, &p)
             .with_context(|| format!("stage `{}`: bad study", ctx.stage))?;
         return Ok(format!("study `{}` valid", study.name));
     }
@@ -35,7 +35,7 @@ fn run() -> Result<String> {
     // Optional: without it the answers carry no error bar and the files say so.
     let calibration = ctx.optional_single_input_dir("calibration")?;
     let device = p.device.device()?;
-    let surrogate = pino_eval::study::load_surrogate(
+    let surrogate = pino_study::load_surrogate(
         surrogate.as_deref(),
         &models,
         calibration.as_deref(),
@@ -43,7 +43,7 @@ fn run() -> Result<String> {
         &device,
     )
     .with_context(|| format!("stage `{}`", ctx.stage))?;
-    let summary = pino_eval::study::run(&surrogate, &p, &ctx.output)
+    let summary = pino_study::run(&surrogate, &p, &ctx.output)
         .with_context(|| format!("stage `{}`", ctx.stage))?;
     Ok(summary)
 }

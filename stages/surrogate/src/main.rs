@@ -17,7 +17,7 @@ fn run() -> Result<String> {
     let calibration = ctx.optional_single_input_dir("calibration")?.context(
         "input `calibration` is not wired: wire the `calibrate` stage of the candidates",
     )?;
-    let m = pino_eval::surrogate::build::build(&candidates, &calibration, &ctx.output)
+    let m = pino_surrogate::build::build(&candidates, &calibration, &ctx.output)
         .with_context(|| format!("stage `{}`", ctx.stage))?;
     let routes: Vec<String> = m
         .members
