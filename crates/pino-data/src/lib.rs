@@ -1,5 +1,6 @@
 //! The public data contract of pino-mbd and its Parquet I/O.
 //!
+//! - [`artifacts`]: the file name of every artifact the stages write and read.
 //! - [`schema`]: the column names every artifact uses (from `docs/model.md`); users read them
 //!   from pandas, polars or DuckDB, so they are a contract.
 //! - [`Table`]: a small columnar table of named `f64`, `i64`, Boolean or string columns (a
@@ -34,6 +35,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod artifacts;
 pub mod batch;
 pub mod metadata;
 mod parquet_io;
