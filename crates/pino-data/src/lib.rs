@@ -145,5 +145,21 @@ pub enum Error {
     System(String),
 }
 
+/// A Parquet or Arrow failure on `path`.
+pub(crate) fn pq(path: &std::path::Path, e: impl std::fmt::Display) -> Error {
+    Error::Parquet {
+        path: path.to_owned(),
+        message: e.to_string(),
+    }
+}
+
+/// A file system failure on `path`.
+pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Error {
+    Error::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, Error>;
