@@ -261,7 +261,7 @@ fn irregularity_profiles_have_the_descriptions_spectrum() {
     // Every sample its own profile.
     assert_ne!(&eta[..n], &eta[n..2 * n]);
     let recorded: mbd_dataset::ProfileParams = serde_json::from_value(
-        pino_data::system::read_json(&ir.join(pino_data::system::PROFILES_FILE)).unwrap(),
+        pino_data::system::read_json(&ir.join(pino_data::artifacts::PROFILES_FILE)).unwrap(),
     )
     .unwrap();
     assert_eq!(
@@ -668,7 +668,7 @@ fn synthetic_quarter_car(dir: &Path, ids: &[i64], drop: Option<&str>) {
     write_parquet(&dir.join("simulation.parquet"), &t).unwrap();
     pino_data::system::write_record(dir, &source).unwrap();
     pino_data::provenance::write_provenance(
-        &dir.join(pino_data::provenance::PROVENANCE_FILE),
+        &dir.join(pino_data::artifacts::PROVENANCE_FILE),
         &[
             ("dt", 1e-4),
             ("duration", 0.02),

@@ -302,7 +302,7 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     }
     pino_data::write_parquet(&broken.join("simulation.parquet"), &cut).unwrap();
     // The dataset's records beside it (the description, the run controls).
-    for record in [mbd_system::SYSTEM_FILE, pino_data::system::RUN_FILE] {
+    for record in [mbd_system::SYSTEM_FILE, pino_data::artifacts::RUN_FILE] {
         std::fs::copy(data.join(record), broken.join(record)).unwrap();
     }
     let (ctx, _) = context(

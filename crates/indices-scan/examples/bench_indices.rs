@@ -100,7 +100,7 @@ fn generate(
         };
         p.push(&par.name, Column::F64(vec![nominal; n]))?;
     }
-    pino_data::write_parquet(&dir.join("params.parquet"), &p)?;
+    pino_data::write_parquet(&dir.join(pino_data::artifacts::PARAMS_FILE), &p)?;
     for k in 0..shards {
         let path = dir.join(format!("sim_{k}.parquet"));
         let mut w = StreamWriter::create(&path, &sample_table(0, 0).with_units(units.clone()))?;
@@ -130,7 +130,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .railway
                 .as_ref()
                 .ok_or("vtcd.yaml binds the railway indices")?;
-            let params = read_params(&system, &[dir.join("params.parquet")])?;
+            let params = read_params(&system, &[dir.join(pino_data::artifacts::PARAMS_FILE)])?;
             let t0 = Instant::now();
             check_columns(&files, &indices_scan::needed_columns(&set))?;
             let spectral = record_pass(&files, &system, &set, &params, &cfg, &|_| {})?;

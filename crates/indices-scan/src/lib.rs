@@ -123,14 +123,9 @@ pub struct SampleInfo {
 /// Reads `params.parquet` (one file per upstream shard, usually one) through
 /// [`pino_data::records::read_params`]: every sample's split and sampled parameters, by id.
 pub fn read_params(system: &System, files: &[PathBuf]) -> Result<BTreeMap<i64, SampleInfo>> {
-    let names = system.sampled_names();
-    let table = pino_data::records::read_params(files, &names)?;
-    table
-        .ids
-        .into_iter()
-        .zip(table.splits)
-        .zip(table.values)
-        .map(|((id, split), params)| {
+    pino_data::records::read_params_of(files, system)?
+        .rows()
+        .map(|(id, split, params)| {
             let params = system.sampled_values(params)?;
             let values = system.values(&params)?;
             Ok((

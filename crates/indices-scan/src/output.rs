@@ -103,8 +103,11 @@ pub fn describe_json(system: &System, cfg: &IndexConfig) -> String {
 
 /// Writes `indices.parquet` and `indices.json` into `dir` (atomically, deterministic bytes).
 pub fn write_outputs(dir: &Path, system: &System, out: &Computed, cfg: &IndexConfig) -> Result<()> {
-    pino_data::write_parquet(&dir.join("indices.parquet"), &to_table(system, out)?)?;
-    let path = dir.join("indices.json");
+    pino_data::write_parquet(
+        &dir.join(pino_data::artifacts::INDICES_FILE),
+        &to_table(system, out)?,
+    )?;
+    let path = dir.join(pino_data::artifacts::INDICES_META_FILE);
     atomic_write(&path, describe_json(system, cfg).as_bytes())
 }
 

@@ -296,7 +296,7 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         .map_err(|(id, e)| bad(format!("sample {id}: {e}")))?;
     let mut cols = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
     cols.extend(system.channels.iter().map(|c| c.name.clone()));
-    let sim_path = dir.join("simulation.parquet");
+    let sim_path = dir.join(pino_data::artifacts::SIMULATION_FILE);
     let layout = Layout::of(&system);
     let weight_cols = pino_learn::weights::columns(&layout);
     let weight_idx: Vec<usize> = weight_cols
@@ -340,14 +340,14 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         Ok(())
     })?;
     writer.ok_or_else(|| bad("no samples".into()))?.finish()?;
-    let weights_path = dir.join("weights.parquet");
+    let weights_path = dir.join(pino_data::artifacts::WEIGHTS_FILE);
     write_weights(&weights_path, &units, &layout, &phi)?;
     let settings = pino_learn::checkpoint::DataSettings {
         run: config,
         profiles: generators.iter().any(Option::is_some).then_some(controls),
     };
     pino_data::system::write_json(
-        &dir.join(pino_data::system::RUN_FILE),
+        &dir.join(pino_data::artifacts::RUN_FILE),
         &serde_json::to_value(&settings).map_err(|e| bad(e.to_string()))?,
     )?;
     Ok(SyntheticFiles {

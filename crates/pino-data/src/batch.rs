@@ -5,7 +5,8 @@
 //! (moved, not copied); any batch of numeric, Boolean or string columns reads back as a
 //! [`Table`].
 
-use crate::parquet_io::{append_array, arrow_array, arrow_schema, empty_column, pq};
+use crate::parquet_io::{append_array, arrow_array, arrow_schema, empty_column};
+use crate::pq;
 use crate::{Result, Table};
 use arrow_array::{ArrayRef, RecordBatch};
 use std::path::Path;

@@ -1,5 +1,6 @@
 //! The public data contract of pino-mbd and its Parquet I/O.
 //!
+//! - [`artifacts`]: the file name of every artifact the stages write and read.
 //! - [`schema`]: the column names every artifact uses (from `docs/model.md`); users read them
 //!   from pandas, polars or DuckDB, so they are a contract.
 //! - [`Table`]: a small columnar table of named `f64`, `i64`, Boolean or string columns (a
@@ -34,6 +35,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod artifacts;
 pub mod batch;
 pub mod metadata;
 mod parquet_io;
@@ -141,6 +143,22 @@ pub enum Error {
     /// The system description could not be read, compiled or matched.
     #[error("{0}")]
     System(String),
+}
+
+/// A Parquet or Arrow failure on `path`.
+pub(crate) fn pq(path: &std::path::Path, e: impl std::fmt::Display) -> Error {
+    Error::Parquet {
+        path: path.to_owned(),
+        message: e.to_string(),
+    }
+}
+
+/// A file system failure on `path`.
+pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Error {
+    Error::Io {
+        path: path.to_owned(),
+        source,
+    }
 }
 
 /// Result alias of this crate.

@@ -148,9 +148,8 @@ pub struct FileMetadata {
 /// Reads the self-description of the Parquet file at `path`.
 pub fn read_metadata(path: &Path) -> Result<FileMetadata> {
     use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-    let file = std::fs::File::open(path).map_err(|e| crate::parquet_io::io(path, e))?;
-    let builder = ParquetRecordBatchReaderBuilder::try_new(file)
-        .map_err(|e| crate::parquet_io::pq(path, e))?;
+    let file = std::fs::File::open(path).map_err(|e| crate::io(path, e))?;
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| crate::pq(path, e))?;
     let key_value = builder
         .metadata()
         .file_metadata()

@@ -6,7 +6,7 @@
 //! write attaches the units and origin of [`crate::metadata`] (the one place they are made).
 
 use crate::units::UNIT_KEY;
-use crate::{metadata, Column, Error, Result, Table};
+use crate::{io, metadata, pq, Column, Error, Result, Table};
 use arrow_array::{
     Array, ArrayRef, BooleanArray, Float64Array, Int64Array, RecordBatch, StringArray,
 };
@@ -22,20 +22,6 @@ use std::sync::Arc;
 
 /// Rows per row group by default (about 1 MiB per f64 column).
 const DEFAULT_ROW_GROUP: usize = 128 * 1024;
-
-pub(crate) fn pq(path: &Path, e: impl std::fmt::Display) -> Error {
-    Error::Parquet {
-        path: path.to_owned(),
-        message: e.to_string(),
-    }
-}
-
-pub(crate) fn io(path: &Path, source: std::io::Error) -> Error {
-    Error::Io {
-        path: path.to_owned(),
-        source,
-    }
-}
 
 /// Writes `table` to `path` atomically with the default row-group size.
 pub fn write_parquet(path: &Path, table: &Table) -> Result<()> {

@@ -1,18 +1,15 @@
 //! The dataset's provenance in a table: the run controls a simulated dataset was made with
 //! (time step, duration, output rate, start-up fractions, `x0`), stored next to it for readers
 //! in pandas, polars or DuckDB. (The machine record of the same run is `run.json`,
-//! [`crate::system::RUN_FILE`]; the physics is the description's, `system.json`.)
+//! [`crate::artifacts::RUN_FILE`]; the physics is the description's, `system.json`.)
 //!
-//! `simulate` writes `provenance.parquet` (columns `name` (string), `value` (f64), `unit`
+//! `simulate` writes `provenance.parquet` ([`crate::artifacts::PROVENANCE_FILE`]) (columns `name` (string), `value` (f64), `unit`
 //! (string, from the fixed table of [`crate::units`]), one row per control, sorted by name) into every shard's
 //! output.
 
 use crate::{read_parquet, write_parquet, Column, Error, Result, Table};
 use std::collections::BTreeMap;
 use std::path::Path;
-
-/// File name of the provenance record in a dataset directory.
-pub const PROVENANCE_FILE: &str = "provenance.parquet";
 
 /// Writes the constants (name, value, unit) to `path`, sorted by name; a constant without a
 /// unit in the fixed table of [`crate::units`] is an error.
@@ -52,6 +49,7 @@ pub fn read_provenance(path: &Path) -> Result<BTreeMap<String, f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::artifacts::PROVENANCE_FILE;
 
     #[test]
     fn round_trip_with_units_and_unknown_names_refused() {

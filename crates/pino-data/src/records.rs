@@ -6,8 +6,11 @@
 //! of one sample are gathered, whole, and handed on as soon as the next sample begins, so
 //! memory holds one sample plus one batch of rows. A sample whose rows are not contiguous
 //! (seen twice) is refused naming the file and the sample.
+//!
+//! [`read_params`] is the one reader of the sampled designs ([`PARAMS_FILE`](crate::artifacts::PARAMS_FILE)).
 
 use crate::{for_each_batch, schema, Error, Result};
+use mbd_system::System;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
@@ -102,7 +105,7 @@ pub fn for_each_record<E: From<Error>>(
     Ok(())
 }
 
-/// The rows of `params.parquet`: every sample's id, split label and the named parameters.
+/// The rows of [`PARAMS_FILE`](crate::artifacts::PARAMS_FILE): every sample's id, split label and the named parameters.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamsTable {
     /// `sample_id` per row.
@@ -113,8 +116,20 @@ pub struct ParamsTable {
     pub values: Vec<Vec<f64>>,
 }
 
-/// Reads `params.parquet` files (one per upstream shard, usually one): ids, splits and the
-/// parameters `names`, refusing a sample id seen twice.
+impl ParamsTable {
+    /// The rows, in file order: `(sample_id, split, parameters)`.
+    pub fn rows(self) -> impl Iterator<Item = (i64, String, Vec<f64>)> {
+        self.ids
+            .into_iter()
+            .zip(self.splits)
+            .zip(self.values)
+            .map(|((id, split), values)| (id, split, values))
+    }
+}
+
+/// Reads [`PARAMS_FILE`](crate::artifacts::PARAMS_FILE) files (one per upstream shard, usually one): ids, splits and the
+/// parameters `names` (none to read the ids and splits only), refusing a sample id seen twice.
+/// This is the one reader of the sampled designs; [`read_params_of`] reads a description's.
 pub fn read_params(files: &[PathBuf], names: &[&str]) -> Result<ParamsTable> {
     let mut cols = vec![schema::SAMPLE_ID, schema::SPLIT];
     cols.extend_from_slice(names);
@@ -139,6 +154,12 @@ pub fn read_params(files: &[PathBuf], names: &[&str]) -> Result<ParamsTable> {
         splits,
         values,
     })
+}
+
+/// [`read_params`] of every sampled parameter of `system`, in the description's order (what
+/// `System::sampled_values` takes).
+pub fn read_params_of(files: &[PathBuf], system: &System) -> Result<ParamsTable> {
+    read_params(files, &system.sampled_names())
 }
 
 #[cfg(test)]

@@ -6,7 +6,8 @@
 //! equal bytes. Units and origin are attached as by [`crate::write_parquet`]
 //! ([`crate::metadata`]).
 
-use crate::parquet_io::{arrow_arrays, arrow_schema, atomic, data_type, pq, writer_properties};
+use crate::parquet_io::{arrow_arrays, arrow_schema, atomic, data_type, writer_properties};
+use crate::pq;
 use crate::{Error, Result, Table};
 use arrow_array::RecordBatch;
 use arrow_schema::SchemaRef;

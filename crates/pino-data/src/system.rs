@@ -7,17 +7,12 @@
 //! and a stage that reads both refuses a mismatch. [`units_of`] gives the unit of every column
 //! the description defines, for the tables the Parquet writers write.
 
+use crate::artifacts::{PARAMS_FILE, RANGES_FILE};
 use crate::units::Units;
 use crate::{Error, Result};
 use mbd_system::system::{ParamSource, Role};
 use mbd_system::{System, SystemSource, SYSTEM_FILE};
 use std::path::{Path, PathBuf};
-
-/// File `irregularity` writes beside its profiles: the generator's controls (seed, dx, length).
-pub const PROFILES_FILE: &str = "profiles.json";
-/// File `simulate` writes beside every dataset shard: `{"run": <the run controls>,
-/// "profiles": <the irregularity stage's profiles.json, or null>}`, how the data were made.
-pub const RUN_FILE: &str = "run.json";
 
 /// Writes a JSON value atomically.
 pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
@@ -85,14 +80,6 @@ pub fn same(a_path: &Path, a: &SystemSource, b_path: &Path, b: &SystemSource) ->
         b.file
     )))
 }
-
-/// The sampled designs `sample-params` writes: `sample_id`, `split`, then every sampled
-/// parameter of the description in its unit.
-pub const PARAMS_FILE: &str = "params.parquet";
-
-/// Each sampled parameter's range (`name`, `unit`, `min`, `max`): `train` stores it with every
-/// model so that `predict` flags designs outside it.
-pub const RANGES_FILE: &str = "ranges.parquet";
 
 /// Writes [`PARAMS_FILE`] and [`RANGES_FILE`] into `dir`, as `sample-params` does: sample
 /// `id` (`0..draws.len()`) has split `splits[id]` and the sampled parameters' values

@@ -43,8 +43,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         a.get(1)
             .ok_or("usage: data_memory gen|train|evaluate DIR ...")?,
     );
-    let params = dir.join("params.parquet");
-    let sims = vec![dir.join("simulation.parquet")];
+    let params = dir.join(pino_data::artifacts::PARAMS_FILE);
+    let sims = vec![dir.join(pino_data::artifacts::SIMULATION_FILE)];
     // The laptop and paper configurations start from equilibrium: no start-up dropped.
     let window = WindowConfig {
         startup_fraction: 0.0,

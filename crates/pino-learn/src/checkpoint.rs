@@ -29,10 +29,8 @@ use std::path::Path;
 
 /// Format tag of `model.json` (version 2: a model of a described system).
 pub const MODEL_FORMAT: &str = "pino-mbd-fno-2";
-/// Model weights file name.
-pub const MODEL_WEIGHTS: &str = "model.safetensors";
-/// Model sidecar file name.
-pub const MODEL_META: &str = "model.json";
+/// The model's file names (kept here under their old path for the crates that load models).
+pub use pino_data::artifacts::{MODEL_META, MODEL_WEIGHTS};
 /// Checkpoint tensor file name.
 pub const CHECKPOINT_TENSORS: &str = "checkpoint.safetensors";
 /// Checkpoint sidecar file name (a readable copy; resume reads the tensor file only).

@@ -67,8 +67,12 @@ pub struct LossContext {
     equations: EquationCache,
 }
 
-/// Each sample's equations by the bits of its physical parameters, shared by clones.
-type EquationCache = Arc<Mutex<HashMap<Vec<u64>, Arc<SampleEquations>>>>;
+/// Each sample's equations by its `sample_id`, with the design they were built from (a
+/// sample id met again with another design gets its equations built again), shared by clones.
+type EquationCache = Arc<Mutex<KeptEquations>>;
+
+/// The kept equations: `sample_id` -> (design, equations).
+type KeptEquations = HashMap<i64, (Vec<f64>, Arc<SampleEquations>)>;
 
 impl LossContext {
     /// The losses of `config` over `layout` of `system`, on windows of step `dt` (s)
@@ -142,7 +146,8 @@ impl LossContext {
         &self.map
     }
 
-    /// The equations of the batch's samples, built on a sample's first batch and kept.
+    /// The equations of the batch's samples, found by sample id: built on a sample's first
+    /// batch (from its design, [`Batch::designs`]) and kept.
     pub fn sample_equations(&self, batch: &Batch) -> Result<Vec<Arc<SampleEquations>>> {
         if self.map.equations.is_empty() {
             return Err(Error::OutOfRange {
@@ -154,24 +159,36 @@ impl LossContext {
                 ),
             });
         }
-        let params = batch.params.to_dtype(DType::F64)?.to_vec2::<f64>()?;
-        params
+        let same = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .map(|x| x.to_bits())
+                .eq(b.iter().map(|x| x.to_bits()))
+        };
+        batch
+            .ids
             .iter()
-            .map(|p| {
-                let key: Vec<u64> = p.iter().map(|x| x.to_bits()).collect();
-                if let Some(kept) = self.kept_equations().get(&key) {
-                    return Ok(kept.clone());
+            .zip(&batch.designs)
+            .map(|(&id, p)| {
+                if let Some((design, kept)) = self.kept_equations().get(&id) {
+                    if same(design, p) {
+                        return Ok(kept.clone());
+                    }
                 }
                 // Built outside the lock: another thread may build the same sample meanwhile
                 // (the same value; the first one kept wins).
                 let design = self.system.sampled_values(p.as_slice())?;
                 let built = Arc::new(SampleEquations::new(&self.system, &self.map, &design)?);
-                Ok(self.kept_equations().entry(key).or_insert(built).clone())
+                let mut kept = self.kept_equations();
+                let slot = kept.entry(id).or_insert_with(|| (p.clone(), built.clone()));
+                if !same(&slot.0, p) {
+                    *slot = (p.clone(), built);
+                }
+                Ok(slot.1.clone())
             })
             .collect()
     }
 
-    fn kept_equations(&self) -> std::sync::MutexGuard<'_, HashMap<Vec<u64>, Arc<SampleEquations>>> {
+    fn kept_equations(&self) -> std::sync::MutexGuard<'_, KeptEquations> {
         // A panic while holding the lock cannot leave a half-inserted entry: keep going.
         self.equations
             .lock()
@@ -453,8 +470,8 @@ mod tests {
         (ctx, batch, u0)
     }
 
-    /// A sample's equations are built on its first batch and kept: a later batch (or a
-    /// clone of the context) gets the same ones, and the loss is bit for bit the one of a
+    /// A sample's equations are built on its first batch and kept by its id: a later batch
+    /// (or a clone of the context) gets the same ones, and the loss is bit for bit the one of a
     /// fresh context that builds them again.
     #[test]
     fn sample_equations_are_built_once_and_kept() {
@@ -464,6 +481,12 @@ mod tests {
         assert_eq!(first.len(), 3);
         assert!(first.iter().zip(&again).all(|(a, b)| Arc::ptr_eq(a, b)));
         assert!(!Arc::ptr_eq(&first[0], &first[1]));
+        // A sample id met again with another design gets equations built for that design.
+        let mut other = batch.clone();
+        other.designs[0] = batch.designs[1].clone();
+        let rebuilt = ctx.sample_equations(&other).unwrap();
+        assert!(!Arc::ptr_eq(&rebuilt[0], &first[0]));
+        assert!(Arc::ptr_eq(&rebuilt[1], &first[1]));
         let kept = ctx.loss(&u, &batch).unwrap().0.to_scalar::<f32>().unwrap();
         let (fresh, _, _) = tiny_case(3);
         let built = fresh

@@ -1,5 +1,5 @@
-//! Adam (Kingma & Ba) with an externally set learning rate (step decay lives in
-//! [`crate::config::TrainConfig::lr_at`]). Moments are plain tensors so that a checkpoint can
+//! Adam (Kingma & Ba) with an externally set learning rate (the caller decays it; training
+//! takes it from its configuration's schedule). Moments are plain tensors so that a checkpoint can
 //! store and restore them exactly:
 //! ```text
 //! m <- b1 m + (1 - b1) g        v <- b2 v + (1 - b2) g^2

@@ -17,6 +17,7 @@ use crate::optim::{Adam, Average};
 use crate::spectral::Transform;
 use crate::{Error, Result};
 use candle_core::Device;
+use pino_data::artifacts::{HISTORY_FILE, PARAMS_FILE, WEIGHTS_FILE};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -145,7 +146,7 @@ pub fn train(
     let val_idx = ds.split_indices(Split::Validation);
     if train_idx.is_empty() {
         return Err(Error::Dataset {
-            path: PathBuf::from("params.parquet"),
+            path: PathBuf::from(PARAMS_FILE),
             message: "no training samples".into(),
         });
     }
@@ -156,7 +157,7 @@ pub fn train(
             .find(|s| s.phi.is_none())
         {
             return Err(Error::Dataset {
-                path: PathBuf::from("weights.parquet"),
+                path: PathBuf::from(WEIGHTS_FILE),
                 message: format!(
                     "algorithm 3 needs the ODE magnitude weights phi of every training sample; sample {} has none (wire the `weights` input)",
                     s.id
@@ -362,10 +363,7 @@ pub fn train_to_dir(
     };
     let outcome = train(ds, model_cfg, cfg, window, &opts, device, report)?;
     checkpoint::save_model(out, &outcome.model, &outcome.meta)?;
-    pino_data::write_parquet(
-        &out.join("history.parquet"),
-        &history_table(&outcome.history)?,
-    )?;
+    pino_data::write_parquet(&out.join(HISTORY_FILE), &history_table(&outcome.history)?)?;
     for f in [checkpoint::CHECKPOINT_TENSORS, checkpoint::CHECKPOINT_META] {
         let p = checkpoint_dir.join(f);
         std::fs::remove_file(&p).map_err(|e| crate::io_err(&p, e))?;

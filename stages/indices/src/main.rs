@@ -15,6 +15,7 @@
 //! the railway family, a streaming polars group-by on every core.
 
 use anyhow::{Context, Result};
+use pino_data::artifacts::{PARAMS_FILE, SIMULATION_FILE};
 use pino_indices as indices;
 
 fn run() -> Result<String> {
@@ -30,8 +31,8 @@ fn run() -> Result<String> {
     let mut dirs = ctx.input_dirs("dataset")?.to_vec();
     dirs.extend_from_slice(ctx.input_dirs("params")?);
     let (_, system) = pino_data::system::read_record(&dirs)?;
-    let params = indices_scan::read_params(&system, &ctx.input_files("params", "params.parquet")?)?;
-    let files = ctx.input_files("dataset", "simulation.parquet")?;
+    let params = indices_scan::read_params(&system, &ctx.input_files("params", PARAMS_FILE)?)?;
+    let files = ctx.input_files("dataset", SIMULATION_FILE)?;
     let progress = ctx.progress(params.len() as u64);
     let out = indices_scan::compute_all(&system, &params, &files, &cfg, &|n| progress.inc(n))?;
     indices_scan::write_outputs(&ctx.output, &system, &out, &cfg)?;

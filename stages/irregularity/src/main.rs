@@ -16,7 +16,8 @@
 
 use anyhow::{bail, Context, Result};
 use mbd_dataset::{ProfileGenerator, ProfileParams};
-use pino_data::{read_parquet_files, schema, Column, StreamWriter, Table};
+use pino_data::artifacts::{IRREGULARITY_FILE, PARAMS_FILE, PROFILES_FILE};
+use pino_data::{schema, Column, StreamWriter, Table};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 
@@ -75,24 +76,21 @@ fn run() -> Result<String> {
         std::path::Path::new(&source.file),
         &source,
     )?;
-    let files = ctx.input_files("params", "params.parquet")?;
+    let files = ctx.input_files("params", PARAMS_FILE)?;
     if files.is_empty() {
-        bail!("input `params` has no params.parquet (in {dirs:?})");
+        bail!("input `params` has no {PARAMS_FILE} (in {dirs:?})");
     }
-    let params = read_parquet_files(&files, Some(&[schema::SAMPLE_ID]))?;
-    let mut ids = params.i64(schema::SAMPLE_ID)?.to_vec();
+    // The reader refuses a sample id seen twice.
+    let mut ids = pino_data::records::read_params(&files, &[])?.ids;
     ids.sort_unstable();
     if let Some(bad) = ids.iter().find(|&&id| id < 0) {
         bail!("{}: negative sample_id {bad}", files[0].display());
-    }
-    if let Some(w) = ids.windows(2).find(|w| w[0] == w[1]) {
-        bail!("{}: sample_id {} appears twice", files[0].display(), w[0]);
     }
     // Row groups of SAMPLES_PER_GROUP samples (a fixed layout: same bytes for any thread
     // count); within a group the profiles are generated in parallel straight into `eta`.
     let labelled = generated.len() > 1;
     let progress = ctx.progress((ids.len() * generated.len()) as u64);
-    let path = ctx.output_path("irregularity.parquet");
+    let path = ctx.output_path(IRREGULARITY_FILE);
     let mut writer: Option<StreamWriter> = None;
     let mut summary = Vec::new();
     for (name, generator) in &generated {
@@ -136,7 +134,7 @@ fn run() -> Result<String> {
         ));
     }
     pino_data::system::write_json(
-        &ctx.output_path(pino_data::system::PROFILES_FILE),
+        &ctx.output_path(PROFILES_FILE),
         &serde_json::to_value(controls)?,
     )?;
     match writer {

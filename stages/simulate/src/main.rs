@@ -24,7 +24,9 @@
 use anyhow::{bail, Context, Result};
 use mbd_engine::{Profile, RunConfig, SampleInput, StartMode};
 use mbd_system::system::Profile as DescribedProfile;
-use pino_data::{for_each_batch, read_parquet_files, schema, Column, StreamWriter, Table};
+use pino_data::artifacts::{FAILURES_FILE, IRREGULARITY_FILE, PARAMS_FILE, SIMULATION_FILE};
+use pino_data::records::read_params_of;
+use pino_data::{for_each_batch, schema, Column, StreamWriter, Table};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -85,21 +87,14 @@ fn run() -> Result<String> {
         &source,
     )?;
 
-    let names = system.sampled_names();
-    let mut cols = vec![schema::SAMPLE_ID];
-    cols.extend(names.iter().copied());
-    let params = read_parquet_files(&ctx.input_files("params", "params.parquet")?, Some(&cols))?;
-    let values: Vec<&[f64]> = names
-        .iter()
-        .map(|n| params.f64(n))
-        .collect::<Result<_, _>>()?;
+    let params = read_params_of(&ctx.input_files("params", PARAMS_FILE)?, &system)?;
     let generated: Vec<usize> = (0..system.profiles.len())
         .filter(|&i| matches!(system.profiles[i], DescribedProfile::Generated { .. }))
         .collect();
     let mut profiles = if generated.is_empty() {
         BTreeMap::new()
     } else {
-        let files = ctx.input_files("irregularity", "irregularity.parquet")?;
+        let files = ctx.input_files("irregularity", IRREGULARITY_FILE)?;
         let labels: Vec<&str> = generated
             .iter()
             .map(|&i| system.profiles[i].name())
@@ -107,9 +102,9 @@ fn run() -> Result<String> {
         owned_profiles(&files, ctx.shard, &labels)?
     };
     let mut inputs = Vec::new();
-    for (row, &id) in params.i64(schema::SAMPLE_ID)?.iter().enumerate() {
+    for (id, _, values) in params.rows() {
         if id < 0 {
-            bail!("params.parquet: sample_id {id} is negative");
+            bail!("{PARAMS_FILE}: sample_id {id} is negative");
         }
         if !ctx.shard.owns(id as u64) {
             continue;
@@ -118,18 +113,18 @@ fn run() -> Result<String> {
         for (k, &pi) in generated.iter().enumerate() {
             let Some((x, eta)) = profiles.remove(&(k, id)) else {
                 bail!(
-                    "irregularity.parquet has no profile `{}` for sample_id {id}",
+                    "{IRREGULARITY_FILE} has no profile `{}` for sample_id {id}",
                     system.profiles[pi].name()
                 );
             };
             sample_profiles[pi] = Some(
                 Profile::new(x, eta)
-                    .with_context(|| format!("irregularity.parquet: sample {id}"))?,
+                    .with_context(|| format!("{IRREGULARITY_FILE}: sample {id}"))?,
             );
         }
         inputs.push(SampleInput {
             id: id as u64,
-            params: system.sampled_values(values.iter().map(|v| v[row]).collect::<Vec<f64>>())?,
+            params: system.sampled_values(values)?,
             profiles: sample_profiles,
         });
     }
@@ -138,7 +133,7 @@ fn run() -> Result<String> {
         .map_err(|(id, e)| anyhow::anyhow!("sample {id}: {e}"))?;
 
     let progress = ctx.progress(engines.len() as u64);
-    let path = ctx.output_path("simulation.parquet");
+    let path = ctx.output_path(SIMULATION_FILE);
     let mut names = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
     names.extend(system.channels.iter().map(|c| c.name.clone()));
     let template = table(&names, 0, &[], &[]).with_units(pino_data::system::units_of(&system)?);
@@ -160,9 +155,9 @@ fn run() -> Result<String> {
     let n_failed = failures.0.len();
     failed.push(schema::SAMPLE_ID, Column::I64(failures.0))?;
     failed.push("reason", Column::Str(failures.1))?;
-    pino_data::write_parquet(&ctx.output_path("failures.parquet"), &failed)?;
+    pino_data::write_parquet(&ctx.output_path(FAILURES_FILE), &failed)?;
     pino_data::provenance::write_provenance(
-        &ctx.output_path(pino_data::provenance::PROVENANCE_FILE),
+        &ctx.output_path(pino_data::artifacts::PROVENANCE_FILE),
         &[
             ("dt", config.dt),
             ("duration", config.duration),
@@ -177,10 +172,10 @@ fn run() -> Result<String> {
         serde_json::Value::Null
     } else {
         let dirs = ctx.input_dirs("irregularity")?;
-        pino_data::system::read_json(&dirs[0].join(pino_data::system::PROFILES_FILE))?
+        pino_data::system::read_json(&dirs[0].join(pino_data::artifacts::PROFILES_FILE))?
     };
     pino_data::system::write_json(
-        &ctx.output_path(pino_data::system::RUN_FILE),
+        &ctx.output_path(pino_data::artifacts::RUN_FILE),
         &serde_json::json!({"run": config, "profiles": profiles}),
     )?;
     let s = ctx.shard;

@@ -10,6 +10,7 @@
 //! `rate_outputs`, the command names the description (`cmd: [train, "${constants.system}"]`)
 //! so that a column it does not store is refused at planning.
 use anyhow::{Context, Result};
+use pino_data::artifacts::{PARAMS_FILE, SIMULATION_FILE, WEIGHTS_FILE};
 use pino_learn::config::TrainParams;
 use pino_learn::data::{load_dataset_subset, DatasetInfo};
 use pino_learn::spectral::Transform;
@@ -46,10 +47,10 @@ fn run() -> Result<()> {
         .with_context(|| format!("stage `{}`", ctx.stage))?;
     let (_, train, window) = configs;
     let device = p.device.device()?;
-    let params = &ctx.single_input_file("params", "params.parquet")?;
-    let sims = ctx.input_files("dataset", "simulation.parquet")?;
+    let params = &ctx.single_input_file("params", PARAMS_FILE)?;
+    let sims = ctx.input_files("dataset", SIMULATION_FILE)?;
     let weights = if train.algorithm.needs_phi() {
-        let w = ctx.input_files("weights", "weights.parquet")?;
+        let w = ctx.input_files("weights", WEIGHTS_FILE)?;
         Some(
             w.first()
                 .cloned()

@@ -12,6 +12,8 @@
 //! the summary. A description without any equation is refused.
 
 use anyhow::{bail, Context, Result};
+use pino_data::artifacts::{PARAMS_FILE, PROVENANCE_FILE, SIMULATION_FILE, WEIGHTS_FILE};
+use pino_data::records::read_params_of;
 use pino_data::{schema, write_parquet, Column, Table};
 use pino_learn::layout::Layout;
 use pino_learn::weights::{columns, magnitude_weights, WeightConfig};
@@ -37,26 +39,19 @@ fn run() -> Result<String> {
             system.name
         );
     }
-    let names = system.sampled_names();
-    let params =
-        pino_data::records::read_params(&ctx.input_files("params", "params.parquet")?, &names)?;
+    let params = read_params_of(&ctx.input_files("params", PARAMS_FILE)?, &system)?;
     let by_id: BTreeMap<i64, (bool, _)> = params
-        .ids
-        .iter()
-        .zip(&params.splits)
-        .zip(params.values)
-        .map(|((&id, s), v)| {
+        .rows()
+        .map(|(id, s, v)| {
             let train = s == pino_learn::data::Split::Train.as_str();
             Ok((id, (train, system.sampled_values(v)?)))
         })
         .collect::<Result<_>>()?;
-    let files = ctx.input_files("dataset", "simulation.parquet")?;
+    let files = ctx.input_files("dataset", SIMULATION_FILE)?;
     if files.is_empty() {
-        bail!("input `dataset` has no simulation.parquet (in {dirs:?})");
+        bail!("input `dataset` has no {SIMULATION_FILE} (in {dirs:?})");
     }
-    let provenance = pino_data::provenance::read_provenance(
-        &dirs[0].join(pino_data::provenance::PROVENANCE_FILE),
-    )?;
+    let provenance = pino_data::provenance::read_provenance(&dirs[0].join(PROVENANCE_FILE))?;
     let dt = provenance
         .get("dt")
         .copied()
@@ -126,7 +121,7 @@ fn run() -> Result<String> {
     for (i, name) in layout.phi_columns().iter().enumerate() {
         table.push(name, Column::F64(phi.values().map(|w| w[i]).collect()))?;
     }
-    let path = ctx.output_path("weights.parquet");
+    let path = ctx.output_path(WEIGHTS_FILE);
     write_parquet(&path, &table).with_context(|| format!("writing {}", path.display()))?;
     Ok(format!(
         "phi of {} equations for {} training samples (r = {}); {} training samples absent from the dataset",

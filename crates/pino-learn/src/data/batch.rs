@@ -17,6 +17,11 @@ pub struct Batch {
     pub a: Tensor,
     /// Parameters `[B, P]` f64 physical.
     pub params: Tensor,
+    /// Each sample's `sample_id`.
+    pub ids: Vec<i64>,
+    /// Each sample's parameters on the host (the rows of `params`): what its equations are
+    /// built from.
+    pub designs: Vec<Vec<f64>>,
     /// Excitations `[B, T, E]` f64 physical (m).
     pub eta: Tensor,
     /// ODE magnitude weights `[B, Q]` f64 (ones when absent).
@@ -52,10 +57,8 @@ pub fn make_batch(
         a.extend_from_slice(&s.a[d..(t - 1) * d]);
         eta.extend_from_slice(&s.eta);
     }
-    let params: Vec<f64> = idx
-        .iter()
-        .flat_map(|&i| items.params[i].iter().copied())
-        .collect();
+    let designs: Vec<Vec<f64>> = idx.iter().map(|&i| items.params[i].clone()).collect();
+    let params: Vec<f64> = designs.concat();
     let phi: Vec<f64> = idx
         .iter()
         .flat_map(|&i| items.phi[i].iter().copied())
@@ -68,6 +71,8 @@ pub fn make_batch(
         v: Tensor::from_vec(v, (b, t - 2, d), device)?,
         a: Tensor::from_vec(a, (b, t - 2, d), device)?,
         params: Tensor::from_vec(params, (b, l.params.len()), device)?,
+        ids: idx.iter().map(|&i| items.id(i)).collect(),
+        designs,
         eta: Tensor::from_vec(eta, (b, t, e), device)?,
         phi: Tensor::from_vec(phi, (b, n_eq), device)?.to_dtype(DType::F64)?,
         f_scale: Tensor::from_vec(f_scale, b, device)?,

@@ -30,16 +30,12 @@ pub(super) fn dataset_err(path: &Path, message: String) -> Error {
 /// Reads `params.parquet` ([`pino_data::records::read_params`]): `(sample_id, split, design)`
 /// rows, a design of `system` each, each split label known.
 pub fn read_params(path: &Path, system: &System) -> Result<Vec<(i64, Split, Sampled)>> {
-    let names = system.sampled_names();
-    let table = pino_data::records::read_params(std::slice::from_ref(&path.to_path_buf()), &names)?;
+    let table = pino_data::records::read_params_of(&[path.to_path_buf()], system)?;
     table
-        .ids
-        .into_iter()
-        .zip(&table.splits)
-        .zip(table.values)
-        .map(|((id, label), values)| {
-            let split = Split::from_label(label).ok_or_else(|| {
-                dataset_err(path, format!("sample {id}: {}", unknown_split(label)))
+        .rows()
+        .map(|(id, label, values)| {
+            let split = Split::from_label(&label).ok_or_else(|| {
+                dataset_err(path, format!("sample {id}: {}", unknown_split(&label)))
             })?;
             Ok((id, split, system.sampled_values(values)?))
         })
@@ -106,8 +102,8 @@ pub fn splits_present(params_file: &Path) -> Result<BTreeSet<Split>> {
 
 /// The split label of every row of `params.parquet`.
 pub(super) fn splits_of(params_file: &Path) -> Result<Vec<Split>> {
-    let t = read_parquet(params_file, Some(&[schema::SPLIT]))?;
-    t.str(schema::SPLIT)?
+    pino_data::records::read_params(&[params_file.to_path_buf()], &[])?
+        .splits
         .iter()
         .map(|label| {
             Split::from_label(label).ok_or_else(|| dataset_err(params_file, unknown_split(label)))

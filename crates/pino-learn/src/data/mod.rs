@@ -155,7 +155,7 @@ impl DatasetInfo {
     /// Reads the records of every shard directory (one description, checked).
     pub fn from_dirs(dirs: &[PathBuf]) -> Result<Self> {
         let (source, system) = pino_data::system::read_record(dirs)?;
-        let run = dirs[0].join(pino_data::system::RUN_FILE);
+        let run = dirs[0].join(pino_data::artifacts::RUN_FILE);
         let settings = if run.is_file() {
             let v = pino_data::system::read_json(&run)?;
             Some(serde_json::from_value(v).map_err(|e| Error::Format {

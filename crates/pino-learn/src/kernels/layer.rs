@@ -1,5 +1,5 @@
 //! One network layer, fused: `y = act(W^T x + b [+ K x])`, forward and backward on host
-//! memory (the building block of [`super::network`]).
+//! memory (the building block of the fused network).
 //!
 //! Channel-major `x [C, B, T]` (or `[C, N]`), pointwise weight `W [C, C']` (stored `[in,
 //! out]`), bias `b [C']`, optionally the spectral convolution `K` of [`super::spectral_op`]
