@@ -108,13 +108,26 @@ fn train_evaluate_predict_end_to_end_and_bad_input() {
     let sol = t4.f64("solutions_pct").unwrap();
     assert_eq!(sol[0], 0.0);
     assert_eq!(t4.f64("contact_forces_pct").unwrap()[0], 0.0);
-    assert!(t4.f64("second_derivatives_pct").unwrap()[0] > 0.0);
-    assert!(sol[1..].iter().all(|v| v.is_finite() && *v > 0.0));
-    assert!(t4
-        .f64("peak_contact_force_error_pct_w")
-        .unwrap()
-        .iter()
-        .all(|v| v.is_finite() && *v >= 0.0));
+    // The truth row's derivatives are central differences against the exact ones: a small
+    // positive floor (measured 0.38 % and 0.29 % on this data).
+    let (d1, d2) = (
+        t4.f64("first_derivatives_pct").unwrap(),
+        t4.f64("second_derivatives_pct").unwrap(),
+    );
+    assert!(d1[0] > 0.0 && d1[0] < 1.0 && d2[0] > 0.0 && d2[0] < 1.0);
+    // Two epochs on four samples teach a model the records' scale, not their shape: every
+    // column near the 100 % of predicting zero (measured 100.0-106.6 %; a unit or sign error
+    // would read far above), and the peak wheel-rail force, which the normalisation's mean
+    // carries, within 10 % of the static wheel load (measured 3.0 % and 3.5 %).
+    let cf = t4.f64("contact_forces_pct").unwrap();
+    for column in [sol, d1, d2, cf] {
+        assert!(
+            column[1..].iter().all(|v| *v > 0.0 && *v < 115.0),
+            "{column:?}"
+        );
+    }
+    let peak = t4.f64("peak_contact_force_error_pct_w").unwrap();
+    assert!(peak[1..].iter().all(|v| *v >= 0.0 && *v < 10.0), "{peak:?}");
     let paper = t4.f64("paper_second_derivatives_pct").unwrap();
     assert!(paper[0].is_nan() && paper[1..] == [20.79, 3.20]);
     let md = std::fs::read_to_string(out.join("table4.md")).unwrap();

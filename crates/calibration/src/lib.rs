@@ -194,7 +194,7 @@ impl ModelIdentity {
 }
 
 /// The weights file of a model directory.
-pub const MODEL_WEIGHTS: &str = "model.safetensors";
+pub use pino_data::artifacts::MODEL_WEIGHTS;
 
 /// The dataset design a calibration was drawn from: the description (with its overrides) and
 /// the sampling ranges. Calibration samples are exchangeable with new designs only from the

@@ -59,7 +59,7 @@ pub fn locate(p: &Pipeline, algorithm: i64) -> Result<Located, String> {
         .lines()
         .map(PathBuf::from)
         .collect();
-    let model_dir = files_named(&files, "model.safetensors")
+    let model_dir = files_named(&files, pino_data::artifacts::MODEL_WEIGHTS)
         .first()
         .and_then(|f| f.parent().map(Path::to_path_buf))
         .ok_or_else(|| format!("{}: `{unit}` wrote no model.safetensors", p.file))?;
@@ -126,10 +126,12 @@ fn dataset_of(p: &Pipeline, stage: &orchestrator::spec::Stage) -> crate::session
     for name in &upstream {
         let Ok(text) = show(p, name) else { continue };
         let files: Vec<PathBuf> = text.lines().map(PathBuf::from).collect();
-        dataset.params.extend(files_named(&files, "params.parquet"));
+        dataset
+            .params
+            .extend(files_named(&files, pino_data::artifacts::PARAMS_FILE));
         dataset
             .profiles
-            .extend(files_named(&files, "irregularity.parquet"));
+            .extend(files_named(&files, pino_data::artifacts::IRREGULARITY_FILE));
     }
     dataset.params.dedup();
     dataset.profiles.dedup();

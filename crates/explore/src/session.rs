@@ -866,7 +866,7 @@ impl Explorer {
                         .dataset
                         .profiles
                         .first()
-                        .map_or("irregularity.parquet".to_owned(), |p| {
+                        .map_or(pino_data::artifacts::IRREGULARITY_FILE.to_owned(), |p| {
                             p.display().to_string()
                         });
                     cmd.push_str(&format!(" --profile {file} --profile-id {sample_id}"));

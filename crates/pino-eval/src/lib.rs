@@ -528,7 +528,7 @@ fn check_same_system(dir: &Path, meta: &ModelMeta, info: &DatasetInfo) -> Result
         return Ok(());
     }
     Err(LearnError::Format {
-        path: dir.join("model.json"),
+        path: dir.join(pino_data::artifacts::MODEL_META),
         message: format!(
             "the model was trained on another system description ({}) than the dataset's ({}): retrain it on this dataset",
             meta.system.file, info.source.file

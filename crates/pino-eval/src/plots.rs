@@ -105,7 +105,7 @@ pub(super) fn plot_training_curves(path: &Path, results: &[ModelResult]) -> Resu
         .collect();
     let mut legend = Vec::new();
     for r in results {
-        let hist_path = r.dir.join("history.parquet");
+        let hist_path = r.dir.join(pino_data::artifacts::HISTORY_FILE);
         if !hist_path.is_file() {
             continue;
         }

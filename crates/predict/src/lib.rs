@@ -283,7 +283,7 @@ impl Predictor {
     pub fn run_config(&self, x0: Option<f64>) -> Result<RunConfig> {
         let data = self.meta.data.as_ref().ok_or_else(|| {
             fmt_err(
-                Path::new("model.json"),
+                Path::new(pino_data::artifacts::MODEL_META),
                 "the model's dataset records no run controls (run.json of `simulate`): retrain on a dataset that has them".into(),
             )
         })?;
@@ -312,7 +312,7 @@ impl Predictor {
         let settings = self.meta.data.as_ref().and_then(|d| d.profiles.as_ref());
         let settings = settings.ok_or_else(|| {
             fmt_err(
-                Path::new("model.json"),
+                Path::new(pino_data::artifacts::MODEL_META),
                 "the model's dataset records no profile settings (run.json): retrain on a dataset that has them".into(),
             )
         })?;

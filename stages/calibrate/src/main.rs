@@ -28,8 +28,8 @@ fn run() -> Result<String> {
     let info = DatasetInfo::from_dirs(ctx.input_dirs("dataset")?)
         .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
     let device = p.device.device()?;
-    let params = &ctx.single_input_file("params", "params.parquet")?;
-    let sims = ctx.input_files("dataset", "simulation.parquet")?;
+    let params = &ctx.single_input_file("params", pino_data::artifacts::PARAMS_FILE)?;
+    let sims = ctx.input_files("dataset", pino_data::artifacts::SIMULATION_FILE)?;
     let models = ctx.input_dirs("models")?.to_vec();
     if models.is_empty() {
         bail!("input `models` is empty: wire the `train` stage");
