@@ -128,3 +128,17 @@ pub fn profile_generators(
         })
         .collect()
 }
+
+/// The generated profiles of `system` (kind `generated`), each with its name, in description
+/// order ([`profile_generators`] without the others).
+pub fn generated_profiles<'a>(
+    system: &'a mbd_system::System,
+    params: &ProfileParams,
+) -> Result<Vec<(&'a str, ProfileGenerator)>> {
+    Ok(system
+        .profiles
+        .iter()
+        .zip(profile_generators(system, params)?)
+        .filter_map(|(prof, g)| g.map(|g| (prof.name(), g)))
+        .collect())
+}

@@ -29,6 +29,7 @@
 use crate::rng::SampleStream;
 use crate::{Error, Result};
 use mbd_system::system::GENERATED_PROFILE_START;
+use rayon::prelude::*;
 use rustfft::num_complex::Complex;
 use rustfft::{Fft, FftPlanner};
 use serde::{Deserialize, Serialize};
@@ -309,6 +310,34 @@ impl ProfileGenerator {
         out
     }
 
+    /// The profiles of samples `ids` (non-negative), one after the other ([`Self::len`] points
+    /// each), generated in parallel; `tick` is called after each. Each is [`Self::profile`] of
+    /// its id, whatever the thread count.
+    pub fn profiles_of(&self, ids: &[i64], tick: &(dyn Fn() + Sync)) -> Vec<f64> {
+        let mut eta = vec![0.0; self.n * ids.len()];
+        eta.par_chunks_mut(self.n)
+            .zip(ids)
+            .for_each(|(chunk, &id)| {
+                self.profile_into(id as u64, chunk);
+                tick();
+            });
+        eta
+    }
+
+    /// One line on `count` profiles `name` of this generator: points, length and spacing, RMS
+    /// and wavelength band.
+    pub fn describe(&self, name: &str, count: usize) -> String {
+        format!(
+            "{count} profiles `{name}` x {} points ({:.1} m at dx {} m), RMS {:.3} mm over {}-{} m wavelengths",
+            self.n,
+            self.n as f64 * self.dx,
+            self.dx,
+            self.variance().sqrt() * 1e3,
+            1.0 / self.band[1],
+            1.0 / self.band[0],
+        )
+    }
+
     /// Writes the profile of sample `id` into `out` (length [`Self::len`]).
     ///
     /// # Panics
@@ -429,6 +458,36 @@ mod tests {
             },
         ])
         .unwrap()
+    }
+
+    /// The profiles of a group of samples are each sample's own profile, in order.
+    #[test]
+    fn profiles_of_a_group_are_each_samples_profile() {
+        let g = generator(7);
+        let ids = [0i64, 5, 3];
+        let ticks = std::sync::atomic::AtomicUsize::new(0);
+        let tick = || {
+            ticks.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        };
+        let eta = g.profiles_of(&ids, &tick);
+        assert_eq!(eta.len(), ids.len() * g.len());
+        for (chunk, &id) in eta.chunks(g.len()).zip(&ids) {
+            assert_eq!(chunk, g.profile(id as u64).as_slice());
+        }
+        assert_ne!(&eta[..g.len()], &eta[g.len()..2 * g.len()]);
+        assert_eq!(ticks.into_inner(), ids.len());
+    }
+
+    /// The description names the count, the points, the length, the spacing and the band.
+    #[test]
+    fn describe_names_count_points_length_and_band() {
+        let g = generator(7);
+        let line = g.describe("eta", 12);
+        assert!(
+            line.starts_with("12 profiles `eta` x 5400 points (540.0 m at dx 0.1 m), RMS "),
+            "{line}"
+        );
+        assert!(line.ends_with(" mm over 2-100 m wavelengths"), "{line}");
     }
 
     fn generator(seed: u64) -> ProfileGenerator {

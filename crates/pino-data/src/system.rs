@@ -45,6 +45,16 @@ pub fn write_record(dir: &Path, source: &SystemSource) -> Result<()> {
 /// Reads the `system.json` of every directory in `dirs` (shards of one artifact), checks they
 /// are one description, and compiles it.
 pub fn read_record(dirs: &[PathBuf]) -> Result<(SystemSource, System)> {
+    let (path, source) = read_source(dirs)?;
+    let system = source
+        .compile()
+        .map_err(|e| Error::System(format!("{}: {e}", path.display())))?;
+    Ok((source, system))
+}
+
+/// Reads the `system.json` of every directory in `dirs` (shards of one artifact) and checks
+/// they are one description, without compiling it: the first record's path and the record.
+pub fn read_source(dirs: &[PathBuf]) -> Result<(PathBuf, SystemSource)> {
     let mut first: Option<(PathBuf, SystemSource)> = None;
     for dir in dirs {
         let path = dir.join(SYSTEM_FILE);
@@ -54,12 +64,7 @@ pub fn read_record(dirs: &[PathBuf]) -> Result<(SystemSource, System)> {
             Some((p0, s0)) => same(p0, s0, &path, &source)?,
         }
     }
-    let (path, source) =
-        first.ok_or_else(|| Error::System("no input directory holds a system.json".to_owned()))?;
-    let system = source
-        .compile()
-        .map_err(|e| Error::System(format!("{}: {e}", path.display())))?;
-    Ok((source, system))
+    first.ok_or_else(|| Error::System("no input directory holds a system.json".to_owned()))
 }
 
 /// Refuses two different descriptions (text or overrides), naming both records.

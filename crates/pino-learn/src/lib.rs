@@ -167,6 +167,18 @@ pub enum Error {
         /// The configuration, as text.
         config: String,
     },
+    /// Computing something of one sample failed (the cause is the source).
+    #[error("sample {id}")]
+    Sample {
+        /// The sample id.
+        id: i64,
+        /// What failed.
+        #[source]
+        source: Box<Error>,
+    },
+    /// A sample's records appear in more than one dataset file.
+    #[error("sample {0} appears in more than one dataset file")]
+    DuplicateSample(i64),
     /// Training diverged (a loss is not finite).
     #[error("training diverged at epoch {epoch}, step {step}: loss = {loss}")]
     Diverged {

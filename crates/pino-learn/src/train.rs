@@ -130,6 +130,25 @@ fn mean(v: &[f64]) -> f64 {
     }
 }
 
+impl EpochReport {
+    /// The progress line of the epoch: losses, validation errors (%), learning rate and the
+    /// time left at this pace.
+    pub fn progress_line(&self) -> String {
+        let r = &self.row;
+        let left = (self.epochs - r.epoch) as f64 * self.seconds_per_epoch;
+        format!(
+            "loss {:.4e} (data {:.4e}) val {:.2}% / {:.2}% / {:.2}% lr {:.2e} ETA {:.0} s",
+            r.loss_total,
+            r.loss_data,
+            100.0 * r.val_solution,
+            100.0 * r.val_first,
+            100.0 * r.val_second,
+            r.lr,
+            left
+        )
+    }
+}
+
 /// Trains (or resumes) a model on `ds`; calls `report` after every epoch.
 pub fn train(
     ds: &Dataset,
@@ -142,6 +161,58 @@ pub fn train(
 ) -> Result<TrainOutcome> {
     cfg.validate()?;
     model_cfg.validate(ds.t_points())?;
+    let (train_idx, val_idx) = trainable_splits(ds, &cfg)?;
+    let meta = model_meta(ds, model_cfg, cfg, window)?;
+    let mut run = Run::start_or_resume(ds, model_cfg, &cfg, &meta, opts, device)?;
+    let loss = LossContext::of_model(&meta, ds.system().clone());
+    let items = prepare(ds, &meta.norm)?;
+    let t_points = ds.t_points();
+    let started = Instant::now();
+    let first_epoch = run.state.epochs_done;
+    for epoch in first_epoch..cfg.epochs {
+        if opts
+            .stop_after_epochs
+            .is_some_and(|k| run.state.epochs_done >= k)
+        {
+            break;
+        }
+        let lr = cfg.lr_at(epoch);
+        let order = shuffled(&train_idx, cfg.seed, 1 + epoch as u64);
+        let batches = Batches {
+            loss: &loss,
+            items: &items,
+            t_points,
+            batch_size: cfg.batch_size,
+            device,
+        };
+        let (sums, n) = run.epoch(&batches, &order, lr, epoch)?;
+        let val = run.validate(&batches, &val_idx)?;
+        let row = HistoryRow {
+            epoch: epoch + 1,
+            step: run.adam.step,
+            lr,
+            loss_total: sums.total / n,
+            loss_data: sums.data / n,
+            loss_deriv: sums.deriv / n,
+            loss_ode: sums.ode / n,
+            val_solution: mean(&val[0]),
+            val_first: mean(&val[1]),
+            val_second: mean(&val[2]),
+        };
+        run.end_epoch(row, &meta, &opts.checkpoint_dir)?;
+        let ran = (run.state.epochs_done - first_epoch) as f64;
+        report(&EpochReport {
+            row,
+            epochs: cfg.epochs,
+            seconds_per_epoch: started.elapsed().as_secs_f64() / ran,
+        });
+    }
+    run.finish(cfg.epochs, meta)
+}
+
+/// The training and validation samples of `ds`, refused when there is no training sample or,
+/// for an algorithm that needs them, a training sample without its ODE weights.
+fn trainable_splits(ds: &Dataset, cfg: &TrainConfig) -> Result<(Vec<usize>, Vec<usize>)> {
     let train_idx = ds.split_indices(Split::Train);
     let val_idx = ds.split_indices(Split::Validation);
     if train_idx.is_empty() {
@@ -165,21 +236,56 @@ pub fn train(
             });
         }
     }
-    let meta = model_meta(ds, model_cfg, cfg, window)?;
-    let (model, mut adam, mut average, mut state, resumed_after) = if checkpoint::has_checkpoint(
-        &opts.checkpoint_dir,
-    ) {
-        let (model, adam, average, old, state) =
-            checkpoint::load_checkpoint(&opts.checkpoint_dir, opts.transform, device)?;
-        if old != meta {
-            return Err(Error::Format {
-                path: opts.checkpoint_dir.join(checkpoint::CHECKPOINT_META),
-                message: "the checkpoint was written for another configuration or dataset; remove it or restore the original settings".into(),
+    Ok((train_idx, val_idx))
+}
+
+/// What the batches of an epoch are made of and evaluated with.
+struct Batches<'a> {
+    loss: &'a LossContext,
+    items: &'a Prepared,
+    t_points: usize,
+    batch_size: usize,
+    device: &'a Device,
+}
+
+/// A training in progress: the model, the optimizer (and the average), the history.
+struct Run {
+    model: Fno,
+    adam: Adam,
+    average: Option<Average>,
+    state: TrainState,
+    resumed_after: Option<usize>,
+}
+
+impl Run {
+    /// The run of the checkpoint in `opts.checkpoint_dir` (refused when written for another
+    /// configuration or dataset than `meta`), or a fresh one from the seed.
+    fn start_or_resume(
+        ds: &Dataset,
+        model_cfg: ModelConfig,
+        cfg: &TrainConfig,
+        meta: &ModelMeta,
+        opts: &TrainOptions,
+        device: &Device,
+    ) -> Result<Run> {
+        if checkpoint::has_checkpoint(&opts.checkpoint_dir) {
+            let (model, adam, average, old, state) =
+                checkpoint::load_checkpoint(&opts.checkpoint_dir, opts.transform, device)?;
+            if old != *meta {
+                return Err(Error::Format {
+                    path: opts.checkpoint_dir.join(checkpoint::CHECKPOINT_META),
+                    message: "the checkpoint was written for another configuration or dataset; remove it or restore the original settings".into(),
+                });
+            }
+            let resumed_after = Some(state.epochs_done);
+            return Ok(Run {
+                model,
+                adam,
+                average,
+                state,
+                resumed_after,
             });
         }
-        let done = state.epochs_done;
-        (model, adam, average, state, Some(done))
-    } else {
         let model = Fno::new(model_cfg, ds.t_points(), cfg.seed, opts.transform, device)?;
         let adam = Adam::new(model.vars())?;
         let average = cfg
@@ -191,39 +297,41 @@ pub fn train(
             step: 0,
             history: Vec::new(),
         };
-        (model, adam, average, state, None)
-    };
-    let loss = LossContext::of_model(&meta, ds.system().clone());
-    let items = prepare(ds, &meta.norm)?;
-    let t_points = ds.t_points();
-    let started = Instant::now();
-    let first_epoch = state.epochs_done;
-    for epoch in first_epoch..cfg.epochs {
-        if opts
-            .stop_after_epochs
-            .is_some_and(|k| state.epochs_done >= k)
-        {
-            break;
-        }
-        let lr = cfg.lr_at(epoch);
-        let order = shuffled(&train_idx, cfg.seed, 1 + epoch as u64);
+        Ok(Run {
+            model,
+            adam,
+            average,
+            state,
+            resumed_after: None,
+        })
+    }
+
+    /// One Adam step per batch of `order` at learning rate `lr`: the sums of the batches'
+    /// losses and the number of batches (at least 1).
+    fn epoch(
+        &mut self,
+        b: &Batches,
+        order: &[usize],
+        lr: f64,
+        epoch: usize,
+    ) -> Result<(LossValues, f64)> {
         let mut sums = LossValues::default();
         let mut batches = 0usize;
-        for chunk in order.chunks(cfg.batch_size) {
-            let batch = make_batch(&items, chunk, t_points, device)?;
-            let u = model.forward(&batch.x)?;
-            let (total, values) = loss.loss(&u, &batch)?;
+        for chunk in order.chunks(b.batch_size) {
+            let batch = make_batch(b.items, chunk, b.t_points, b.device)?;
+            let u = self.model.forward(&batch.x)?;
+            let (total, values) = b.loss.loss(&u, &batch)?;
             if !values.total.is_finite() {
                 return Err(Error::Diverged {
                     epoch: epoch + 1,
-                    step: adam.step,
+                    step: self.adam.step,
                     loss: values.total,
                 });
             }
             let grads = total.backward()?;
-            adam.step(model.vars(), &grads, lr)?;
-            if let Some(a) = average.as_mut() {
-                a.update(model.vars())?;
+            self.adam.step(self.model.vars(), &grads, lr)?;
+            if let Some(a) = self.average.as_mut() {
+                a.update(self.model.vars())?;
             }
             sums.total += values.total;
             sums.data += values.data;
@@ -231,62 +339,56 @@ pub fn train(
             sums.ode += values.ode;
             batches += 1;
         }
-        let n = batches.max(1) as f64;
-        // The model kept is the average when there is one: it is the one validated.
+        Ok((sums, batches.max(1) as f64))
+    }
+
+    /// The Table 4 metrics on the validation samples `val_idx`, of the average when there is
+    /// one (the model kept is the one validated).
+    fn validate(&self, b: &Batches, val_idx: &[usize]) -> Result<[Vec<f64>; 3]> {
         let validate = || {
             evaluate_split(
-                &model,
-                &loss,
-                &items,
-                &val_idx,
-                t_points,
-                cfg.batch_size,
-                device,
+                &self.model,
+                b.loss,
+                b.items,
+                val_idx,
+                b.t_points,
+                b.batch_size,
+                b.device,
             )
         };
-        let val = match &average {
-            Some(a) => a.with_average(model.vars(), validate)?,
-            None => validate()?,
-        };
-        let row = HistoryRow {
-            epoch: epoch + 1,
-            step: adam.step,
-            lr,
-            loss_total: sums.total / n,
-            loss_data: sums.data / n,
-            loss_deriv: sums.deriv / n,
-            loss_ode: sums.ode / n,
-            val_solution: mean(&val[0]),
-            val_first: mean(&val[1]),
-            val_second: mean(&val[2]),
-        };
-        state.history.push(row);
-        state.epochs_done = epoch + 1;
-        state.step = adam.step;
+        match &self.average {
+            Some(a) => a.with_average(self.model.vars(), validate),
+            None => validate(),
+        }
+    }
+
+    /// Records the epoch's `row` and writes the checkpoint.
+    fn end_epoch(&mut self, row: HistoryRow, meta: &ModelMeta, dir: &Path) -> Result<()> {
+        self.state.history.push(row);
+        self.state.epochs_done = row.epoch;
+        self.state.step = self.adam.step;
         checkpoint::save_checkpoint(
-            &opts.checkpoint_dir,
-            (&model, &adam, average.as_ref()),
-            &meta,
-            &state,
-        )?;
-        let ran = (state.epochs_done - first_epoch) as f64;
-        report(&EpochReport {
-            row,
-            epochs: cfg.epochs,
-            seconds_per_epoch: started.elapsed().as_secs_f64() / ran,
-        });
+            dir,
+            (&self.model, &self.adam, self.average.as_ref()),
+            meta,
+            &self.state,
+        )
     }
-    let finished = state.epochs_done >= cfg.epochs;
-    if let (true, Some(a)) = (finished, &average) {
-        a.install(model.vars())?;
+
+    /// The outcome; when all `epochs` are done, the model holds the average if there is one.
+    fn finish(self, epochs: usize, meta: ModelMeta) -> Result<TrainOutcome> {
+        let finished = self.state.epochs_done >= epochs;
+        if let (true, Some(a)) = (finished, &self.average) {
+            a.install(self.model.vars())?;
+        }
+        Ok(TrainOutcome {
+            finished,
+            model: self.model,
+            meta,
+            history: self.state.history,
+            resumed_after: self.resumed_after,
+        })
     }
-    Ok(TrainOutcome {
-        finished,
-        model,
-        meta,
-        history: state.history,
-        resumed_after,
-    })
 }
 
 /// The loss history as a table (one row per epoch).
@@ -425,6 +527,32 @@ mod tests {
                     .unwrap()
             })
             .collect()
+    }
+
+    /// The progress line: losses, validation errors in percent, the rate, and the time left
+    /// for the epochs not yet run at this pace.
+    #[test]
+    fn progress_line_reports_losses_errors_and_time_left() {
+        let report = EpochReport {
+            row: HistoryRow {
+                epoch: 3,
+                step: 30,
+                lr: 1e-3,
+                loss_total: 0.25,
+                loss_data: 0.125,
+                loss_deriv: 0.0,
+                loss_ode: 0.0,
+                val_solution: 0.0123,
+                val_first: 0.5,
+                val_second: 1.0,
+            },
+            epochs: 10,
+            seconds_per_epoch: 2.0,
+        };
+        assert_eq!(
+            report.progress_line(),
+            "loss 2.5000e-1 (data 1.2500e-1) val 1.23% / 50.00% / 100.00% lr 1.00e-3 ETA 14 s"
+        );
     }
 
     #[test]

@@ -24,8 +24,13 @@ use crate::residual::ChannelMap;
 use crate::{Error, Result};
 use mbd_dataset::{Purpose, SampleStream};
 use mbd_engine::residual::{EquationState, Equations};
-use mbd_system::System;
+use mbd_system::{Sampled, System};
+use pino_data::records::{for_each_record, ParamsTable, Record};
+use pino_data::{schema, Column, Table};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
 
 /// The weights configuration (the `weights` stage's parameters, all required).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -93,7 +98,7 @@ pub fn magnitude_weights(
     cfg: &WeightConfig,
     system: &System,
     layout: &Layout,
-    params: &mbd_system::Sampled,
+    params: &Sampled,
     sample_id: u64,
     record: &[Vec<f64>],
     dt: f64,
@@ -110,19 +115,7 @@ pub fn magnitude_weights(
         });
     }
     let ranges = layout.weights_record();
-    let d = layout.n_dofs();
-    let mut stream = SampleStream::new(cfg.seed, Purpose::WeightNoise, sample_id);
-    let noised: Vec<Vec<f64>> = record[..ranges.excitations.start]
-        .iter()
-        .map(|sig| {
-            let w = &sig[start..];
-            let m = w.len() as f64;
-            let mean = w.iter().sum::<f64>() / m;
-            let std = (w.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / m).sqrt();
-            let sd = cfg.noise_ratio * std;
-            w.iter().map(|x| x + sd * stream.normal()).collect()
-        })
-        .collect();
+    let noised = noised_window(cfg, &record[..ranges.excitations.start], start, sample_id);
     let eta_cols: Vec<&[f64]> = record[ranges.excitations.clone()]
         .iter()
         .map(|c| &c[start..])
@@ -134,44 +127,13 @@ pub fn magnitude_weights(
     })?;
     let map = ChannelMap::new(system, layout);
     let eq = Equations::new(model, map.equations.clone());
+    let mut state = StateAt::new(&map);
     let mut scratch = eq.scratch();
-    let (n_p, n_el) = (map.point.len(), map.eta.len());
-    let (mut w, mut wr) = (vec![0.0; n_p], vec![0.0; n_p]);
-    let (mut et, mut etr) = (vec![0.0; n_el], vec![0.0; n_el]);
-    let (mut z, mut v, mut a) = (vec![0.0; d], vec![0.0; d], vec![0.0; d]);
     let mut r = vec![0.0; map.equations.len()];
     let mut max = vec![0.0f64; map.equations.len()];
     for t in 0..n - start {
-        for i in 0..d {
-            z[i] = noised[i][t];
-            v[i] = noised[ranges.velocities.start + i][t];
-            a[i] = noised[ranges.accelerations.start + i][t];
-        }
-        for (p, ch) in map.point.iter().enumerate() {
-            if let Some(ch) = *ch {
-                w[p] = noised[ch][t];
-                wr[p] = rate(&noised[ch], t, dt);
-            }
-        }
-        for (el, ch) in map.eta.iter().enumerate() {
-            if let Some(j) = *ch {
-                et[el] = eta_cols[j][t];
-                etr[el] = match map.eta_rate[el] {
-                    Some(r) => eta_cols[r][t],
-                    None => rate(eta_cols[j], t, dt),
-                };
-            }
-        }
-        let state = EquationState {
-            z: &z,
-            v: &v,
-            a: &a,
-            point_w: &w,
-            point_rate: &wr,
-            eta: &et,
-            eta_rate: &etr,
-        };
-        eq.residuals(&state, &mut scratch, &mut r);
+        state.gather(t, &map, &ranges, &noised, &eta_cols, dt);
+        eq.residuals(&state.view(), &mut scratch, &mut r);
         for (m, ri) in max.iter_mut().zip(&r) {
             // f64::max drops NaN: keep a NaN once seen so that bad data cannot hide.
             *m = if m.is_nan() || ri.is_nan() {
@@ -181,13 +143,220 @@ pub fn magnitude_weights(
             };
         }
     }
-    let names = layout.phi_columns();
+    finite_weights(max, layout, sample_id)
+}
+
+/// The noised signals over the window from `start` (module docs: `s + r std(s) xi`, the
+/// normals of the sample's stream consumed signal by signal, in time order).
+fn noised_window(
+    cfg: &WeightConfig,
+    signals: &[Vec<f64>],
+    start: usize,
+    sample_id: u64,
+) -> Vec<Vec<f64>> {
+    let mut stream = SampleStream::new(cfg.seed, Purpose::WeightNoise, sample_id);
+    signals
+        .iter()
+        .map(|sig| {
+            let w = &sig[start..];
+            let m = w.len() as f64;
+            let mean = w.iter().sum::<f64>() / m;
+            let std = (w.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / m).sqrt();
+            let sd = cfg.noise_ratio * std;
+            w.iter().map(|x| x + sd * stream.normal()).collect()
+        })
+        .collect()
+}
+
+/// The equations' state at one time point of the window, gathered from the noised signals
+/// and the excitations.
+struct StateAt {
+    z: Vec<f64>,
+    v: Vec<f64>,
+    a: Vec<f64>,
+    point_w: Vec<f64>,
+    point_rate: Vec<f64>,
+    eta: Vec<f64>,
+    eta_rate: Vec<f64>,
+}
+
+impl StateAt {
+    /// Zeroed buffers sized for `map`.
+    fn new(map: &ChannelMap) -> Self {
+        let (d, n_p, n_el) = (map.dofs, map.point.len(), map.eta.len());
+        StateAt {
+            z: vec![0.0; d],
+            v: vec![0.0; d],
+            a: vec![0.0; d],
+            point_w: vec![0.0; n_p],
+            point_rate: vec![0.0; n_p],
+            eta: vec![0.0; n_el],
+            eta_rate: vec![0.0; n_el],
+        }
+    }
+
+    /// The state at `t`: the DOFs' displacements, velocities and accelerations, the
+    /// deflections under moving points with their rates, the profiles with theirs.
+    fn gather(
+        &mut self,
+        t: usize,
+        map: &ChannelMap,
+        ranges: &crate::layout::Record,
+        noised: &[Vec<f64>],
+        eta_cols: &[&[f64]],
+        dt: f64,
+    ) {
+        for i in 0..self.z.len() {
+            self.z[i] = noised[i][t];
+            self.v[i] = noised[ranges.velocities.start + i][t];
+            self.a[i] = noised[ranges.accelerations.start + i][t];
+        }
+        for (p, ch) in map.point.iter().enumerate() {
+            if let Some(ch) = *ch {
+                self.point_w[p] = noised[ch][t];
+                self.point_rate[p] = rate(&noised[ch], t, dt);
+            }
+        }
+        for (el, ch) in map.eta.iter().enumerate() {
+            if let Some(j) = *ch {
+                self.eta[el] = eta_cols[j][t];
+                self.eta_rate[el] = match map.eta_rate[el] {
+                    Some(r) => eta_cols[r][t],
+                    None => rate(eta_cols[j], t, dt),
+                };
+            }
+        }
+    }
+
+    /// The state as the equations read it.
+    fn view(&self) -> EquationState<'_> {
+        EquationState {
+            z: &self.z,
+            v: &self.v,
+            a: &self.a,
+            point_w: &self.point_w,
+            point_rate: &self.point_rate,
+            eta: &self.eta,
+            eta_rate: &self.eta_rate,
+        }
+    }
+}
+
+/// `max` as the sample's weights, or an error naming the first non-finite one.
+fn finite_weights(max: Vec<f64>, layout: &Layout, sample_id: u64) -> Result<Vec<f64>> {
     if let Some(i) = max.iter().position(|x| !x.is_finite()) {
         return Err(Error::OutOfRange {
-            field: format!("{} of sample {sample_id}", names[i]),
+            field: format!("{} of sample {sample_id}", layout.phi_columns()[i]),
             value: max[i].to_string(),
             allowed: "finite (the record holds non-finite values)".into(),
         });
     }
     Ok(max)
+}
+
+/// Every sample of a `params.parquet`, by id: whether it is a training sample, and its
+/// parameters.
+pub type SampleParams = BTreeMap<i64, (bool, Sampled)>;
+
+/// The samples of `params` ([`SampleParams`]), their values checked against `system`.
+pub fn sample_params(system: &System, params: ParamsTable) -> Result<SampleParams> {
+    params
+        .rows()
+        .map(|(id, s, v)| {
+            let train = s == crate::data::Split::Train.as_str();
+            Ok((id, (train, system.sampled_values(v)?)))
+        })
+        .collect()
+}
+
+/// `phi` ([`magnitude_weights`]) of every training sample of the simulation `files`, by sample
+/// id. Records are streamed; a group of samples is weighted in parallel at a time (one group in
+/// memory), each from its own noise stream, so the result does not depend on threads, grouping
+/// or file layout. A record of a sample absent from `samples` (inputs of different runs) or
+/// present in two files is refused. `tick` is called once per weighted sample.
+pub fn weigh_training_samples(
+    cfg: &WeightConfig,
+    system: &System,
+    layout: &Layout,
+    samples: &SampleParams,
+    files: &[PathBuf],
+    dt: f64,
+    tick: &(dyn Fn() + Sync),
+) -> Result<BTreeMap<i64, Vec<f64>>> {
+    let cols = columns(layout);
+    let col_refs: Vec<&str> = cols.iter().map(String::as_str).collect();
+    let mut phi: BTreeMap<i64, Vec<f64>> = BTreeMap::new();
+    let group = 16 * rayon::current_num_threads().max(1);
+    let mut pending: Vec<Record> = Vec::new();
+    let weigh_group = |pending: &mut Vec<Record>, phi: &mut BTreeMap<i64, Vec<f64>>| {
+        let results: Vec<(i64, Result<Vec<f64>>)> = pending
+            .par_iter()
+            .map(|r| {
+                let params = &samples[&r.id].1;
+                let out =
+                    magnitude_weights(cfg, system, layout, params, r.id as u64, &r.columns, dt);
+                tick();
+                (r.id, out)
+            })
+            .collect();
+        pending.clear();
+        collect_group(results, phi)
+    };
+    for_each_record::<Error>(files, &col_refs, &mut |file, rec| {
+        match samples.get(&rec.id) {
+            Some((true, _)) => pending.push(rec),
+            Some((false, _)) => {}
+            None => {
+                return Err(Error::Dataset {
+                    path: file.to_owned(),
+                    message: format!(
+                        "sample {} is not in params.parquet (inputs from different runs?)",
+                        rec.id
+                    ),
+                })
+            }
+        }
+        if pending.len() >= group {
+            weigh_group(&mut pending, &mut phi)?;
+        }
+        Ok(())
+    })?;
+    weigh_group(&mut pending, &mut phi)?;
+    Ok(phi)
+}
+
+/// Adds the weights of one group of samples to `phi`, in sample order: the first failure
+/// (named by its sample) or a sample seen before is an error.
+fn collect_group(
+    results: Vec<(i64, Result<Vec<f64>>)>,
+    phi: &mut BTreeMap<i64, Vec<f64>>,
+) -> Result<()> {
+    for (id, out) in results {
+        let w = out.map_err(|e| Error::Sample {
+            id,
+            source: Box::new(e),
+        })?;
+        if phi.insert(id, w).is_some() {
+            return Err(Error::DuplicateSample(id));
+        }
+    }
+    Ok(())
+}
+
+/// The `weights.parquet` table of `phi`: `sample_id`, then `phi_<dof>` in DOF order
+/// ([`Layout::phi_columns`]), sorted by sample id, with the units of `system`.
+pub fn weights_table(
+    system: &System,
+    layout: &Layout,
+    phi: &BTreeMap<i64, Vec<f64>>,
+) -> Result<Table> {
+    let mut table = Table::default().with_units(pino_data::system::units_of(system)?);
+    table.push(
+        schema::SAMPLE_ID,
+        Column::I64(phi.keys().copied().collect()),
+    )?;
+    for (i, name) in layout.phi_columns().iter().enumerate() {
+        table.push(name, Column::F64(phi.values().map(|w| w[i]).collect()))?;
+    }
+    Ok(table)
 }

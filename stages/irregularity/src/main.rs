@@ -18,8 +18,9 @@ use anyhow::{bail, Context, Result};
 use mbd_dataset::{ProfileGenerator, ProfileParams};
 use pino_data::artifacts::{IRREGULARITY_FILE, PARAMS_FILE, PROFILES_FILE};
 use pino_data::{schema, Column, StreamWriter, Table};
-use rayon::prelude::*;
+use stage_kit::Progress;
 use std::collections::BTreeMap;
+use std::path::Path;
 
 /// Samples per Parquet row group (64 x 5400 points at the defaults: 2.8 MB per column).
 const SAMPLES_PER_GROUP: usize = 64;
@@ -44,7 +45,7 @@ fn run() -> Result<String> {
         dx: p.dx,
         length: p.length,
     };
-    let generators = mbd_dataset::profile_generators(&system, &controls).map_err(|e| {
+    let generated = mbd_dataset::generated_profiles(&system, &controls).map_err(|e| {
         let context = format!(
             "stage `{}`: bad profile parameters for {}",
             ctx.stage, source.file
@@ -59,23 +60,13 @@ fn run() -> Result<String> {
             _ => anyhow::Error::new(e).context(context),
         }
     })?;
-    let generated: Vec<(&str, ProfileGenerator)> = system
-        .profiles
-        .iter()
-        .zip(generators)
-        .filter_map(|(prof, g)| g.map(|g| (prof.name(), g)))
-        .collect();
     if ctx.is_check() {
         return Ok(format!("{} generated profile(s)", generated.len()));
     }
     let dirs = ctx.input_dirs("params")?.to_vec();
-    let (record, _) = pino_data::system::read_record(&dirs)?;
-    pino_data::system::same(
-        &dirs[0].join(mbd_system::SYSTEM_FILE),
-        &record,
-        std::path::Path::new(&source.file),
-        &source,
-    )?;
+    // The params' record, compared with the description compiled above (not compiled again).
+    let (record_path, record) = pino_data::system::read_source(&dirs)?;
+    pino_data::system::same(&record_path, &record, Path::new(&source.file), &source)?;
     let files = ctx.input_files("params", PARAMS_FILE)?;
     if files.is_empty() {
         bail!("input `params` has no {PARAMS_FILE} (in {dirs:?})");
@@ -86,72 +77,78 @@ fn run() -> Result<String> {
     if let Some(bad) = ids.iter().find(|&&id| id < 0) {
         bail!("{}: negative sample_id {bad}", files[0].display());
     }
-    // Row groups of SAMPLES_PER_GROUP samples (a fixed layout: same bytes for any thread
-    // count); within a group the profiles are generated in parallel straight into `eta`.
-    let labelled = generated.len() > 1;
     let progress = ctx.progress((ids.len() * generated.len()) as u64);
-    let path = ctx.output_path(IRREGULARITY_FILE);
-    let mut writer: Option<StreamWriter> = None;
-    let mut summary = Vec::new();
-    for (name, generator) in &generated {
-        let n = generator.len();
-        let x = generator.positions();
-        for group in ids.chunks(SAMPLES_PER_GROUP) {
-            let mut eta = vec![0.0; n * group.len()];
-            eta.par_chunks_mut(n).zip(group).for_each(|(chunk, &id)| {
-                generator.profile_into(id as u64, chunk);
-                progress.inc(1);
-            });
-            let mut table = Table::default();
-            if labelled {
-                table.push(
-                    schema::PROFILE,
-                    Column::Str(vec![name.to_string(); n * group.len()]),
-                )?;
-            }
-            let sample_col = group
-                .iter()
-                .flat_map(|&id| std::iter::repeat_n(id, n))
-                .collect();
-            table.push(schema::SAMPLE_ID, Column::I64(sample_col))?;
-            table.push(schema::TRACK_X, Column::F64(x.repeat(group.len())))?;
-            table.push(schema::TRACK_ETA, Column::F64(eta))?;
-            let w = match &mut writer {
-                Some(w) => w,
-                None => writer.insert(StreamWriter::create(&path, &table)?),
-            };
-            w.write(&table)?;
-        }
-        let band = generator.band();
-        summary.push(format!(
-            "{} profiles `{name}` x {n} points ({:.1} m at dx {} m), RMS {:.3} mm over {}-{} m wavelengths",
-            ids.len(),
-            n as f64 * generator.dx(),
-            generator.dx(),
-            generator.variance().sqrt() * 1e3,
-            1.0 / band[1],
-            1.0 / band[0],
-        ));
-    }
+    let summary = write_profiles(
+        &ctx.output_path(IRREGULARITY_FILE),
+        &generated,
+        &ids,
+        &progress,
+    )?;
     pino_data::system::write_json(
         &ctx.output_path(PROFILES_FILE),
         &serde_json::to_value(controls)?,
     )?;
+    Ok(summary)
+}
+
+/// Writes the profiles of every sample `ids` for each of the `generated` profiles to `path`,
+/// in row groups of [`SAMPLES_PER_GROUP`] samples (a fixed layout: same bytes for any thread
+/// count), or an empty table of the same columns when there is no generated profile. Returns
+/// the summary.
+fn write_profiles(
+    path: &Path,
+    generated: &[(&str, ProfileGenerator)],
+    ids: &[i64],
+    progress: &Progress,
+) -> Result<String> {
+    let labelled = generated.len() > 1;
+    let tick = || progress.inc(1);
+    let mut writer: Option<StreamWriter> = None;
+    let mut summary = Vec::new();
+    for (name, generator) in generated {
+        let x = generator.positions();
+        for group in ids.chunks(SAMPLES_PER_GROUP) {
+            let eta = generator.profiles_of(group, &tick);
+            let table = group_table(labelled.then_some(*name), group, &x, eta)?;
+            let w = match &mut writer {
+                Some(w) => w,
+                None => writer.insert(StreamWriter::create(path, &table)?),
+            };
+            w.write(&table)?;
+        }
+        summary.push(generator.describe(name, ids.len()));
+    }
     match writer {
         Some(w) => w
             .finish()
             .with_context(|| format!("writing {}", path.display()))?,
         None => {
             // No generated profile: an empty table of the same columns.
-            let mut t = Table::default();
-            t.push(schema::SAMPLE_ID, Column::I64(Vec::new()))?;
-            t.push(schema::TRACK_X, Column::F64(Vec::new()))?;
-            t.push(schema::TRACK_ETA, Column::F64(Vec::new()))?;
-            pino_data::write_parquet(&path, &t)?;
+            pino_data::write_parquet(path, &group_table(None, &[], &[], Vec::new())?)?;
             summary.push("no generated profile in the description".to_owned());
         }
     }
     Ok(summary.join("; "))
+}
+
+/// The rows of one group of samples: (`profile`, when `label`led,) `sample_id`, `x`, `eta`.
+fn group_table(label: Option<&str>, group: &[i64], x: &[f64], eta: Vec<f64>) -> Result<Table> {
+    let n = x.len();
+    let mut table = Table::default();
+    if let Some(name) = label {
+        table.push(
+            schema::PROFILE,
+            Column::Str(vec![name.to_string(); n * group.len()]),
+        )?;
+    }
+    let sample_col = group
+        .iter()
+        .flat_map(|&id| std::iter::repeat_n(id, n))
+        .collect();
+    table.push(schema::SAMPLE_ID, Column::I64(sample_col))?;
+    table.push(schema::TRACK_X, Column::F64(x.repeat(group.len())))?;
+    table.push(schema::TRACK_ETA, Column::F64(eta))?;
+    Ok(table)
 }
 
 fn main() {

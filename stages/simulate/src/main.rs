@@ -24,11 +24,13 @@
 use anyhow::{bail, Context, Result};
 use mbd_engine::{Profile, RunConfig, SampleInput, StartMode};
 use mbd_system::system::Profile as DescribedProfile;
+use mbd_system::{System, SystemSource};
 use pino_data::artifacts::{FAILURES_FILE, IRREGULARITY_FILE, PARAMS_FILE, SIMULATION_FILE};
 use pino_data::records::read_params_of;
 use pino_data::{for_each_batch, schema, Column, StreamWriter, Table};
+use stage_kit::StageContext;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 #[derive(serde::Deserialize)]
@@ -64,33 +66,61 @@ fn run() -> Result<String> {
     let (source, system) = stage_kit::load_description(&p.system_values)?;
     let system = Arc::new(system);
     if ctx.is_check() {
-        mbd_engine::coverage::check_profile_starts_described(&source, &system, &config)
-            .with_context(|| format!("stage `{}`", ctx.stage))?;
-        let (bound, corner) = mbd_engine::stability::parameter_box(&system, &config)
-            .with_context(|| format!("stage `{}`: {}", ctx.stage, source.file))?;
-        if let Err(e) = bound.check(config.dt) {
-            let at: Vec<String> = corner.iter().map(|(n, v)| format!("{n} = {v}")).collect();
-            bail!("stage `{}` ({}): {e}; the bound is taken over the box of sampling ranges, largest at {}", ctx.stage, source.file, at.join(", "));
-        }
-        return Ok(format!(
-            "dt {} s within the bound {:.3e} s over the parameter box",
-            config.dt,
-            bound.dt_limit()
-        ));
+        return check(&ctx, &source, &system, &config);
     }
     let dirs = ctx.input_dirs("params")?.to_vec();
-    let (record, _) = pino_data::system::read_record(&dirs)?;
-    pino_data::system::same(
-        &dirs[0].join(mbd_system::SYSTEM_FILE),
-        &record,
-        std::path::Path::new(&source.file),
-        &source,
-    )?;
-
-    let params = read_params_of(&ctx.input_files("params", PARAMS_FILE)?, &system)?;
+    // The params' record, compared with the description compiled above (not compiled again).
+    let (record_path, record) = pino_data::system::read_source(&dirs)?;
+    pino_data::system::same(&record_path, &record, Path::new(&source.file), &source)?;
     let generated: Vec<usize> = (0..system.profiles.len())
         .filter(|&i| matches!(system.profiles[i], DescribedProfile::Generated { .. }))
         .collect();
+    let inputs = sample_inputs(&ctx, &system, &generated)?;
+    let engines = mbd_engine::prepare(&system, &config, inputs)
+        .map_err(|(id, e)| anyhow::anyhow!("sample {id}: {e}"))?;
+    let progress = ctx.progress(engines.len() as u64);
+    let (rows, n_failed) = simulate_to(&ctx, &system, &engines, &progress)?;
+    write_records(&ctx, &source, &config, !generated.is_empty())?;
+    let s = ctx.shard;
+    Ok(format!(
+        "{} ok, {n_failed} failed, {rows} rows (shard {}/{})",
+        engines.len() - n_failed,
+        s.index + 1,
+        s.count
+    ))
+}
+
+/// Check mode: the moving points against the start of every generated profile they read and
+/// the time step against its bound, both over the box of sampling ranges.
+fn check(
+    ctx: &StageContext,
+    source: &SystemSource,
+    system: &Arc<System>,
+    config: &RunConfig,
+) -> Result<String> {
+    mbd_engine::coverage::check_profile_starts_described(source, system, config)
+        .with_context(|| format!("stage `{}`", ctx.stage))?;
+    let (bound, corner) = mbd_engine::stability::parameter_box(system, config)
+        .with_context(|| format!("stage `{}`: {}", ctx.stage, source.file))?;
+    if let Err(e) = bound.check(config.dt) {
+        let at: Vec<String> = corner.iter().map(|(n, v)| format!("{n} = {v}")).collect();
+        bail!("stage `{}` ({}): {e}; the bound is taken over the box of sampling ranges, largest at {}", ctx.stage, source.file, at.join(", "));
+    }
+    Ok(format!(
+        "dt {} s within the bound {:.3e} s over the parameter box",
+        config.dt,
+        bound.dt_limit()
+    ))
+}
+
+/// The samples this shard owns, in id order: their parameters (`params`) and their profiles
+/// of each `generated` profile of the description (`irregularity`).
+fn sample_inputs(
+    ctx: &StageContext,
+    system: &System,
+    generated: &[usize],
+) -> Result<Vec<SampleInput>> {
+    let params = read_params_of(&ctx.input_files("params", PARAMS_FILE)?, system)?;
     let mut profiles = if generated.is_empty() {
         BTreeMap::new()
     } else {
@@ -129,17 +159,24 @@ fn run() -> Result<String> {
         });
     }
     inputs.sort_by_key(|s| s.id);
-    let engines = mbd_engine::prepare(&system, &config, inputs)
-        .map_err(|(id, e)| anyhow::anyhow!("sample {id}: {e}"))?;
+    Ok(inputs)
+}
 
-    let progress = ctx.progress(engines.len() as u64);
+/// Runs the `engines` (`mbd_engine::run_all`), writing `simulation.parquet` (one row group per
+/// sample) and `failures.parquet`; returns the rows written and the number of failures.
+fn simulate_to(
+    ctx: &StageContext,
+    system: &System,
+    engines: &[(u64, mbd_engine::Engine)],
+    progress: &stage_kit::Progress,
+) -> Result<(usize, usize)> {
     let path = ctx.output_path(SIMULATION_FILE);
     let mut names = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
     names.extend(system.channels.iter().map(|c| c.name.clone()));
-    let template = table(&names, 0, &[], &[]).with_units(pino_data::system::units_of(&system)?);
+    let template = table(&names, 0, &[], &[]).with_units(pino_data::system::units_of(system)?);
     let mut writer = StreamWriter::create(&path, &template)?;
     let mut failures: (Vec<i64>, Vec<String>) = (Vec::new(), Vec::new());
-    mbd_engine::run_all(&engines, 64, &|| progress.inc(1), |id, out| -> Result<()> {
+    mbd_engine::run_all(engines, 64, &|| progress.inc(1), |id, out| -> Result<()> {
         match out {
             Ok(tr) => writer.write(&table(&names, id as i64, &tr.t, &tr.columns))?,
             Err(f) => {
@@ -156,6 +193,18 @@ fn run() -> Result<String> {
     failed.push(schema::SAMPLE_ID, Column::I64(failures.0))?;
     failed.push("reason", Column::Str(failures.1))?;
     pino_data::write_parquet(&ctx.output_path(FAILURES_FILE), &failed)?;
+    Ok((rows, n_failed))
+}
+
+/// How the data were made: `provenance.parquet` (the run controls), `system.json` (the
+/// description) and `run.json` (the run controls and, when the description has `generated`
+/// profiles, the generator's controls of the `irregularity` input).
+fn write_records(
+    ctx: &StageContext,
+    source: &SystemSource,
+    config: &RunConfig,
+    generated: bool,
+) -> Result<()> {
     pino_data::provenance::write_provenance(
         &ctx.output_path(pino_data::artifacts::PROVENANCE_FILE),
         &[
@@ -167,24 +216,18 @@ fn run() -> Result<String> {
             ("x0", config.x0),
         ],
     )?;
-    pino_data::system::write_record(&ctx.output, &source)?;
-    let profiles = if generated.is_empty() {
-        serde_json::Value::Null
-    } else {
+    pino_data::system::write_record(&ctx.output, source)?;
+    let profiles = if generated {
         let dirs = ctx.input_dirs("irregularity")?;
         pino_data::system::read_json(&dirs[0].join(pino_data::artifacts::PROFILES_FILE))?
+    } else {
+        serde_json::Value::Null
     };
     pino_data::system::write_json(
         &ctx.output_path(pino_data::artifacts::RUN_FILE),
         &serde_json::json!({"run": config, "profiles": profiles}),
     )?;
-    let s = ctx.shard;
-    Ok(format!(
-        "{} ok, {n_failed} failed, {rows} rows (shard {}/{})",
-        engines.len() - n_failed,
-        s.index + 1,
-        s.count
-    ))
+    Ok(())
 }
 
 /// One profile's positions (m) and values (m).

@@ -11,11 +11,14 @@
 //! so that a column it does not store is refused at planning.
 use anyhow::{Context, Result};
 use pino_data::artifacts::{PARAMS_FILE, SIMULATION_FILE, WEIGHTS_FILE};
-use pino_learn::config::TrainParams;
-use pino_learn::data::{load_dataset_subset, DatasetInfo};
+use pino_learn::config::{ModelConfig, TrainConfig, TrainParams, WindowConfig};
+use pino_learn::data::{load_dataset_subset, Dataset, DatasetInfo};
 use pino_learn::spectral::Transform;
 use pino_learn::train::train_to_dir;
 use stage_kit::StageContext;
+
+/// The model, training and window configurations of a training.
+type Configs = (ModelConfig, TrainConfig, WindowConfig);
 
 fn run() -> Result<()> {
     pino_learn::tune_allocator();
@@ -23,50 +26,14 @@ fn run() -> Result<()> {
     ctx.declare_origin()?;
     let p: TrainParams = ctx.params()?;
     if ctx.is_check() {
-        pino_learn::config::Algorithm::from_id(p.algorithm)?;
-        if !p.rate_outputs.is_empty() {
-            // The outputs asked for must be stored rates of the description the command names.
-            let (_, system) = stage_kit::load_description(&Default::default()).map_err(|e| {
-                anyhow::anyhow!("params.rate_outputs: checked against the system description, which the stage's command must name (`cmd: [train, \"${{constants.system}}\"]`): {e}")
-            })?;
-            pino_learn::layout::Layout::of(&system).with_rate_outputs(&system, &p.rate_outputs)?;
-        }
-        // Which of the matrix's trainings starts first when none has run here before.
-        let work = p.relative_work()?;
-        if work > 0.0 {
-            stage_kit::work(work);
-        }
+        check(&p)?;
         stage_kit::summary("parameters valid");
         return Ok(());
     }
-    let info = DatasetInfo::from_dirs(ctx.input_dirs("dataset")?)
-        .and_then(|info| info.with_rate_outputs(&p.rate_outputs))
-        .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
-    let configs = p
-        .configs(info.layout())
-        .with_context(|| format!("stage `{}`", ctx.stage))?;
+    let (info, configs) = configure(&ctx, &p)?;
     let (_, train, window) = configs;
     let device = p.device.device()?;
-    let params = &ctx.single_input_file("params", PARAMS_FILE)?;
-    let sims = ctx.input_files("dataset", SIMULATION_FILE)?;
-    let weights = if train.algorithm.needs_phi() {
-        let w = ctx.input_files("weights", WEIGHTS_FILE)?;
-        Some(
-            w.first()
-                .cloned()
-                .context("algorithm 3 needs weights.parquet from the `weights` stage")?,
-        )
-    } else {
-        None
-    };
-    let ds = load_dataset_subset(
-        &info,
-        params,
-        &sims,
-        weights.as_deref(),
-        &window,
-        p.train_samples,
-    )?;
+    let ds = load(&ctx, &p, &info, train.algorithm.needs_phi(), &window)?;
     let progress = ctx.progress(train.epochs as u64);
     let outcome = train_to_dir(
         &ds,
@@ -77,22 +44,7 @@ fn run() -> Result<()> {
         // `pipeline run` resumes from the last epoch; by hand, checkpoints live in the output.
         ctx.scratch.as_deref().unwrap_or(&ctx.output),
         &device,
-        &mut |r| {
-            let left = (r.epochs - r.row.epoch) as f64 * r.seconds_per_epoch;
-            progress.set(
-                r.row.epoch as u64,
-                &format!(
-                    "loss {:.4e} (data {:.4e}) val {:.2}% / {:.2}% / {:.2}% lr {:.2e} ETA {:.0} s",
-                    r.row.loss_total,
-                    r.row.loss_data,
-                    100.0 * r.row.val_solution,
-                    100.0 * r.row.val_first,
-                    100.0 * r.row.val_second,
-                    r.row.lr,
-                    left
-                ),
-            )
-        },
+        &mut |r| progress.set(r.row.epoch as u64, &r.progress_line()),
     )?;
     let last = outcome.history.last().context("no epoch was trained")?;
     stage_kit::summary(&format!(
@@ -109,6 +61,68 @@ fn run() -> Result<()> {
         outcome.resumed_after.map(|e| format!(" (resumed after epoch {e})")).unwrap_or_default()
     ));
     Ok(())
+}
+
+/// Check mode: the algorithm, the rate outputs against the description the command names, and
+/// the relative work of the training (which of the matrix's trainings starts first when none
+/// has run here before).
+fn check(p: &TrainParams) -> Result<()> {
+    pino_learn::config::Algorithm::from_id(p.algorithm)?;
+    if !p.rate_outputs.is_empty() {
+        // The outputs asked for must be stored rates of the description the command names.
+        let (_, system) = stage_kit::load_description(&Default::default()).map_err(|e| {
+            anyhow::anyhow!("params.rate_outputs: checked against the system description, which the stage's command must name (`cmd: [train, \"${{constants.system}}\"]`): {e}")
+        })?;
+        pino_learn::layout::Layout::of(&system).with_rate_outputs(&system, &p.rate_outputs)?;
+    }
+    let work = p.relative_work()?;
+    if work > 0.0 {
+        stage_kit::work(work);
+    }
+    Ok(())
+}
+
+/// The dataset's description (with the rate outputs of `p`) and the configurations of `p`
+/// over its layout.
+fn configure(ctx: &StageContext, p: &TrainParams) -> Result<(DatasetInfo, Configs)> {
+    let info = DatasetInfo::from_dirs(ctx.input_dirs("dataset")?)
+        .and_then(|info| info.with_rate_outputs(&p.rate_outputs))
+        .with_context(|| format!("stage `{}`: input `dataset`", ctx.stage))?;
+    let configs = p
+        .configs(info.layout())
+        .with_context(|| format!("stage `{}`", ctx.stage))?;
+    Ok((info, configs))
+}
+
+/// The training set: params, the simulation shards and, when the algorithm `needs_phi`, the
+/// weights.
+fn load(
+    ctx: &StageContext,
+    p: &TrainParams,
+    info: &DatasetInfo,
+    needs_phi: bool,
+    window: &WindowConfig,
+) -> Result<Dataset> {
+    let params = &ctx.single_input_file("params", PARAMS_FILE)?;
+    let sims = ctx.input_files("dataset", SIMULATION_FILE)?;
+    let weights = if needs_phi {
+        let w = ctx.input_files("weights", WEIGHTS_FILE)?;
+        Some(
+            w.first()
+                .cloned()
+                .context("algorithm 3 needs weights.parquet from the `weights` stage")?,
+        )
+    } else {
+        None
+    };
+    Ok(load_dataset_subset(
+        info,
+        params,
+        &sims,
+        weights.as_deref(),
+        window,
+        p.train_samples,
+    )?)
 }
 
 fn main() {

@@ -14,11 +14,10 @@
 use anyhow::{bail, Context, Result};
 use pino_data::artifacts::{PARAMS_FILE, PROVENANCE_FILE, SIMULATION_FILE, WEIGHTS_FILE};
 use pino_data::records::read_params_of;
-use pino_data::{schema, write_parquet, Column, Table};
+use pino_data::write_parquet;
 use pino_learn::layout::Layout;
-use pino_learn::weights::{columns, magnitude_weights, WeightConfig};
-use rayon::prelude::*;
-use std::collections::BTreeMap;
+use pino_learn::weights::{sample_params, weigh_training_samples, weights_table, WeightConfig};
+use std::path::Path;
 
 fn run() -> Result<String> {
     let ctx = stage_kit::StageContext::load()?;
@@ -40,87 +39,17 @@ fn run() -> Result<String> {
         );
     }
     let params = read_params_of(&ctx.input_files("params", PARAMS_FILE)?, &system)?;
-    let by_id: BTreeMap<i64, (bool, _)> = params
-        .rows()
-        .map(|(id, s, v)| {
-            let train = s == pino_learn::data::Split::Train.as_str();
-            Ok((id, (train, system.sampled_values(v)?)))
-        })
-        .collect::<Result<_>>()?;
+    let samples = sample_params(&system, params)?;
     let files = ctx.input_files("dataset", SIMULATION_FILE)?;
     if files.is_empty() {
         bail!("input `dataset` has no {SIMULATION_FILE} (in {dirs:?})");
     }
-    let provenance = pino_data::provenance::read_provenance(&dirs[0].join(PROVENANCE_FILE))?;
-    let dt = provenance
-        .get("dt")
-        .copied()
-        .context("provenance.parquet has no dt")?
-        * provenance
-            .get("output_every")
-            .copied()
-            .context("provenance.parquet has no output_every")?;
-    let n_train = by_id.values().filter(|(train, _)| *train).count();
+    let dt = output_spacing(&dirs[0].join(PROVENANCE_FILE))?;
+    let n_train = samples.values().filter(|(train, _)| *train).count();
     let progress = ctx.progress(n_train as u64);
-    let cols = columns(&layout);
-    let col_refs: Vec<&str> = cols.iter().map(String::as_str).collect();
-    let mut phi: BTreeMap<i64, Vec<f64>> = BTreeMap::new();
-    // Samples in groups: weighted in parallel within a group, one group in memory.
-    let group = 16 * rayon::current_num_threads().max(1);
-    let mut pending: Vec<pino_data::records::Record> = Vec::new();
-    let flush = |pending: &mut Vec<pino_data::records::Record>,
-                 phi: &mut BTreeMap<i64, Vec<f64>>|
-     -> Result<()> {
-        let results: Vec<(i64, pino_learn::Result<Vec<f64>>)> = pending
-            .par_iter()
-            .map(|r| {
-                let out = magnitude_weights(
-                    &cfg,
-                    &system,
-                    &layout,
-                    &by_id[&r.id].1,
-                    r.id as u64,
-                    &r.columns,
-                    dt,
-                );
-                progress.inc(1);
-                (r.id, out)
-            })
-            .collect();
-        pending.clear();
-        for (id, out) in results {
-            let w = out.with_context(|| format!("sample {id}"))?;
-            if phi.insert(id, w).is_some() {
-                bail!("sample {id} appears in more than one dataset file");
-            }
-        }
-        Ok(())
-    };
-    pino_data::records::for_each_record::<anyhow::Error>(&files, &col_refs, &mut |file, rec| {
-        match by_id.get(&rec.id) {
-            Some((true, _)) => pending.push(rec),
-            Some((false, _)) => {}
-            None => bail!(
-                "{}: sample {} is not in params.parquet (inputs from different runs?)",
-                file.display(),
-                rec.id
-            ),
-        }
-        if pending.len() >= group {
-            flush(&mut pending, &mut phi)?;
-        }
-        Ok(())
-    })?;
-    flush(&mut pending, &mut phi)?;
-
-    let mut table = Table::default().with_units(pino_data::system::units_of(&system)?);
-    table.push(
-        schema::SAMPLE_ID,
-        Column::I64(phi.keys().copied().collect()),
-    )?;
-    for (i, name) in layout.phi_columns().iter().enumerate() {
-        table.push(name, Column::F64(phi.values().map(|w| w[i]).collect()))?;
-    }
+    let tick = || progress.inc(1);
+    let phi = weigh_training_samples(&cfg, &system, &layout, &samples, &files, dt, &tick)?;
+    let table = weights_table(&system, &layout, &phi)?;
     let path = ctx.output_path(WEIGHTS_FILE);
     write_parquet(&path, &table).with_context(|| format!("writing {}", path.display()))?;
     Ok(format!(
@@ -130,6 +59,19 @@ fn run() -> Result<String> {
         cfg.noise_ratio,
         n_train - phi.len()
     ))
+}
+
+/// The spacing of the stored records (s): the solver's `dt` times `output_every`, from a
+/// shard's provenance.
+fn output_spacing(provenance: &Path) -> Result<f64> {
+    let provenance = pino_data::provenance::read_provenance(provenance)?;
+    let of = |key: &str| {
+        provenance
+            .get(key)
+            .copied()
+            .with_context(|| format!("provenance.parquet has no {key}"))
+    };
+    Ok(of("dt")? * of("output_every")?)
 }
 
 fn main() {
