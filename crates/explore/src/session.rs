@@ -182,7 +182,8 @@ impl Explorer {
     ) -> Result<Self, Error> {
         let predictor = surrogate.primary();
         let system = predictor.system().clone();
-        let column_units = pino_data::system::units_of(&system)?;
+        let column_units =
+            pino_data::system::units_of(&system)?.with(pino_indices::column_units(&system))?;
         let meta = &predictor.meta;
         let run = predictor.run_config(None)?;
         let index_cfg = predictor.index_config()?;

@@ -53,76 +53,102 @@ pub fn aggregate(
     windows: &[(i64, f64)],
     file_of: &dyn Fn(i64) -> PathBuf,
 ) -> Result<BTreeMap<i64, Extremes>> {
-    let first = files.first().cloned().unwrap_or_default();
-    let pe = |e: polars::prelude::PolarsError| polars_err(&first, e);
-    let paths = files
-        .iter()
-        .map(|f| pl_path(f))
-        .collect::<Result<Vec<_>>>()?;
-    let keys = DataFrame::new_infer_height(vec![
-        Series::new(
-            schema::SAMPLE_ID.into(),
-            windows.iter().map(|w| w.0).collect::<Vec<i64>>(),
-        )
-        .into(),
-        Series::new(
-            "t_start".into(),
-            windows.iter().map(|w| w.1).collect::<Vec<f64>>(),
-        )
-        .into(),
-    ])
-    .map_err(pe)?;
-    let scan =
-        LazyFrame::scan_parquet_files(paths.into_iter().collect(), ScanArgsParquet::default())
-            .map_err(pe)?;
-    let signals: Vec<&str> = railway.all();
-    let (p, z_r, z_t_a) = (
-        railway.p.each_ref().map(String::as_str),
-        railway.z_r.each_ref().map(String::as_str),
-        railway.z_t_a.each_ref().map(String::as_str),
-    );
-    let mut aggs: Vec<Expr> = vec![len().cast(DataType::Int64).alias("n")];
-    for c in &signals {
-        // The sum of every input signal: NaN or infinite exactly when one value is.
-        aggs.push(col(*c).sum().alias(agg_name(c, "sum")));
+    let per_sample = Aggregated::query(files, railway, windows)?;
+    let ids = per_sample.i64s(schema::SAMPLE_ID, -1)?;
+    let ns = per_sample.i64s("n", 0)?;
+    per_sample.check_finite(railway, &ids, windows, file_of)?;
+    per_sample.extremes(railway, &ids, &ns)
+}
+
+/// The result of the query: one row per sample, its `sample_id`, its window's row count `n`
+/// and the aggregates named by [`agg_name`].
+struct Aggregated {
+    df: DataFrame,
+    /// The first scanned file, which a polars error names.
+    first: PathBuf,
+}
+
+impl Aggregated {
+    /// Scans `files` (the columns of `railway`), joins each sample's window start from
+    /// `windows`, keeps the window's rows and aggregates them by `sample_id` on the streaming
+    /// engine.
+    fn query(files: &[PathBuf], railway: &RailwayColumns, windows: &[(i64, f64)]) -> Result<Self> {
+        let first = files.first().cloned().unwrap_or_default();
+        let pe = |e: polars::prelude::PolarsError| polars_err(&first, e);
+        let paths = files
+            .iter()
+            .map(|f| pl_path(f))
+            .collect::<Result<Vec<_>>>()?;
+        let keys = DataFrame::new_infer_height(vec![
+            Series::new(
+                schema::SAMPLE_ID.into(),
+                windows.iter().map(|w| w.0).collect::<Vec<i64>>(),
+            )
+            .into(),
+            Series::new(
+                "t_start".into(),
+                windows.iter().map(|w| w.1).collect::<Vec<f64>>(),
+            )
+            .into(),
+        ])
+        .map_err(pe)?;
+        let scan =
+            LazyFrame::scan_parquet_files(paths.into_iter().collect(), ScanArgsParquet::default())
+                .map_err(pe)?;
+        let signals: Vec<&str> = railway.all();
+        let mut select: Vec<Expr> = vec![col(schema::SAMPLE_ID), col(schema::TIME)];
+        select.extend(signals.iter().map(|c| col(*c)));
+        let df = scan
+            .select(select)
+            .inner_join(keys.lazy(), col(schema::SAMPLE_ID), col(schema::SAMPLE_ID))
+            .filter(col(schema::TIME).gt_eq(col("t_start")))
+            .group_by([col(schema::SAMPLE_ID)])
+            .agg(aggregations(railway))
+            .collect_with_engine(Engine::Streaming)
+            .map_err(pe)?
+            // A plain query has one result (several only with several sinks).
+            .unwrap_single();
+        Ok(Self { df, first })
     }
-    for c in p.iter().chain(&z_r).chain(&z_t_a) {
-        aggs.push(col(*c).max().alias(agg_name(c, "max")));
+
+    fn polars_err(&self, e: polars::prelude::PolarsError) -> Error {
+        polars_err(&self.first, e)
     }
-    // max |x| = max(max x, -min x): no `abs` kernel needed.
-    for c in p.iter().chain(&z_t_a) {
-        aggs.push(col(*c).min().alias(agg_name(c, "min")));
-    }
-    let mut select: Vec<Expr> = vec![col(schema::SAMPLE_ID), col(schema::TIME)];
-    select.extend(signals.iter().map(|c| col(*c)));
-    let df = scan
-        .select(select)
-        .inner_join(keys.lazy(), col(schema::SAMPLE_ID), col(schema::SAMPLE_ID))
-        .filter(col(schema::TIME).gt_eq(col("t_start")))
-        .group_by([col(schema::SAMPLE_ID)])
-        .agg(aggs)
-        .collect_with_engine(Engine::Streaming)
-        .map_err(pe)?
-        // A plain query has one result (several only with several sinks).
-        .unwrap_single();
-    let f64s = |name: &str| -> Result<Vec<f64>> {
-        let c = df.column(name).map_err(pe)?;
-        let ca = c.as_materialized_series().f64().map_err(pe)?;
+
+    /// Column `name` (f64), a null read as NaN.
+    fn f64s(&self, name: &str) -> Result<Vec<f64>> {
+        let c = self.df.column(name).map_err(|e| self.polars_err(e))?;
+        let ca = c
+            .as_materialized_series()
+            .f64()
+            .map_err(|e| self.polars_err(e))?;
         Ok(ca.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
-    };
-    let ids: Vec<i64> = {
-        let c = df.column(schema::SAMPLE_ID).map_err(pe)?;
-        let ca = c.as_materialized_series().i64().map_err(pe)?;
-        ca.iter().map(|v| v.unwrap_or(-1)).collect()
-    };
-    let ns: Vec<i64> = {
-        let c = df.column("n").map_err(pe)?;
-        let ca = c.as_materialized_series().i64().map_err(pe)?;
-        ca.iter().map(|v| v.unwrap_or(0)).collect()
-    };
-    for c in &signals {
-        let sums = f64s(&agg_name(c, "sum"))?;
-        if let Some(k) = sums.iter().position(|s| !s.is_finite()) {
+    }
+
+    /// Column `name` (i64), a null read as `null`.
+    fn i64s(&self, name: &str, null: i64) -> Result<Vec<i64>> {
+        let c = self.df.column(name).map_err(|e| self.polars_err(e))?;
+        let ca = c
+            .as_materialized_series()
+            .i64()
+            .map_err(|e| self.polars_err(e))?;
+        Ok(ca.iter().map(|v| v.unwrap_or(null)).collect())
+    }
+
+    /// Refuses the first signal whose window sum is not finite, located to its row by a plain
+    /// read of the file that holds the sample (`file_of`); `ids`: the rows' samples.
+    fn check_finite(
+        &self,
+        railway: &RailwayColumns,
+        ids: &[i64],
+        windows: &[(i64, f64)],
+        file_of: &dyn Fn(i64) -> PathBuf,
+    ) -> Result<()> {
+        for c in &railway.all() {
+            let sums = self.f64s(&agg_name(c, "sum"))?;
+            let Some(k) = sums.iter().position(|s| !s.is_finite()) else {
+                continue;
+            };
             let (id, path) = (ids[k], file_of(ids[k]));
             let t_start = windows
                 .iter()
@@ -143,30 +169,69 @@ pub fn aggregate(
                 ),
             ));
         }
+        Ok(())
     }
-    let get = |c: &str, stat: &str| f64s(&agg_name(c, stat));
-    let all = |cols: &[&str], stat: &str| -> Result<Vec<Vec<f64>>> {
-        cols.iter().map(|c| get(c, stat)).collect()
-    };
-    let p_max = all(&p, "max")?;
-    let p_min = all(&p, "min")?;
-    let zr_max = all(&z_r, "max")?;
-    let t_max = all(&z_t_a, "max")?;
-    let t_min = all(&z_t_a, "min")?;
-    let mut out = BTreeMap::new();
-    for (k, &id) in ids.iter().enumerate() {
-        out.insert(
-            id,
-            Extremes {
-                n: ns[k] as usize,
-                p_max: std::array::from_fn(|i| p_max[i][k]),
-                p_min: std::array::from_fn(|i| p_min[i][k]),
-                bogie_abs_max: std::array::from_fn(|i| t_max[i][k].max(-t_min[i][k])),
-                z_r_max: std::array::from_fn(|i| zr_max[i][k]),
-            },
-        );
+
+    /// The [`Extremes`] of every row (`ids`: its sample, `ns`: its window's row count).
+    fn extremes(
+        &self,
+        railway: &RailwayColumns,
+        ids: &[i64],
+        ns: &[i64],
+    ) -> Result<BTreeMap<i64, Extremes>> {
+        let (p, z_r, z_t_a) = railway_names(railway);
+        let all = |cols: &[&str], stat: &str| -> Result<Vec<Vec<f64>>> {
+            cols.iter().map(|c| self.f64s(&agg_name(c, stat))).collect()
+        };
+        let p_max = all(&p, "max")?;
+        let p_min = all(&p, "min")?;
+        let zr_max = all(&z_r, "max")?;
+        let t_max = all(&z_t_a, "max")?;
+        let t_min = all(&z_t_a, "min")?;
+        let mut out = BTreeMap::new();
+        for (k, &id) in ids.iter().enumerate() {
+            out.insert(
+                id,
+                Extremes {
+                    n: ns[k] as usize,
+                    p_max: std::array::from_fn(|i| p_max[i][k]),
+                    p_min: std::array::from_fn(|i| p_min[i][k]),
+                    bogie_abs_max: std::array::from_fn(|i| t_max[i][k].max(-t_min[i][k])),
+                    z_r_max: std::array::from_fn(|i| zr_max[i][k]),
+                },
+            );
+        }
+        Ok(out)
     }
-    Ok(out)
+}
+
+/// The contact forces', rail displacements' and bogie accelerations' columns of `railway`.
+fn railway_names(railway: &RailwayColumns) -> ([&str; 4], [&str; 4], [&str; 2]) {
+    (
+        railway.p.each_ref().map(String::as_str),
+        railway.z_r.each_ref().map(String::as_str),
+        railway.z_t_a.each_ref().map(String::as_str),
+    )
+}
+
+/// The per-sample aggregates of the query: the row count `n`, every signal's sum, the maxima
+/// of the forces, rail displacements and bogie accelerations and the minima of the forces and
+/// bogie accelerations.
+fn aggregations(railway: &RailwayColumns) -> Vec<Expr> {
+    let (p, z_r, z_t_a) = railway_names(railway);
+    let mut aggs: Vec<Expr> = vec![len().cast(DataType::Int64).alias("n")];
+    for c in &railway.all() {
+        // The sum of every input signal: NaN or infinite exactly when one value is.
+        aggs.push(col(*c).sum().alias(agg_name(c, "sum")));
+    }
+    for c in p.iter().chain(&z_r).chain(&z_t_a) {
+        aggs.push(col(*c).max().alias(agg_name(c, "max")));
+    }
+    // max |x| = max(max x, -min x): no `abs` kernel needed.
+    for c in p.iter().chain(&z_t_a) {
+        aggs.push(col(*c).min().alias(agg_name(c, "min")));
+    }
+    aggs
 }
 
 /// The values of `column` in sample `id`'s window (its rows with `t >= t_start`) of `path`,

@@ -14,7 +14,8 @@ use std::path::Path;
 /// limit names, null when none).
 pub fn to_table(system: &System, out: &Computed) -> pino_data::Result<Table> {
     let rows = &out.rows;
-    let mut t = Table::default().with_units(pino_data::system::units_of(system)?);
+    let units = pino_data::system::units_of(system)?.with(pino_indices::column_units(system))?;
+    let mut t = Table::default().with_units(units);
     t.push(
         schema::SAMPLE_ID,
         Column::I64(rows.iter().map(|r| r.id).collect()),

@@ -229,30 +229,10 @@ fn write_weights(
 
 /// Simulates the dataset of `spec` into `dir` (with `run.json`, as `simulate` writes it).
 pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles> {
-    let bad = |message: String| Error::Dataset {
-        path: dir.to_owned(),
-        message,
-    };
+    let bad = |message: String| dataset_error(dir, message);
     let system = Arc::new(spec.system.compile().map_err(|e| bad(e.to_string()))?);
     let units = pino_data::system::units_of(&system)?;
-    // A sampling plan has all three splits (as every pipeline's data); a synthetic dataset may
-    // leave out the test split (the validation fallback of `evaluate`): the plan then holds one
-    // test id that is not written. Ids before it are drawn and split alike either way.
-    if spec.n_test == 0 && spec.n_calibration > 0 {
-        return Err(bad(
-            "a synthetic calibration split needs a test split (its ids follow the test ids)".into(),
-        ));
-    }
-    let sizes = SplitSizes {
-        seed: spec.seed,
-        n_train: spec.n_train,
-        n_validation: spec.n_validation,
-        n_test: spec.n_test.max(1),
-        n_calibration: spec.n_calibration,
-    };
-    let plan = SamplingPlan::new(sizes, &system).map_err(|e| bad(e.to_string()))?;
-    let n = spec.n_train + spec.n_validation + spec.n_test + spec.n_calibration;
-    let draws: Vec<Vec<f64>> = (0..n).map(|id| plan.draw(id)).collect();
+    let (plan, draws) = draw_samples(spec, &system, dir)?;
     let splits: Vec<&str> = (0..draws.len() as u64)
         .map(|id| plan.split(id).as_str())
         .collect();
@@ -268,21 +248,6 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         .iter()
         .map(|d| system.sampled_values(d.as_slice()))
         .collect::<std::result::Result<_, _>>()?;
-    let inputs: Vec<SampleInput> = (0..n)
-        .map(|id| SampleInput {
-            id,
-            params: designs[id as usize].clone(),
-            profiles: generators
-                .iter()
-                .map(|g| {
-                    g.as_ref().map(|g| {
-                        Profile::new(g.positions(), g.profile(id))
-                            .expect("generated profiles are valid")
-                    })
-                })
-                .collect(),
-        })
-        .collect();
     let config = RunConfig {
         duration: spec.duration,
         dt: 1e-4,
@@ -292,54 +257,24 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         startup_ramp_fraction: 0.0,
         x0: spec.x0,
     };
-    let engines = mbd_engine::prepare(&system, &config, inputs)
+    let engines = mbd_engine::prepare(&system, &config, sample_inputs(&generators, &designs))
         .map_err(|(id, e)| bad(format!("sample {id}: {e}")))?;
-    let mut cols = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
-    cols.extend(system.channels.iter().map(|c| c.name.clone()));
     let sim_path = dir.join(pino_data::artifacts::SIMULATION_FILE);
     let layout = Layout::of(&system);
-    let weight_cols = pino_learn::weights::columns(&layout);
-    let weight_idx: Vec<usize> = weight_cols
-        .iter()
-        .map(|c| system.channel(c).expect("a stored channel"))
-        .collect();
-    let cfg = WeightConfig {
-        seed: spec.seed,
-        noise_ratio: spec.noise_ratio,
-        window_start_fraction: 0.0,
+    let simulation = Simulation {
+        system: &system,
+        units: &units,
+        plan: &plan,
+        designs: &designs,
+        layout: &layout,
+        weights: WeightConfig {
+            seed: spec.seed,
+            noise_ratio: spec.noise_ratio,
+            window_start_fraction: 0.0,
+        },
+        record_dt: config.dt * config.output_every as f64,
     };
-    let mut writer: Option<StreamWriter> = None;
-    let mut phi: Vec<(i64, Vec<f64>)> = Vec::new();
-    // 64 samples at a time in parallel, written in id order (one row group per sample).
-    mbd_engine::run_all(&engines, 64, &|| {}, |id, out| -> Result<()> {
-        let tr = out.map_err(|f| bad(format!("sample {id}: {}", f.reason)))?;
-        let mut t = Table::default().with_units(units.clone());
-        t.push(&cols[0], Column::I64(vec![id as i64; tr.t.len()]))?;
-        t.push(&cols[1], Column::F64(tr.t.clone()))?;
-        for (name, col) in cols[2..].iter().zip(&tr.columns) {
-            t.push(name, Column::F64(col.clone()))?;
-        }
-        let w = match &mut writer {
-            Some(w) => w,
-            None => writer.insert(StreamWriter::create(&sim_path, &t)?),
-        };
-        w.write(&t)?;
-        if plan.split(id) == mbd_dataset::Split::Train && !layout.equations.is_empty() {
-            let record: Vec<Vec<f64>> = weight_idx.iter().map(|&c| tr.columns[c].clone()).collect();
-            let p = magnitude_weights(
-                &cfg,
-                &system,
-                &layout,
-                &designs[id as usize],
-                id,
-                &record,
-                config.dt * config.output_every as f64,
-            )?;
-            phi.push((id as i64, p));
-        }
-        Ok(())
-    })?;
-    writer.ok_or_else(|| bad("no samples".into()))?.finish()?;
+    let phi = simulation.run(&engines, &sim_path, dir)?;
     let weights_path = dir.join(pino_data::artifacts::WEIGHTS_FILE);
     write_weights(&weights_path, &units, &layout, &phi)?;
     let settings = pino_learn::checkpoint::DataSettings {
@@ -357,4 +292,130 @@ pub fn write_dataset(spec: &SyntheticSpec, dir: &Path) -> Result<SyntheticFiles>
         weights: weights_path,
         system: dir.join(mbd_system::SYSTEM_FILE),
     })
+}
+
+/// The error of the synthetic dataset in `dir`.
+fn dataset_error(dir: &Path, message: String) -> Error {
+    Error::Dataset {
+        path: dir.to_owned(),
+        message,
+    }
+}
+
+/// The sampling plan of `spec` and the sampled parameters of its samples, by id.
+fn draw_samples(
+    spec: &SyntheticSpec,
+    system: &mbd_system::System,
+    dir: &Path,
+) -> Result<(SamplingPlan, Vec<Vec<f64>>)> {
+    let bad = |message: String| dataset_error(dir, message);
+    // A sampling plan has all three splits (as every pipeline's data); a synthetic dataset may
+    // leave out the test split (the validation fallback of `evaluate`): the plan then holds one
+    // test id that is not written. Ids before it are drawn and split alike either way.
+    if spec.n_test == 0 && spec.n_calibration > 0 {
+        return Err(bad(
+            "a synthetic calibration split needs a test split (its ids follow the test ids)".into(),
+        ));
+    }
+    let sizes = SplitSizes {
+        seed: spec.seed,
+        n_train: spec.n_train,
+        n_validation: spec.n_validation,
+        n_test: spec.n_test.max(1),
+        n_calibration: spec.n_calibration,
+    };
+    let plan = SamplingPlan::new(sizes, system).map_err(|e| bad(e.to_string()))?;
+    let n = spec.n_train + spec.n_validation + spec.n_test + spec.n_calibration;
+    let draws = (0..n).map(|id| plan.draw(id)).collect();
+    Ok((plan, draws))
+}
+
+/// The engines' inputs: sample `id` has design `designs[id]` and each generated profile's
+/// realisation `id`.
+fn sample_inputs(
+    generators: &[Option<mbd_dataset::ProfileGenerator>],
+    designs: &[mbd_system::Sampled],
+) -> Vec<SampleInput> {
+    (0..designs.len() as u64)
+        .map(|id| SampleInput {
+            id,
+            params: designs[id as usize].clone(),
+            profiles: generators
+                .iter()
+                .map(|g| {
+                    g.as_ref().map(|g| {
+                        Profile::new(g.positions(), g.profile(id))
+                            .expect("generated profiles are valid")
+                    })
+                })
+                .collect(),
+        })
+        .collect()
+}
+
+/// What the runs of a synthetic dataset are written and weighed with.
+struct Simulation<'a> {
+    system: &'a Arc<mbd_system::System>,
+    units: &'a Units,
+    plan: &'a SamplingPlan,
+    designs: &'a [mbd_system::Sampled],
+    layout: &'a Layout,
+    weights: WeightConfig,
+    /// The records' time step (s).
+    record_dt: f64,
+}
+
+impl Simulation<'_> {
+    /// Runs `engines` into `simulation.parquet` at `path` and returns the magnitude weights
+    /// phi of the training samples, by id (`dir`: the dataset's, for errors).
+    fn run(
+        &self,
+        engines: &[(u64, mbd_engine::Engine)],
+        path: &Path,
+        dir: &Path,
+    ) -> Result<Vec<(i64, Vec<f64>)>> {
+        let bad = |message: String| dataset_error(dir, message);
+        let system = self.system;
+        let mut cols = vec![schema::SAMPLE_ID.to_owned(), schema::TIME.to_owned()];
+        cols.extend(system.channels.iter().map(|c| c.name.clone()));
+        let weight_idx: Vec<usize> = pino_learn::weights::columns(self.layout)
+            .iter()
+            .map(|c| system.channel(c).expect("a stored channel"))
+            .collect();
+        let mut writer: Option<StreamWriter> = None;
+        let mut phi: Vec<(i64, Vec<f64>)> = Vec::new();
+        // 64 samples at a time in parallel, written in id order (one row group per sample).
+        mbd_engine::run_all(engines, 64, &|| {}, |id, out| -> Result<()> {
+            let tr = out.map_err(|f| bad(format!("sample {id}: {}", f.reason)))?;
+            let mut t = Table::default().with_units(self.units.clone());
+            t.push(&cols[0], Column::I64(vec![id as i64; tr.t.len()]))?;
+            t.push(&cols[1], Column::F64(tr.t.clone()))?;
+            for (name, col) in cols[2..].iter().zip(&tr.columns) {
+                t.push(name, Column::F64(col.clone()))?;
+            }
+            let w = match &mut writer {
+                Some(w) => w,
+                None => writer.insert(StreamWriter::create(path, &t)?),
+            };
+            w.write(&t)?;
+            if self.plan.split(id) == mbd_dataset::Split::Train && !self.layout.equations.is_empty()
+            {
+                let record: Vec<Vec<f64>> =
+                    weight_idx.iter().map(|&c| tr.columns[c].clone()).collect();
+                let p = magnitude_weights(
+                    &self.weights,
+                    system,
+                    self.layout,
+                    &self.designs[id as usize],
+                    id,
+                    &record,
+                    self.record_dt,
+                )?;
+                phi.push((id as i64, p));
+            }
+            Ok(())
+        })?;
+        writer.ok_or_else(|| bad("no samples".into()))?.finish()?;
+        Ok(phi)
+    }
 }

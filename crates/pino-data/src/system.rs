@@ -5,7 +5,8 @@
 //! `params.parquet`, `simulate` beside every dataset shard; the stages after them read that
 //! record instead of the file, so they learn from exactly the description the data came from,
 //! and a stage that reads both refuses a mismatch. [`units_of`] gives the unit of every column
-//! the description defines, for the tables the Parquet writers write.
+//! the description defines but its indices' (which the indices crate declares), for the tables
+//! the Parquet writers write.
 
 use crate::artifacts::{PARAMS_FILE, RANGES_FILE};
 use crate::units::Units;
@@ -141,9 +142,9 @@ pub fn write_sample_params(
 
 /// The unit of every column `system` defines: its sampled parameters (as written in the
 /// description), its stored channels, the magnitude weight `phi_<dof>` of every DOF (N, or
-/// N m for a pitch) and its index columns (the railway family's when it binds them, its own).
-/// A name of the description that the fixed table knows with another unit is
-/// [`Error::UnitConflict`]. Add a writer's own columns with [`Units::with`].
+/// N m for a pitch). A name of the description that the fixed table knows with another unit is
+/// [`Error::UnitConflict`]. Add a writer's own columns with [`Units::with`]; a writer of index
+/// columns adds theirs, which the indices crate declares (`pino_indices::column_units`).
 pub fn units_of(system: &System) -> Result<Units> {
     let mut pairs: Vec<(String, String)> = Vec::new();
     for p in &system.parameters {
@@ -156,9 +157,6 @@ pub fn units_of(system: &System) -> Result<Units> {
     }
     for d in &system.dofs {
         pairs.push((phi_column(&d.name), d.kind.force_unit().to_owned()));
-    }
-    for ix in pino_indices::IndexSet::of(system).columns(system) {
-        pairs.push((ix.name, ix.unit));
     }
     Units::default().with(pairs)
 }

@@ -5,7 +5,8 @@
 //! metadata under [`UNIT_KEY`] (and all of them as one JSON object in the file's key-value
 //! metadata, see [`crate::metadata`]). The writer takes each unit from the table's own
 //! [`Units`] ([`crate::Table::with_units`]; a system's are [`crate::system::units_of`]: its
-//! parameters, channels, magnitude weights and indices), else from the fixed table of keys,
+//! parameters, channels and magnitude weights; a writer of index columns adds theirs, which the
+//! indices crate declares), else from the fixed table of keys,
 //! labels, scores and bookkeeping columns ([`fixed_unit`]). A column neither knows cannot be
 //! written ([`crate::Error::NoUnit`], naming it): adding a bookkeeping column to an artifact
 //! means stating its unit here, a system's column has its unit in the description. There is no

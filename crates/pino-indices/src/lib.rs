@@ -52,7 +52,7 @@ pub mod system;
 
 pub use config::{IndexConfig, IndexParams, Limits, SperlingParams, Taper};
 pub use lateral::{lateral_indices, LateralParams, LateralRecord, LATERAL_COLUMNS};
-pub use system::{IndexSet, LateralColumns, RailwayColumns};
+pub use system::{column_units, IndexSet, LateralColumns, RailwayColumns};
 
 /// Errors of the index computation; each names the field or signal at fault.
 #[derive(Debug, thiserror::Error)]

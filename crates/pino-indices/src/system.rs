@@ -88,6 +88,17 @@ pub struct IndexInfo {
     pub definition: String,
 }
 
+/// The unit of every index column `system` defines (the railway family's when it binds them,
+/// the lateral family's, its own), `(name, unit)` in value order: what a writer of index
+/// columns adds to the units of the system's other columns (`pino_data::system::units_of`).
+pub fn column_units(system: &System) -> Vec<(String, String)> {
+    IndexSet::of(system)
+        .columns(system)
+        .into_iter()
+        .map(|c| (c.name, c.unit))
+        .collect()
+}
+
 /// The indices a description defines.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IndexSet {

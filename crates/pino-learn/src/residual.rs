@@ -558,13 +558,63 @@ pub fn composed_residuals(
     outputs: &ChannelStats,
     dt: f64,
 ) -> Result<Tensor> {
-    let (b, t, _) = u_n.dims3()?;
+    let (b, _, _) = u_n.dims3()?;
     let dev = u_n.device();
-    let (d, p, ne) = (map.dofs, map.point.len(), map.eta.len());
-    let (z, v, a) = derivatives(&u_n.narrow(2, 0, d)?, outputs, dt)?;
+    let state = composed_state(map, u_n, eta, outputs, dt)?;
+    let cols = map.columns();
+    let q = map.equations.len();
+    let hertz = HertzTerms::of(map, samples, b, cols)?;
+    let nl = hertz.nl;
+    let (jl, jn, off) = jacobian_blocks(samples, b, cols, nl, q);
+    let jl = Tensor::from_vec(jl, (b, cols, q), dev)?;
+    let off = Tensor::from_vec(off, (b, 1, q), dev)?;
+    let mut r = state.matmul(&jl)?.broadcast_add(&off)?;
+    if nl > 0 {
+        let dm = Tensor::from_vec(hertz.dmat, (b, cols, nl), dev)?;
+        let inv_g = Tensor::from_vec(hertz.inv_g, (b, 1, nl), dev)?;
+        let defl = state.matmul(&dm)?; // [B, T-2, N]
+        let f = defl.relu()?.broadcast_mul(&inv_g)?.powf(1.5)?;
+        let jn = Tensor::from_vec(jn[..b * nl * q].to_vec(), (b, nl, q), dev)?;
+        r = (r + f.matmul(&jn)?)?;
+    }
+    Ok(r)
+}
+
+/// The state `[B, T-2, C]` (f64, physical units, contiguous) the residual's Jacobian reads:
+/// the DOFs' values, first and second differences, the points' deflections and rates, the
+/// excitations and their rates (zeros for a point or excitation not predicted or stored).
+fn composed_state(
+    map: &ChannelMap,
+    u_n: &Tensor,
+    eta: &Tensor,
+    outputs: &ChannelStats,
+    dt: f64,
+) -> Result<Tensor> {
+    let (b, t, _) = u_n.dims3()?;
+    let (z, v, a) = derivatives(&u_n.narrow(2, 0, map.dofs)?, outputs, dt)?;
     let mut parts = vec![z, v, a];
-    // Point deflections and rates (zeros where not predicted).
-    let zeros = Tensor::zeros((b, t - 2, 1), DType::F64, dev)?;
+    let zeros = Tensor::zeros((b, t - 2, 1), DType::F64, u_n.device())?;
+    let (w, w_rate) = point_parts(map, u_n, outputs, dt, &zeros)?;
+    let (e, e_rate) = excitation_parts(map, eta, t, dt, &zeros)?;
+    parts.extend(w);
+    parts.extend(w_rate);
+    parts.extend(e);
+    parts.extend(e_rate);
+    // [B, T-2, C]. Contiguous: `cat` along the last axis of strided parts (the narrowed
+    // excitations) leaves a permuted layout, which the CPU's matmul reads but cuBLAS refuses
+    // ("matmul is only supported for contiguous tensors"; found by the CUDA parity test).
+    Ok(Tensor::cat(&parts, 2)?.contiguous()?)
+}
+
+/// Point deflections and rates at interior points (physical; `zeros` where not predicted).
+fn point_parts(
+    map: &ChannelMap,
+    u_n: &Tensor,
+    outputs: &ChannelStats,
+    dt: f64,
+    zeros: &Tensor,
+) -> Result<(Vec<Tensor>, Vec<Tensor>)> {
+    let p = map.point.len();
     let mut w = Vec::with_capacity(p);
     let mut w_rate = Vec::with_capacity(p);
     for ch in &map.point {
@@ -585,8 +635,20 @@ pub fn composed_residuals(
             }
         }
     }
-    // Excitations (physical) and their rates at interior points.
+    Ok((w, w_rate))
+}
+
+/// Excitations (physical) and their rates at the interior points of `t`: the stored rate column when
+/// the map has one, else the central difference (`zeros` where not stored).
+fn excitation_parts(
+    map: &ChannelMap,
+    eta: &Tensor,
+    t: usize,
+    dt: f64,
+    zeros: &Tensor,
+) -> Result<(Vec<Tensor>, Vec<Tensor>)> {
     let eta = eta.to_dtype(DType::F64)?;
+    let ne = map.eta.len();
     let mut e = Vec::with_capacity(ne);
     let mut e_rate = Vec::with_capacity(ne);
     for (ch, rate) in map.eta.iter().zip(&map.eta_rate) {
@@ -608,42 +670,70 @@ pub fn composed_residuals(
             }
         }
     }
-    parts.extend(w);
-    parts.extend(w_rate);
-    parts.extend(e);
-    parts.extend(e_rate);
-    // [B, T-2, C]. Contiguous: `cat` along the last axis of strided parts (the narrowed
-    // excitations) leaves a permuted layout, which the CPU's matmul reads but cuBLAS refuses
-    // ("matmul is only supported for contiguous tensors"; found by the CUDA parity test).
-    let state = Tensor::cat(&parts, 2)?.contiguous()?;
-    let cols = map.columns();
-    let q = map.equations.len();
-    // Nonlinear elements: Hertz of the deflection terms (same elements in every sample).
-    let nl = samples.first().map_or(0, |s| s.eq.nonlinear().len());
-    let mut dmat = vec![0.0; b * cols * nl];
-    let mut inv_g = vec![0.0; b * nl];
-    for (k, s) in samples.iter().enumerate() {
-        for (j, &el) in s.eq.nonlinear().iter().enumerate() {
-            match s.eq.law(el) {
-                ModelLaw::Hertz { g, exponent } if *exponent == 1.5 => inv_g[k * nl + j] = 1.0 / g,
-                _ => {
-                    return Err(Error::OutOfRange {
-                        field: "device".into(),
-                        value: "cuda".into(),
-                        allowed: "\"cpu\" for descriptions with tabulated elements or a Hertz exponent other than 3/2 (the composed residual has Hertz 3/2 only)".into(),
-                    })
+    Ok((e, e_rate))
+}
+
+/// The nonlinear elements' part of the composed residual for `B` samples (row-major over
+/// samples): each one's deflection matrix `D [cols, nl]` (`d = D state`) and `1 / G` of each
+/// Hertz element (the same elements in every sample).
+struct HertzTerms {
+    /// Number of nonlinear elements.
+    nl: usize,
+    /// `[B, cols, nl]`.
+    dmat: Vec<f64>,
+    /// `[B, 1, nl]`.
+    inv_g: Vec<f64>,
+}
+
+impl HertzTerms {
+    /// The terms of `samples`; an element other than Hertz 3/2 is refused (the fused CPU op
+    /// has them).
+    fn of(
+        map: &ChannelMap,
+        samples: &[std::sync::Arc<SampleEquations>],
+        b: usize,
+        cols: usize,
+    ) -> Result<Self> {
+        let (d, p) = (map.dofs, map.point.len());
+        let nl = samples.first().map_or(0, |s| s.eq.nonlinear().len());
+        let mut dmat = vec![0.0; b * cols * nl];
+        let mut inv_g = vec![0.0; b * nl];
+        for (k, s) in samples.iter().enumerate() {
+            for (j, &el) in s.eq.nonlinear().iter().enumerate() {
+                match s.eq.law(el) {
+                    ModelLaw::Hertz { g, exponent } if *exponent == 1.5 => inv_g[k * nl + j] = 1.0 / g,
+                    _ => {
+                        return Err(Error::OutOfRange {
+                            field: "device".into(),
+                            value: "cuda".into(),
+                            allowed: "\"cpu\" for descriptions with tabulated elements or a Hertz exponent other than 3/2 (the composed residual has Hertz 3/2 only)".into(),
+                        })
+                    }
+                }
+                for (entry, coef) in s.eq.deflection_terms(el) {
+                    let col = match entry {
+                        StateEntry::Dof(i) => i,
+                        StateEntry::Point(pt) => 3 * d + pt,
+                        StateEntry::Eta(x) => 3 * d + 2 * p + x,
+                    };
+                    dmat[(k * cols + col) * nl + j] += coef;
                 }
             }
-            for (entry, coef) in s.eq.deflection_terms(el) {
-                let col = match entry {
-                    StateEntry::Dof(i) => i,
-                    StateEntry::Point(pt) => 3 * d + pt,
-                    StateEntry::Eta(x) => 3 * d + 2 * p + x,
-                };
-                dmat[(k * cols + col) * nl + j] += coef;
-            }
         }
+        Ok(Self { nl, dmat, inv_g })
     }
+}
+
+/// The Jacobians of `B` samples as the composed residual multiplies them, row-major over samples:
+/// the linear block `[B, cols, q]`, the nonlinear forces' block `[B, max(nl, 1), q]` and the
+/// offsets `[B, 1, q]`.
+fn jacobian_blocks(
+    samples: &[std::sync::Arc<SampleEquations>],
+    b: usize,
+    cols: usize,
+    nl: usize,
+    q: usize,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let mut jl = vec![0.0; b * cols * q];
     let mut jn = vec![0.0; b * nl.max(1) * q];
     let mut off = vec![0.0; b * q];
@@ -658,18 +748,7 @@ pub fn composed_residuals(
             off[k * q + i] = s.offset[i];
         }
     }
-    let jl = Tensor::from_vec(jl, (b, cols, q), dev)?;
-    let off = Tensor::from_vec(off, (b, 1, q), dev)?;
-    let mut r = state.matmul(&jl)?.broadcast_add(&off)?;
-    if nl > 0 {
-        let dm = Tensor::from_vec(dmat, (b, cols, nl), dev)?;
-        let inv_g = Tensor::from_vec(inv_g, (b, 1, nl), dev)?;
-        let defl = state.matmul(&dm)?; // [B, T-2, N]
-        let f = defl.relu()?.broadcast_mul(&inv_g)?.powf(1.5)?;
-        let jn = Tensor::from_vec(jn[..b * nl * q].to_vec(), (b, nl, q), dev)?;
-        r = (r + f.matmul(&jn)?)?;
-    }
-    Ok(r)
+    (jl, jn, off)
 }
 
 #[cfg(test)]

@@ -273,9 +273,11 @@ impl Predictor {
     }
 
     /// The units of the columns of the model's system (parameters, channels, indices), which
-    /// the tables of its answers carry ([`pino_data::system::units_of`]).
+    /// the tables of its answers carry ([`pino_data::system::units_of`] and
+    /// [`pino_indices::column_units`]).
     pub fn units(&self) -> Result<pino_data::units::Units> {
-        Ok(pino_data::system::units_of(&self.system)?)
+        let units = pino_data::system::units_of(&self.system)?;
+        Ok(units.with(pino_indices::column_units(&self.system))?)
     }
 
     /// The run controls of the model's data (`x0` replaced when given), or an error when the
