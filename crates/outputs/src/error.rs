@@ -19,6 +19,18 @@ pub enum Error {
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, Error>;
 
+impl Error {
+    /// A file or directory whose content is not what it must be: `message` says what, `path`
+    /// names it.
+    pub fn format(path: &std::path::Path, message: String) -> Self {
+        pino_learn::Error::Format {
+            path: path.to_owned(),
+            message,
+        }
+        .into()
+    }
+}
+
 /// The data layer's errors, as the engine reports them.
 impl From<pino_data::Error> for Error {
     fn from(e: pino_data::Error) -> Self {

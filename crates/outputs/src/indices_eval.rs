@@ -931,9 +931,44 @@ pub fn alg_label(meta: &ModelMeta) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use learn_fixtures::synthetic::{write_dataset, SyntheticSpec};
+    use learn_fixtures::synthetic::{write_dataset, SyntheticFiles, SyntheticSpec};
     use pino_learn::config::TrainParams;
     use pino_learn::train::model_meta;
+
+    /// A synthetic dataset's test split, normalised by a model's statistics (no training), with
+    /// the index inputs of `system` (checked computable) and the solver's stored columns they
+    /// read.
+    struct TestSplit {
+        layout: Layout,
+        meta: ModelMeta,
+        items: Prepared,
+        idx: Vec<usize>,
+        inputs: IndexInputs,
+        stored: StoredColumns,
+    }
+
+    fn test_split(files: &SyntheticFiles, system: &System, epochs: i64) -> TestSplit {
+        let layout = Layout::of(system);
+        let (m, t, w) = TrainParams::small(epochs).configs(&layout).unwrap();
+        let ds = files.load(&w, false).unwrap();
+        let meta = model_meta(&ds, m, t, w).unwrap();
+        let (_, items) = files.load_split(&w, Split::Test, &meta.norm).unwrap();
+        let idx: Vec<usize> = (0..items.len()).collect();
+        let inputs = IndexInputs::of(system, &layout).unwrap();
+        assert!(inputs.computable(), "{}", inputs.why_not());
+        let ids = idx.iter().map(|&i| items.id(i)).collect();
+        let stored =
+            StoredColumns::read(std::slice::from_ref(&files.simulation), &inputs, &ids, &w)
+                .unwrap();
+        TestSplit {
+            layout,
+            meta,
+            items,
+            idx,
+            inputs,
+            stored,
+        }
+    }
 
     #[test]
     fn forces_offset_by_5_kn_move_the_peak_force_by_5_kn_and_files_are_written() {
@@ -947,20 +982,16 @@ mod tests {
         };
         let files = write_dataset(&spec, dir.path()).unwrap();
         let system = learn_fixtures::synthetic::vehicle_track_system();
-        let layout = Layout::of(&system);
-        let (m, t, w) = TrainParams::small(4).configs(&layout).unwrap();
-        let ds = files.load(&w, false).unwrap();
-        let meta = model_meta(&ds, m, t, w).unwrap();
-        let (_, items) = files.load_split(&w, Split::Test, &meta.norm).unwrap();
-        let idx: Vec<usize> = (0..items.len()).collect();
-        let inputs = IndexInputs::of(&system, &layout).unwrap();
-        assert!(inputs.computable(), "{}", inputs.why_not());
+        let TestSplit {
+            layout,
+            meta,
+            items,
+            idx,
+            inputs,
+            stored,
+        } = test_split(&files, &system, 4);
         // The railway family reads predicted forces and rails, and DOF accelerations.
         assert!(inputs.stored_columns().is_empty());
-        let ids = idx.iter().map(|&i| items.id(i)).collect();
-        let stored =
-            StoredColumns::read(std::slice::from_ref(&files.simulation), &inputs, &ids, &w)
-                .unwrap();
         let truth = truth_indices(&system, &inputs, &items, &idx, &stored, &meta).unwrap();
         let col = |name: &str| {
             inputs
@@ -1087,19 +1118,15 @@ mod tests {
         let files = write_dataset(&spec, dir.path()).unwrap();
         let info = files.info().unwrap();
         let system = info.system.clone();
-        let layout = Layout::of(&system);
-        let (m, t, w) = TrainParams::small(1).configs(&layout).unwrap();
-        let ds = files.load(&w, false).unwrap();
-        let meta = model_meta(&ds, m, t, w).unwrap();
-        let (_, items) = files.load_split(&w, Split::Test, &meta.norm).unwrap();
-        let idx: Vec<usize> = (0..items.len()).collect();
-        let inputs = IndexInputs::of(&system, &layout).unwrap();
-        assert!(inputs.computable(), "{}", inputs.why_not());
+        let TestSplit {
+            meta,
+            items,
+            idx,
+            inputs,
+            stored,
+            ..
+        } = test_split(&files, &system, 1);
         assert_eq!(inputs.stored_columns(), ["d_suspension"]);
-        let ids = idx.iter().map(|&i| items.id(i)).collect();
-        let stored =
-            StoredColumns::read(std::slice::from_ref(&files.simulation), &inputs, &ids, &w)
-                .unwrap();
         let truth = truth_indices(&system, &inputs, &items, &idx, &stored, &meta).unwrap();
         let travel = inputs
             .columns()

@@ -142,39 +142,42 @@ pub fn sample_equations(
     Ok(Equations::new(model, dofs))
 }
 
-/// Physical state of one sample at one interior point, in the residual's slices.
+/// Physical state of one sample at one time point, in the residual's slices (here at an
+/// interior point of a prediction; in [`crate::weights`] at a point of a noised record).
 #[derive(Debug, Clone)]
-struct State {
-    z: Vec<f64>,
-    v: Vec<f64>,
-    a: Vec<f64>,
-    w: Vec<f64>,
-    w_rate: Vec<f64>,
-    eta: Vec<f64>,
-    eta_rate: Vec<f64>,
+pub(crate) struct State {
+    pub(crate) z: Vec<f64>,
+    pub(crate) v: Vec<f64>,
+    pub(crate) a: Vec<f64>,
+    pub(crate) point_w: Vec<f64>,
+    pub(crate) point_rate: Vec<f64>,
+    pub(crate) eta: Vec<f64>,
+    pub(crate) eta_rate: Vec<f64>,
 }
 
 impl State {
-    fn new(map: &ChannelMap) -> Self {
+    /// Zeroed buffers sized for `map`.
+    pub(crate) fn new(map: &ChannelMap) -> Self {
         let (d, p, e) = (map.dofs, map.point.len(), map.eta.len());
         Self {
             z: vec![0.0; d],
             v: vec![0.0; d],
             a: vec![0.0; d],
-            w: vec![0.0; p],
-            w_rate: vec![0.0; p],
+            point_w: vec![0.0; p],
+            point_rate: vec![0.0; p],
             eta: vec![0.0; e],
             eta_rate: vec![0.0; e],
         }
     }
 
-    fn view(&self) -> EquationState<'_> {
+    /// The state as the equations read it.
+    pub(crate) fn view(&self) -> EquationState<'_> {
         EquationState {
             z: &self.z,
             v: &self.v,
             a: &self.a,
-            point_w: &self.w,
-            point_rate: &self.w_rate,
+            point_w: &self.point_w,
+            point_rate: &self.point_rate,
             eta: &self.eta,
             eta_rate: &self.eta_rate,
         }
@@ -187,8 +190,8 @@ impl State {
             c if c < d => self.z[c] = value,
             c if c < 2 * d => self.v[c - d] = value,
             c if c < 3 * d => self.a[c - 2 * d] = value,
-            c if c < 3 * d + p => self.w[c - 3 * d] = value,
-            c if c < 3 * d + 2 * p => self.w_rate[c - 3 * d - p] = value,
+            c if c < 3 * d + p => self.point_w[c - 3 * d] = value,
+            c if c < 3 * d + 2 * p => self.point_rate[c - 3 * d - p] = value,
             c if c < 3 * d + 2 * p + map.eta.len() => self.eta[c - 3 * d - 2 * p] = value,
             c => self.eta_rate[c - 3 * d - 2 * p - map.eta.len()] = value,
         }
@@ -358,8 +361,8 @@ impl OdeLoss {
         }
         for (p, ch) in self.map.point.iter().enumerate() {
             if let Some(ch) = *ch {
-                s.w[p] = at(n, ch) * self.std[ch] + self.mean[ch];
-                s.w_rate[p] = (at(n + 1, ch) - at(n - 1, ch)) / (2.0 * dt) * self.std[ch];
+                s.point_w[p] = at(n, ch) * self.std[ch] + self.mean[ch];
+                s.point_rate[p] = (at(n + 1, ch) - at(n - 1, ch)) / (2.0 * dt) * self.std[ch];
             }
         }
         let e = self.n_eta;

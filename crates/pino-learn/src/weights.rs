@@ -20,10 +20,10 @@
 //! order over the window. Every signal consumes its normals even when its std is 0.
 
 use crate::layout::Layout;
-use crate::residual::ChannelMap;
+use crate::residual::{ChannelMap, State};
 use crate::{Error, Result};
 use mbd_dataset::{Purpose, SampleStream};
-use mbd_engine::residual::{EquationState, Equations};
+use mbd_engine::residual::Equations;
 use mbd_system::{Sampled, System};
 use pino_data::records::{for_each_record, ParamsTable, Record};
 use pino_data::{schema, Column, Table};
@@ -127,7 +127,7 @@ pub fn magnitude_weights(
     })?;
     let map = ChannelMap::new(system, layout);
     let eq = Equations::new(model, map.equations.clone());
-    let mut state = StateAt::new(&map);
+    let mut state = State::new(&map);
     let mut scratch = eq.scratch();
     let mut r = vec![0.0; map.equations.len()];
     let mut max = vec![0.0f64; map.equations.len()];
@@ -168,33 +168,7 @@ fn noised_window(
         .collect()
 }
 
-/// The equations' state at one time point of the window, gathered from the noised signals
-/// and the excitations.
-struct StateAt {
-    z: Vec<f64>,
-    v: Vec<f64>,
-    a: Vec<f64>,
-    point_w: Vec<f64>,
-    point_rate: Vec<f64>,
-    eta: Vec<f64>,
-    eta_rate: Vec<f64>,
-}
-
-impl StateAt {
-    /// Zeroed buffers sized for `map`.
-    fn new(map: &ChannelMap) -> Self {
-        let (d, n_p, n_el) = (map.dofs, map.point.len(), map.eta.len());
-        StateAt {
-            z: vec![0.0; d],
-            v: vec![0.0; d],
-            a: vec![0.0; d],
-            point_w: vec![0.0; n_p],
-            point_rate: vec![0.0; n_p],
-            eta: vec![0.0; n_el],
-            eta_rate: vec![0.0; n_el],
-        }
-    }
-
+impl State {
     /// The state at `t`: the DOFs' displacements, velocities and accelerations, the
     /// deflections under moving points with their rates, the profiles with theirs.
     fn gather(
@@ -225,19 +199,6 @@ impl StateAt {
                     None => rate(eta_cols[j], t, dt),
                 };
             }
-        }
-    }
-
-    /// The state as the equations read it.
-    fn view(&self) -> EquationState<'_> {
-        EquationState {
-            z: &self.z,
-            v: &self.v,
-            a: &self.a,
-            point_w: &self.point_w,
-            point_rate: &self.point_rate,
-            eta: &self.eta,
-            eta_rate: &self.eta_rate,
         }
     }
 }

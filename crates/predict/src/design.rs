@@ -1,7 +1,7 @@
 //! The design parameters of a model's system ([`DesignSpace`]): names, nominal values,
 //! designs parsed from YAML and `name=value` overrides, each value checked by name.
 
-use super::fmt_err;
+use crate::Error;
 use crate::Result;
 use mbd_system::model::FieldError;
 use mbd_system::System;
@@ -63,7 +63,7 @@ impl DesignSpace {
                 self.system.name
             )
         };
-        Err(fmt_err(
+        Err(Error::format(
             origin,
             format!("{why}; allowed: {}", self.names.join(", ")),
         ))
@@ -80,7 +80,7 @@ impl DesignSpace {
     ) -> Result<()> {
         let k = self.index(name, origin)?;
         if !value.is_finite() {
-            return Err(fmt_err(
+            return Err(Error::format(
                 origin,
                 format!("parameter `{name}` = {value} must be finite"),
             ));
@@ -201,7 +201,7 @@ impl DesignSpace {
             }
             .into();
         }
-        fmt_err(Path::new(label), why.to_owned())
+        Error::format(Path::new(label), why.to_owned())
     }
 
     /// Parses designs from YAML text (`origin` names the file in errors).
@@ -213,7 +213,7 @@ impl DesignSpace {
             Sets { sets: Vec<BTreeMap<String, f64>> },
         }
         let doc: Doc = serde_yaml::from_str(text).map_err(|e| {
-            fmt_err(
+            Error::format(
                 origin,
                 format!("expected a list of parameter maps or `sets: [...]` with numbers: {e}"),
             )
@@ -222,7 +222,7 @@ impl DesignSpace {
             Doc::List(l) | Doc::Sets { sets: l } => l,
         };
         if maps.is_empty() {
-            return Err(fmt_err(origin, "no parameter set given".into()));
+            return Err(Error::format(origin, "no parameter set given".into()));
         }
         maps.iter()
             .map(|m| {
@@ -240,11 +240,10 @@ impl DesignSpace {
         let origin = Path::new("--set");
         let (name, value) = assignment
             .split_once('=')
-            .ok_or_else(|| fmt_err(origin, format!("`{assignment}`: expected name=value")))?;
-        let value: f64 = value
-            .trim()
-            .parse()
-            .map_err(|_| fmt_err(origin, format!("`{assignment}`: `{value}` is not a number")))?;
+            .ok_or_else(|| Error::format(origin, format!("`{assignment}`: expected name=value")))?;
+        let value: f64 = value.trim().parse().map_err(|_| {
+            Error::format(origin, format!("`{assignment}`: `{value}` is not a number"))
+        })?;
         for s in sets.iter_mut() {
             self.set(s, name.trim(), value, origin)?;
         }

@@ -21,7 +21,7 @@
 //! description's engineering indices ([`Predictor::indices`], as `evaluate` rebuilds them from
 //! a prediction). Designs outside the model's training ranges
 //! ([`pino_learn::checkpoint::TrainingRanges`]) are reported by [`Predictor::outside_training`]
-//! and flagged on every row of their histories ([`Predictor::histories_flagged`]).
+//! and flagged on every row of their histories ([`Predictor::flag_rows`]).
 //!
 //! Modules: the designs ([`DesignSpace`]), their profiles ([`profiles`]) and sweeps
 //! ([`parse_sweep`]) live in private modules re-exported here; [`solve`] runs a design through
@@ -66,14 +66,6 @@ use pino_outputs::physical::{to_physical, Physical};
 pub use pino_outputs::{Error, Result};
 use std::path::Path;
 use std::sync::Arc;
-
-pub(crate) fn fmt_err(path: &Path, message: String) -> crate::Error {
-    LearnError::Format {
-        path: path.to_owned(),
-        message,
-    }
-    .into()
-}
 
 /// A trained model loaded for prediction.
 pub struct Predictor {
@@ -120,7 +112,7 @@ impl Predictor {
         let meta_path = model_dir.join(pino_learn::checkpoint::MODEL_META);
         let system = Arc::new(meta.compile_system(&meta_path)?);
         if !meta.layout.follows(&system) {
-            return Err(fmt_err(
+            return Err(Error::format(
                 &meta_path,
                 "the stored layout does not follow from the stored system description (an edited model.json?)".into(),
             ));
@@ -132,7 +124,7 @@ impl Predictor {
             .map(
                 |name| match system.channel(name).map(|c| system.channels[c].quantity) {
                     Some(q @ (Quantity::Excitation(_) | Quantity::ExcitationRate(_))) => Ok(q),
-                    _ => Err(fmt_err(
+                    _ => Err(Error::format(
                         &meta_path,
                         format!("`{name}` is not an excitation of the system"),
                     )),
@@ -189,7 +181,7 @@ impl Predictor {
                 .collect();
             let computable = self.indices.computable();
             if (computable && indices != cal_indices) || chans != cal_chans {
-                return Err(fmt_err(
+                return Err(Error::format(
                     path,
                     format!(
                         "the calibration's quantities (indices {}; channels {}) are not the model's (indices {}; channels {})",
@@ -284,7 +276,7 @@ impl Predictor {
     /// dataset recorded none.
     pub fn run_config(&self, x0: Option<f64>) -> Result<RunConfig> {
         let data = self.meta.data.as_ref().ok_or_else(|| {
-            fmt_err(
+            Error::format(
                 Path::new(pino_data::artifacts::MODEL_META),
                 "the model's dataset records no run controls (run.json of `simulate`): retrain on a dataset that has them".into(),
             )
@@ -313,7 +305,7 @@ impl Predictor {
         }
         let settings = self.meta.data.as_ref().and_then(|d| d.profiles.as_ref());
         let settings = settings.ok_or_else(|| {
-            fmt_err(
+            Error::format(
                 Path::new(pino_data::artifacts::MODEL_META),
                 "the model's dataset records no profile settings (run.json): retrain on a dataset that has them".into(),
             )
@@ -565,22 +557,6 @@ impl Predictor {
         Ok(table)
     }
 
-    /// [`Predictor::histories`] with the column [`OUTSIDE_COLUMN`] last: on each row, the
-    /// [`outside_flag`] of its design ([`Predictor::outside_training`]; null inside). The
-    /// table of `predict --out` and of the Python package's `Model.predict`.
-    pub fn histories_flagged(
-        &self,
-        sets: &[Vec<f64>],
-        profiles: &ProfileSource<'_>,
-        run: &RunConfig,
-        batch: usize,
-        coverage: Option<f64>,
-    ) -> Result<Table> {
-        let mut table = self.histories(sets, profiles, run, batch, coverage)?;
-        self.flag_rows(&mut table, sets)?;
-        Ok(table)
-    }
-
     /// Appends the column [`OUTSIDE_COLUMN`] to the histories `table` of `sets` (the same
     /// number of rows per design): on each row, the [`outside_flag`] of its design, null inside
     /// the training ranges.
@@ -613,7 +589,7 @@ impl Predictor {
         if self.indices.computable() {
             return Ok(());
         }
-        Err(fmt_err(
+        Err(Error::format(
             Path::new("--indices"),
             format!(
                 "the system `{}` has no index this model can compute: {}",

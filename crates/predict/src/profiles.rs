@@ -1,7 +1,7 @@
 //! The profile points under the system for a prediction: read from a profile file (the
 //! `irregularity` artifact) or generated as `irregularity` generates them.
 
-use super::fmt_err;
+use crate::Error;
 use crate::Result;
 use mbd_engine::Profile;
 use mbd_system::System;
@@ -43,7 +43,7 @@ pub fn profiles(
     }
     let flag = Path::new(PROFILE_FLAGS);
     match choice {
-        None => Err(fmt_err(
+        None => Err(Error::format(
             flag,
             format!(
                 "the system `{}` has generated profile(s) {}: give their points (--profile FILE) or a seed to generate them (--seed N)",
@@ -53,7 +53,7 @@ pub fn profiles(
         )),
         Some(ProfileChoice::Generated { seed, id }) => {
             let base = settings.ok_or_else(|| {
-                fmt_err(
+                Error::format(
                     flag,
                     "the model's dataset records no profile settings (run.json): give --profile FILE".into(),
                 )
@@ -95,7 +95,7 @@ impl GeneratedProfiles {
     ) -> Result<Self> {
         let params = mbd_dataset::ProfileParams { seed, ..*settings };
         let generators = mbd_dataset::profile_generators(system, &params)
-            .map_err(|e| fmt_err(Path::new(what), e.to_string()))?;
+            .map_err(|e| Error::format(Path::new(what), e.to_string()))?;
         Ok(Self {
             generators,
             what: what.to_owned(),
@@ -110,7 +110,7 @@ impl GeneratedProfiles {
                 g.as_ref()
                     .map(|g| Profile::new(g.positions(), g.profile(id)))
                     .transpose()
-                    .map_err(|e| fmt_err(Path::new(&self.what), e.to_string()))
+                    .map_err(|e| Error::format(Path::new(&self.what), e.to_string()))
             })
             .collect()
     }
@@ -205,7 +205,7 @@ fn profiles_of_rows(
     let eta = t.f64(schema::TRACK_ETA)?;
     let names = t.str(PROFILE_COLUMN).ok();
     if names.is_none() && generated.len() > 1 {
-        return Err(fmt_err(
+        return Err(Error::format(
             path,
             format!(
                 "no `{PROFILE_COLUMN}` column, but the system `{}` has {} generated profiles ({}): label the rows by profile",
@@ -231,7 +231,7 @@ fn profiles_of_rows(
                 let which = id.map_or("in the table".to_owned(), |id| {
                     format!("for sample_id {id}")
                 });
-                return Err(fmt_err(
+                return Err(Error::format(
                     path,
                     format!("no rows of profile `{}` {which}", p.name()),
                 ));
@@ -241,7 +241,7 @@ fn profiles_of_rows(
                 rows.iter().map(|&r| eta[r]).collect(),
             )
             .map(Some)
-            .map_err(|e| fmt_err(path, format!("profile `{}`: {e}", p.name())))
+            .map_err(|e| Error::format(path, format!("profile `{}`: {e}", p.name())))
         })
         .collect()
 }

@@ -1,7 +1,7 @@
 //! Sweeps of designs (`predict --sweep FILE`): a grid or a seeded random sample over ranges.
 
-use super::fmt_err;
 use super::DesignSpace;
+use crate::Error;
 use crate::Result;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -45,7 +45,7 @@ pub const MAX_SWEEP: usize = 10_000_000;
 /// file).
 pub fn parse_sweep(space: &DesignSpace, text: &str, origin: &Path) -> Result<Vec<Vec<f64>>> {
     let doc: SweepDoc = serde_yaml::from_str(text).map_err(|e| {
-        fmt_err(
+        Error::format(
             origin,
             format!("expected `base:` and one of `grid:` or `random:`: {e}"),
         )
@@ -60,7 +60,7 @@ pub fn parse_sweep(space: &DesignSpace, text: &str, origin: &Path) -> Result<Vec
             grid_sets(space, &base, &axes, origin)
         }
         (None, Some(r)) => random_sets(space, &base, &r, origin),
-        _ => Err(fmt_err(
+        _ => Err(Error::format(
             origin,
             "give exactly one of `grid:` or `random:`".into(),
         )),
@@ -77,10 +77,10 @@ fn grid_axes(
     for (k, v) in grid {
         let name = k
             .as_str()
-            .ok_or_else(|| fmt_err(origin, format!("grid: key {k:?} is not a name")))?
+            .ok_or_else(|| Error::format(origin, format!("grid: key {k:?} is not a name")))?
             .to_owned();
         let axis: Axis = serde_yaml::from_value(v).map_err(|e| {
-            fmt_err(
+            Error::format(
                 origin,
                 format!("grid.{name}: a list of values or {{from, to, steps}}: {e}"),
             )
@@ -89,7 +89,7 @@ fn grid_axes(
             Axis::Values(v) => v,
             Axis::Range { from, to, steps } => {
                 if steps < 1 {
-                    return Err(fmt_err(
+                    return Err(Error::format(
                         origin,
                         format!("grid.{name}.steps = 0: at least 1"),
                     ));
@@ -104,7 +104,7 @@ fn grid_axes(
             }
         };
         if values.is_empty() {
-            return Err(fmt_err(origin, format!("grid.{name}: no values")));
+            return Err(Error::format(origin, format!("grid.{name}: no values")));
         }
         axes.push((space.index(&name, origin)?, values));
     }
@@ -122,7 +122,7 @@ fn grid_sets(
         .iter()
         .try_fold(1usize, |n, (_, v)| n.checked_mul(v.len()))
         .filter(|&n| n <= MAX_SWEEP)
-        .ok_or_else(|| fmt_err(origin, format!("grid: more than {MAX_SWEEP} designs")))?;
+        .ok_or_else(|| Error::format(origin, format!("grid: more than {MAX_SWEEP} designs")))?;
     let mut sets = Vec::with_capacity(total);
     for i in 0..total {
         let mut p = base.to_vec();
@@ -131,7 +131,7 @@ fn grid_sets(
             let v = values[rest % values.len()];
             rest /= values.len();
             if !v.is_finite() {
-                return Err(fmt_err(
+                return Err(Error::format(
                     origin,
                     format!("grid.{}: {v} must be finite", space.names()[*k]),
                 ));
@@ -152,7 +152,7 @@ fn random_sets(
     origin: &Path,
 ) -> Result<Vec<Vec<f64>>> {
     if r.count == 0 || r.count > MAX_SWEEP {
-        return Err(fmt_err(
+        return Err(Error::format(
             origin,
             format!("random.count = {}: allowed 1 ..= {MAX_SWEEP}", r.count),
         ));
@@ -161,7 +161,7 @@ fn random_sets(
     for (name, range) in &r.ranges {
         let [lo, hi] = *range;
         if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
-            return Err(fmt_err(
+            return Err(Error::format(
                 origin,
                 format!("random.ranges.{name} = [{lo}, {hi}]: finite, lo <= hi"),
             ));

@@ -7,10 +7,10 @@
 //! relative L2 error over its curve; where some candidate has none defined (every exact value
 //! zero), the mean absolute error. Ties go to the earlier candidate.
 
-use super::fmt_err;
 use super::manifest::{
     file_blake3, Candidate, Manifest, Member, Route, MEMBER_FILES, SURROGATE_FORMAT,
 };
+use crate::Error;
 use crate::Result;
 use pino_calibration::scored::band_channels;
 use pino_calibration::{Calibration, ModelIdentity, QuantityScores, ValidationError};
@@ -117,7 +117,7 @@ fn load_candidates(candidates: &[PathBuf], calibrations: &Path) -> Result<Vec<Lo
                     source: e,
                 }
             })?)
-            .map_err(|e| fmt_err(&meta_path, e.to_string()))?;
+            .map_err(|e| Error::format(&meta_path, e.to_string()))?;
         let calibration_file = Calibration::find(calibrations, &identity)?;
         let calibration = Calibration::load(&calibration_file, &identity)?;
         if let Some(q) = calibration
@@ -126,7 +126,7 @@ fn load_candidates(candidates: &[PathBuf], calibrations: &Path) -> Result<Vec<Lo
             .chain(calibration.channels.iter().map(|c| &c.quantity))
             .find(|q| q.validation.is_none())
         {
-            return Err(fmt_err(
+            return Err(Error::format(
                 &calibration_file,
                 format!(
                     "the calibration of `{}` records no validation error of `{}` (written by an older `calibrate`): calibrate it again",
@@ -145,7 +145,7 @@ fn load_candidates(candidates: &[PathBuf], calibrations: &Path) -> Result<Vec<Lo
             )?;
         }
         if let Some(prev) = loaded.iter().find(|c| c.identity.blake3 == identity.blake3) {
-            return Err(fmt_err(
+            return Err(Error::format(
                 dir,
                 format!(
                     "the same model as candidate {} (`{}`): give each model once",
@@ -207,7 +207,7 @@ fn same_design(
         None
     };
     match why {
-        Some(why) => Err(fmt_err(
+        Some(why) => Err(Error::format(
             file,
             format!(
                 "candidate model {} (`{}`): {why}",
@@ -332,7 +332,7 @@ fn route_channels(loaded: &[Loaded]) -> Result<Vec<Route>> {
                 .filter_map(|(c, m)| Some((c.name.as_str(), scored(m.get(name)?)?)))
                 .collect();
             if options.is_empty() {
-                return Err(fmt_err(
+                return Err(Error::format(
                     &loaded[0].calibration_file,
                     format!("channel `{name}` has no calibrated band in any candidate"),
                 ));

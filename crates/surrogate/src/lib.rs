@@ -32,20 +32,11 @@ use pino_calibration::CalibratedAnswer;
 use pino_conformal::Verdict;
 use pino_data::{Column, Table};
 use pino_indices::IndexConfig;
-use pino_learn::Error as LearnError;
 use pino_outputs::channels::{prediction_channels, ChannelSource};
 use pino_outputs::indices_eval::SampleIndices;
 pub use pino_outputs::{Error, Result};
 use pino_predict::{DesignAnswer, Predictor, ProfileSource, SetPrediction};
 use std::path::{Path, PathBuf};
-
-pub(crate) fn fmt_err(path: &Path, message: String) -> crate::Error {
-    LearnError::Format {
-        path: path.to_owned(),
-        message,
-    }
-    .into()
-}
 
 /// A surrogate: its members and which one answers each index and each channel.
 pub struct Surrogate {
@@ -128,7 +119,7 @@ impl Surrogate {
                 && m.meta.grid == first.meta.grid
                 && m.meta.data == first.meta.data;
             if !same {
-                return Err(fmt_err(
+                return Err(Error::format(
                     file,
                     format!(
                         "member `{name}` was trained on another system, dataset or time window than member `{}`: a surrogate's models come from one dataset",
@@ -148,7 +139,7 @@ impl Surrogate {
             match index_routes.iter().find(|(n, _)| n == name) {
                 Some(&(_, m)) => index_member[k] = m,
                 None => {
-                    return Err(fmt_err(
+                    return Err(Error::format(
                         file,
                         format!("index `{name}` of the system has no route"),
                     ))
@@ -162,7 +153,7 @@ impl Surrogate {
                 .find(|(n, _)| n == name)
                 .map(|(_, s)| s)
                 .ok_or_else(|| {
-                    fmt_err(
+                    Error::format(
                         file,
                         format!(
                             "channel `{name}` is routed to member `{}`, which does not predict it",
@@ -241,7 +232,7 @@ impl Surrogate {
     /// a surrogate loaded from its directory carries its members' own and refuses another.
     pub fn load_calibration(&mut self, path: &Path) -> Result<&pino_calibration::Calibration> {
         if let Some(dir) = &self.dir {
-            return Err(fmt_err(
+            return Err(Error::format(
                 path,
                 format!(
                     "the surrogate {} carries its members' calibrations; another cannot be given",
@@ -513,7 +504,7 @@ impl Surrogate {
             })
             .collect::<Result<_>>()?;
         let base = tables[self.primary].as_ref().ok_or_else(|| {
-            fmt_err(
+            Error::format(
                 Path::new("surrogate"),
                 "the primary member predicted nothing".into(),
             )
@@ -611,7 +602,7 @@ fn of_manifest(manifest: &Manifest, dir: &Path, name: &str, p: &Predictor) -> Re
     } else {
         return Ok(());
     };
-    Err(fmt_err(&dir.join(manifest::SURROGATE_FILE), why))
+    Err(Error::format(&dir.join(manifest::SURROGATE_FILE), why))
 }
 
 /// A member's own channels, all answered by it (`m`).

@@ -7,7 +7,7 @@
 //! channel the member that answers it with every candidate's validation error beside it. A
 //! member's files are verified against their hashes on load.
 
-use super::fmt_err;
+use crate::Error;
 use crate::Result;
 use pino_calibration::{short, DesignIdentity, ModelIdentity, CALIBRATION_FILE, MODEL_WEIGHTS};
 use pino_learn::checkpoint::MODEL_META;
@@ -113,7 +113,7 @@ impl Manifest {
     pub fn load(dir: &Path) -> Result<Self> {
         let file = dir.join(SURROGATE_FILE);
         if !file.is_file() {
-            return Err(fmt_err(
+            return Err(Error::format(
                 &file,
                 "no surrogate here: a surrogate is the directory the `surrogate` stage writes (`pipeline show surrogate`)".into(),
             ));
@@ -123,19 +123,19 @@ impl Manifest {
             source: e,
         })?;
         let m: Manifest = serde_json::from_str(&text)
-            .map_err(|e| fmt_err(&file, format!("not a surrogate manifest: {e}")))?;
+            .map_err(|e| Error::format(&file, format!("not a surrogate manifest: {e}")))?;
         if m.format != SURROGATE_FORMAT {
-            return Err(fmt_err(
+            return Err(Error::format(
                 &file,
                 format!("format `{}`, expected `{SURROGATE_FORMAT}`", m.format),
             ));
         }
         if m.members.is_empty() {
-            return Err(fmt_err(&file, "names no member model".into()));
+            return Err(Error::format(&file, "names no member model".into()));
         }
         for r in m.indices.iter().chain(&m.channels) {
             if !m.members.iter().any(|x| x.name == r.member) {
-                return Err(fmt_err(
+                return Err(Error::format(
                     &file,
                     format!(
                         "`{}` is routed to `{}`, which is not a member",
@@ -155,7 +155,7 @@ impl Manifest {
         let at = Self::member_dir(dir, &member.name);
         let rebuild = "rebuild the surrogate (`pipeline run surrogate`)";
         let identity = ModelIdentity::of(&at).map_err(|e| {
-            fmt_err(
+            Error::format(
                 &at,
                 format!(
                     "member model `{}` cannot be read ({e}): {rebuild}",
@@ -164,7 +164,7 @@ impl Manifest {
             )
         })?;
         if identity.blake3 != member.model.blake3 {
-            return Err(fmt_err(
+            return Err(Error::format(
                 &at.join(MODEL_WEIGHTS),
                 format!(
                     "member model `{}` changed since the surrogate was built (blake3 {}, built with {}): {rebuild}",
@@ -177,7 +177,7 @@ impl Manifest {
         let cal = at.join(CALIBRATION_FILE);
         let hash = file_blake3(&cal)?;
         if hash != member.calibration_blake3 {
-            return Err(fmt_err(
+            return Err(Error::format(
                 &cal,
                 format!(
                     "the calibration of member model `{}` changed since the surrogate was built (blake3 {}, built with {}): {rebuild}",
@@ -193,7 +193,8 @@ impl Manifest {
     /// Writes `dir/surrogate.json` (atomically).
     pub fn write(&self, dir: &Path) -> Result<()> {
         let path = dir.join(SURROGATE_FILE);
-        let text = serde_json::to_string_pretty(self).map_err(|e| fmt_err(&path, e.to_string()))?;
+        let text =
+            serde_json::to_string_pretty(self).map_err(|e| Error::format(&path, e.to_string()))?;
         Ok(atomic_file::write_atomic(&path, text.as_bytes())?)
     }
 }
