@@ -842,10 +842,15 @@ pub fn state_masses(engine: &Engine) -> Vec<f64> {
 /// The force scale of a sample for learning (N): the mean static force of the elements that
 /// rest on moving points (contacts with the track, road or deck: the wheel load `W` of every
 /// wheel of the vehicle-track model), summed with compensation so that equal forces give
-/// exactly their value. `None` when the rigid part is not statically determinate or no element
-/// rests on a moving point.
+/// exactly their value. Where the rigid part is not statically determinate (a vehicle in space:
+/// four wheelsets on eight wheels), the mean of the wheels' normal forces still is: the vertical
+/// balance of the bodies ([`vertical_contact_mean`]). `None` when no element rests on a moving
+/// point, or the rigid part is indeterminate and another element carries vertical load to the
+/// ground.
 pub fn contact_scale(system: &System, model: &Model) -> Option<f64> {
-    let sf = static_forces(system, model)?;
+    let Some(sf) = static_forces(system, model) else {
+        return vertical_contact_mean(system, model);
+    };
     let forces: Vec<f64> = model
         .elements
         .iter()
@@ -868,4 +873,46 @@ pub fn contact_scale(system: &System, model: &Model) -> Option<f64> {
         sum = t;
     }
     Some((sum + c) / forces.len() as f64)
+}
+
+/// The mean static normal force of the wheels (N) by the vertical balance of all bodies: the
+/// downward loads on the bodies' vertical DOFs (`z` positive down) summed, over the number of
+/// wheel and Hertz contacts resting on moving points. Exact when those contacts are the only
+/// elements that carry vertical force from a body to the ground or a moving point (the
+/// lateral rails' fastenings, on bodies without a vertical DOF, carry none); `None` otherwise.
+fn vertical_contact_mean(system: &System, model: &Model) -> Option<f64> {
+    let vertical: Vec<bool> = system
+        .dofs
+        .iter()
+        .map(|d| d.kind == mbd_system::schema::DofKind::Z)
+        .collect();
+    let on_vertical = |end: &ModelEnd| match end {
+        ModelEnd::Body(t) => t.z.is_some_and(|i| vertical[i]),
+        _ => false,
+    };
+    let mut contacts = 0usize;
+    for e in &model.elements {
+        let contact = matches!(
+            e.law,
+            mbd_system::model::ModelLaw::Wheel(_) | mbd_system::model::ModelLaw::Hertz { .. }
+        ) && matches!(e.to, ModelEnd::Moving(_));
+        if contact {
+            contacts += 1;
+        } else if on_vertical(&e.from) != on_vertical(&e.to)
+            && (!matches!(e.from, ModelEnd::Body(_)) || !matches!(e.to, ModelEnd::Body(_)))
+        {
+            // A body's vertical DOF tied to the ground or a moving point by another element.
+            return None;
+        }
+    }
+    if contacts == 0 {
+        return None;
+    }
+    let total: f64 = model
+        .loads
+        .iter()
+        .filter(|l| on_vertical(&l.at))
+        .map(|l| l.force)
+        .sum();
+    Some(total / contacts as f64)
 }

@@ -213,7 +213,7 @@ impl LossContext {
             field: "algorithm".into(),
             value: "2".into(),
             allowed: format!(
-                "not 2 for `{}`: the global ODE loss scales by the mean static force of the contact elements (those resting on moving points), and it has none or is not statically determinate",
+                "not 2 for `{}`: the global ODE loss scales by the mean static force of the contact elements (those resting on moving points), and it has none, or its rigid part is not statically determinate and an element other than a contact carries vertical load to the ground",
                 self.system.name
             ),
         })

@@ -12,7 +12,7 @@
 //! engine's must match it to Zhai's O((w dt)^2) (here about 1e-6 of the peak, tolerance 1e-4),
 //! and the static equilibrium start must be `K^-1 F` with zero accelerations.
 
-use crate::common::{column, config, load};
+use crate::common::{column, config, load, replace_once, system_text};
 use mbd_engine::{Engine, Route, StartMode};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
@@ -253,4 +253,27 @@ loads:
     for (i, a) in a[..rigid].iter().enumerate() {
         assert!(a.abs() < 1e-6, "DOF {i}: acceleration {a}");
     }
+}
+
+/// The vehicle in space stands on eight wheels: its rigid part is not statically determinate,
+/// yet the mean of the wheels' normal forces is the static wheel load `W` by the vertical
+/// balance of the whole vehicle (the force scale of the learners' global ODE loss). A vertical
+/// spring from the car body to the ground takes part of the weight: then there is no scale.
+#[test]
+fn the_mean_wheel_load_of_the_vehicle_in_space_is_w() {
+    let text = system_text("vtcd-3d.yaml");
+    let system = load(&text, &[]);
+    let model = system.instantiate(&system.nominal()).unwrap();
+    assert!(mbd_engine::statics::static_forces(&system, &model).is_none());
+    let w = model.values[system.parameter("W").unwrap()];
+    let scale = mbd_engine::statics::contact_scale(&system, &model).unwrap();
+    assert!((scale - w).abs() <= 1e-12 * w, "{scale} vs W = {w}");
+    let grounded = replace_once(
+        &text,
+        "  # Secondary lateral dampers",
+        "  tie: {kind: spring_damper, from: c.d1, to: ground, k: 1.0e+5}\n  # Secondary lateral dampers",
+    );
+    let system = load(&grounded, &[]);
+    let model = system.instantiate(&system.nominal()).unwrap();
+    assert_eq!(mbd_engine::statics::contact_scale(&system, &model), None);
 }

@@ -437,8 +437,8 @@ impl Dataset {
     }
 
     /// The force scale `F_ref` of the global ODE loss (N): the mean over the training split of
-    /// each sample's mean static contact force (`W` for the vehicle-track model); `None` when
-    /// the description has no contact element or its rigid part is not statically determinate.
+    /// each sample's mean static contact force (`W` for the vehicle-track models,
+    /// [`mbd_engine::statics::contact_scale`]); `None` when a sample has none.
     pub fn force_scale(&self) -> Option<f64> {
         let train: Vec<&Sample> = self
             .samples
