@@ -460,7 +460,8 @@ def study(
     """Runs one design study (``docs/studies.md``) as the ``study`` stage does, with the same
     results: ``models`` (the ``surrogate`` stage's output directory, or ``train`` output
     directories, of which the one of ``params["algorithm"]``, default 5, answers alone),
-    ``study`` (the declaration: ``name``, ``kind`` = monte_carlo / sensitivity / optimise, ...),
+    ``study`` (the declaration: ``name``, ``kind`` = monte_carlo / sensitivity / optimise / critical_speed,
+    ...),
     ``calibration`` (with models: the ``calibrate`` output), and the stage's other parameters
     (``coverage``, ``seed``, ``batch_size``, ``bootstrap``, ``confidence``). Writes its files
     into ``out`` and returns ``{"summary": str, "files": [paths]}``."""

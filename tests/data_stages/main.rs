@@ -1150,6 +1150,42 @@ fn pipeline_files_hold_valid_data_stage_parameters() {
 /// The description the README shows under "Describe your own system" compiles, and is the
 /// shipped quarter car: the same sampled parameters with the same nominal values and ranges,
 /// the same stored columns.
+/// The job of the vehicle in space declares a critical-speed study (the speed against the yaw
+/// damping and the conicity) and a Monte Carlo study, both passing the planning check against
+/// its description; its calibration and training settings parse.
+#[test]
+fn the_vehicle_in_space_job_declares_checked_studies() {
+    let file = "configs/vtcd-3d.yaml";
+    let (_, values) = split_values(pino_mbd_tests::stage_params(file, "study"));
+    let path = pino_mbd_tests::workspace_root().join("systems/vtcd-3d.yaml");
+    let described = SystemSource::read(&path, values)
+        .unwrap()
+        .compile()
+        .unwrap();
+    let pipeline = pino_mbd_tests::shipped_pipeline(file);
+    let mut kinds = std::collections::BTreeSet::new();
+    for (_, s) in pipeline.stages_running("study") {
+        for expansion in &s.expansions {
+            let study: pino_study::spec::StudyParams =
+                serde_json::from_value(expansion.params.clone()).unwrap();
+            let parsed = pino_study::check(&described, &study).unwrap_or_else(|e| panic!("{e}"));
+            if let pino_study::StudyKind::CriticalSpeed(c) = &parsed.kind {
+                assert_eq!(c.speed, "v_kmh");
+                let grid: Vec<&str> = c.grid.iter().map(|(p, _)| p.as_str()).collect();
+                assert_eq!(grid, ["c_yaw", "gamma"]);
+            }
+            kinds.insert(study.study["kind"].as_str().unwrap().to_owned());
+        }
+    }
+    assert_eq!(
+        kinds.into_iter().collect::<Vec<_>>(),
+        ["critical_speed", "monte_carlo"]
+    );
+    let calibrate: pino_calibration::build::CalibrateParams =
+        serde_json::from_value(pino_mbd_tests::stage_params(file, "calibrate")).unwrap();
+    calibrate.validate().unwrap();
+}
+
 #[test]
 fn the_readme_description_is_the_shipped_quarter_car() {
     let readme =

@@ -26,6 +26,10 @@
 use crate::config::SperlingParams;
 use crate::{check_finite_signal, sperling, Error, IndexColumn, Result};
 
+/// The stability index's column: the growth rate of the lateral oscillation once the track is
+/// ideal (1/s; > 0: it grows).
+pub const STABILITY_INDEX: &str = "lateral_stability_growth_1ps";
+
 /// The lateral index columns, in [`lateral_indices`] order.
 pub const LATERAL_COLUMNS: [IndexColumn; 14] = [
     IndexColumn {
@@ -94,7 +98,7 @@ pub const LATERAL_COLUMNS: [IndexColumn; 14] = [
         definition: "Sperling ride index W_y above the rear bogie",
     },
     IndexColumn {
-        name: "lateral_stability_growth_1ps",
+        name: STABILITY_INDEX,
         unit: "1/s",
         definition: "growth rate of the stability column's oscillation after the irregularity ends, 0 within 2 standard errors of its fit (> 0: it grows)",
     },

@@ -373,7 +373,7 @@ fn lateral_limit(name: &str, l: &LateralLimits) -> Option<f64> {
         "derailment_quotient_2m" => l.derailment_quotient,
         "prudhomme_ratio" => l.lateral_force,
         n if n.starts_with("sperling_wy") => l.sperling,
-        "lateral_stability_growth_1ps" => l.stability,
+        crate::lateral::STABILITY_INDEX => l.stability,
         _ => None,
     }
 }

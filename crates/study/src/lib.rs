@@ -3,7 +3,7 @@
 //! calibration, and a sample of them answered by the exact solver beside it.
 //!
 //! A study is declared as one value of the `study` stage's matrix: a mapping with `name`,
-//! `kind` (`monte_carlo`, `sensitivity`, `optimise`), `parameters` (distributions by name;
+//! `kind` (`monte_carlo`, `sensitivity`, `optimise`, `critical_speed`), `parameters` (distributions by name;
 //! every sampled parameter not named is uniform over the model's training range) and
 //! `solver_check` (how many designs also run through the solver). The estimators are
 //! `pino-studies`'; this module draws the designs, evaluates them and writes the tables.
@@ -14,13 +14,15 @@
 //!
 //! - [`spec`]: a study's declaration, parsed and checked against the model.
 //! - [`evaluate`]: designs answered by the surrogate and, for a sample, by the solver.
-//! - [`monte_carlo`], [`sensitivity`], [`optimise`]: the three kinds of study.
+//! - [`monte_carlo`], [`sensitivity`], [`optimise`], [`critical_speed`]: the four kinds of
+//!   study.
 //! - [`output`]: their tables, Markdown summaries and plots.
 //!
 //! This crate is the wiring of a model into the studies; `pino-studies` holds the estimators
 //! and stays free of any model (it does not depend on the learning engine).
 #![warn(missing_docs)]
 
+pub mod critical_speed;
 pub mod evaluate;
 pub mod monte_carlo;
 pub mod optimise;
@@ -212,6 +214,33 @@ pub fn run_with(
                 } else {
                     format!("; the rankings differ for {} (summary.md says why)", differ.join(", "))
                 }
+            ))
+        }
+        StudyKind::CriticalSpeed(c) => {
+            let r = critical_speed::run(&ev, &study, c, &parameters)?;
+            output::write_critical_speed(out, predictor, &study, &r)?;
+            let states = |s: &critical_speed::Sweeps| {
+                let c = s.critical(&r.speeds);
+                let within = c
+                    .iter()
+                    .filter(|x| matches!(x, critical_speed::Crossing::At(_)))
+                    .count();
+                let below = c
+                    .iter()
+                    .filter(|x| matches!(x, critical_speed::Crossing::Below))
+                    .count();
+                (within, below, c.len())
+            };
+            let (within, below, cells) = states(&r.surrogate);
+            Ok(format!(
+                "`{}`: {} grid points x {} speeds x {} tracks in {:.1} s ({} grid points through the solver in {:.1} s); critical speed within the sweep at {within} of {cells} points, below it at {below}",
+                study.name,
+                r.points.len(),
+                r.speeds.len(),
+                c.excitations,
+                r.surrogate_s,
+                r.solver.cells.len(),
+                r.solver_s,
             ))
         }
         StudyKind::Optimise(o) => {

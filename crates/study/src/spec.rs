@@ -14,6 +14,17 @@ pub const MONTE_CARLO: &str = "monte_carlo";
 pub const SENSITIVITY: &str = "sensitivity";
 /// The `kind` of an optimisation.
 pub const OPTIMISE: &str = "optimise";
+/// The `kind` of a critical-speed study.
+pub const CRITICAL_SPEED: &str = "critical_speed";
+
+/// The most points of a critical-speed study's grid per parameter and of its speed sweep.
+pub const MAX_CRITICAL_SPEED_POINTS: usize = 101;
+
+/// The most parameters a critical-speed study's grid spans.
+pub const MAX_CRITICAL_SPEED_GRID: usize = 2;
+
+/// The most excitations a critical-speed study averages each design's growth over.
+pub const MAX_CRITICAL_SPEED_EXCITATIONS: usize = 64;
 
 /// The most designs a Monte Carlo study evaluates.
 pub const MAX_MONTE_CARLO: usize = 1_000_000;
@@ -158,6 +169,25 @@ pub enum StudyKind {
     /// the box of the uniform distributions (the training ranges by default), each candidate
     /// judged by a statistic over the same `excitations`.
     Optimise(Optimise),
+    /// The speed at which a growth index (the lateral stability index) turns positive, at
+    /// each point of a grid over one or two parameters: the speed swept over its training
+    /// range, the other parameters at their distributions' medians.
+    CriticalSpeed(CriticalSpeed),
+}
+
+/// What a critical-speed study sweeps.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CriticalSpeed {
+    /// The speed parameter (swept over its training range).
+    pub speed: String,
+    /// Points of the sweep (the range's ends included).
+    pub speeds: usize,
+    /// The grid: parameters and their points over their training ranges (ends included).
+    pub grid: Vec<(String, usize)>,
+    /// The growth index (positive: the oscillation grows).
+    pub index: String,
+    /// Excitations every design runs under (ids `0..excitations`); its growth is their mean.
+    pub excitations: usize,
 }
 
 /// What an optimisation looks for.
@@ -300,6 +330,29 @@ fn default_runners_up() -> usize {
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
+struct CriticalSpeedSpec {
+    speed: String,
+    grid: BTreeMap<String, usize>,
+    #[serde(default = "default_speeds")]
+    speeds: usize,
+    #[serde(default = "default_growth_index")]
+    index: String,
+    #[serde(default = "default_critical_excitations")]
+    excitations: usize,
+}
+
+fn default_speeds() -> usize {
+    11
+}
+fn default_growth_index() -> String {
+    pino_indices::lateral::STABILITY_INDEX.to_owned()
+}
+fn default_critical_excitations() -> usize {
+    4
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct MonteCarloSpec {
     n: usize,
     #[serde(default)]
@@ -342,10 +395,13 @@ impl Study {
             Some(MONTE_CARLO) => cx.monte_carlo(rest, solver_check)?,
             Some(SENSITIVITY) => cx.sensitivity(rest, &dists, solver_check)?,
             Some(OPTIMISE) => cx.optimise(rest, &dists, solver_check)?,
+            Some(CRITICAL_SPEED) => cx.critical_speed(rest, &dists, solver_check)?,
             other => {
                 return Err(cx.err(
                     "kind",
-                    format!("{other:?}: one of monte_carlo, sensitivity, optimise"),
+                    format!(
+                    "{other:?}: one of {MONTE_CARLO}, {SENSITIVITY}, {OPTIMISE}, {CRITICAL_SPEED}"
+                ),
                 ))
             }
         };
@@ -587,6 +643,100 @@ impl ParseContext<'_> {
             ));
         }
         Ok(StudyKind::Optimise(o))
+    }
+}
+
+impl ParseContext<'_> {
+    /// The fields of a `critical_speed` study: a sampled speed, one or two other sampled
+    /// parameters for the grid (not fixed by `parameters:`), point counts within bounds, a
+    /// known growth index, a solver check of at most the grid's points.
+    fn critical_speed(
+        &self,
+        rest: serde_json::Map<String, Value>,
+        dists: &BTreeMap<String, Distribution>,
+        solver_check: usize,
+    ) -> Result<StudyKind, SpecError> {
+        let s: CriticalSpeedSpec =
+            serde_json::from_value(Value::Object(rest)).map_err(|e| self.err("", e.to_string()))?;
+        let swept = |field: &str, p: &str| -> Result<(), SpecError> {
+            let known = self.parameters.iter().find(|(n, _)| n == p);
+            match known {
+                None => Err(self.err(
+                    field,
+                    format!(
+                        "`{p}` is not a sampled parameter of the model (parameters: {})",
+                        self.parameters
+                            .iter()
+                            .map(|(n, _)| n.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                )),
+                Some((_, [lo, hi])) if !(lo.is_finite() && hi.is_finite() && lo < hi) => Err(self
+                    .err(
+                        field,
+                        format!("`{p}` has no finite training range to sweep"),
+                    )),
+                Some(_) if dists.contains_key(p) => Err(self.err(
+                    field,
+                    format!("`{p}` is swept over its training range: leave it out of `parameters`"),
+                )),
+                Some(_) => Ok(()),
+            }
+        };
+        let points = |field: &str, n: usize, least: usize| -> Result<(), SpecError> {
+            if (least..=MAX_CRITICAL_SPEED_POINTS).contains(&n) {
+                Ok(())
+            } else {
+                Err(self.err(
+                    field,
+                    format!("{n}: allowed {least} to {MAX_CRITICAL_SPEED_POINTS} points"),
+                ))
+            }
+        };
+        swept("speed", &s.speed)?;
+        points("speeds", s.speeds, 3)?;
+        if !(1..=MAX_CRITICAL_SPEED_GRID).contains(&s.grid.len()) {
+            return Err(self.err(
+                "grid",
+                format!(
+                    "{} parameters: one or two (`{{name: points, ...}}`)",
+                    s.grid.len()
+                ),
+            ));
+        }
+        for (p, &n) in &s.grid {
+            let field = format!("grid.{p}");
+            if *p == s.speed {
+                return Err(self.err(&field, "the speed is swept, not a grid parameter".into()));
+            }
+            swept(&field, p)?;
+            points(&field, n, 2)?;
+        }
+        self.check_index("index", &s.index)?;
+        if !(1..=MAX_CRITICAL_SPEED_EXCITATIONS).contains(&s.excitations) {
+            return Err(self.err(
+                "excitations",
+                format!(
+                    "{}: allowed 1 to {MAX_CRITICAL_SPEED_EXCITATIONS}",
+                    s.excitations
+                ),
+            ));
+        }
+        let cells: usize = s.grid.values().product();
+        if solver_check > cells {
+            return Err(self.err(
+                "solver_check",
+                format!("{solver_check} is more than the grid's {cells} points"),
+            ));
+        }
+        Ok(StudyKind::CriticalSpeed(CriticalSpeed {
+            speed: s.speed,
+            speeds: s.speeds,
+            grid: s.grid.into_iter().collect(),
+            index: s.index,
+            excitations: s.excitations,
+        }))
     }
 }
 
@@ -856,5 +1006,68 @@ mod tests {
             .starts_with("study.o.parameters: every parameter is fixed"));
         assert!(with(json!({"solver_check": MAX_OPTIMISE_SOLVER_CHECK + 1}))
             .starts_with("study.o.solver_check:"));
+    }
+
+    #[test]
+    fn a_critical_speed_study_sweeps_a_speed_over_a_grid_and_refuses_what_it_cannot_sweep() {
+        let params = vec![
+            ("v_kmh".to_string(), [300.0, 350.0]),
+            ("gamma".into(), [0.05, 0.4]),
+            ("c_yaw".into(), [1.5e5, 4.5e5]),
+            ("m_c".into(), [3e4, 5e4]),
+        ];
+        let idx = [
+            pino_indices::lateral::STABILITY_INDEX.to_string(),
+            "q".into(),
+        ];
+        let s = Study::parse(
+            &json!({"name": "cs", "kind": "critical_speed", "speed": "v_kmh",
+                    "grid": {"gamma": 3, "c_yaw": 2}, "solver_check": 6,
+                    "parameters": {"m_c": 4e4}}),
+            &params,
+            &idx,
+        )
+        .unwrap();
+        let StudyKind::CriticalSpeed(c) = &s.kind else {
+            panic!("{:?}", s.kind)
+        };
+        assert_eq!(c.speed, "v_kmh");
+        assert_eq!((c.speeds, c.excitations), (11, 4));
+        assert_eq!(c.index, pino_indices::lateral::STABILITY_INDEX);
+        assert_eq!(c.grid, [("c_yaw".to_string(), 2), ("gamma".to_string(), 3)]);
+        let e = |v: Value| Study::parse(&v, &params, &idx).unwrap_err().to_string();
+        let base = |extra: Value| {
+            let mut v = json!({"name": "cs", "kind": "critical_speed", "speed": "v_kmh",
+                               "grid": {"gamma": 3}});
+            for (k, x) in extra.as_object().unwrap() {
+                v[k] = x.clone();
+            }
+            v
+        };
+        assert!(e(base(json!({"speed": "v"}))).starts_with("study.cs.speed: `v` is not a sampled"));
+        assert!(
+            e(base(json!({"grid": {"v_kmh": 3}}))).starts_with("study.cs.grid.v_kmh: the speed")
+        );
+        assert!(e(base(json!({"grid": {}}))).starts_with("study.cs.grid: 0 parameters"));
+        assert!(e(base(json!({"grid": {"gamma": 2, "c_yaw": 2, "m_c": 2}})))
+            .starts_with("study.cs.grid: 3 parameters"));
+        assert!(
+            e(base(json!({"grid": {"gamma": 1}}))).starts_with("study.cs.grid.gamma: 1: allowed 2")
+        );
+        assert!(e(base(json!({"speeds": 2}))).starts_with("study.cs.speeds: 2: allowed 3"));
+        assert!(e(base(json!({"index": "z"}))).starts_with("study.cs.index: `z` is not an index"));
+        assert!(e(base(json!({"excitations": 0}))).starts_with("study.cs.excitations: 0"));
+        assert!(e(base(json!({"solver_check": 4})))
+            .starts_with("study.cs.solver_check: 4 is more than the grid's 3 points"));
+        assert!(e(base(json!({"parameters": {"gamma": 0.1}})))
+            .starts_with("study.cs.grid.gamma: `gamma` is swept"));
+        let no_range = vec![
+            ("v_kmh".to_string(), [300.0, 300.0]),
+            ("gamma".into(), [0.05, 0.4]),
+        ];
+        assert!(Study::parse(&base(json!({})), &no_range, &idx)
+            .unwrap_err()
+            .to_string()
+            .starts_with("study.cs.speed: `v_kmh` has no finite training range"));
     }
 }

@@ -1,15 +1,18 @@
-//! The files of a study, one writer per kind ([`monte_carlo`], [`sensitivity`]), sharing the
+//! The files of a study, one writer per kind ([`monte_carlo`], [`sensitivity`], [`optimise`],
+//! [`critical_speed`]), sharing the
 //! columns every study has: the designs and their excitation ids, the surrogate's index
 //! values with their calibrated intervals and `extrapolated`, the solver's beside them, and
 //! the timings ([`SPEED_FILE`]: the only file whose bytes differ between two runs of one
 //! study). Every table carries the units of its columns (`study_units`), as in every
 //! artifact.
 
+pub mod critical_speed;
 pub mod monte_carlo;
 pub mod optimise;
 pub mod plots;
 pub mod sensitivity;
 
+pub use critical_speed::write_critical_speed;
 pub use monte_carlo::write_monte_carlo;
 pub use optimise::write_optimise;
 pub use sensitivity::write_sensitivity;
@@ -39,6 +42,8 @@ pub const MONTE_CARLO_TABLE_FILE: &str = "summary.csv";
 pub const SOBOL_TABLE_FILE: &str = "sobol.csv";
 /// An optimisation's optimum, runners-up and checked candidates, as CSV.
 pub const OPTIMUM_TABLE_FILE: &str = "optimum.csv";
+/// A critical-speed study's critical speed per grid point and side, as CSV.
+pub const CRITICAL_SPEED_TABLE_FILE: &str = "critical_speed.csv";
 
 /// The table a reader of a study of `kind` (the declaration's `kind`) opens first.
 pub fn headline_table(kind: &str) -> Option<&'static str> {
@@ -46,6 +51,7 @@ pub fn headline_table(kind: &str) -> Option<&'static str> {
         spec::MONTE_CARLO => Some(MONTE_CARLO_TABLE_FILE),
         spec::SENSITIVITY => Some(SOBOL_TABLE_FILE),
         spec::OPTIMISE => Some(OPTIMUM_TABLE_FILE),
+        spec::CRITICAL_SPEED => Some(CRITICAL_SPEED_TABLE_FILE),
         _ => None,
     }
 }
