@@ -460,11 +460,11 @@ def study(
     """Runs one design study (``docs/studies.md``) as the ``study`` stage does, with the same
     results: ``models`` (the ``surrogate`` stage's output directory, or ``train`` output
     directories, of which the one of ``params["algorithm"]``, default 5, answers alone),
-    ``study`` (the declaration: ``name``, ``kind`` = monte_carlo / sensitivity / optimise / critical_speed,
-    ...),
-    ``calibration`` (with models: the ``calibrate`` output), and the stage's other parameters
-    (``coverage``, ``seed``, ``batch_size``, ``bootstrap``, ``confidence``). Writes its files
-    into ``out`` and returns ``{"summary": str, "files": [paths]}``."""
+    ``study`` (the declaration: ``name``, ``kind`` = monte_carlo / sensitivity / optimise /
+    critical_speed, ...), ``calibration`` (with models: the ``calibrate`` output), and the
+    stage's other parameters (``coverage``, ``seed``, ``batch_size``, ``bootstrap``,
+    ``confidence``). Writes its files into ``out`` and returns
+    ``{"summary": str, "files": [paths]}``."""
     surrogate = None
     if isinstance(models, (str, os.PathLike)):
         if os.path.isfile(os.path.join(os.fspath(models), "surrogate.json")):
