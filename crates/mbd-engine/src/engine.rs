@@ -179,7 +179,11 @@ pub(crate) struct Workspace {
     pub(crate) q: Quantities,
     /// Per beam, per chunk of four points, the shapes `[mode][lane]`.
     shapes: Vec<Vec<Vec<[f64; LANES]>>>,
-    dst: Vec<Option<SineTransform>>,
+    /// One sine transform per support count, shared by the beams of that count (two rails):
+    /// the tables and buffers of one size are read once per step, not once per beam.
+    dst: Vec<SineTransform>,
+    /// Per beam, the index of its transform in `dst` (fast path only).
+    dst_of: Vec<Option<usize>>,
     /// Per beam, per chunk of four points, the points' net forces.
     lanes: Vec<Vec<[f64; LANES]>>,
     seat_in: Vec<f64>,
@@ -337,6 +341,22 @@ impl Engine {
             .max()
             .unwrap_or(0);
         let max_modes = m.beams.iter().map(|b| b.modes).max().unwrap_or(0);
+        let mut dst: Vec<SineTransform> = Vec::new();
+        let dst_of = self
+            .beams
+            .iter()
+            .map(|b| match &b.coupling {
+                Coupling::Fast(s) => Some(
+                    dst.iter()
+                        .position(|t| t.len() == s.count)
+                        .unwrap_or_else(|| {
+                            dst.push(SineTransform::new(s.count));
+                            dst.len() - 1
+                        }),
+                ),
+                _ => None,
+            })
+            .collect();
         Workspace {
             q: Quantities::with_wheels(n_e, n_p, !self.wheels.is_empty()),
             shapes: self
@@ -349,14 +369,8 @@ impl Engine {
                 .iter()
                 .map(|b| vec![[0.0; LANES]; b.points.len().div_ceil(LANES)])
                 .collect(),
-            dst: self
-                .beams
-                .iter()
-                .map(|b| match &b.coupling {
-                    Coupling::Fast(s) => Some(SineTransform::new(s.count)),
-                    _ => None,
-                })
-                .collect(),
+            dst,
+            dst_of,
             seat_in: vec![0.0; max_modes],
             seat: vec![0.0; max_count],
             link: vec![0.0; max_count],
@@ -489,7 +503,7 @@ impl Engine {
                     let n = s.count;
                     let seat = &mut ws.seat[..n];
                     seat[0] = 0.0;
-                    let dst = ws.dst[b].as_mut().expect("a transform per fast beam");
+                    let dst = &mut ws.dst[ws.dst_of[b].expect("a transform per fast beam")];
                     dst.apply(seat_in, &mut seat[1..]);
                     let sup = lay.supports.clone();
                     let link = &mut ws.link[..sup.len()];
