@@ -29,6 +29,7 @@
 //! **Failure.** A non-finite element force or rigid acceleration (checked every step) or state
 //! (every output step) ends the sample with a [`Failure`] naming what and when.
 
+use crate::assembly::Assembly;
 use crate::beam::{ModalBeam, LANES};
 use crate::config::RunConfig;
 use crate::coverage::check_coverage;
@@ -178,7 +179,11 @@ pub(crate) struct Workspace {
     pub(crate) q: Quantities,
     /// Per beam, per chunk of four points, the shapes `[mode][lane]`.
     shapes: Vec<Vec<Vec<[f64; LANES]>>>,
-    dst: Vec<Option<SineTransform>>,
+    /// One sine transform per support count, shared by the beams of that count (two rails):
+    /// the tables and buffers of one size are read once per step, not once per beam.
+    dst: Vec<SineTransform>,
+    /// Per beam, the index of its transform in `dst` (fast path only).
+    dst_of: Vec<Option<usize>>,
     /// Per beam, per chunk of four points, the points' net forces.
     lanes: Vec<Vec<[f64; LANES]>>,
     seat_in: Vec<f64>,
@@ -212,6 +217,8 @@ pub struct Engine {
     /// Per element, an earlier element reading the same profile at the same point, whose
     /// reading (and rate, where this one's is evaluated) it takes.
     same_read: Vec<Option<usize>>,
+    /// The rigid DOFs' coefficient groups, compiled.
+    assembly: Assembly,
 }
 
 fn fast_structure(beam: &mbd_system::model::ModelBeam, s: &ModelSupports) -> bool {
@@ -247,6 +254,7 @@ impl Engine {
         let point_terms = point_terms(&model);
         let wheels = run_wheels(&system, &model)?;
         let same_read = same_reads(&model, &profile_rate);
+        let assembly = Assembly::of(&model);
         let sensor_shapes = model
             .sensors
             .iter()
@@ -270,6 +278,7 @@ impl Engine {
             route,
             wheels,
             same_read,
+            assembly,
         };
         check_coverage(
             &engine.system,
@@ -332,6 +341,22 @@ impl Engine {
             .max()
             .unwrap_or(0);
         let max_modes = m.beams.iter().map(|b| b.modes).max().unwrap_or(0);
+        let mut dst: Vec<SineTransform> = Vec::new();
+        let dst_of = self
+            .beams
+            .iter()
+            .map(|b| match &b.coupling {
+                Coupling::Fast(s) => Some(
+                    dst.iter()
+                        .position(|t| t.len() == s.count)
+                        .unwrap_or_else(|| {
+                            dst.push(SineTransform::new(s.count));
+                            dst.len() - 1
+                        }),
+                ),
+                _ => None,
+            })
+            .collect();
         Workspace {
             q: Quantities::with_wheels(n_e, n_p, !self.wheels.is_empty()),
             shapes: self
@@ -344,14 +369,8 @@ impl Engine {
                 .iter()
                 .map(|b| vec![[0.0; LANES]; b.points.len().div_ceil(LANES)])
                 .collect(),
-            dst: self
-                .beams
-                .iter()
-                .map(|b| match &b.coupling {
-                    Coupling::Fast(s) => Some(SineTransform::new(s.count)),
-                    _ => None,
-                })
-                .collect(),
+            dst,
+            dst_of,
             seat_in: vec![0.0; max_modes],
             seat: vec![0.0; max_count],
             link: vec![0.0; max_count],
@@ -394,7 +413,7 @@ impl Engine {
             }
         }
         element_forces(m, &self.needs_rate, &self.wheels, x, v, q);
-        rigid_forces(m, &q.force, a);
+        self.assembly.forces(&q.force, a);
         wheel_forces(&self.wheels, q, a);
         for (ai, mass) in a[..m.dof_mass.len()].iter_mut().zip(&m.dof_mass) {
             *ai /= mass;
@@ -484,7 +503,7 @@ impl Engine {
                     let n = s.count;
                     let seat = &mut ws.seat[..n];
                     seat[0] = 0.0;
-                    let dst = ws.dst[b].as_mut().expect("a transform per fast beam");
+                    let dst = &mut ws.dst[ws.dst_of[b].expect("a transform per fast beam")];
                     dst.apply(seat_in, &mut seat[1..]);
                     let sup = lay.supports.clone();
                     let link = &mut ws.link[..sup.len()];
@@ -972,46 +991,12 @@ pub(crate) fn element_forces(
 }
 
 /// Adds every wheel's tangential generalised forces (from `q.wheel`) to the rigid DOFs' `out`
-/// ([`Wheel::apply`]), after the coefficient groups of [`rigid_forces`].
+/// ([`Wheel::apply`]), after the coefficient groups of [`Assembly::forces`].
 pub(crate) fn wheel_forces(wheels: &[Option<Wheel>], q: &Quantities, out: &mut [f64]) {
     for (e, wheel) in wheels.iter().enumerate() {
         if let Some(w) = wheel {
             w.apply(&q.wheel[e], out);
         }
-    }
-}
-
-/// The generalised force of every rigid DOF (N or N m) from the element forces, group by
-/// group ([`mbd_system::system::Group`]), into `out[..dofs]`.
-pub(crate) fn rigid_forces(m: &Model, force: &[f64], out: &mut [f64]) {
-    let value = |s: &Source| match *s {
-        Source::Element(i) => force[i],
-        Source::Load(i) => m.loads[i].force,
-    };
-    for (i, groups) in m.assembly.iter().enumerate() {
-        let mut total = 0.0;
-        for (gi, g) in groups.iter().enumerate() {
-            let mut terms = g.terms.iter();
-            let Some((s0, sign0)) = terms.next() else {
-                continue;
-            };
-            let first = value(s0);
-            let mut sum = if *sign0 < 0.0 { -first } else { first };
-            for (s, sign) in terms {
-                let f = value(s);
-                if *sign < 0.0 {
-                    sum -= f;
-                } else {
-                    sum += f;
-                }
-            }
-            let g_value = match g.coefficient {
-                Some(c) => c * sum,
-                None => sum,
-            };
-            total = if gi == 0 { g_value } else { total + g_value };
-        }
-        out[i] = total;
     }
 }
 

@@ -8,6 +8,7 @@
 //!
 //! - [`engine`]: state layout, force evaluation, time loop; [`run`]: engines built with their
 //!   checks, started, run to their stored rows, many samples in parallel.
+//! - `assembly`: the rigid DOFs' coefficient groups, compiled to flat lists;
 //! - [`beam`]: modal simply supported beams; [`dst`]: the sine transform of uniform supports;
 //!   [`supports`]: the support chains.
 //! - [`statics`]: the static-equilibrium start; [`stability`]: the time-step bound.
@@ -25,6 +26,7 @@
 //! general route beside it ([`Route::General`]) that the tests hold it equal to.
 #![warn(missing_docs)]
 
+mod assembly;
 pub mod beam;
 pub mod config;
 pub mod corners;

@@ -15,13 +15,15 @@
 //! unit vectors is exact), and [`Equations::deflection_terms`] gives each nonlinear element's
 //! deflection as a linear combination of the state.
 
-use crate::engine::{element_forces, rigid_forces, Quantities};
+use crate::assembly::Assembly;
+use crate::engine::{element_forces, Quantities};
 use mbd_system::model::{Model, ModelEnd, ModelLaw};
 
 /// One sample's equations of motion of the DOFs that have them.
 #[derive(Debug, Clone)]
 pub struct Equations {
     model: Model,
+    assembly: Assembly,
     needs_rate: Vec<bool>,
     dofs: Vec<usize>,
     nonlinear: Vec<usize>,
@@ -76,6 +78,7 @@ impl Equations {
             .filter(|&e| !matches!(model.elements[e].law, ModelLaw::SpringDamper { .. }))
             .collect();
         Self {
+            assembly: Assembly::of(&model),
             model,
             needs_rate,
             dofs,
@@ -124,7 +127,7 @@ impl Equations {
     }
 
     fn finish(&self, s: &EquationState, scratch: &mut Scratch, out: &mut [f64]) {
-        rigid_forces(&self.model, &scratch.q.force, &mut scratch.total);
+        self.assembly.forces(&scratch.q.force, &mut scratch.total);
         for (o, &i) in out.iter_mut().zip(&self.dofs) {
             *o = self.model.dof_mass[i] * s.a[i] - scratch.total[i];
         }
