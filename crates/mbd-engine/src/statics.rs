@@ -33,6 +33,32 @@
 //! **General route** (anything else, or [`crate::Route::General`]): Newton's method on the whole
 //! state, `J dX = -A(X)` with the Jacobian by central differences and a dense LU solve, with
 //! backtracking on the residual. The fast path is tested equal to it.
+//!
+//! **Wheelsets at rest.** The state sought has every velocity zero with the frame moving at
+//! `V` (the wheels roll; [`crate::wheel`] states the forces and signs: `x` forward, `y` right,
+//! `z` down). Which stiffness restrains which DOF there:
+//! - *Vertical:* each wheel's Hertz contact, tangent `dQ/dd = 1.5 Q^(1/3) / G` (N/m), holds its
+//!   wheelset's `z` and, the two wheels together, its roll (`2 e0^2` times that, N m/rad); the
+//!   suspensions hold the bodies above; the rails and their supports sit under the contacts.
+//! - *Lateral rail:* its fastening spring `k` (N/m) toward the alignment under it.
+//! - *Wheelset on its rails* (shift `u = y - y_rail`, yaw `psi`): only the wheel-rail contact.
+//!   For conical treads the gravitational stiffness `2 Q gamma (1 + gamma^2) / e0` (N/m,
+//!   restoring: a shift `y` rolls the axle by `-gamma y / e0` and tilts both normal forces);
+//!   the rolling-radius difference's longitudinal creep, a yaw moment `-2 e0 f11 gamma u / r0`
+//!   (N m); the yaw's lateral creep, a force `2 f22 psi` (N) (these two a circulatory pair,
+//!   the yaw itself held by the suspension); the flange `k_fl` beyond its clearance. The
+//!   bodies above a wheelset (bogie, car body), which hang on it laterally, inherit this.
+//!
+//! Every one of these grows with the wheel load `Q` (`f11, f22 ~ Q^(2/3)`): at zero load the
+//! whole vehicle's lateral translation and yaw relative to the rails are free. Newton's start
+//! presses each contact by a 1 N force only, where that stiffness is about `1e-5` of its
+//! loaded value and near the central differences' round-off: the Jacobian is singular or
+//! nearly so, and the first steps wander far sideways (they may not come back). With
+//! wheelsets, both routes therefore solve in two stages: first with each wheelset's `y` and yaw
+//! (and `x`) and the lateral rails under it held at the start (their rows left out), which
+//! puts the loads on the contacts (the bodies above held laterally by their suspensions to the
+//! wheelsets); then every unknown from there, where the wheel-rail lateral stiffness is the
+//! loaded one.
 
 use crate::beam::ModalBeam;
 use crate::dst::SineTransform;
@@ -693,15 +719,65 @@ fn condensed(engine: &Engine) -> Result<Vec<f64>> {
         *zf = r0[n_r + k];
     }
     let typical = |j: usize| if j < n_r { 1e-6 } else { 1.0 };
-    let z = newton(
+    let z = staged_newton(
         &residual,
         z,
         &typical,
         scale,
         "static equilibrium (Newton, condensed route)",
+        &wheel_lateral(engine),
     )?;
     debug_assert_eq!(z.len(), n);
     Ok(state(&z))
+}
+
+/// The unknowns a wheel holds laterally: each wheelset's `y`, yaw (and `x`) and the lateral
+/// rail under each wheel, sorted (empty without wheels).
+fn wheel_lateral(engine: &Engine) -> Vec<usize> {
+    let mut held: Vec<usize> = engine
+        .wheels
+        .iter()
+        .flatten()
+        .flat_map(|w| [Some(w.y), Some(w.yaw), w.x, w.rail])
+        .flatten()
+        .collect();
+    held.sort_unstable();
+    held.dedup();
+    held
+}
+
+/// Newton's method in two stages for a system with wheelsets (one, [`newton`], without):
+/// first with the unknowns `held` fixed at their values in `z` (their rows left out), then on
+/// every unknown from there (see the module doc, "Wheelsets at rest").
+fn staged_newton(
+    residual: &dyn Fn(&[f64]) -> Vec<f64>,
+    z: Vec<f64>,
+    typical: &dyn Fn(usize) -> f64,
+    scale: f64,
+    what: &str,
+    held: &[usize],
+) -> Result<Vec<f64>> {
+    if held.is_empty() {
+        return newton(residual, z, typical, scale, what);
+    }
+    let free: Vec<usize> = (0..z.len())
+        .filter(|i| held.binary_search(i).is_err())
+        .collect();
+    let full = |s: &[f64]| -> Vec<f64> {
+        let mut x = z.clone();
+        for (&i, v) in free.iter().zip(s) {
+            x[i] = *v;
+        }
+        x
+    };
+    let sub = |s: &[f64]| -> Vec<f64> {
+        let r = residual(&full(s));
+        free.iter().map(|&i| r[i]).collect()
+    };
+    let start = free.iter().map(|&i| z[i]).collect();
+    let held_what = format!("{what}, wheelsets held laterally");
+    let s = newton(&sub, start, &|j| typical(free[j]), scale, &held_what)?;
+    newton(residual, full(&s), typical, scale, what)
 }
 
 /// Newton's method on `residual(z) = 0` from `z`, the Jacobian by central differences with
@@ -783,12 +859,13 @@ fn general(engine: &Engine) -> Result<Vec<f64>> {
         .map(|l| l.force.abs())
         .sum::<f64>()
         .max(1.0);
-    newton(
+    staged_newton(
         &residual,
         closed_contacts(engine),
         &|_| 1e-7,
         scale,
         "static equilibrium (Newton, general route)",
+        &wheel_lateral(engine),
     )
 }
 

@@ -172,14 +172,14 @@ fn equilibrium_is_the_static_solution() {
     }
 }
 
-/// A wheelset on two supported rails with a frame above it: a rigid part that is not
-/// statically determinate (six elements on the wheelset's four DOFs) on beams, which the
-/// equilibrium start solves on the condensed route (rigid DOFs and point forces, the beams by
-/// superposition of unit responses); the general route (Newton on the whole state) must agree
-/// to 1e-9 of the largest displacement, and every acceleration vanish.
-#[test]
-fn condensed_equilibrium_equals_the_general_route() {
+/// A wheelset on two supported rails with a frame above it, the frame's lateral spring to the
+/// ground `frame_lateral` (N/m; `None`: the frame held laterally by the wheelset alone), a
+/// lateral load of 2 kN on the frame.
+fn wheelset_and_frame(frame_lateral: Option<f64>) -> std::sync::Arc<mbd_system::System> {
     let rail = "    length: 12\n    modes: 10\n    mass_per_length: 60\n    bending_stiffness: 6.6e+6\n    supports:\n      spacing: 0.6\n      count: 20\n      levels:\n        - {name: sleeper, mass: 120, link: {k: 6.0e+7, c: 5.0e+4}}\n      ground: {k: 1.2e+8, c: 6.0e+4}\n";
+    let fy = frame_lateral.map_or(String::new(), |k| {
+        format!("  fy: {{kind: spring_damper, direction: y, from: f, to: ground, k: {k:e}}}\n")
+    });
     let text = format!(
         r#"format: 1
 name: wheelset on rails
@@ -223,8 +223,7 @@ elements:
   yr: {{kind: spring_damper, direction: y, from: f.right, to: w.right, k: 5.0e+5}}
   xl: {{kind: spring_damper, direction: x, from: f.left, to: w.left, k: 5.0e+6}}
   xr: {{kind: spring_damper, direction: x, from: f.right, to: w.right, k: 5.0e+6}}
-  fy: {{kind: spring_damper, direction: y, from: f, to: ground, k: 2.0e+5}}
-  fz: {{kind: spring_damper, from: f.left, to: ground, k: 4.0e+5}}
+{fy}  fz: {{kind: spring_damper, from: f.left, to: ground, k: 4.0e+5}}
   fz2: {{kind: spring_damper, from: f.right, to: ground, k: 4.0e+5}}
   fx: {{kind: spring_damper, direction: x, from: f.left, to: ground, k: 3.0e+5}}
 loads:
@@ -233,26 +232,65 @@ loads:
   side: {{at: f.left, force: 2.0e+3, direction: y}}
 "#
     );
-    let system = load(&text, &[]);
+    load(&text, &[])
+}
+
+/// The equilibrium start of `system` on `route`: the state, the accelerations there and the
+/// number of rigid DOFs.
+fn equilibrium_on(
+    system: &std::sync::Arc<mbd_system::System>,
+    route: Route,
+) -> mbd_engine::Result<(Vec<f64>, Vec<f64>, usize)> {
     let cfg = config(0.01, 5e-5, 10, StartMode::Equilibrium, 4.0);
-    let state = |route| {
-        let model = system.instantiate(&system.nominal()).unwrap();
-        let e = Engine::with_route(system.clone(), model, &cfg, vec![], route).unwrap();
-        let x = e.initial_state().unwrap();
-        let (a, _) = e.evaluate(0.0, &x, &vec![0.0; x.len()]);
-        (x, a, e.layout().rigid)
-    };
-    let (fast, a, rigid) = state(Route::Fast);
-    let (general, _, _) = state(Route::General);
+    let model = system.instantiate(&system.nominal()).unwrap();
+    let e = Engine::with_route(system.clone(), model, &cfg, vec![], route)?;
+    let x = e.initial_state()?;
+    let (a, _) = e.evaluate(0.0, &x, &vec![0.0; x.len()]);
+    Ok((x, a, e.layout().rigid))
+}
+
+/// The equilibrium start on both routes: equal to 1e-9 of the largest displacement, every
+/// rigid acceleration vanishing (forces of ~1e5 N balanced to round-off over masses of ~1e3
+/// kg).
+fn assert_routes_agree(system: &std::sync::Arc<mbd_system::System>) -> Vec<f64> {
+    let (fast, a, rigid) = equilibrium_on(system, Route::Fast).unwrap_or_else(|e| panic!("{e}"));
+    let (general, _, _) = equilibrium_on(system, Route::General).unwrap_or_else(|e| panic!("{e}"));
     let scale = general.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     assert!(scale > 1e-4, "the system must deflect ({scale})");
     for (i, (f, g)) in fast.iter().zip(&general).enumerate() {
         assert!((f - g).abs() < 1e-9 * scale, "state {i}: {f} vs {g}");
     }
-    // Rigid accelerations: forces of ~1e5 N balanced to round-off over masses of ~1e3 kg.
     for (i, a) in a[..rigid].iter().enumerate() {
         assert!(a.abs() < 1e-6, "DOF {i}: acceleration {a}");
     }
+    fast
+}
+
+/// A wheelset on two supported rails with a frame above it: a rigid part that is not
+/// statically determinate (six elements on the wheelset's four DOFs) on beams, which the
+/// equilibrium start solves on the condensed route (rigid DOFs and point forces, the beams by
+/// superposition of unit responses); the general route (Newton on the whole state) must agree
+/// to 1e-9 of the largest displacement, and every acceleration vanish.
+#[test]
+fn condensed_equilibrium_equals_the_general_route() {
+    assert_routes_agree(&wheelset_and_frame(Some(2.0e5)));
+}
+
+/// The same frame held laterally by its wheelset alone, as a vehicle is: the frame's 2 kN
+/// side load reaches the ground only through the wheel-rail contact, whose lateral stiffness
+/// (gravitational, `2 Q gamma (1 + gamma^2) / e0`, and the creep forces, both growing with the
+/// wheel load `Q`) vanishes at zero load. Both routes must find the equilibrium (the wheelset
+/// shifted toward the load, every acceleration vanishing) and agree.
+#[test]
+fn a_frame_held_laterally_by_its_wheelset_alone_finds_its_equilibrium() {
+    let system = wheelset_and_frame(None);
+    let x = assert_routes_agree(&system);
+    let y = system.bodies[0].y.expect("the wheelset's lateral DOF");
+    assert!(
+        x[y] > 1e-6,
+        "the wheelset shifts toward the load: y = {}",
+        x[y]
+    );
 }
 
 /// The vehicle in space stands on eight wheels: its rigid part is not statically determinate,
