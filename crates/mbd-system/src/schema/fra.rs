@@ -17,7 +17,9 @@
 //! Coupled Dynamics: Theory and Applications* (Springer, 2020), the chapter on track
 //! irregularities (US track spectra), after V. K. Garg and R. V. Dukkipati, *Dynamics of
 //! Railway Vehicle Systems* (Academic Press, 1984). Class 6 is the best track, class 1 the
-//! worst.
+//! worst. Cross-check: class 5's `A_v` and the shape of the vertical form agree with the
+//! defaults of the public ROSE railway model (github.com/PlatypusBytes/ROSE: 2.095e-5 m^2 rad/m,
+//! `Omega_c` = 0.8242 rad/m there).
 //!
 //! **Conversion** to the generator's unit (spatial frequency `f` in cycles/m, `S` in
 //! mm^2/(1/m)): `Omega = 2 pi f`, and a band's power is the same in both variables,
