@@ -93,7 +93,7 @@ pub fn profile_generators(
         .map(|(i, p)| match p {
             mbd_system::system::Profile::Generated {
                 name,
-                segments,
+                psd,
                 wavelengths,
                 interpolation,
                 ..
@@ -109,16 +109,7 @@ pub fn profile_generators(
                         length: params.length,
                     });
                 }
-                let psd = Psd::new(
-                    segments
-                        .iter()
-                        .map(|s| PsdSegment {
-                            f_start: s.f_start,
-                            a: s.a,
-                            n: s.n,
-                        })
-                        .collect(),
-                )?;
+                let psd = Psd::from_description(psd)?;
                 params
                     .generator(psd, *wavelengths, rng::profile_code(i))
                     .map(Some)

@@ -1,14 +1,16 @@
 //! Random-phase profiles from a displacement spectrum (the track irregularity of the
 //! vehicle-track system, a road's roughness).
 //!
-//! **Spectrum.** A piecewise power law in the spatial frequency `f` (1/m), `S(f) = A_j / f^n_j`
-//! (mm^2/(1/m)) on segment `j` ([`Psd`]); the system description gives the segments (TB/T
-//! 3352-2014 for high-speed track, ISO 8608 classes for roads) and the wavelength band.
+//! **Spectrum.** A one-sided spectrum `S(f)` (mm^2/(1/m)) of the spatial frequency `f` (1/m)
+//! ([`Psd`]): a piecewise power law, `S(f) = A_j / f^n_j` on segment `j` (TB/T 3352-2014 for
+//! high-speed track, ISO 8608 classes for roads), or a two-pole form
+//! `S(f) = c / ((f^2 + p^2)(f^2 + q^2))` (the FRA track classes,
+//! [`mbd_system::schema::fra`]). The system description gives it and the wavelength band.
 //!
 //! **Profile.** `N = ceil(length / dx)` points `x_n = n dx` (m), rounded up to even, frequency
 //! bins `f_k = k / (N dx)`, `df = 1 / (N dx)`. Each bin `0 < k < N/2` gets the power of the
 //! spectrum over its cell, `P_k = integral of S over [f_k - df/2, f_k + df/2] ∩ band` (closed
-//! form of the power law), and
+//! form of either shape), and
 //! ```text
 //! eta(x_n) = sum_k sqrt(2 P_k) cos(2 pi f_k x_n + phi_k),   phi_k ~ U[0, 2 pi)
 //! ```
@@ -52,13 +54,86 @@ pub struct PsdSegment {
     pub n: f64,
 }
 
-/// A checked piecewise power-law spectrum.
+/// A checked spectrum: a piecewise power law or a two-pole form.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Psd {
-    segments: Vec<PsdSegment>,
+    shape: Shape,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Shape {
+    PowerLaw(Vec<PsdSegment>),
+    /// `S(f) = c / ((f^2 + p^2)(f^2 + q^2))`, `0 <= p < q`.
+    TwoPole {
+        c: f64,
+        p: f64,
+        q: f64,
+    },
+}
+
+/// `integral of df / (f^2 + a^2)` over `[f1, f2]` (`0 < f1 <= f2`, `a >= 0`):
+/// `(atan(f2 / a) - atan(f1 / a)) / a`, written as one arctangent so that a narrow cell keeps
+/// its digits; `(f2 - f1) / (f1 f2)` (its limit) at `a = 0`.
+fn pole_integral(a: f64, f1: f64, f2: f64) -> f64 {
+    if a == 0.0 {
+        (f2 - f1) / (f1 * f2)
+    } else {
+        (a * (f2 - f1) / (a * a + f1 * f2)).atan() / a
+    }
 }
 
 impl Psd {
+    /// Smallest relative gap `(q - p) / q` of a two-pole spectrum: below it the partial
+    /// fractions of [`Self::integral`] would lose more than about 3 of their digits.
+    pub const MIN_POLE_GAP: f64 = 1e-3;
+
+    /// The spectrum of a description's `psd` (in the generator's unit), checked.
+    pub fn from_description(psd: &mbd_system::schema::RawPsd) -> Result<Self> {
+        match psd {
+            mbd_system::schema::RawPsd::PowerLaw(segments) => Self::new(
+                segments
+                    .iter()
+                    .map(|s| PsdSegment {
+                        f_start: s.f_start,
+                        a: s.a,
+                        n: s.n,
+                    })
+                    .collect(),
+            ),
+            &mbd_system::schema::RawPsd::TwoPole { c, p, q } => Self::two_pole(c, p, q),
+        }
+    }
+
+    /// `S(f) = c / ((f^2 + p^2)(f^2 + q^2))` (mm^2/(1/m)), `c > 0` (mm^2 (1/m)^3) and the poles
+    /// `p, q >= 0` (1/m, either order) finite, at most one of them 0, at least
+    /// [`Self::MIN_POLE_GAP`] apart relative to the larger.
+    pub fn two_pole(c: f64, p: f64, q: f64) -> Result<Self> {
+        let bad = |value: f64, allowed: &str| Error::OutOfRange {
+            name: "psd".to_owned(),
+            value,
+            allowed: allowed.to_owned(),
+        };
+        if !(c.is_finite() && c > 0.0) {
+            return Err(bad(c, "c must be finite and > 0"));
+        }
+        let (p, q) = (p.min(q), p.max(q));
+        if !(p >= 0.0 && q.is_finite()) {
+            return Err(bad(p, "the poles must be finite and >= 0"));
+        }
+        if !(q > 0.0 && q - p >= Self::MIN_POLE_GAP * q) {
+            return Err(bad(
+                q,
+                &format!(
+                    "the poles {p} and {q} must differ by at least {} of the larger",
+                    Self::MIN_POLE_GAP
+                ),
+            ));
+        }
+        Ok(Self {
+            shape: Shape::TwoPole { c, p, q },
+        })
+    }
+
     /// Checks a segment table: first `f_start` is 0, starts strictly increasing, every `a > 0`
     /// and `n` finite.
     pub fn new(segments: Vec<PsdSegment>) -> Result<Self> {
@@ -88,48 +163,60 @@ impl Psd {
                 ));
             }
         }
-        Ok(Self { segments })
+        Ok(Self {
+            shape: Shape::PowerLaw(segments),
+        })
     }
 
-    /// The segments.
+    /// The segments of a power law; empty for a two-pole spectrum.
     pub fn segments(&self) -> &[PsdSegment] {
-        &self.segments
-    }
-
-    fn segment_end(&self, j: usize) -> f64 {
-        self.segments
-            .get(j + 1)
-            .map_or(f64::INFINITY, |s| s.f_start)
+        match &self.shape {
+            Shape::PowerLaw(segments) => segments,
+            Shape::TwoPole { .. } => &[],
+        }
     }
 
     /// `S(f)` in mm^2/(1/m) for `f > 0` (1/m).
     pub fn value(&self, f: f64) -> f64 {
-        let j = self
-            .segments
-            .iter()
-            .rposition(|s| f >= s.f_start)
-            .unwrap_or(0);
-        let s = self.segments[j];
-        s.a * f.powf(-s.n)
+        match &self.shape {
+            Shape::PowerLaw(segments) => {
+                let j = segments.iter().rposition(|s| f >= s.f_start).unwrap_or(0);
+                let s = segments[j];
+                s.a * f.powf(-s.n)
+            }
+            &Shape::TwoPole { c, p, q } => c / ((f * f + p * p) * (f * f + q * q)),
+        }
     }
 
-    /// `integral of S(f) df` over `[f1, f2]` (mm^2), `0 < f1 <= f2`, in closed form per segment:
-    /// `A (f^(1-n)) / (1-n)`, or `A ln f` when `n = 1`.
+    /// `integral of S(f) df` over `[f1, f2]` (mm^2), `0 < f1 <= f2`, in closed form: per
+    /// segment of a power law `A (f^(1-n)) / (1-n)`, or `A ln f` when `n = 1`; for two poles
+    /// the partial fractions `c / (q^2 - p^2) (1 / (f^2 + p^2) - 1 / (f^2 + q^2))`.
     pub fn integral(&self, f1: f64, f2: f64) -> f64 {
-        let mut total = 0.0;
-        for (j, s) in self.segments.iter().enumerate() {
-            let lo = f1.max(s.f_start);
-            let hi = f2.min(self.segment_end(j));
-            if hi > lo {
-                total += if (s.n - 1.0).abs() < 1e-12 {
-                    s.a * (hi / lo).ln()
-                } else {
-                    s.a * (hi.powf(1.0 - s.n) - lo.powf(1.0 - s.n)) / (1.0 - s.n)
-                };
+        match &self.shape {
+            Shape::PowerLaw(segments) => power_law_integral(segments, f1, f2),
+            &Shape::TwoPole { c, p, q } => {
+                c / (q * q - p * p) * (pole_integral(p, f1, f2) - pole_integral(q, f1, f2))
             }
         }
-        total
     }
+}
+
+/// [`Psd::integral`] of a power law.
+fn power_law_integral(segments: &[PsdSegment], f1: f64, f2: f64) -> f64 {
+    let mut total = 0.0;
+    for (j, s) in segments.iter().enumerate() {
+        let end = segments.get(j + 1).map_or(f64::INFINITY, |s| s.f_start);
+        let lo = f1.max(s.f_start);
+        let hi = f2.min(end);
+        if hi > lo {
+            total += if (s.n - 1.0).abs() < 1e-12 {
+                s.a * (hi / lo).ln()
+            } else {
+                s.a * (hi.powf(1.0 - s.n) - lo.powf(1.0 - s.n)) / (1.0 - s.n)
+            };
+        }
+    }
+    total
 }
 
 /// The run controls of profile generation (the `irregularity` stage's parameters): seed, point
@@ -432,6 +519,7 @@ pub fn welch_segments(len: usize, segment_len: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mbd_system::schema::fra::{fra_psd, FraIrregularity};
 
     /// TB/T 3352-2014, ballastless track, vertical (as in `systems/vtcd.yaml`).
     fn tbt3352() -> Psd {
@@ -491,12 +579,17 @@ mod tests {
     }
 
     fn generator(seed: u64) -> ProfileGenerator {
+        generator_of(tbt3352(), seed)
+    }
+
+    /// Profiles of `psd` over 2-100 m wavelengths, 540 m at dx = 0.1 m.
+    fn generator_of(psd: Psd, seed: u64) -> ProfileGenerator {
         ProfileParams {
             seed,
             dx: 0.1,
             length: 540.0,
         }
-        .generator(tbt3352(), [2.0, 100.0], crate::rng::profile_code(0))
+        .generator(psd, [2.0, 100.0], crate::rng::profile_code(0))
         .unwrap()
     }
 
@@ -609,6 +702,12 @@ mod tests {
 
     #[test]
     fn ensemble_welch_follows_the_spectrum() {
+        assert_ensemble_welch_follows_the_spectrum(tbt3352());
+    }
+
+    /// The mean Welch estimate of 32 profiles of `psd` over 2-100 m wavelengths follows `psd`
+    /// bin by bin.
+    fn assert_ensemble_welch_follows_the_spectrum(psd: Psd) {
         // Long profiles (6553.6 m at dx = 0.2 m) so that 819-m Welch windows (resolution
         // 0.0012 1/m) resolve the steep low-frequency end of the band.
         let g = ProfileParams {
@@ -616,7 +715,7 @@ mod tests {
             dx: 0.2,
             length: 6553.6,
         }
-        .generator(tbt3352(), [2.0, 100.0], crate::rng::profile_code(0))
+        .generator(psd, [2.0, 100.0], crate::rng::profile_code(0))
         .unwrap();
         let (seg, samples) = (4096, 32);
         let mut mean = vec![0.0; seg / 2 + 1];
@@ -651,10 +750,15 @@ mod tests {
 
     #[test]
     fn pointwise_ensemble_variance_is_the_band_integral() {
+        assert_pointwise_ensemble_variance_is_the_band_integral(&generator(5));
+    }
+
+    /// Over 8000 samples of `g`, the mean of `z^2` at three points is the band integral
+    /// within 4 standard errors.
+    fn assert_pointwise_ensemble_variance_is_the_band_integral(g: &ProfileGenerator) {
         // At a fixed x the value sum_k a_k cos(theta_k) over random phases has variance
         // sigma^2 = sum a_k^2 / 2 and E z^4 = 3 sigma^4 - (3/8) sum a_k^4, which gives the
         // standard error of the ensemble mean of z^2 exactly.
-        let g = generator(5);
         let m = 8000;
         let points = [0usize, 1234, 4000];
         let mut sums = [0.0; 3];
@@ -690,6 +794,111 @@ mod tests {
         .generator(tbt3352(), [2.0, 100.0], crate::rng::profile_code(1))
         .unwrap();
         assert_ne!(g.profile(4), other.profile(4));
+    }
+
+    /// An FRA class spectrum as the description gives it.
+    fn fra(class: usize, irregularity: FraIrregularity) -> Psd {
+        Psd::from_description(&fra_psd(class, irregularity).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn fra_spectra_in_the_generators_unit_are_the_hand_computed_values() {
+        // Class 5 vertical at f = 0.1 cycles/m: Omega = 2 pi 0.1 rad/m, Omega^2 = 0.39478418,
+        // Omega_c^2 = 0.8245^2 = 0.67980025; S_v = 0.25 * 0.2095 * 0.67980025 /
+        // (0.39478418 * (0.39478418 + 0.67980025)) = 0.035604538 / 0.42422893
+        // = 0.083927653 cm^2/(rad/m); S(f) = 2 pi S_v (per cycle/m) * 100 (cm^2 -> mm^2)
+        // = 52.733299 mm^2/(1/m).
+        let v = fra(5, FraIrregularity::Vertical).value(0.1);
+        assert!((v / 52.733299 - 1.0).abs() < 1e-7, "{v}");
+        // Class 1 cross-level (Omega_s = 0.6046 below Omega_c): 4 * 0.25 * 1.2107 * 0.67980025
+        // / ((0.39478418 + 0.67980025)(0.39478418 + 0.6046^2)) = 1.0073441 cm^2/(rad/m),
+        // 632.93298 mm^2/(1/m).
+        let c = fra(1, FraIrregularity::CrossLevel).value(0.1);
+        assert!((c / 632.93298 - 1.0).abs() < 1e-7, "{c}");
+        // Alignment: the vertical form with A_a (class 5: 0.0762 against A_v = 0.2095).
+        let a = fra(5, FraIrregularity::Alignment).value(0.1);
+        assert!((a / v - 0.0762 / 0.2095).abs() < 1e-12, "{a}");
+        assert!(fra_psd(0, FraIrregularity::Vertical).is_none());
+        assert!(fra_psd(7, FraIrregularity::Vertical).is_none());
+    }
+
+    #[test]
+    fn fra_band_integrals_are_the_midpoint_rule_of_the_omega_form() {
+        // The closed form (f, mm^2) against a fine midpoint rule of the published form in
+        // Omega (cm^2/(rad/m)) over the same band, 2-100 m: the powers are equal,
+        // integral S(f) df = 100 integral S(Omega) dOmega. Cross-level class 5 has its two
+        // poles 0.4% apart (the partial fractions' hardest case).
+        const K: f64 = 0.25;
+        const C2: f64 = 0.8245 * 0.8245;
+        // (class, irregularity, S(Omega) in cm^2/(rad/m))
+        type Form = (usize, FraIrregularity, fn(f64) -> f64);
+        let forms: [Form; 3] = [
+            (5, FraIrregularity::Vertical, |w| {
+                K * 0.2095 * C2 / (w * w * (w * w + C2))
+            }),
+            (2, FraIrregularity::Alignment, |w| {
+                K * 1.2107 * C2 / (w * w * (w * w + C2))
+            }),
+            (5, FraIrregularity::CrossLevel, |w| {
+                4.0 * K * 0.2095 * C2 / ((w * w + C2) * (w * w + 0.8209 * 0.8209))
+            }),
+        ];
+        let (w1, w2) = (2.0 * PI * 0.01, 2.0 * PI * 0.5);
+        let m = 400_000;
+        let h = (w2 - w1) / m as f64;
+        for (class, irregularity, s) in forms {
+            let closed = fra(class, irregularity).integral(0.01, 0.5);
+            let mid: f64 = (0..m)
+                .map(|i| s(w1 + (i as f64 + 0.5) * h) * h)
+                .sum::<f64>()
+                * 100.0;
+            assert!(
+                (closed / mid - 1.0).abs() < 1e-6,
+                "class {class} {irregularity:?}: {closed} vs {mid}"
+            );
+        }
+    }
+
+    #[test]
+    fn fra_profiles_have_the_band_integral_as_mean_square() {
+        // Class 5 vertical over 2-100 m: every profile's mean square is the PSD's band
+        // integral, exactly (random phases only), and the ensemble at fixed points agrees
+        // within the statistical tolerance of the TB/T test.
+        let psd = fra(5, FraIrregularity::Vertical);
+        let band = psd.integral(0.01, 0.5) * 1e-6;
+        let g = generator_of(psd, 5);
+        assert!(
+            (g.variance() / band - 1.0).abs() < 1e-12,
+            "{}",
+            g.variance()
+        );
+        for id in 0..20 {
+            let z = g.profile(id);
+            let ms = z.iter().map(|x| x * x).sum::<f64>() / z.len() as f64;
+            assert!((ms / band - 1.0).abs() < 1e-10, "{ms} vs {band}");
+        }
+        assert_pointwise_ensemble_variance_is_the_band_integral(&g);
+    }
+
+    #[test]
+    fn ensemble_welch_follows_the_fra_cross_level_spectrum() {
+        assert_ensemble_welch_follows_the_spectrum(fra(5, FraIrregularity::CrossLevel));
+    }
+
+    #[test]
+    fn two_pole_spectra_are_checked() {
+        let msg = |c: f64, p: f64, q: f64| Psd::two_pole(c, p, q).unwrap_err().to_string();
+        assert!(msg(-1.0, 0.0, 0.1).contains("c must be finite and > 0"));
+        assert!(msg(1.0, -0.1, 0.1).contains("the poles must be finite and >= 0"));
+        assert!(msg(1.0, 0.1, f64::INFINITY).contains("the poles must be finite"));
+        assert!(msg(1.0, 0.1, 0.10001).contains("must differ by at least"));
+        assert!(msg(1.0, 0.0, 0.0).contains("must differ by at least"));
+        // Either order of the poles is the same spectrum.
+        assert_eq!(
+            Psd::two_pole(1.0, 0.2, 0.1).unwrap(),
+            Psd::two_pole(1.0, 0.1, 0.2).unwrap()
+        );
+        assert!(Psd::two_pole(1.0, 0.1, 0.2).unwrap().segments().is_empty());
     }
 
     #[test]

@@ -4,7 +4,7 @@
 
 use crate::expr::Expr;
 pub use crate::schema::Interpolation;
-use crate::schema::{Axis, DofKind, IndexStat, Outside, RawPsdSegment};
+use crate::schema::{Axis, DofKind, IndexStat, Outside, RawPsd};
 
 /// How a compiled parameter gets its value.
 #[derive(Debug, Clone, PartialEq)]
@@ -278,8 +278,8 @@ pub enum Profile {
     Generated {
         /// Name.
         name: String,
-        /// Spectrum segments, `a` in mm^2 m.
-        segments: Vec<RawPsdSegment>,
+        /// The spectrum, `S(f)` in mm^2/(1/m).
+        psd: RawPsd,
         /// Wavelength band (m).
         wavelengths: [f64; 2],
         /// How the points are read between them.

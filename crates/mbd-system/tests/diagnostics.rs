@@ -693,6 +693,75 @@ fn a_profiles_interpolation_is_linear_by_default_cubic_on_request_and_nothing_el
 }
 
 #[test]
+fn an_fra_track_class_is_read_as_its_spectrum_and_a_bad_class_or_irregularity_is_refused() {
+    use mbd_system::schema::fra::{fra_psd, FraIrregularity};
+    use mbd_system::system::Profile;
+    let generated = |fra: &str| {
+        edit(
+            BASE,
+            "  bumps: {kind: harmonic, amplitude: 1.0e-3, wavelength: 2}\n",
+            &format!(
+                "  bumps:\n    kind: generated\n    psd:\n      fra: {fra}\n    wavelengths: [2.0, 100.0]\n"
+            ),
+        )
+    };
+    for (text, class, kind) in [
+        (
+            "{class: 5, irregularity: vertical}",
+            5,
+            FraIrregularity::Vertical,
+        ),
+        (
+            "{class: 1, irregularity: alignment}",
+            1,
+            FraIrregularity::Alignment,
+        ),
+        (
+            "{class: 6, irregularity: cross_level}",
+            6,
+            FraIrregularity::CrossLevel,
+        ),
+    ] {
+        let system = compiles(&generated(text));
+        let Profile::Generated { psd, .. } = &system.profiles[0] else {
+            panic!("generated")
+        };
+        assert_eq!(psd, &fra_psd(class, kind).unwrap(), "{text}");
+    }
+    let allowed = "allowed: 1, 2, 3, 4, 5, 6";
+    for bad in ["7", "0", "2.5"] {
+        let text = generated(&format!("{{class: {bad}, irregularity: vertical}}"));
+        only(
+            &text,
+            "fra:",
+            &[&format!("profiles.bumps.psd.fra.class: {bad}"), allowed],
+        );
+    }
+    let text = generated("{class: 5, irregularity: gauge}");
+    only(
+        &text,
+        "fra:",
+        &[
+            "profiles.bumps.psd.fra.irregularity",
+            "`gauge`",
+            "allowed: vertical, alignment, cross_level",
+        ],
+    );
+    let text = generated("{class: 5}");
+    only(
+        &text,
+        "fra:",
+        &["profiles.bumps.psd.fra", "missing field `irregularity`"],
+    );
+    let text = generated("{class: 5, irregularity: vertical, k: 0.3}");
+    only(
+        &text,
+        "fra:",
+        &["unknown field `k`", "allowed: class, irregularity"],
+    );
+}
+
+#[test]
 fn indices_from_is_read_and_a_negative_or_non_numeric_time_is_refused_at_its_line() {
     assert_eq!(
         compiles(BASE).indices_from,

@@ -144,7 +144,7 @@ fn random_road_rms_matches_the_generators_spectral_sum() {
     let system = load(&system_text("quarter-car.yaml"), &[]);
     let (car, v, weight) = reference(&system);
     let mbd_system::system::Profile::Generated {
-        segments,
+        psd: mbd_system::schema::RawPsd::PowerLaw(segments),
         wavelengths,
         ..
     } = &system.profiles[0]

@@ -19,13 +19,13 @@ impl Compiler<'_, '_> {
                         .collect(),
                 },
                 RawProfileKind::Generated {
-                    segments,
+                    psd,
                     wavelengths,
                     interpolation,
                     until,
                 } => Profile::Generated {
                     name: p.name.clone(),
-                    segments: segments.clone(),
+                    psd: psd.clone(),
                     wavelengths: *wavelengths,
                     interpolation: interpolation.0,
                     until: until.as_ref().map(|(x, taper)| {

@@ -9,6 +9,7 @@
 //! This module holds the records; `sections` the readers, one per section, and [`read`] the
 //! whole description.
 
+pub mod fra;
 mod sections;
 
 pub use sections::read;
@@ -406,13 +407,31 @@ pub struct RawPsdSegment {
     pub n: f64,
 }
 
+/// The one-sided displacement spectrum of a generated profile in the generator's unit: `S(f)`
+/// in mm^2/(1/m) of the spatial frequency `f` (1/m).
+#[derive(Debug, Clone, PartialEq)]
+pub enum RawPsd {
+    /// Piecewise power law (a standard's segments, an ISO 8608 class), `a` in mm^2 m.
+    PowerLaw(Vec<RawPsdSegment>),
+    /// `S(f) = c / ((f^2 + p^2)(f^2 + q^2))` (an FRA track class, [`fra`]): `c` in
+    /// mm^2 (1/m)^3, `p >= 0` and `q > 0` in 1/m.
+    TwoPole {
+        /// Numerator (mm^2 (1/m)^3).
+        c: f64,
+        /// First pole (1/m), 0 for a spectrum rising as `f^-2` at long wavelengths.
+        p: f64,
+        /// Second pole (1/m).
+        q: f64,
+    },
+}
+
 /// How a profile is made.
 #[derive(Debug, Clone, PartialEq)]
 pub enum RawProfileKind {
     /// One random-phase realisation per sample, from a spectrum.
     Generated {
-        /// Segments, their coefficient in mm^2 m (`a` scaled from `unit`).
-        segments: Vec<RawPsdSegment>,
+        /// The spectrum, in the generator's unit (`a` of segments scaled from `unit`).
+        psd: RawPsd,
         /// Wavelength band `[min, max]` (m).
         wavelengths: [f64; 2],
         /// `interpolation:` (default linear) and where it is given (the profile's entry when

@@ -618,7 +618,7 @@ fn generated_profile(
         return None;
     }
     Some(RawProfileKind::Generated {
-        segments: psd?,
+        psd: psd?,
         wavelengths,
         interpolation,
         until,
@@ -649,10 +649,15 @@ fn combination_profile(mut m: MapReader, what: &str, diag: &mut Diagnostics) -> 
     RawProfileKind::Combination { terms }
 }
 
-/// `{iso8608: C}`, or `{unit: "mm^2 m" | "m^3", segments: [{f_start, a, n}, ...]}`; returns the
-/// segments with `a` in mm^2 m (the generator's unit).
-fn psd(node: &Node, what: &str, diag: &mut Diagnostics) -> Option<Vec<RawPsdSegment>> {
+/// `{iso8608: C}`, `{fra: {class: 5, irregularity: vertical}}`, or
+/// `{unit: "mm^2 m" | "m^3", segments: [{f_start, a, n}, ...]}`; returns the spectrum in the
+/// generator's unit (segments with `a` in mm^2 m).
+fn psd(node: &Node, what: &str, diag: &mut Diagnostics) -> Option<RawPsd> {
     let mut m = MapReader::new(node, what, diag)?;
+    if let Some(n) = m.get("fra") {
+        m.finish(&["fra"], diag);
+        return fra(n, &format!("{what}.fra"), diag);
+    }
     if let Some((class, p)) = m.string("iso8608", diag) {
         m.finish(&["iso8608"], diag);
         let Some(&(_, g0)) = ISO8608_CLASSES.iter().find(|c| c.0 == class) else {
@@ -667,11 +672,11 @@ fn psd(node: &Node, what: &str, diag: &mut Diagnostics) -> Option<Vec<RawPsdSegm
             return None;
         };
         // G_d(n) = g0 (n / 0.1)^-2 = (g0 0.01) n^-2 m^3 = (g0 0.01 1e6) n^-2 mm^2 m.
-        return Some(vec![RawPsdSegment {
+        return Some(RawPsd::PowerLaw(vec![RawPsdSegment {
             f_start: 0.0,
             a: g0 * 0.01 * 1e6,
             n: 2.0,
-        }]);
+        }]));
     }
     let scale = match m.required_string("unit", diag) {
         Some((u, p)) => match u.as_str() {
@@ -685,7 +690,7 @@ fn psd(node: &Node, what: &str, diag: &mut Diagnostics) -> Option<Vec<RawPsdSegm
         None => return None,
     };
     let segments = m.required("segments", diag);
-    m.finish(&["unit", "segments", "iso8608"], diag);
+    m.finish(&["unit", "segments", "iso8608", "fra"], diag);
     let items = segments?.as_seq().or_else(|| {
         diag.push(
             node.pos,
@@ -727,7 +732,48 @@ fn psd(node: &Node, what: &str, diag: &mut Diagnostics) -> Option<Vec<RawPsdSegm
         diag.push(node.pos, format!("{what}.segments: at least one segment"));
         return None;
     }
-    Some(out)
+    Some(RawPsd::PowerLaw(out))
+}
+
+/// `{class: 1..6, irregularity: vertical | alignment | cross_level}`: an FRA track class's
+/// spectrum ([`fra::fra_psd`]).
+fn fra(node: &Node, what: &str, diag: &mut Diagnostics) -> Option<RawPsd> {
+    let mut m = MapReader::new(node, what, diag)?;
+    let class = m.required("class", diag).and_then(|n| {
+        crate::reader::read_number(n, &format!("{what}.class"), diag).map(|v| (v, n.pos))
+    });
+    let irregularity = m.required_string("irregularity", diag);
+    m.finish(&["class", "irregularity"], diag);
+    let classes = 1..=fra::FRA_CLASSES.len();
+    let class = class.and_then(|(v, p)| {
+        let found = classes.clone().find(|&c| c as f64 == v);
+        if found.is_none() {
+            let allowed: Vec<String> = classes.map(|c| c.to_string()).collect();
+            diag.push(
+                p,
+                format!(
+                    "{what}.class: {v}; allowed: {} (FRA track classes, 6 the best)",
+                    allowed.join(", ")
+                ),
+            );
+        }
+        found
+    });
+    let kind = irregularity.and_then(|(k, p)| {
+        let found = fra::FraIrregularity::from_keyword(&k);
+        if found.is_none() {
+            let allowed: Vec<&str> = fra::FraIrregularity::ALL.iter().map(|(_, k)| *k).collect();
+            diag.push(
+                p,
+                format!(
+                    "{what}.irregularity: unknown irregularity `{k}`; allowed: {}",
+                    allowed.join(", ")
+                ),
+            );
+        }
+        found
+    });
+    fra::fra_psd(class?, kind?)
 }
 
 fn element(name: &str, pos: Pos, node: &Node, diag: &mut Diagnostics) -> Option<RawElement> {
