@@ -921,9 +921,8 @@ pub fn state_masses(engine: &Engine) -> Vec<f64> {
 /// wheel of the vehicle-track model), summed with compensation so that equal forces give
 /// exactly their value. Where the rigid part is not statically determinate (a vehicle in space:
 /// four wheelsets on eight wheels), the mean of the wheels' normal forces still is: the vertical
-/// balance of the bodies ([`vertical_contact_mean`]). `None` when no element rests on a moving
-/// point, or the rigid part is indeterminate and another element carries vertical load to the
-/// ground.
+/// balance of the bodies. `None` when no element rests on a moving point, or the rigid part is
+/// indeterminate and another element carries vertical load to the ground.
 pub fn contact_scale(system: &System, model: &Model) -> Option<f64> {
     let Some(sf) = static_forces(system, model) else {
         return vertical_contact_mean(system, model);

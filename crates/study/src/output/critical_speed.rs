@@ -3,7 +3,7 @@
 //! for the calibrated surrogate, its band), every sweep's mean growth (`sweep.parquet`: grid
 //! point, speed, `source`, the mean growth and its intervals' means), every run's growth
 //! (`evaluations.parquet`: with its excitation id), the summary and the timings
-//! ([`SPEED_FILE`]).
+//! ([`SPEED_FILE`](super::SPEED_FILE)).
 
 use super::{finish, num, study_units, CRITICAL_SPEED_TABLE_FILE, EXCITATION, SOLVER_FAILURE};
 use crate::critical_speed::{CriticalSpeedStudy, Crossing, Sweeps};
