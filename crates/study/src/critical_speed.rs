@@ -17,6 +17,7 @@ use super::evaluate::{spread, Evaluator};
 use super::spec::{CriticalSpeed, Study};
 use crate::Result;
 use pino_predict::DesignAnswer;
+use pino_studies::stats::mean;
 use std::time::Instant;
 
 /// Where a sweep's growth turns positive.
@@ -134,10 +135,6 @@ impl Sweeps {
                 .collect(),
         )
     }
-}
-
-fn mean(v: &[f64]) -> f64 {
-    v.iter().sum::<f64>() / v.len() as f64
 }
 
 /// A critical-speed study's results.
@@ -267,14 +264,9 @@ pub fn run(
     let solver_s = t1.elapsed().as_secs_f64();
     let per_cell = speeds.len() * spec.excitations;
     let solver = Sweeps {
-        growth: solved
-            .chunks(per_cell.max(1))
-            .map(|cell| {
-                cell.chunks(spec.excitations)
-                    .map(|runs| runs.iter().map(|s| s.indices[index]).collect())
-                    .collect()
-            })
-            .collect(),
+        growth: nest(&solved, speeds.len(), spec.excitations, |s| {
+            s.indices[index]
+        }),
         bounds: None,
         failures: solved
             .chunks(per_cell.max(1))
@@ -294,6 +286,18 @@ pub fn run(
     })
 }
 
+/// `f` of every run of a side, in [`run`]'s order (grid point, then speed, then excitation),
+/// nested by grid point and speed.
+fn nest<R, T>(runs: &[R], speeds: usize, excitations: usize, f: impl Fn(&R) -> T) -> PerRun<T> {
+    runs.chunks((speeds * excitations).max(1))
+        .map(|cell| {
+            cell.chunks(excitations.max(1))
+                .map(|r| r.iter().map(&f).collect())
+                .collect()
+        })
+        .collect()
+}
+
 /// The surrogate's answers (grid point, then speed, then excitation) as sweeps of index
 /// `index`.
 fn surrogate_sweeps(
@@ -303,37 +307,15 @@ fn surrogate_sweeps(
     excitations: usize,
     index: usize,
 ) -> Sweeps {
-    let per_cell = speeds * excitations;
-    let nested = |f: &dyn Fn(&DesignAnswer) -> f64| -> PerRun<f64> {
-        answers
-            .chunks(per_cell.max(1))
-            .map(|cell| {
-                cell.chunks(excitations)
-                    .map(|runs| runs.iter().map(f).collect())
-                    .collect()
-            })
-            .collect()
-    };
     let calibrated = !answers.is_empty() && answers.iter().all(|a| a.calibrated.is_some());
     let bounds = calibrated.then(|| {
-        answers
-            .chunks(per_cell.max(1))
-            .map(|cell| {
-                cell.chunks(excitations)
-                    .map(|runs| {
-                        runs.iter()
-                            .map(|a| {
-                                let i = a.calibrated.as_ref().map(|c| c.indices[index]);
-                                i.map_or((f64::NAN, f64::NAN), |i| (i.lo, i.hi))
-                            })
-                            .collect()
-                    })
-                    .collect()
-            })
-            .collect()
+        nest(answers, speeds, excitations, |a| {
+            let i = a.calibrated.as_ref().map(|c| c.indices[index]);
+            i.map_or((f64::NAN, f64::NAN), |i| (i.lo, i.hi))
+        })
     });
     Sweeps {
-        growth: nested(&|a| a.indices.values[index]),
+        growth: nest(answers, speeds, excitations, |a| a.indices.values[index]),
         bounds,
         failures: vec![None; cells.len()],
         cells,
