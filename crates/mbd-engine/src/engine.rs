@@ -36,6 +36,7 @@ use crate::coverage::check_coverage;
 use crate::dst::SineTransform;
 use crate::integrator;
 use crate::profile::{Profile, ProfileSource};
+use crate::reads::{Evaluation, ProfileReads};
 use crate::wheel::{Wheel, WheelForces};
 use crate::Result;
 use mbd_system::model::{Model, ModelEnd, ModelProfile, ModelSupports};
@@ -129,6 +130,8 @@ pub struct Quantities {
     pub point_force: Vec<f64>,
     /// Each wheel's tangential forces (zero for other elements; empty without wheels).
     pub wheel: Vec<WheelForces>,
+    /// The profile reads' level and slope of the last evaluation (scratch).
+    pub(crate) reads: Vec<[f64; 2]>,
 }
 
 impl Quantities {
@@ -144,6 +147,7 @@ impl Quantities {
             force: vec![0.0; elements],
             point_force: vec![0.0; points],
             wheel: Vec::new(),
+            reads: Vec::new(),
         }
     }
 
@@ -206,17 +210,13 @@ pub struct Engine {
     point_terms: Vec<Vec<(Source, f64)>>,
     /// Per element, whether its rates are needed (a damper).
     pub(crate) needs_rate: Vec<bool>,
-    /// Per element, whether its profile's rate is evaluated: its force reads it or it is a
-    /// stored column ([`mbd_system::system::Element::reads_profile_rate`]).
-    profile_rate: Vec<bool>,
     /// Sensor shapes.
     sensor_shapes: Vec<Vec<f64>>,
     pub(crate) route: Route,
     /// Per element, the wheel of a wheelset at run time (empty without wheels).
     pub(crate) wheels: Vec<Option<Wheel>>,
-    /// Per element, an earlier element reading the same profile at the same point, whose
-    /// reading (and rate, where this one's is evaluated) it takes.
-    same_read: Vec<Option<usize>>,
+    /// The profiles under the elements, each part read once per point.
+    reads: ProfileReads,
     /// The rigid DOFs' coefficient groups, compiled.
     assembly: Assembly,
 }
@@ -244,6 +244,8 @@ impl Engine {
             .iter()
             .map(|e| e.law.damping() != 0.0)
             .collect();
+        // Per element, whether its profile's rate is evaluated: its force reads it or it is
+        // a stored column ([`mbd_system::system::Element::reads_profile_rate`]).
         let profile_rate: Vec<bool> = system
             .elements
             .iter()
@@ -253,7 +255,7 @@ impl Engine {
         let (layout, beams) = beam_layout(&model, &needs_rate, route);
         let point_terms = point_terms(&model);
         let wheels = run_wheels(&system, &model)?;
-        let same_read = same_reads(&model, &profile_rate);
+        let reads = ProfileReads::of(&model, &profile_rate);
         let assembly = Assembly::of(&model);
         let sensor_shapes = model
             .sensors
@@ -273,11 +275,10 @@ impl Engine {
             profiles: sources,
             point_terms,
             needs_rate,
-            profile_rate,
             sensor_shapes,
             route,
             wheels,
-            same_read,
+            reads,
             assembly,
         };
         check_coverage(
@@ -391,27 +392,18 @@ impl Engine {
         a: &mut [f64],
     ) {
         let m = &self.model;
-        // Profiles under the elements.
-        let ramp = self.config.ramp(t);
-        let ramp_rate = self.config.ramp_rate(t);
-        for (e, el) in m.elements.iter().enumerate() {
-            let (Some(p), ModelEnd::Moving(pt)) = (el.profile, el.to) else {
-                continue;
-            };
-            // Elements reading one profile at one point (a rail's two lateral fastenings at a
-            // wheel, say) read it once.
-            if let Some(first) = self.same_read[e] {
-                q.eta[e] = q.eta[first];
-                q.eta_rate[e] = q.eta_rate[first];
-                continue;
-            }
-            let src = &self.profiles[p];
-            let xp = q.point_x[pt];
-            q.eta[e] = src.ramped(ramp, xp);
-            if self.profile_rate[e] {
-                q.eta_rate[e] = src.ramped_rate(ramp, ramp_rate, m.speed, xp);
-            }
-        }
+        self.reads.evaluate(
+            &self.profiles,
+            Evaluation {
+                point_x: &q.point_x,
+                eta: &mut q.eta,
+                eta_rate: &mut q.eta_rate,
+                ramp: self.config.ramp(t),
+                ramp_rate: self.config.ramp_rate(t),
+                speed: m.speed,
+            },
+            &mut q.reads,
+        );
         element_forces(m, &self.needs_rate, &self.wheels, x, v, q);
         self.assembly.forces(&q.force, a);
         wheel_forces(&self.wheels, q, a);
@@ -832,26 +824,6 @@ fn point_terms(model: &Model) -> Vec<Vec<(Source, f64)>> {
         }
     }
     point_terms
-}
-
-/// Per element, an earlier element reading the same profile at the same moving point whose
-/// reading it can take (that one's rate is evaluated wherever this one's is, `profile_rate`).
-fn same_reads(model: &Model, profile_rate: &[bool]) -> Vec<Option<usize>> {
-    (0..model.elements.len())
-        .map(|e| {
-            let el = &model.elements[e];
-            let ModelEnd::Moving(pt) = el.to else {
-                return None;
-            };
-            el.profile?;
-            (0..e).find(|&f| {
-                let other = &model.elements[f];
-                other.profile == el.profile
-                    && other.to == ModelEnd::Moving(pt)
-                    && (profile_rate[f] || !profile_rate[e])
-            })
-        })
-        .collect()
 }
 
 /// The profile each of `model`'s profiles reads: its analytic form, the points `profiles[p]`

@@ -36,6 +36,7 @@ pub mod engine;
 pub mod excitation;
 pub mod integrator;
 pub mod profile;
+mod reads;
 pub mod residual;
 pub mod run;
 pub mod stability;

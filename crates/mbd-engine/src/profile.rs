@@ -166,6 +166,33 @@ impl Profile {
         }
         (self.eta[i] - self.eta[i - 1]) / (self.x[i] - self.x[i - 1])
     }
+
+    /// `(eta(x), d eta / dx)`: [`Profile::at`] and [`Profile::slope`] from one cell search,
+    /// each by its own arithmetic (the same values to the bit).
+    #[inline]
+    pub fn at_and_slope(&self, x: f64) -> (f64, f64) {
+        let i = self.cell(x);
+        let [lo, hi] = self.range();
+        let inside = !(x < lo || x > hi);
+        if let Some(&[s, c2, c3]) = self.cubic.get(i - 1) {
+            let t = x.clamp(self.x[i - 1], self.x[i]) - self.x[i - 1];
+            let at = self.eta[i - 1] + t * (s + t * (c2 + t * c3));
+            if !inside {
+                return (at, 0.0);
+            }
+            let t = x - self.x[i - 1];
+            return (at, s + t * (2.0 * c2 + t * 3.0 * c3));
+        }
+        let (x0, x1) = (self.x[i - 1], self.x[i]);
+        let w = ((x - x0) / (x1 - x0)).clamp(0.0, 1.0);
+        let at = self.eta[i - 1] + w * (self.eta[i] - self.eta[i - 1]);
+        let slope = if inside {
+            (self.eta[i] - self.eta[i - 1]) / (x1 - x0)
+        } else {
+            0.0
+        };
+        (at, slope)
+    }
 }
 
 /// The cells of the not-a-knot cubic spline through `(x, eta)` (`x` strictly increasing, at
@@ -296,6 +323,25 @@ impl ProfileSource {
     #[inline]
     pub fn ramped_rate(&self, ramp: f64, ramp_rate: f64, speed: f64, x: f64) -> f64 {
         ramp * speed * self.slope(x) + ramp_rate * self.at(x)
+    }
+
+    /// `(eta(x), d eta / dx)`, the values of [`ProfileSource::at`] and
+    /// [`ProfileSource::slope`] to the bit, a sampled profile's cell searched once.
+    #[inline]
+    pub fn at_and_slope(&self, x: f64) -> (f64, f64) {
+        match self {
+            ProfileSource::Points(p) => p.at_and_slope(x),
+            ProfileSource::Until { inner, end, taper } => {
+                let (w, dw) = fade(x, *end, *taper);
+                if w == 0.0 {
+                    (0.0, 0.0)
+                } else {
+                    let (at, slope) = inner.at_and_slope(x);
+                    (w * at, w * slope + dw * at)
+                }
+            }
+            _ => (self.at(x), self.slope(x)),
+        }
     }
 
     /// The positions (m) the profile covers, `None` for every `x` (an analytic or level

@@ -315,3 +315,58 @@ fn the_mean_wheel_load_of_the_vehicle_in_space_is_w() {
     let model = system.instantiate(&system.nominal()).unwrap();
     assert_eq!(mbd_engine::statics::contact_scale(&system, &model), None);
 }
+
+/// The vehicle in space reads each profile part once per wheelset and point (the two rails'
+/// combinations share the vertical profile and the cross-level; a level and its slope come from
+/// one search): every element's `eta` and, for a damper, its rate are still the values of
+/// [`mbd_engine::ProfileSource::ramped`] and `ramped_rate` of its own profile at its own point,
+/// to the bit, through the start-up's zero, ramp and full phases.
+#[test]
+fn the_profiles_under_the_vehicle_in_space_are_each_elements_own_reading() {
+    let system = load(&system_text("vtcd-3d.yaml"), &[]);
+    let model = system.instantiate(&system.nominal()).unwrap();
+    let params = mbd_dataset::ProfileParams {
+        seed: 5,
+        dx: 0.1,
+        length: 240.0,
+    };
+    let profiles: Vec<Option<mbd_engine::Profile>> =
+        mbd_dataset::profile_generators(&system, &params)
+            .unwrap()
+            .into_iter()
+            .map(|g| g.map(|g| mbd_engine::Profile::new(g.positions(), g.profile(3)).unwrap()))
+            .collect();
+    assert_eq!(
+        profiles.iter().flatten().count(),
+        3,
+        "vertical, alignment, cross-level"
+    );
+    let mut cfg = config(0.06, 1e-4, 10, StartMode::Rest, 20.0);
+    cfg.startup_zero_fraction = 0.2;
+    cfg.startup_ramp_fraction = 0.5;
+    let engine = Engine::with_route(system.clone(), model.clone(), &cfg, profiles, Route::Fast)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let mut checked = [0usize; 2];
+    engine
+        .run_observed(600, None, |s| {
+            let (ramp, ramp_rate) = (cfg.ramp(s.t), cfg.ramp_rate(s.t));
+            for (e, el) in model.elements.iter().enumerate() {
+                let (Some(p), mbd_system::model::ModelEnd::Moving(pt)) = (el.profile, el.to) else {
+                    continue;
+                };
+                let (source, x) = (engine.profile(p), s.q.point_x[pt]);
+                let eta = source.ramped(ramp, x);
+                assert_eq!(s.q.eta[e].to_bits(), eta.to_bits(), "eta of {e} at {}", s.t);
+                checked[0] += 1;
+                if el.law.damping() != 0.0 {
+                    let rate = source.ramped_rate(ramp, ramp_rate, model.speed, x);
+                    assert_eq!(s.q.eta_rate[e].to_bits(), rate.to_bits(), "rate of {e}");
+                    checked[1] += (rate != 0.0) as usize;
+                }
+            }
+        })
+        .unwrap();
+    // 8 wheels and 8 lateral fastenings on 601 evaluations; rates nonzero after the zero phase.
+    assert_eq!(checked[0], 16 * 601);
+    assert!(checked[1] > 8 * 400, "{checked:?}");
+}
