@@ -1,9 +1,10 @@
 """A tiny real pipeline run of the quarter car (configs/quarter-car.yaml with small sizes),
-made once per session through ``pino_mbd.Pipeline`` with the workspace's stage binaries
+and one of the vehicle in space (configs/vtcd-3d.yaml) for the tests that need it, each made
+once per session through ``pino_mbd.Pipeline`` with the workspace's stage binaries
 (``PINO_BIN_DIR``, else ``target/debug``: ``scripts/test`` builds them first). The tests compare
 the package's answers with the files those stages and the ``predict`` command write.
 
-The run's workspace is ``PINO_TEST_WORKSPACE`` when set (``scripts/test`` sets it, so that the
+The quarter car's workspace is ``PINO_TEST_WORKSPACE`` when set (``scripts/test`` sets it, so that the
 research scripts' tests, tests/scripts, find the same run done and run nothing again), else a
 temporary directory of the session."""
 
@@ -50,10 +51,10 @@ def bin_dir() -> Path:
 class Run:
     """The pipeline run and where its outputs are."""
 
-    def __init__(self, ws: Path, bins: Path) -> None:
+    def __init__(self, ws: Path, bins: Path, sets: dict = TINY) -> None:
         self.ws = ws
         self.bins = bins
-        self.pipeline = pino_mbd.Pipeline("pipeline.yaml", workspace=ws, set=TINY)
+        self.pipeline = pino_mbd.Pipeline("pipeline.yaml", workspace=ws, set=sets)
 
     def dir(self, stage: str, file: str) -> Path:
         return Path(self.pipeline.dir(stage, file))
@@ -62,28 +63,51 @@ class Run:
         return [Path(p) for p in self.pipeline.show(stage) if os.path.basename(p) == file]
 
 
+def workspace(ws: Path, bins: Path, job: str) -> None:
+    """Makes ``ws`` a workspace of the job ``configs/<job>`` unless it is one already."""
+    if (ws / "pipeline.yaml").is_file():
+        return
+    # The pipeline file's bin_dir must lie inside the workspace: links to the binaries
+    # there; the file is the workspace's own (its `workspace: ..` dropped). It is written
+    # last: a workspace with the file is a finished setup.
+    ws.mkdir(parents=True, exist_ok=True)
+    shutil.rmtree(ws / "systems", ignore_errors=True)
+    shutil.copytree(ROOT / "systems", ws / "systems")
+    shutil.rmtree(ws / "bin", ignore_errors=True)
+    (ws / "bin").mkdir()
+    for exe in bins.iterdir():
+        if exe.is_file() and os.access(exe, os.X_OK) and not exe.suffix:
+            (ws / "bin" / exe.name).symlink_to(exe)
+    text = (ROOT / "configs" / job).read_text()
+    text = re.sub(r"(?m)^workspace: .*\n", "", re.sub(r"(?m)^bin_dir: .*$", "bin_dir: bin", text))
+    (ws / "pipeline.yaml").write_text(text)
+
+
 @pytest.fixture(scope="session")
 def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
     bins = bin_dir()
     shared = os.environ.get("PINO_TEST_WORKSPACE")
     ws = Path(shared) if shared else tmp_path_factory.mktemp("ws")
-    if not (ws / "pipeline.yaml").is_file():
-        # The pipeline file's bin_dir must lie inside the workspace: links to the binaries
-        # there; the file is the workspace's own (its `workspace: ..` dropped). It is written
-        # last: a workspace with the file is a finished setup.
-        ws.mkdir(parents=True, exist_ok=True)
-        shutil.rmtree(ws / "systems", ignore_errors=True)
-        shutil.copytree(ROOT / "systems", ws / "systems")
-        shutil.rmtree(ws / "bin", ignore_errors=True)
-        (ws / "bin").mkdir()
-        for exe in bins.iterdir():
-            if exe.is_file() and os.access(exe, os.X_OK) and not exe.suffix:
-                (ws / "bin" / exe.name).symlink_to(exe)
-        text = (ROOT / "configs" / "quarter-car.yaml").read_text()
-        text = re.sub(r"(?m)^workspace: .*\n", "", re.sub(r"(?m)^bin_dir: .*$", "bin_dir: bin", text))
-        (ws / "pipeline.yaml").write_text(text)
+    workspace(ws, bins, "quarter-car.yaml")
     r = Run(ws, bins)
     r.pipeline.run(["calibrate", "indices"], jobs=2)
+    return r
+
+
+# The vehicle in space's job at small sizes: runs of 1 s from 200 m, so that every record ends
+# with the stability index's 0.5 s of ideal track (the irregularities end at 230 m).
+TINY_3D = {**TINY, "simulate.duration": 1.0, "simulate.x0": 200.0}
+
+
+@pytest.fixture(scope="session")
+def run_3d(tmp_path_factory: pytest.TempPathFactory) -> Run:
+    """The vehicle in space's job (configs/vtcd-3d.yaml) at TINY_3D sizes, up to its
+    surrogate."""
+    bins = bin_dir()
+    ws = tmp_path_factory.mktemp("ws3d")
+    workspace(ws, bins, "vtcd-3d.yaml")
+    r = Run(ws, bins, TINY_3D)
+    r.pipeline.run(["surrogate"], jobs=2)
     return r
 
 

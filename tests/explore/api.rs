@@ -10,9 +10,9 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// The test sample of the TINY split (ids after 4 training and 2 validation samples).
-const TEST_SAMPLE: i64 = 6;
+pub(crate) const TEST_SAMPLE: i64 = 6;
 
-fn names(v: &Value, key: &str) -> Vec<String> {
+pub(crate) fn names(v: &Value, key: &str) -> Vec<String> {
     v[key]
         .as_array()
         .unwrap_or_else(|| panic!("no `{key}` in {v}"))
@@ -21,7 +21,7 @@ fn names(v: &Value, key: &str) -> Vec<String> {
         .collect()
 }
 
-fn series(v: &Value, name: &str) -> Vec<f64> {
+pub(crate) fn series(v: &Value, name: &str) -> Vec<f64> {
     v["channels"][name]
         .as_array()
         .unwrap_or_else(|| panic!("no channel `{name}`"))
@@ -30,7 +30,7 @@ fn series(v: &Value, name: &str) -> Vec<f64> {
         .collect()
 }
 
-fn floats(v: &Value) -> Vec<f64> {
+pub(crate) fn floats(v: &Value) -> Vec<f64> {
     v.as_array()
         .unwrap()
         .iter()
@@ -380,7 +380,7 @@ fn widths(p: &Value) -> Vec<f64> {
 
 /// The calibrated parts of a prediction: every index inside its interval with a verdict per
 /// limit (never `pass` when extrapolated), every predicted channel inside its band.
-fn check_intervals(model: &Value, p: &Value, coverage: f64) {
+pub(crate) fn check_intervals(model: &Value, p: &Value, coverage: f64) {
     assert_eq!(p["coverage"].as_f64(), Some(coverage), "{}", p["coverage"]);
     let extrapolated = p["extrapolated"].as_bool().expect("extrapolated");
     assert_eq!(extrapolated, !p["outside"].as_array().unwrap().is_empty());
@@ -497,7 +497,7 @@ fn the_pipeline_page_shows_what_pipeline_status_shows_and_the_latest_evaluation(
 }
 
 /// The designs file `predict --params` reads.
-fn design_file(dir: &Path, design: &BTreeMap<String, f64>) -> std::path::PathBuf {
+pub(crate) fn design_file(dir: &Path, design: &BTreeMap<String, f64>) -> std::path::PathBuf {
     let path = dir.join("design.yaml");
     let text = serde_yaml::to_string(&json!({"sets": [design]})).unwrap();
     std::fs::write(&path, text).unwrap();

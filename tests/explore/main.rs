@@ -18,6 +18,7 @@ mod api;
 mod browser;
 mod page_logic;
 mod serving;
+mod spatial;
 mod studies;
 
 /// The shared workspace's targets: every stage but the studies and the export (the explorer
@@ -71,6 +72,28 @@ impl Trained {
     /// with the TINY overrides and `extra`, in a fresh copy of the product.
     pub fn up_to(extra: &[&str], targets: &[&str]) -> Self {
         let ws = pino_mbd_tests::product_workspace("pipeline.yaml");
+        Self::run(Workspace::Temporary(ws), extra, targets)
+    }
+
+    /// Runs `targets` of the job `file` (a file of `configs/`) and what they read with the
+    /// TINY overrides and `extra`, in a fresh copy of the product with the job as its
+    /// `pipeline.yaml`.
+    pub fn job(file: &str, extra: &[&str], targets: &[&str]) -> Self {
+        let ws = TempWorkspace::new();
+        let text = std::fs::read_to_string(pino_mbd_tests::workspace_root().join(file))
+            .unwrap_or_else(|e| panic!("{file}: {e}"));
+        // The file becomes the workspace's own, as `pipeline.yaml` is: its `workspace:` line
+        // dropped, its binaries where the root pipeline's are (`--bin-dir` names them).
+        let text: String = text
+            .lines()
+            .filter(|l| !l.starts_with("workspace:"))
+            .map(|l| match l.starts_with("bin_dir:") {
+                true => "bin_dir: target/release\n".to_owned(),
+                false => format!("{l}\n"),
+            })
+            .collect();
+        std::fs::write(ws.path().join("pipeline.yaml"), text).expect("write the job file");
+        pino_mbd_tests::copy_systems(ws.path());
         Self::run(Workspace::Temporary(ws), extra, targets)
     }
 
