@@ -68,6 +68,14 @@ pub fn write_critical_speed(
     )
 }
 
+/// The two sides of a study in the tables' order: the surrogate's sweeps, then the solver's.
+fn sides(r: &CriticalSpeedStudy) -> [(&'static str, &Sweeps); 2] {
+    [
+        (source::SURROGATE, &r.surrogate),
+        (source::SOLVER, &r.solver),
+    ]
+}
+
 /// The grid parameters' columns of `cells`.
 fn push_grid(t: &mut Table, r: &CriticalSpeedStudy, cells: &[usize]) -> Result<()> {
     t.push(CELL, Column::I64(cells.iter().map(|&c| c as i64).collect()))?;
@@ -82,16 +90,12 @@ fn push_grid(t: &mut Table, r: &CriticalSpeedStudy, cells: &[usize]) -> Result<(
 
 /// One row per grid point and side: where its crossing lies, the speed and the band.
 fn critical_table(units: &Units, r: &CriticalSpeedStudy) -> Result<Table> {
-    let sides: [(&str, &Sweeps); 2] = [
-        (source::SURROGATE, &r.surrogate),
-        (source::SOLVER, &r.solver),
-    ];
     let mut cells = Vec::new();
     let mut src = Vec::new();
     let mut crossings: Vec<Crossing> = Vec::new();
     let mut band: Vec<(f64, f64)> = Vec::new();
     let mut failures = Vec::new();
-    for (name, sweeps) in sides {
+    for (name, sweeps) in sides(r) {
         let b = sweeps.critical_band(&r.speeds);
         for (k, c) in sweeps.critical(&r.speeds).into_iter().enumerate() {
             cells.push(sweeps.cells[k]);
@@ -134,10 +138,7 @@ fn sweep_table(units: &Units, r: &CriticalSpeedStudy) -> Result<Table> {
     let mut speed = Vec::new();
     let mut src = Vec::new();
     let mut growth = [Vec::new(), Vec::new(), Vec::new()];
-    for (name, sweeps) in [
-        (source::SURROGATE, &r.surrogate),
-        (source::SOLVER, &r.solver),
-    ] {
+    for (name, sweeps) in sides(r) {
         let mean = sweeps.mean();
         let bounds = sweeps.mean_bounds();
         for (k, &c) in sweeps.cells.iter().enumerate() {
@@ -168,10 +169,7 @@ fn evaluations_table(units: &Units, r: &CriticalSpeedStudy) -> Result<Table> {
     let mut excitation = Vec::new();
     let mut src = Vec::new();
     let mut growth = Vec::new();
-    for (name, sweeps) in [
-        (source::SURROGATE, &r.surrogate),
-        (source::SOLVER, &r.solver),
-    ] {
+    for (name, sweeps) in sides(r) {
         for (k, &c) in sweeps.cells.iter().enumerate() {
             for (s, &v) in r.speeds.iter().enumerate() {
                 for (e, &g) in sweeps.growth[k][s].iter().enumerate() {
