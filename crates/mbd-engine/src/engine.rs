@@ -215,7 +215,7 @@ pub struct Engine {
     pub(crate) route: Route,
     /// Per element, the wheel of a wheelset at run time (empty without wheels).
     pub(crate) wheels: Vec<Option<Wheel>>,
-    /// The profiles under the elements, each part read once per point.
+    /// The profiles under the elements, each part read once per position.
     reads: ProfileReads,
     /// The rigid DOFs' coefficient groups, compiled.
     assembly: Assembly,
