@@ -13,8 +13,10 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import subprocess
 from pathlib import Path
 
+import polars as pl
 import pytest
 
 import pino_mbd
@@ -61,6 +63,19 @@ class Run:
 
     def files(self, stage: str, file: str) -> list[Path]:
         return [Path(p) for p in self.pipeline.show(stage) if os.path.basename(p) == file]
+
+    def predict(self, surrogate: Path, designs: pl.DataFrame, tmp: Path) -> tuple[pl.DataFrame, pl.DataFrame]:
+        """The ``predict --surrogate --seed 7`` command's tables of ``designs`` (one design per
+        row, every column a parameter): the channels (``--out``) and the indices (``--indices``)."""
+        sets, out, ix = tmp / "sets.yaml", tmp / "out.parquet", tmp / "indices.parquet"
+        sets.write_text("".join(
+            "- {" + ", ".join(f"{k}: {v!r}" for k, v in row.items()) + "}\n"
+            for row in designs.iter_rows(named=True)))
+        cmd = [str(self.bins / "predict"), "--surrogate", str(surrogate), "--seed", "7",
+               "--params", str(sets), "--out", str(out), "--indices", str(ix)]
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        return pl.read_parquet(out), pl.read_parquet(ix)
 
 
 def workspace(ws: Path, bins: Path, job: str) -> None:

@@ -73,18 +73,12 @@ def test_each_answer_is_its_routed_members(run, surrogate, surrogate_dir) -> Non
 
 
 def test_the_tables_are_the_commands(run, surrogate, surrogate_dir, tmp_path) -> None:
-    sets = tmp_path / "sets.yaml"
-    sets.write_text("- {k_s: 2.0e+4, v_kmh: 60.0}\n- {k_s: 4.0e+4, v_kmh: 72.0}\n")
-    out, ix = tmp_path / "out.parquet", tmp_path / "indices.parquet"
-    cmd = [str(run.bins / "predict"), "--surrogate", str(surrogate_dir), "--seed", "7",
-           "--params", str(sets), "--out", str(out), "--indices", str(ix)]
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
     designs = pl.DataFrame({"k_s": [2.0e4, 4.0e4], "v_kmh": [60.0, 72.0]})
+    out, ix = run.predict(surrogate_dir, designs, tmp_path)
     with pytest.warns(UserWarning, match="outside"):
-        assert_bit_identical(surrogate.predict(designs, excitation=7), pl.read_parquet(out))
+        assert_bit_identical(surrogate.predict(designs, excitation=7), out)
     with pytest.warns(UserWarning, match="outside"):
-        assert_bit_identical(surrogate.indices(designs, excitation=7), pl.read_parquet(ix))
+        assert_bit_identical(surrogate.indices(designs, excitation=7), ix)
 
 
 def refusals(surrogate_dir: Path, tmp_path: Path):

@@ -504,6 +504,70 @@ pub(crate) fn design_file(dir: &Path, design: &BTreeMap<String, f64>) -> std::pa
     path
 }
 
+/// Asserts that `pred` (a `/api/predict` answer of `design` on the test sample's track) equals
+/// the `predict` command's table through the served surrogate, every channel to the bit.
+pub(crate) fn assert_equals_predict_command(
+    trained: &Trained,
+    model: &Value,
+    design: &BTreeMap<String, f64>,
+    pred: &Value,
+) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.parquet");
+    let o = std::process::Command::new(pino_mbd_tests::bin("predict"))
+        .arg("--surrogate")
+        .arg(model["model"]["dir"].as_str().unwrap())
+        .arg("--params")
+        .arg(design_file(dir.path(), design))
+        .arg("--profile")
+        .arg(trained.file("irregularity", "irregularity.parquet"))
+        .args(["--profile-id", &TEST_SAMPLE.to_string(), "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", pino_mbd_tests::output_text(&o));
+    let table = pino_data::read_parquet(&out, None).unwrap();
+    assert_eq!(floats(&pred["t"]), table.f64("t").unwrap());
+    for name in names(model, "channels") {
+        assert_eq!(
+            series(pred, &name),
+            table.f64(&name).unwrap(),
+            "{name}: the page's numbers are predict's"
+        );
+    }
+}
+
+/// The test sample's simulated record of each of `channels` at the times of `solved` (a
+/// `/api/solve` answer), read from the `simulate` stage's files.
+pub(crate) fn simulated<S: AsRef<str>>(
+    trained: &Trained,
+    solved: &Value,
+    channels: &[S],
+) -> Vec<Vec<f64>> {
+    let sims: Vec<_> = trained
+        .show("simulate")
+        .into_iter()
+        .filter(|p| p.file_name().is_some_and(|n| n == "simulation.parquet"))
+        .collect();
+    let sim = pino_data::read_parquet_files(&sims, None).unwrap();
+    let (ids, times) = (sim.i64("sample_id").unwrap(), sim.f64("t").unwrap());
+    let rows: Vec<usize> = floats(&solved["t"])
+        .iter()
+        .map(|&t| {
+            (0..ids.len())
+                .find(|&r| ids[r] == TEST_SAMPLE && (times[r] - t).abs() < 1e-9)
+                .unwrap_or_else(|| panic!("no simulated row at t = {t}"))
+        })
+        .collect();
+    channels
+        .iter()
+        .map(|name| {
+            let col = sim.f64(name.as_ref()).unwrap();
+            rows.iter().map(|&r| col[r]).collect()
+        })
+        .collect()
+}
+
 #[test]
 fn predictions_equal_the_predict_command_and_solves_equal_the_simulation() {
     let trained = Trained::shared();
@@ -511,7 +575,6 @@ fn predictions_equal_the_predict_command_and_solves_equal_the_simulation() {
     let mut c = served.client();
     let model = c.get("/api/model").unwrap().json();
     let channels = names(&model, "channels");
-    let surrogate_dir = model["model"]["dir"].as_str().unwrap().to_owned();
     let test = &model["excitation"]["test_samples"][0];
     assert_eq!(test["sample_id"], TEST_SAMPLE);
 
@@ -545,30 +608,7 @@ fn predictions_equal_the_predict_command_and_solves_equal_the_simulation() {
     assert!(cal["levels"][2]["why"].as_str().unwrap().contains("0.95"));
     check_intervals(&model, &served_pred, 0.9);
     assert_eq!(served_pred["extrapolated"], true);
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("p.parquet");
-    let o = std::process::Command::new(pino_mbd_tests::bin("predict"))
-        .arg("--surrogate")
-        .arg(&surrogate_dir)
-        .arg("--params")
-        .arg(design_file(dir.path(), &design))
-        .arg("--profile")
-        .arg(trained.file("irregularity", "irregularity.parquet"))
-        .args(["--profile-id", &TEST_SAMPLE.to_string(), "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", pino_mbd_tests::output_text(&o));
-    let table = pino_data::read_parquet(&out, None).unwrap();
-    assert_eq!(floats(&served_pred["t"]), table.f64("t").unwrap());
-    for name in &channels {
-        let got = series(&served_pred, name);
-        assert_eq!(
-            got,
-            table.f64(name).unwrap(),
-            "{name}: the page's numbers are predict's"
-        );
-    }
+    assert_equals_predict_command(trained, &model, &design, &served_pred);
 
     // The test sample's own design through the solver equals its simulated record.
     let a = c
@@ -579,25 +619,7 @@ fn predictions_equal_the_predict_command_and_solves_equal_the_simulation() {
         .unwrap();
     assert_eq!(a.status, 200, "{}", String::from_utf8_lossy(&a.body));
     let solved = a.json();
-    let t = floats(&solved["t"]);
-    let sims: Vec<_> = trained
-        .show("simulate")
-        .into_iter()
-        .filter(|p| p.file_name().is_some_and(|n| n == "simulation.parquet"))
-        .collect();
-    let sim = pino_data::read_parquet_files(&sims, None).unwrap();
-    let (ids, times) = (sim.i64("sample_id").unwrap(), sim.f64("t").unwrap());
-    let rows: Vec<usize> = t
-        .iter()
-        .map(|&tt| {
-            (0..ids.len())
-                .find(|&r| ids[r] == TEST_SAMPLE && (times[r] - tt).abs() < 1e-9)
-                .unwrap_or_else(|| panic!("no simulated row at t = {tt}"))
-        })
-        .collect();
-    for name in &channels {
-        let col = sim.f64(name).unwrap();
-        let expected: Vec<f64> = rows.iter().map(|&r| col[r]).collect();
+    for (name, expected) in channels.iter().zip(simulated(trained, &solved, &channels)) {
         let e = rel(&series(&solved, name), &expected);
         assert!(e <= 1e-12, "{name}: solve vs simulate {e:e}");
     }

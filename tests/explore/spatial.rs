@@ -3,7 +3,9 @@
 //! interval, and its numbers are the `predict` command's; the solver's run of the test sample
 //! equals its simulated record.
 
-use crate::api::{check_intervals, design_file, floats, names, series, TEST_SAMPLE};
+use crate::api::{
+    assert_equals_predict_command, check_intervals, names, series, simulated, TEST_SAMPLE,
+};
 use crate::Trained;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -58,29 +60,7 @@ fn the_vehicle_in_space_is_served_with_its_lateral_indices_and_predict_s_numbers
     assert_eq!(served_indices, indices);
 
     // The same design and track through `predict`: the page's numbers to the bit.
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("p.parquet");
-    let o = std::process::Command::new(pino_mbd_tests::bin("predict"))
-        .arg("--surrogate")
-        .arg(model["model"]["dir"].as_str().unwrap())
-        .arg("--params")
-        .arg(design_file(dir.path(), &design))
-        .arg("--profile")
-        .arg(trained.file("irregularity", "irregularity.parquet"))
-        .args(["--profile-id", &TEST_SAMPLE.to_string(), "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", pino_mbd_tests::output_text(&o));
-    let table = pino_data::read_parquet(&out, None).unwrap();
-    assert_eq!(floats(&pred["t"]), table.f64("t").unwrap());
-    for name in &channels {
-        assert_eq!(
-            series(&pred, name),
-            table.f64(name).unwrap(),
-            "{name}: the page's numbers are predict's"
-        );
-    }
+    assert_equals_predict_command(&trained, &model, &design, &pred);
 
     // The solver's run of the test sample equals its simulated record.
     let a = c
@@ -91,24 +71,8 @@ fn the_vehicle_in_space_is_served_with_its_lateral_indices_and_predict_s_numbers
         .unwrap();
     assert_eq!(a.status, 200, "{}", String::from_utf8_lossy(&a.body));
     let solved = a.json();
-    let sims: Vec<_> = trained
-        .show("simulate")
-        .into_iter()
-        .filter(|p| p.file_name().is_some_and(|n| n == "simulation.parquet"))
-        .collect();
-    let sim = pino_data::read_parquet_files(&sims, None).unwrap();
-    let (ids, times) = (sim.i64("sample_id").unwrap(), sim.f64("t").unwrap());
-    let rows: Vec<usize> = floats(&solved["t"])
-        .iter()
-        .map(|&t| {
-            (0..ids.len())
-                .find(|&r| ids[r] == TEST_SAMPLE && (times[r] - t).abs() < 1e-9)
-                .unwrap_or_else(|| panic!("no simulated row at t = {t}"))
-        })
-        .collect();
-    for name in LATERAL_CHANNELS {
-        let col = sim.f64(name).unwrap();
-        let expected: Vec<f64> = rows.iter().map(|&r| col[r]).collect();
+    let records = simulated(&trained, &solved, &LATERAL_CHANNELS);
+    for (name, expected) in LATERAL_CHANNELS.iter().zip(records) {
         assert_eq!(series(&solved, name), expected, "{name}: solve vs simulate");
     }
     assert_eq!(names(&solved, "indices"), indices);
