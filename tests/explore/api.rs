@@ -497,7 +497,7 @@ fn the_pipeline_page_shows_what_pipeline_status_shows_and_the_latest_evaluation(
 }
 
 /// The designs file `predict --params` reads.
-pub(crate) fn design_file(dir: &Path, design: &BTreeMap<String, f64>) -> std::path::PathBuf {
+fn design_file(dir: &Path, design: &BTreeMap<String, f64>) -> std::path::PathBuf {
     let path = dir.join("design.yaml");
     let text = serde_yaml::to_string(&json!({"sets": [design]})).unwrap();
     std::fs::write(&path, text).unwrap();
@@ -513,20 +513,13 @@ pub(crate) fn assert_equals_predict_command(
     pred: &Value,
 ) {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("p.parquet");
-    let o = std::process::Command::new(pino_mbd_tests::bin("predict"))
-        .arg("--surrogate")
-        .arg(model["model"]["dir"].as_str().unwrap())
-        .arg("--params")
-        .arg(design_file(dir.path(), design))
-        .arg("--profile")
-        .arg(trained.file("irregularity", "irregularity.parquet"))
-        .args(["--profile-id", &TEST_SAMPLE.to_string(), "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", pino_mbd_tests::output_text(&o));
-    let table = pino_data::read_parquet(&out, None).unwrap();
+    let surrogate = Path::new(model["model"]["dir"].as_str().unwrap());
+    let table = trained.predict(
+        surrogate,
+        &design_file(dir.path(), design),
+        TEST_SAMPLE,
+        dir.path(),
+    );
     assert_eq!(floats(&pred["t"]), table.f64("t").unwrap());
     for name in names(model, "channels") {
         assert_eq!(
@@ -544,18 +537,13 @@ pub(crate) fn simulated<S: AsRef<str>>(
     solved: &Value,
     channels: &[S],
 ) -> Vec<Vec<f64>> {
-    let sims: Vec<_> = trained
-        .show("simulate")
-        .into_iter()
-        .filter(|p| p.file_name().is_some_and(|n| n == "simulation.parquet"))
-        .collect();
-    let sim = pino_data::read_parquet_files(&sims, None).unwrap();
-    let (ids, times) = (sim.i64("sample_id").unwrap(), sim.f64("t").unwrap());
+    let sim = trained.sample_rows(TEST_SAMPLE);
+    let times = sim.f64("t").unwrap();
     let rows: Vec<usize> = floats(&solved["t"])
         .iter()
         .map(|&t| {
-            (0..ids.len())
-                .find(|&r| ids[r] == TEST_SAMPLE && (times[r] - t).abs() < 1e-9)
+            (0..times.len())
+                .find(|&r| (times[r] - t).abs() < 1e-9)
                 .unwrap_or_else(|| panic!("no simulated row at t = {t}"))
         })
         .collect();

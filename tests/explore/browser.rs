@@ -16,11 +16,11 @@
 //! 30 moves, measured in the page); nothing is asserted about it.
 
 use crate::Trained;
-use pino_data::{read_parquet, Column, Table};
+use pino_data::{read_parquet, Table};
 use pino_mbd_tests::{output_text, workspace_root};
 use serde_json::{Map, Value};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 
 /// Where the screenshots, the downloaded design and `results.json` stay after the test.
@@ -159,12 +159,7 @@ fn a_user_explores_designs_in_a_real_browser() {
     for d in [&solve["design"], &solve["answer"]["design"]] {
         assert_same_design(obj(d), &sample_design, "the solved design");
     }
-    let sim_files: Vec<PathBuf> = trained
-        .show("simulate")
-        .into_iter()
-        .filter(|p| p.file_name().is_some_and(|n| n == "simulation.parquet"))
-        .collect();
-    let sim = sample_rows(&sim_files, sample_id);
+    let sim = trained.sample_rows(sample_id);
     let compared = compare_plotted(&solve["charts"], " (solver)", &sim, 1e-9, 1e-300);
     assert!(
         compared >= 2,
@@ -182,7 +177,12 @@ fn a_user_explores_designs_in_a_real_browser() {
     let equivalent = scratch.path().join("slider-design.yaml");
     let sets = serde_json::json!({"sets": [slider["design"]]});
     std::fs::write(&equivalent, serde_yaml::to_string(&sets).unwrap()).unwrap();
-    let predicted = predict(trained, &equivalent, sample_id, scratch.path());
+    let predicted = trained.predict(
+        &served_surrogate(trained),
+        &equivalent,
+        sample_id,
+        scratch.path(),
+    );
     let compared = compare_plotted(&slider["charts"], "", &predicted, 1e-5, 1e-12);
     assert!(
         compared >= 2,
@@ -288,7 +288,7 @@ fn a_user_explores_designs_in_a_real_browser() {
             "design.yaml {name} = {got}, page {want}"
         );
     }
-    let read_back = predict(trained, &file, sample_id, scratch.path());
+    let read_back = trained.predict(&served_surrogate(trained), &file, sample_id, scratch.path());
     let compared = compare_plotted(&download["charts"], "", &read_back, 1e-5, 1e-12);
     assert!(
         compared >= 2,
@@ -303,49 +303,13 @@ fn a_user_explores_designs_in_a_real_browser() {
     );
 }
 
-/// `predict --params FILE` with the test sample's profile, its time histories read back.
-fn predict(trained: &Trained, params: &Path, sample_id: i64, dir: &Path) -> Table {
+/// The directory of the surrogate `explore` serves.
+fn served_surrogate(trained: &Trained) -> PathBuf {
     let manifest = trained.file(crate::SERVED_SURROGATE, "surrogate.json");
-    let surrogate = manifest.parent().expect("surrogate directory");
-    let profile = trained.file("irregularity", "irregularity.parquet");
-    let stem = params.file_stem().unwrap().to_string_lossy();
-    let to = dir.join(format!("{stem}-predicted.parquet"));
-    let o = Command::new(pino_mbd_tests::bin("predict"))
-        .arg("--surrogate")
-        .arg(surrogate)
-        .arg("--params")
-        .arg(params)
-        .arg("--profile")
-        .arg(&profile)
-        .arg("--profile-id")
-        .arg(sample_id.to_string())
-        .arg("--out")
-        .arg(&to)
-        .output()
-        .expect("predict runs");
-    assert!(o.status.success(), "predict: {}", output_text(&o));
-    read_parquet(&to, None).unwrap()
-}
-
-/// The rows of `sample_id` from the `simulate` shards.
-fn sample_rows(files: &[PathBuf], sample_id: i64) -> Table {
-    for f in files {
-        let t = read_parquet(f, None).unwrap();
-        let ids = t.i64("sample_id").unwrap();
-        if !ids.contains(&sample_id) {
-            continue;
-        }
-        let rows: Vec<usize> = (0..ids.len()).filter(|&i| ids[i] == sample_id).collect();
-        let mut out = Table::with_origin(f);
-        for name in t.names() {
-            if let Ok(col) = t.f64(name) {
-                let v: Vec<f64> = rows.iter().map(|&i| col[i]).collect();
-                out.push(name, Column::F64(v)).unwrap();
-            }
-        }
-        return out;
-    }
-    panic!("no simulate shard holds sample {sample_id}: {files:?}");
+    manifest
+        .parent()
+        .expect("surrogate directory")
+        .to_path_buf()
 }
 
 /// Compares every plotted series whose label is `CHANNEL` + `suffix` (`charts`: {GROUP:

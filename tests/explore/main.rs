@@ -5,6 +5,7 @@
 //! would, in a real browser (`browser`: Chromium driven by Playwright); `page_logic` runs the
 //! page's own unit tests under Node.js's test runner.
 
+use pino_data::{read_parquet, Column, Table};
 use pino_explore::client::Client;
 use pino_mbd_tests::{output_text, TempWorkspace, TINY};
 use std::io::BufRead;
@@ -132,6 +133,55 @@ impl Trained {
             .find(|p| p.file_name().is_some_and(|n| n == name))
             .unwrap_or_else(|| panic!("{stage} wrote no {name}: {files:?}"))
             .clone()
+    }
+
+    /// `predict --surrogate surrogate --params params` on the track of test sample
+    /// `sample_id` (this workspace's irregularity), its `--out` table (written under `dir`).
+    pub fn predict(&self, surrogate: &Path, params: &Path, sample_id: i64, dir: &Path) -> Table {
+        let profile = self.file("irregularity", "irregularity.parquet");
+        let stem = params.file_stem().unwrap().to_string_lossy();
+        let to = dir.join(format!("{stem}-predicted.parquet"));
+        let o = Command::new(pino_mbd_tests::bin("predict"))
+            .arg("--surrogate")
+            .arg(surrogate)
+            .arg("--params")
+            .arg(params)
+            .arg("--profile")
+            .arg(&profile)
+            .arg("--profile-id")
+            .arg(sample_id.to_string())
+            .arg("--out")
+            .arg(&to)
+            .output()
+            .expect("predict runs");
+        assert!(o.status.success(), "predict: {}", output_text(&o));
+        read_parquet(&to, None).unwrap()
+    }
+
+    /// The rows of `sample_id` from the `simulate` stage's shards (every f64 column).
+    pub fn sample_rows(&self, sample_id: i64) -> Table {
+        let files: Vec<PathBuf> = self
+            .show("simulate")
+            .into_iter()
+            .filter(|p| p.file_name().is_some_and(|n| n == "simulation.parquet"))
+            .collect();
+        for f in &files {
+            let t = read_parquet(f, None).unwrap();
+            let ids = t.i64("sample_id").unwrap();
+            if !ids.contains(&sample_id) {
+                continue;
+            }
+            let rows: Vec<usize> = (0..ids.len()).filter(|&i| ids[i] == sample_id).collect();
+            let mut out = Table::with_origin(f);
+            for name in t.names() {
+                if let Ok(col) = t.f64(name) {
+                    let v: Vec<f64> = rows.iter().map(|&i| col[i]).collect();
+                    out.push(name, Column::F64(v)).unwrap();
+                }
+            }
+            return out;
+        }
+        panic!("no simulate shard holds sample {sample_id}: {files:?}");
     }
 
     /// Starts `explore` on this workspace's served surrogate ([`SERVED_SURROGATE`]), on a free loopback port unless
